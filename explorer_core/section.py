@@ -1,0 +1,365 @@
+"""Stroboscopic (Poincare) sections: points ``(q_k, r_k) = (q, r)(t0 + k T)``.
+
+The paper's map (poi-map) ``x_{k+1} = F(x_k)`` sampled for many initial
+conditions. Only section points are stored, never the trajectory between them.
+
+:func:`iter_section` streams the work in chunks of periods so a caller (the web
+app, the CLI's progress line) can draw points as they come and stop early;
+:func:`section` collects the chunks into a :class:`Section`.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from explorer_core import config
+from explorer_core.integrators import Batch, Status, advance, get_method
+from explorer_core.model import Model, ParameterError, Params
+
+
+@dataclass(frozen=True)
+class Numerics:
+    """How to integrate: method, tolerances, budgets. Validated on construction."""
+
+    method: str = config.DEFAULT_METHOD
+    rtol: float = config.DEFAULT_RTOL
+    atol: float = config.DEFAULT_ATOL
+    steps_per_period: int = config.DEFAULT_STEPS_PER_PERIOD
+    bound: float = config.DEFAULT_ESCAPE_BOUND
+    max_steps: int = config.DEFAULT_MAX_STEPS_PER_PERIOD
+    #: False runs dp5/dop853 at ``steps_per_period`` fixed steps (rk4 is always fixed).
+    adaptive: bool = True
+
+    def __post_init__(self) -> None:
+        try:
+            object.__setattr__(self, "method", get_method(self.method).name)
+        except ValueError as exc:
+            raise ParameterError(str(exc)) from None
+        for name, lo, hi in (("rtol", 1e-15, 1.0), ("atol", 1e-300, 1e6)):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and lo <= v <= hi):
+                raise ParameterError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
+            object.__setattr__(self, name, float(v))
+        for name, lo, hi in (("steps_per_period", 1, 10_000_000), ("max_steps", 10, 1_000_000_000)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
+                raise ParameterError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
+            object.__setattr__(self, name, int(v))
+        b = self.bound
+        if not (isinstance(b, int | float) and b > 0 and not math.isnan(b)):
+            raise ParameterError(f"bound must be a positive number, got {b!r}")
+        object.__setattr__(self, "bound", float(b))
+
+    def kernel_kwargs(self) -> dict[str, Any]:
+        return {
+            "method": self.method,
+            "rtol": self.rtol,
+            "atol": self.atol,
+            "steps_per_period": self.steps_per_period,
+            "bound": self.bound,
+            "max_steps": self.max_steps,
+            "adaptive": bool(self.adaptive) and get_method(self.method).adaptive,
+        }
+
+    def as_dict(self) -> dict[str, Any]:
+        return dict(self.kernel_kwargs())
+
+
+def random_ics(n: int, box: Sequence[float], seed: int | None = 0) -> np.ndarray:
+    """``n`` initial conditions uniform in ``box = (qmin, qmax, rmin, rmax)``, reproducible by ``seed``."""
+    n = _check_int("random", n, 1, config.MAX_TRAJECTORIES)
+    box = check_box(box)
+    rng = np.random.default_rng(seed)
+    return np.column_stack([rng.uniform(box[0], box[1], n), rng.uniform(box[2], box[3], n)])
+
+
+def check_box(box: Sequence[float], name: str = "box") -> tuple[float, float, float, float]:
+    """Validate ``(qmin, qmax, rmin, rmax)``."""
+    try:
+        vals = tuple(float(v) for v in box)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be four numbers qmin,qmax,rmin,rmax, got {box!r}") from None
+    if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
+        raise ParameterError(f"{name} must be four finite numbers qmin,qmax,rmin,rmax, got {box!r}")
+    if not (vals[0] < vals[1] and vals[2] < vals[3]):
+        raise ParameterError(f"{name} must have qmin < qmax and rmin < rmax, got {vals!r}")
+    return vals  # type: ignore[return-value]
+
+
+def _check_int(name: str, v: Any, lo: int, hi: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
+        raise ParameterError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
+    return int(v)
+
+
+def check_ics(ics: Any) -> np.ndarray:
+    """Initial conditions as a finite (n, 2) float array."""
+    arr = np.asarray(ics, dtype=float)
+    if arr.ndim == 1 and arr.size == 2:
+        arr = arr.reshape(1, 2)
+    if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] == 0:
+        raise ParameterError(f"initial conditions must be (q, r) pairs, got shape {arr.shape}")
+    if arr.shape[0] > config.MAX_TRAJECTORIES:
+        raise ParameterError(f"at most {config.MAX_TRAJECTORIES} initial conditions, got {arr.shape[0]}")
+    bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+    if bad.size:
+        raise ParameterError(f"initial condition {bad[0]} is not finite: {arr[bad[0]].tolist()}")
+    return np.ascontiguousarray(arr)
+
+
+@dataclass(frozen=True)
+class SectionChunk:
+    """Section points of one chunk of periods.
+
+    ``points[i, :npts[i]]`` are trajectory ``i``'s points at ``k = k_first + j``
+    (``j < npts[i]``); ``status`` is each trajectory's status after the chunk.
+    """
+
+    k_first: int
+    points: np.ndarray
+    npts: np.ndarray
+    status: np.ndarray
+    nsteps: np.ndarray
+    done_periods: int
+    total_periods: int
+    elapsed_s: float
+
+    def long(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Valid points as flat columns ``(traj, k, q, r)``."""
+        return _long(self.points, self.npts, self.k_first, self.k_step)
+
+    @property
+    def k_step(self) -> int:
+        return 1 if self.k_first >= 0 else -1
+
+
+def _long(points: np.ndarray, npts: np.ndarray, k_first: int, k_step: int = 1):
+    n, m = points.shape[0], points.shape[1]
+    mask = np.arange(m)[None, :] < npts[:, None]
+    traj = np.broadcast_to(np.arange(n)[:, None], (n, m))[mask]
+    k = np.broadcast_to(k_first + k_step * np.arange(m)[None, :], (n, m))[mask]
+    return traj, k, points[..., 0][mask], points[..., 1][mask]
+
+
+def _chunk_schedule(total: int, chunk: int | None, first: int) -> Iterator[int]:
+    """Chunk sizes: fixed, or growing 1, 2, 4, ... so the first points come at once."""
+    done = 0
+    size = first
+    while done < total:
+        step = min(chunk if chunk else size, total - done)
+        yield step
+        done += step
+        if not chunk:
+            size = min(size * 2, 512)
+
+
+def iter_section(
+    params: Params,
+    ics: Any,
+    periods: int,
+    *,
+    transient: int = 0,
+    numerics: Numerics | None = None,
+    direction: int = 1,
+    chunk_periods: int | None = None,
+    first_chunk: int = 1,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+) -> Iterator[SectionChunk]:
+    """Stream a section in chunks of periods.
+
+    Parameters
+    ----------
+    params : the system.
+    ics : (n, 2) initial conditions ``(q, r)`` at ``t0``.
+    periods : section points wanted per trajectory, at ``k = transient + 1, ..., transient + periods``.
+    transient : periods integrated first and not returned.
+    numerics : method, tolerances, escape bound, step budget.
+    direction : +1 forward, -1 backward (points at ``t0 - k T``, reported with negative ``k``).
+    chunk_periods : fixed chunk size; default grows 1, 2, 4, ... up to 512.
+    cancel : polled between chunks; returning True stops the stream.
+    """
+    numerics = numerics or Numerics()
+    ics = check_ics(ics)
+    periods = _check_int("periods", periods, 1, config.MAX_PERIODS)
+    transient = _check_int("transient", transient, 0, config.MAX_PERIODS)
+    if direction not in (1, -1):
+        raise ParameterError(f"direction must be +1 or -1, got {direction!r}")
+    model = Model(params)
+    batch = Batch.start(ics, params.t0, direction * params.period)
+    kw = numerics.kernel_kwargs()
+    start = time.perf_counter()
+    for size in _chunk_schedule(transient, None, max(1, first_chunk)) if transient else ():
+        if cancel is not None and cancel():
+            return
+        advance(model, batch, size, store=False, workers=workers, **kw)
+    done = 0
+    for size in _chunk_schedule(periods, chunk_periods, max(1, first_chunk)):
+        if cancel is not None and cancel():
+            return
+        k_first = batch.k + 1
+        pts, npts = advance(model, batch, size, workers=workers, **kw)
+        done += size
+        yield SectionChunk(
+            k_first=direction * k_first,
+            points=pts,
+            npts=npts,
+            status=batch.status.copy(),
+            nsteps=batch.nsteps.copy(),
+            done_periods=done,
+            total_periods=periods,
+            elapsed_s=time.perf_counter() - start,
+        )
+        if not np.any(batch.status == Status.OK):
+            return
+
+
+@dataclass
+class Section:
+    """A computed section: per-trajectory points, status and cost.
+
+    ``points[i, :npts[i]]`` are the valid points of trajectory ``i`` at
+    ``k = k_first, k_first + 1, ...`` (negative and decreasing when backward).
+    Points after a failure do not exist: use :meth:`trajectory` or :meth:`long`.
+    """
+
+    params: Params
+    numerics: Numerics
+    ics: np.ndarray
+    k_first: int
+    points: np.ndarray = field(repr=False)
+    npts: np.ndarray
+    status: np.ndarray
+    nsteps: np.ndarray
+    elapsed_s: float
+    completed: bool = True
+    periods: int = 0
+    transient: int = 0
+
+    @property
+    def n(self) -> int:
+        return self.ics.shape[0]
+
+    @property
+    def k_step(self) -> int:
+        return 1 if self.k_first >= 0 else -1
+
+    def trajectory(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(k, q, r)`` of trajectory ``i``'s valid points."""
+        m = int(self.npts[i])
+        k = self.k_first + self.k_step * np.arange(m)
+        return k, self.points[i, :m, 0].copy(), self.points[i, :m, 1].copy()
+
+    def long(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every valid point as flat columns ``(traj, k, q, r)``."""
+        return _long(self.points, self.npts, self.k_first, self.k_step)
+
+    def status_labels(self) -> list[str]:
+        return [Status(int(s)).label for s in self.status]
+
+    def summary(self) -> dict[str, Any]:
+        """JSON summary: one entry per trajectory plus timing and settings."""
+        return {
+            "trajectories": [
+                {"ic": [float(q), float(r)], "status": lab, "points": int(n), "steps": int(s)}
+                for (q, r), lab, n, s in zip(self.ics, self.status_labels(), self.npts, self.nsteps, strict=True)
+            ],
+            "elapsed_s": round(self.elapsed_s, 6),
+            "completed": self.completed,
+            "periods": self.periods,
+            "transient": self.transient,
+            "params": self.params.as_dict(),
+            "numerics": self.numerics.as_dict(),
+        }
+
+    def to_csv(self, path: str) -> int:
+        """Write ``traj,k,q,r`` rows (valid points only); returns the row count."""
+        traj, k, q, r = self.long()
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["traj", "k", "q", "r"])
+            for row in zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True):
+                w.writerow((row[0], row[1], repr(row[2]), repr(row[3])))
+        return int(traj.size)
+
+
+def section(
+    params: Params,
+    ics: Any,
+    periods: int,
+    *,
+    transient: int = 0,
+    numerics: Numerics | None = None,
+    direction: int = 1,
+    chunk_periods: int | None = None,
+    progress: Callable[[SectionChunk], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+) -> Section:
+    """Compute a whole section (see :func:`iter_section` for the parameters).
+
+    ``progress`` is called after each chunk. If ``cancel`` stops the work, the
+    points computed so far are returned with ``completed=False``.
+    """
+    numerics = numerics or Numerics()
+    ics = check_ics(ics)
+    periods = _check_int("periods", periods, 1, config.MAX_PERIODS)
+    n = ics.shape[0]
+    if n * periods > config.MAX_POINTS:
+        raise ParameterError(
+            f"{n} trajectories x {periods} periods = {n * periods} points exceeds the limit {config.MAX_POINTS}"
+        )
+    points = np.empty((n, periods, 2))
+    npts = np.zeros(n, dtype=np.int64)
+    status = np.zeros(n, dtype=np.int64)
+    start = time.perf_counter()
+    done = 0
+    nsteps = np.zeros(n, dtype=np.int64)
+    k_first = direction * (transient + 1)
+
+    def track_cancel() -> bool:
+        return bool(cancel and cancel())
+
+    stream = iter_section(
+        params,
+        ics,
+        periods,
+        transient=transient,
+        numerics=numerics,
+        direction=direction,
+        chunk_periods=chunk_periods,
+        first_chunk=max(1, chunk_periods or 16),
+        cancel=track_cancel,
+        workers=workers,
+    )
+    for chunk in stream:
+        m = chunk.points.shape[1]
+        points[:, done : done + m] = chunk.points
+        # Trajectory i's points stay contiguous: it contributes only while alive.
+        npts += chunk.npts
+        status = chunk.status
+        nsteps = chunk.nsteps
+        done += m
+        if progress is not None:
+            progress(chunk)
+    return Section(
+        params=params,
+        numerics=numerics,
+        ics=ics,
+        k_first=k_first,
+        points=points,
+        npts=npts,
+        status=status,
+        nsteps=nsteps,
+        elapsed_s=time.perf_counter() - start,
+        completed=done == periods or not np.any(status == Status.OK),
+        periods=periods,
+        transient=transient,
+    )

@@ -1,0 +1,140 @@
+"""Integrator kernels: tableaus, agreement with slow references, order, status."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from naive import rk4_section, solve_ivp_section
+from scipy.integrate._ivp import dop853_coefficients, rk
+
+from explorer_core import tableaus
+from explorer_core.integrators import METHODS, Batch, Status, advance
+from explorer_core.model import Model, Params
+
+FIG1C = Params(inertia=(1, 4, 2, 0, 0, 0), alpha=0.1)
+REGULAR_IC = (0.32, 0.688)
+
+
+@pytest.mark.parametrize("name", ["rk4-tableau", "dp5", "dop853"])
+def test_tableau_invariants(name: str) -> None:
+    m = METHODS[name]
+    assert m.b.sum() == pytest.approx(1.0, abs=1e-14)
+    np.testing.assert_allclose(m.a.sum(axis=1), m.c, atol=1e-14)
+    assert np.all(np.triu(m.a) == 0.0), "explicit methods only"
+    if m.adaptive:
+        # Error weights of an embedded pair sum to zero (both solutions are consistent).
+        for e in (m.e, m.e3, m.e5):
+            assert e.sum() == pytest.approx(0.0, abs=1e-14)
+
+
+def test_tableaus_equal_published_values() -> None:
+    np.testing.assert_array_equal(tableaus.DP5_B, rk.RK45.B)
+    np.testing.assert_array_equal(tableaus.DP5_E, rk.RK45.E)
+    np.testing.assert_array_equal(tableaus.DOP853_A, dop853_coefficients.A[:12, :12])
+    np.testing.assert_array_equal(tableaus.DOP853_E5, dop853_coefficients.E5)
+
+
+def _run(params: Params, ics, periods: int, **kw) -> tuple[np.ndarray, np.ndarray, Batch]:
+    batch = Batch.start(np.atleast_2d(ics), params.t0, params.period)
+    out, npts = advance(Model(params), batch, periods, **kw)
+    return out, npts, batch
+
+
+def test_rk4_kernel_matches_plain_python_rk4() -> None:
+    params = Params(inertia=(1, 2, 4, 0, 0.5, 0.3), alpha=-0.2, g0=0.1, g2=0.4, omega=1.5, t0=0.3)
+    out, npts, _ = _run(params, [0.4, -0.3], 3, method="rk4", steps_per_period=50)
+    ref = rk4_section(params, [0.4, -0.3], 3, 50)
+    np.testing.assert_allclose(out[0], ref, rtol=1e-12, atol=1e-13)
+
+
+def test_generic_kernel_with_rk4_tableau_matches_hand_written_rk4() -> None:
+    a, _, _ = _run(FIG1C, REGULAR_IC, 4, method="rk4", steps_per_period=64)
+    b, _, _ = _run(FIG1C, REGULAR_IC, 4, method="rk4-tableau", steps_per_period=64)
+    np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize(
+    ("method", "steps", "lo", "hi"),
+    [("rk4", [40, 80, 160, 320], 3.7, 4.5), ("dp5", [40, 80, 160], 4.6, 5.6), ("dop853", [10, 14, 20, 28], 7.5, 9.8)],
+)
+def test_measured_convergence_order(method: str, steps: list[int], lo: float, hi: float) -> None:
+    ref = solve_ivp_section(FIG1C, REGULAR_IC, 5, rtol=2.3e-14, atol=1e-14)
+    errs = []
+    for n in steps:
+        out, _, _ = _run(FIG1C, REGULAR_IC, 5, method=method, adaptive=False, steps_per_period=n)
+        errs.append(np.abs(out[0] - ref).max())
+    order = -np.polyfit(np.log(steps), np.log(errs), 1)[0]
+    assert lo <= order <= hi, (order, errs)
+
+
+@pytest.mark.parametrize("method", ["dp5", "dop853"])
+def test_adaptive_error_follows_tolerance(method: str) -> None:
+    ref = solve_ivp_section(FIG1C, REGULAR_IC, 20, rtol=1e-13, atol=1e-13)
+    errs = []
+    for tol in (1e-6, 1e-8, 1e-10):
+        out, _, batch = _run(FIG1C, REGULAR_IC, 20, method=method, rtol=tol, atol=tol)
+        assert batch.status[0] == Status.OK
+        errs.append(np.abs(out[0] - ref).max())
+    assert errs[0] > errs[1] > errs[2]
+    assert errs[2] < 1e-7
+
+
+def test_batch_split_across_threads_is_bitwise_identical() -> None:
+    rng = np.random.default_rng(5)
+    ics = rng.uniform(-1, 1, (37, 2))
+    a, na, ba = _run(FIG1C, ics, 6, workers=1)
+    b, nb_, bb = _run(FIG1C, ics, 6, workers=2)
+    np.testing.assert_array_equal(na, nb_)
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(ba.nsteps, bb.nsteps)
+
+
+# --- failures are data ------------------------------------------------------------
+
+FIG1A = Params(inertia=(1, 2, 4, 0, 0, 0), alpha=0.1)
+
+
+@pytest.mark.parametrize("method", ["rk4", "dp5", "dop853"])
+def test_drift_beyond_bound_is_flagged_escaped(method: str) -> None:
+    # Fig. 3's initial condition drifts (|r| grows ~0.24 per period).
+    out, npts, batch = _run(FIG1A, [0.0, 8.0], 200, method=method, bound=20.0, steps_per_period=400)
+    assert batch.status[0] == Status.ESCAPED
+    assert 0 < npts[0] < 200
+    valid = out[0, : npts[0]]
+    assert np.all(np.isfinite(valid)) and np.all(np.abs(valid) <= 20.0)
+
+
+def test_step_budget_exhaustion_is_flagged() -> None:
+    _, npts, batch = _run(FIG1C, REGULAR_IC, 5, method="dop853", max_steps=10, rtol=1e-12, atol=1e-12)
+    assert batch.status[0] == Status.TOO_MANY_STEPS
+    assert npts[0] == 0
+
+
+def test_step_collapse_at_huge_time_is_flagged() -> None:
+    # At t ~ 1e14 consecutive doubles are ~0.02 apart: the step the tolerance needs
+    # is below what the time axis can resolve, so the step must be seen to collapse.
+    params = FIG1C.with_(t0=1.0e14)
+    _, npts, batch = _run(params, REGULAR_IC, 3, method="dop853", rtol=1e-13, atol=1e-13)
+    assert batch.status[0] == Status.STEP_COLLAPSED
+    assert npts[0] == 0
+
+
+@pytest.mark.parametrize("method", ["dp5", "dop853"])
+def test_overflow_is_flagged_nonfinite(method: str) -> None:
+    out, npts, batch = _run(FIG1A, [[1e155, 1e155], [0.1, 0.2]], 2, method=method, bound=np.inf)
+    assert batch.status.tolist() == [Status.NONFINITE, Status.OK]
+    assert npts.tolist() == [0, 2]
+    assert np.all(np.isfinite(out[1]))
+
+
+def test_rk4_overflow_is_flagged_nonfinite() -> None:
+    _, npts, batch = _run(FIG1A, [1e150, 1e150], 3, method="rk4", steps_per_period=4, bound=np.inf)
+    assert batch.status[0] == Status.NONFINITE
+    assert npts[0] == 0
+
+
+def test_nonfinite_initial_condition_never_runs() -> None:
+    batch = Batch.start(np.array([[np.nan, 0.0], [0.1, 0.1]]), 0.0, FIG1C.period)
+    _, npts = advance(Model(FIG1C), batch, 2)
+    assert batch.status.tolist() == [Status.NONFINITE, Status.OK]
+    assert npts.tolist() == [0, 2]
