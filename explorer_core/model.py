@@ -120,7 +120,9 @@ class Params:
 
     def with_(self, **changes: Any) -> Params:
         """A copy with some fields changed; accepts inertia entries by name (``I11=...``)."""
-        ent = list(self.inertia)
+        ent = list(changes.pop("inertia", self.inertia))
+        if len(ent) != 6:
+            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {len(ent)}: {ent!r}")
         for i, n in enumerate(INERTIA_NAMES):
             if n in changes:
                 ent[i] = changes.pop(n)

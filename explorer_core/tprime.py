@@ -1,0 +1,158 @@
+"""Where the constraint pumps energy in and where it takes it out.
+
+The paper (section "Two critical points", after Fig. 2) reads the power of the
+constraint reaction ``T' = dT/dt = alpha * lambda`` as a guide: where ``T' > 0``
+the body spins up, where ``T' < 0`` it slows down, alternating sign allows
+compact motion. Two maps on a ``(q, r)`` grid:
+
+* :func:`tprime_map` -- ``T'`` at a frozen time ``t`` (a quadratic in ``(q, r)``;
+  one set of coefficients serves the whole grid);
+* :func:`energy_change_map` -- ``T(t0 + T) - T(t0)`` for the trajectory starting
+  at each grid point: a batch of one-period integrations.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from explorer_core import config
+from explorer_core.integrators import Batch, Status, advance
+from explorer_core.model import Model, ParameterError, Params
+from explorer_core.section import Numerics
+
+
+@dataclass(frozen=True)
+class TPrimeMap:
+    """Values on a grid: ``values[j, i]`` at ``(q[i], r[j])``.
+
+    ``ok[j, i]`` is False where the value could not be computed (the one-period
+    trajectory escaped or failed); such cells hold 0 in ``values`` and their
+    status code in ``status`` -- they are never NaN.
+    """
+
+    kind: str  # "instantaneous" (T' at t) or "per-period" (T(t0+T) - T(t0))
+    t: float
+    q: np.ndarray
+    r: np.ndarray
+    values: np.ndarray
+    ok: np.ndarray
+    status: np.ndarray
+    params: Params
+    elapsed_s: float
+
+    @property
+    def sign(self) -> np.ndarray:
+        """+1 energy gain, -1 loss, 0 neutral or not computed."""
+        return np.where(self.ok, np.sign(self.values), 0).astype(np.int8)
+
+    def fractions(self) -> dict[str, float]:
+        """Share of computed cells with gain / loss."""
+        n = max(1, int(self.ok.sum()))
+        return {
+            "gain": float(np.count_nonzero(self.ok & (self.values > 0)) / n),
+            "loss": float(np.count_nonzero(self.ok & (self.values < 0)) / n),
+            "failed": float(np.count_nonzero(~self.ok) / self.ok.size),
+        }
+
+    def to_npz(self, path: str) -> None:
+        """Arrays plus the parameters as JSON, so the file says what it holds."""
+        np.savez_compressed(
+            path,
+            kind=self.kind,
+            t=self.t,
+            q=self.q,
+            r=self.r,
+            values=self.values,
+            sign=self.sign,
+            ok=self.ok,
+            status=self.status,
+            params=json.dumps(self.params.as_dict()),
+        )
+
+
+def check_range(rng: Any, name: str) -> tuple[float, float]:
+    """A finite ``(lo, hi)`` with ``lo < hi``; the error names the parameter."""
+    try:
+        lo, hi = (float(v) for v in rng)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be two numbers lo,hi, got {rng!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ParameterError(f"{name} must be finite with lo < hi, got {rng!r}")
+    return lo, hi
+
+
+def _grid(q_range: Any, r_range: Any, grid: Any) -> tuple[np.ndarray, np.ndarray]:
+    if isinstance(grid, int | np.integer) and not isinstance(grid, bool):
+        nq = nr = int(grid)
+    else:
+        try:
+            nq, nr = (int(v) for v in grid)
+        except (TypeError, ValueError):
+            raise ParameterError(f"grid must be N or (NQ, NR), got {grid!r}") from None
+    for v in (nq, nr):
+        if not 2 <= v <= config.MAX_GRID:
+            raise ParameterError(f"grid must be between 2 and {config.MAX_GRID} per axis, got {grid!r}")
+    qlo, qhi = check_range(q_range, "q_range")
+    rlo, rhi = check_range(r_range, "r_range")
+    return np.linspace(qlo, qhi, nq), np.linspace(rlo, rhi, nr)
+
+
+def tprime_map(params: Params, t: float, q_range: Any, r_range: Any, grid: Any = 200) -> TPrimeMap:
+    """``T' = alpha * lambda`` on a grid at the frozen time ``t``."""
+    start = time.perf_counter()
+    t = float(t)
+    if not math.isfinite(t):
+        raise ParameterError(f"t must be finite, got {t!r}")
+    q, r = _grid(q_range, r_range, grid)
+    values = Model(params).tprime(q[None, :], r[:, None], t)
+    ok = np.isfinite(values)
+    status = np.where(ok, int(Status.OK), int(Status.NONFINITE)).astype(np.int8)
+    return TPrimeMap(
+        "instantaneous", t, q, r, np.where(ok, values, 0.0), ok, status, params, time.perf_counter() - start
+    )
+
+
+def energy_change_map(
+    params: Params,
+    q_range: Any,
+    r_range: Any,
+    grid: Any = 100,
+    numerics: Numerics | None = None,
+    workers: int | None = None,
+) -> TPrimeMap:
+    """``T(t0 + T) - T(t0)`` for the trajectory starting at each grid point at ``t0``.
+
+    The period's energy balance is what decides spin-up or decay on average;
+    the instantaneous sign alternates within a period almost everywhere.
+    """
+    start = time.perf_counter()
+    numerics = numerics or Numerics(rtol=1e-8, atol=1e-8)
+    q, r = _grid(q_range, r_range, grid)
+    qq, rr = np.meshgrid(q, r)
+    ics = np.column_stack([qq.ravel(), rr.ravel()])
+    model = Model(params)
+    batch = Batch.start(ics, params.t0, params.period)
+    out, npts = advance(model, batch, 1, workers=workers, **numerics.kernel_kwargs())
+    ok = npts == 1
+    # g is T-periodic, so T at both ends uses the same g(t0).
+    e0 = model.energy(ics[:, 0], ics[:, 1], params.t0)
+    e1 = model.energy(out[:, 0, 0], out[:, 0, 1], params.t0)
+    values = np.where(ok, e1 - e0, 0.0)
+    shape = qq.shape
+    return TPrimeMap(
+        "per-period",
+        params.t0,
+        q,
+        r,
+        values.reshape(shape),
+        ok.reshape(shape),
+        batch.status.astype(np.int8).reshape(shape),
+        params,
+        time.perf_counter() - start,
+    )

@@ -1,0 +1,193 @@
+"""The bilimovich command line: outputs in the documented shapes, one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from explorer_core.cli import main
+
+
+def run(capsys, *args: str) -> tuple[int, str, str]:
+    try:
+        rc = main(list(args))
+    except SystemExit as exc:  # argparse exits on usage errors
+        rc = exc.code
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def test_section_csv_and_json(capsys, tmp_path) -> None:
+    out = tmp_path / "s.csv"
+    rc, stdout, err = run(
+        capsys,
+        "section",
+        "--scene",
+        "fig1C",
+        "--ic",
+        "0.1,0.2",
+        "--ic",
+        "0.5,-0.3",
+        "--periods",
+        "7",
+        "--transient",
+        "2",
+        "--out",
+        str(out),
+        "--json",
+    )
+    assert rc == 0, err
+    summary = json.loads(stdout)
+    assert [t["ic"] for t in summary["trajectories"]] == [[0.1, 0.2], [0.5, -0.3]]
+    assert {t["status"] for t in summary["trajectories"]} == {"ok"}
+    assert [t["points"] for t in summary["trajectories"]] == [7, 7]
+    assert summary["elapsed_s"] >= 0
+    rows = list(csv.reader(out.open()))
+    assert rows[0] == ["traj", "k", "q", "r"]
+    assert len(rows) == 15 and rows[1][:2] == ["0", "3"] and rows[-1][:2] == ["1", "9"]
+
+
+def test_explicit_flags_override_scene(capsys) -> None:
+    rc, stdout, _ = run(
+        capsys,
+        "section",
+        "--scene",
+        "fig8B",
+        "--alpha",
+        "-0.4",
+        "--I11",
+        "1.2",
+        "--omega",
+        "2",
+        "--random",
+        "3",
+        "--seed",
+        "4",
+        "--periods",
+        "2",
+        "--method",
+        "rk4",
+        "--json",
+    )
+    assert rc == 0
+    s = json.loads(stdout)
+    assert s["params"]["alpha"] == -0.4 and s["params"]["inertia"][0] == 1.2 and s["params"]["omega"] == 2.0
+    assert s["params"]["inertia"][4] == 0.5  # from the scene
+    assert s["numerics"]["method"] == "rk4"
+    assert len(s["trajectories"]) == 3
+
+
+def test_escaped_trajectory_reported(capsys) -> None:
+    rc, stdout, _ = run(
+        capsys,
+        "section",
+        "--inertia",
+        "1,2,4,0,0,0",
+        "--alpha",
+        "0.1",
+        "--ic",
+        "0,8",
+        "--periods",
+        "300",
+        "--bound",
+        "25",
+        "--json",
+    )
+    assert rc == 0
+    t = json.loads(stdout)["trajectories"][0]
+    assert t["status"] == "escaped" and 0 < t["points"] < 300
+
+
+def test_critical_json_shape(capsys) -> None:
+    rc, stdout, _ = run(capsys, "critical", "--inertia", "1,2,4,0,0,0", "--alpha", "0.1", "--t", "0.3", "--json")
+    assert rc == 0
+    d = json.loads(stdout)
+    assert d["t"] == 0.3
+    pts = sorted((e["q"], e["r"]) for e in d["equilibria"])
+    np.testing.assert_allclose(pts, sorted([(0.0, 0.0), (-0.1 / np.cos(0.3), np.sin(0.3) / 2)]), atol=1e-12)
+    for e in d["equilibria"]:
+        assert len(e["eigenvalues"]) == 2 and len(e["eigenvalues"][0]) == 2 and isinstance(e["type"], str)
+
+
+def test_critical_track_csv(capsys, tmp_path) -> None:
+    out = tmp_path / "tracks.csv"
+    rc, _, err = run(capsys, "critical", "--scene", "fig8B", "--track", "--n-t", "101", "--out", str(out))
+    assert rc == 0, err
+    rows = list(csv.reader(out.open()))
+    assert rows[0][:5] == ["branch", "t", "q", "r", "type"]
+    assert len(rows) > 100
+
+
+def test_tprime_npz(capsys, tmp_path) -> None:
+    out = tmp_path / "t.npz"
+    rc, _, err = run(
+        capsys,
+        "tprime",
+        "--scene",
+        "fig1A",
+        "--t",
+        "0.5",
+        "--q-range",
+        "-1,1",
+        "--r-range",
+        "-2,2",
+        "--grid",
+        "12",
+        "--out",
+        str(out),
+    )
+    assert rc == 0, err
+    with np.load(out) as z:
+        assert z["values"].shape == (12, 12) and str(z["kind"]) == "instantaneous"
+    rc, _, err = run(capsys, "tprime", "--scene", "fig1A", "--grid", "6", "--per-period", "--out", str(out))
+    assert rc == 0, err
+    with np.load(out) as z:
+        assert str(z["kind"]) == "per-period"
+
+
+def test_scenes_listing(capsys) -> None:
+    rc, stdout, _ = run(capsys, "scenes")
+    assert rc == 0 and "fig8B" in stdout and "fig11" in stdout
+    rc, stdout, _ = run(capsys, "scenes", "--json")
+    assert len(json.loads(stdout)) == 22
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["section", "--inertia", "1,2,4,3,0,0", "--ic", "0,0", "--periods", "3"], "not positive definite"),
+        (["section", "--inertia", "1,2,4", "--ic", "0,0", "--periods", "3"], "--inertia needs 6"),
+        (["section", "--alpha", "nan", "--ic", "0,0", "--periods", "3"], "alpha must be finite"),
+        (["section", "--omega", "0", "--ic", "0,0", "--periods", "3"], "omega must be > 0"),
+        (["section", "--omega", "-1", "--ic", "0,0", "--periods", "3"], "omega must be > 0"),
+        (["section", "--ic", "0,x", "--periods", "3"], "--ic must be comma-separated numbers"),
+        (["section", "--ic", "0,0"], "--periods is required"),
+        (["section", "--periods", "3"], "give initial conditions"),
+        (["section", "--random", "0", "--periods", "3"], "random must be between 1"),
+        (["section", "--random", "3", "--box", "1,0,0,1", "--periods", "3"], "qmin < qmax"),
+        (["section", "--scene", "nope", "--periods", "3"], "unknown scene 'nope'"),
+        (["section", "--ic", "0,0", "--periods", "3", "--rtol", "0"], "rtol must be"),
+        (["section", "--ic", "0,0", "--periods", "3", "--method", "euler"], "invalid choice"),
+        (["section", "--ic", "0,0", "--periods", "3", "--out", "/no/such/dir/x.csv"], "does not exist"),
+        (["tprime", "--grid", "1"], "grid must be between 2"),
+        (["tprime", "--q-range", "3,1"], "q_range must be finite with lo < hi"),
+        (["critical", "--t", "inf", "--json"], "t must be finite"),
+        (["critical", "--track"], "--track needs --out"),
+    ],
+)
+def test_bad_input_one_line_no_traceback(capsys, args, needle) -> None:
+    rc, _, err = run(capsys, *args)
+    assert rc == 2
+    assert needle in err
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_console_script_installed() -> None:
+    exe = subprocess.run([sys.executable, "-m", "explorer_core.cli", "--version"], capture_output=True, text=True)
+    assert exe.returncode == 0 and "bilimovich" in exe.stdout
