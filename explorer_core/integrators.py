@@ -34,7 +34,7 @@ import numba as nb
 import numpy as np
 
 from explorer_core import config, tableaus
-from explorer_core.model import Model, rhs
+from explorer_core.model import Model, coefficients_at, forcing_g, rhs
 
 
 class Status(IntEnum):
@@ -327,6 +327,246 @@ def advance_rk4(
             npts[i] = j + 1
 
 
+@_jit
+def _quad2(c, q, r) -> tuple[float, float]:
+    return (
+        c[0, 0] + q * (c[0, 1] + c[0, 3] * q + c[0, 4] * r) + r * (c[0, 2] + c[0, 5] * r),
+        c[1, 0] + q * (c[1, 1] + c[1, 3] * q + c[1, 4] * r) + r * (c[1, 2] + c[1, 5] * r),
+    )
+
+
+@_jit
+def _coefs(num, gpc, den, forcing, t, c) -> None:
+    g, gp = forcing_g(forcing, t)
+    coefficients_at(num[:2], gpc[:2], den, g, gp, c)
+
+
+@_jit
+def advance_adaptive_block(
+    a_mat,
+    b_vec,
+    c_vec,
+    e_vec,
+    e3_vec,
+    e5_vec,
+    dop853_error,
+    order,
+    error_order,
+    num,
+    gpc,
+    den,
+    forcing,
+    t_base,
+    period,
+    k_first,
+    n_periods,
+    y,
+    h,
+    status,
+    nsteps,
+    out,
+    npts,
+    store,
+    rtol,
+    atol,
+    max_steps,
+    bound,
+    idx,
+):
+    """Advance the trajectories ``idx`` together, in lock-step, with one adaptive step sequence.
+
+    Same arguments and outputs as :func:`advance_adaptive`. The step is accepted only if
+    every trajectory's own error norm is <= 1, so each meets its tolerance; the field's
+    coefficients are computed once per stage for the whole block (they depend on t
+    only), which is what makes this faster. A trajectory that fails (escapes, overflows,
+    or alone forces the step below the round-off floor) leaves the block; the others go on.
+    """
+    s = b_vec.shape[0]
+    m = idx.shape[0]
+    kk = np.empty((s + 1, m, 2))
+    yq = np.empty(m)
+    yr = np.empty(m)
+    qn = np.empty(m)
+    rn = np.empty(m)
+    live = np.zeros(m, dtype=np.bool_)
+    live0 = np.zeros(m, dtype=np.bool_)
+    c = np.empty((2, 6))
+    work = np.empty((2, 6))
+    d = 1.0 if period > 0.0 else -1.0
+    span = abs(period)
+    expo = -1.0 / (error_order + 1.0)
+    n_live = 0
+    habs = 0.0
+    for p in range(m):
+        i = idx[p]
+        npts[i] = 0
+        if status[i] == _OK:
+            live[p] = True
+            n_live += 1
+            yq[p] = y[i, 0]
+            yr[p] = y[i, 1]
+            if h[i] > 0.0 and (habs == 0.0 or h[i] < habs):
+                habs = h[i]
+    if n_live == 0:
+        return
+    for j in range(n_periods):
+        ta = t_base + (k_first + j) * period
+        tb = t_base + (k_first + j + 1) * period
+        t = ta
+        live0[:] = live
+        _coefs(num, gpc, den, forcing, t, c)
+        for p in range(m):
+            if live[p]:
+                kk[0, p, 0], kk[0, p, 1] = _quad2(c, yq[p], yr[p])
+                if not (math.isfinite(kk[0, p, 0]) and math.isfinite(kk[0, p, 1])):
+                    live[p] = False
+                    n_live -= 1
+                    status[idx[p]] = _NONFINITE
+        if n_live == 0:
+            break
+        if habs <= 0.0:
+            habs = span
+            for p in range(m):
+                if live[p]:
+                    hp = _initial_step(
+                        num,
+                        gpc,
+                        den,
+                        forcing,
+                        t,
+                        yq[p],
+                        yr[p],
+                        kk[0, p, 0],
+                        kk[0, p, 1],
+                        d,
+                        span,
+                        order,
+                        rtol,
+                        atol,
+                        work,
+                    )
+                    habs = min(habs, hp)
+        steps = 0
+        saw_nonfinite = False
+        while n_live > 0:
+            remaining = (tb - t) * d
+            if remaining <= 0.0:
+                break
+            hmin = 10.0 * _EPS * max(abs(t), span)
+            hstep = habs
+            last = False
+            if hstep >= remaining - hmin:
+                hstep = remaining
+                last = True
+            hs = d * hstep
+            for st in range(1, s):
+                _coefs(num, gpc, den, forcing, t + c_vec[st] * hs, c)
+                for p in range(m):
+                    if not live[p]:
+                        continue
+                    sq = 0.0
+                    sr = 0.0
+                    for mm in range(st):
+                        am = a_mat[st, mm]
+                        if am != 0.0:
+                            sq += am * kk[mm, p, 0]
+                            sr += am * kk[mm, p, 1]
+                    kk[st, p, 0], kk[st, p, 1] = _quad2(c, yq[p] + hs * sq, yr[p] + hs * sr)
+            tn = tb if last else t + hs
+            _coefs(num, gpc, den, forcing, tn, c)
+            err = 0.0
+            worst = -1
+            any_nonfinite = False
+            for p in range(m):
+                if not live[p]:
+                    continue
+                bq = 0.0
+                br = 0.0
+                for mm in range(s):
+                    bq += b_vec[mm] * kk[mm, p, 0]
+                    br += b_vec[mm] * kk[mm, p, 1]
+                qn[p] = yq[p] + hs * bq
+                rn[p] = yr[p] + hs * br
+                kk[s, p, 0], kk[s, p, 1] = _quad2(c, qn[p], rn[p])
+                scq = atol + rtol * max(abs(yq[p]), abs(qn[p]))
+                scr = atol + rtol * max(abs(yr[p]), abs(rn[p]))
+                if dop853_error:
+                    e5q = 0.0
+                    e5r = 0.0
+                    e3q = 0.0
+                    e3r = 0.0
+                    for mm in range(s + 1):
+                        e5q += e5_vec[mm] * kk[mm, p, 0]
+                        e5r += e5_vec[mm] * kk[mm, p, 1]
+                        e3q += e3_vec[mm] * kk[mm, p, 0]
+                        e3r += e3_vec[mm] * kk[mm, p, 1]
+                    n5 = (e5q / scq) ** 2 + (e5r / scr) ** 2
+                    n3 = (e3q / scq) ** 2 + (e3r / scr) ** 2
+                    ep = 0.0 if (n5 == 0.0 and n3 == 0.0) else hstep * n5 / math.sqrt((n5 + 0.01 * n3) * 2.0)
+                else:
+                    eq = 0.0
+                    er = 0.0
+                    for mm in range(s + 1):
+                        eq += e_vec[mm] * kk[mm, p, 0]
+                        er += e_vec[mm] * kk[mm, p, 1]
+                    ep = hstep * _rms_norm2(eq, er, scq, scr)
+                if not (math.isfinite(ep) and math.isfinite(kk[s, p, 0]) and math.isfinite(kk[s, p, 1])):
+                    any_nonfinite = True
+                    ep = math.inf
+                if ep > err:
+                    err = ep
+                    worst = p
+            steps += 1
+            if err <= 1.0:
+                t = tn
+                for p in range(m):
+                    if live[p]:
+                        yq[p] = qn[p]
+                        yr[p] = rn[p]
+                        kk[0, p, 0] = kk[s, p, 0]
+                        kk[0, p, 1] = kk[s, p, 1]
+                        if abs(qn[p]) > bound or abs(rn[p]) > bound:
+                            live[p] = False
+                            n_live -= 1
+                            status[idx[p]] = _ESCAPED
+                factor = _MAX_FACTOR if err == 0.0 else min(_MAX_FACTOR, _SAFETY * err**expo)
+                habs = max(habs, hstep * factor) if last else hstep * factor
+            else:
+                if any_nonfinite:
+                    saw_nonfinite = True
+                    habs = hstep * _MIN_FACTOR
+                else:
+                    habs = hstep * max(_MIN_FACTOR, _SAFETY * err**expo)
+                if habs < hmin:
+                    # Only the trajectory that forces the step down fails; the block goes on.
+                    live[worst] = False
+                    n_live -= 1
+                    status[idx[worst]] = _NONFINITE if saw_nonfinite else _COLLAPSED
+                    saw_nonfinite = False
+                    habs = hstep
+            if steps >= max_steps:
+                for p in range(m):
+                    if live[p]:
+                        live[p] = False
+                        status[idx[p]] = _TOO_MANY
+                n_live = 0
+        for p in range(m):
+            i = idx[p]
+            if live0[p]:
+                nsteps[i] += steps
+            if live[p]:
+                y[i, 0] = yq[p]
+                y[i, 1] = yr[p]
+                if store:
+                    out[i, j, 0] = yq[p]
+                    out[i, j, 1] = yr[p]
+                npts[i] = j + 1
+        if n_live == 0:
+            break
+    for p in range(m):
+        h[idx[p]] = habs
+
+
 # ---------------------------------------------------------------------------
 # Methods as data, and the batch driver.
 
@@ -469,11 +709,16 @@ def advance(
     adaptive: bool = True,
     store: bool = True,
     workers: int | None = None,
+    block: int = config.BLOCK_SIZE,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Advance every live trajectory of ``batch`` by ``n_periods`` periods.
 
     ``adaptive=False`` runs an embedded pair (dp5, dop853) at ``steps_per_period``
-    fixed steps; rk4 is always fixed-step.
+    fixed steps; rk4 is always fixed-step. With ``block > 1`` the adaptive methods
+    integrate blocks of up to ``block`` trajectories in lock-step
+    (:func:`advance_adaptive_block`): trajectories are grouped by the size of their
+    state (a proxy for how fast they rotate), deterministically, so results do not
+    depend on the number of workers. ``block=1`` uses one step sequence per trajectory.
 
     Returns
     -------
@@ -544,8 +789,31 @@ def advance(
                 idx,
             )
 
-    parts = min(workers or config.N_WORKERS, n)
-    if parts <= 1:
+    parts = max(1, min(workers or config.N_WORKERS, n))
+    lockstep = meth.adaptive and adaptive and block > 1
+    if lockstep:
+        kernel_args = (meth.a, meth.b, meth.c, meth.e, meth.e3, meth.e5, meth.name == "dop853", float(meth.order),
+                       float(meth.error_order), *args_common, batch.t0, batch.period, batch.k, n_periods, batch.y,
+                       batch.h, batch.status, batch.nsteps, out, npts, store, float(rtol), float(atol),
+                       int(max_steps), float(bound))  # fmt: skip
+        alive = np.flatnonzero(batch.status == Status.OK)
+        speed = np.max(np.abs(batch.y[alive]), axis=1)
+        order = alive[np.argsort(speed, kind="stable")]
+        blocks = [order[i : i + block] for i in range(0, order.size, block)]
+        npts[:] = 0
+
+        def run_blocks(bs: list[np.ndarray]) -> None:
+            for b in bs:
+                advance_adaptive_block(*kernel_args, np.ascontiguousarray(b, dtype=np.int64))
+
+        shares = [blocks[w::parts] for w in range(parts)]
+        if parts <= 1 or len(blocks) <= 1:
+            run_blocks(blocks)
+        else:
+            futures = [_pool().submit(run_blocks, sh) for sh in shares if sh]
+            for f in futures:
+                f.result()
+    elif parts <= 1:
         run(np.arange(n, dtype=np.int64))
     else:
         # Each worker touches only its own rows of the shared arrays.
@@ -562,5 +830,6 @@ def warmup() -> None:
 
     model = Model(Params())
     for name in METHODS:
-        batch = Batch.start(np.array([[0.1, 0.2]]), 0.0, 2 * math.pi)
-        advance(model, batch, 1, method=name, steps_per_period=8, workers=1)
+        for block in (1, config.BLOCK_SIZE):
+            batch = Batch.start(np.array([[0.1, 0.2], [0.3, 0.1]]), 0.0, 2 * math.pi)
+            advance(model, batch, 1, method=name, steps_per_period=8, workers=1, block=block)

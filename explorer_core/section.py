@@ -148,8 +148,8 @@ def _long(points: np.ndarray, npts: np.ndarray, k_first: int, k_step: int = 1):
     return traj, k, points[..., 0][mask], points[..., 1][mask]
 
 
-def _chunk_schedule(total: int, chunk: int | None, first: int) -> Iterator[int]:
-    """Chunk sizes: fixed, or growing 1, 2, 4, ... so the first points come at once."""
+def _chunk_schedule(total: int, chunk: int | None, first: int, max_chunk: int = 512) -> Iterator[int]:
+    """Chunk sizes: fixed, or growing 1, 2, 4, ... up to ``max_chunk`` so the first points come at once."""
     done = 0
     size = first
     while done < total:
@@ -157,7 +157,7 @@ def _chunk_schedule(total: int, chunk: int | None, first: int) -> Iterator[int]:
         yield step
         done += step
         if not chunk:
-            size = min(size * 2, 512)
+            size = min(size * 2, max_chunk)
 
 
 def iter_section(
@@ -170,6 +170,7 @@ def iter_section(
     direction: int = 1,
     chunk_periods: int | None = None,
     first_chunk: int = 1,
+    max_chunk: int = 512,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
 ) -> Iterator[SectionChunk]:
@@ -183,7 +184,8 @@ def iter_section(
     transient : periods integrated first and not returned.
     numerics : method, tolerances, escape bound, step budget.
     direction : +1 forward, -1 backward (points at ``t0 - k T``, reported with negative ``k``).
-    chunk_periods : fixed chunk size; default grows 1, 2, 4, ... up to 512.
+    chunk_periods : fixed chunk size; default grows 1, 2, 4, ... up to ``max_chunk``
+        (a smaller cap bounds how long a cancel waits).
     cancel : polled between chunks; returning True stops the stream.
     """
     numerics = numerics or Numerics()
@@ -196,12 +198,12 @@ def iter_section(
     batch = Batch.start(ics, params.t0, direction * params.period)
     kw = numerics.kernel_kwargs()
     start = time.perf_counter()
-    for size in _chunk_schedule(transient, None, max(1, first_chunk)) if transient else ():
+    for size in _chunk_schedule(transient, None, max(1, first_chunk), max_chunk) if transient else ():
         if cancel is not None and cancel():
             return
         advance(model, batch, size, store=False, workers=workers, **kw)
     done = 0
-    for size in _chunk_schedule(periods, chunk_periods, max(1, first_chunk)):
+    for size in _chunk_schedule(periods, chunk_periods, max(1, first_chunk), max_chunk):
         if cancel is not None and cancel():
             return
         k_first = batch.k + 1

@@ -138,3 +138,34 @@ def test_nonfinite_initial_condition_never_runs() -> None:
     _, npts = advance(Model(FIG1C), batch, 2)
     assert batch.status.tolist() == [Status.NONFINITE, Status.OK]
     assert npts.tolist() == [0, 2]
+
+
+# --- the lock-step block kernel ---------------------------------------------------------
+
+
+@pytest.mark.parametrize("method", ["dp5", "dop853"])
+def test_block_kernel_meets_tolerance_like_the_single_one(method: str) -> None:
+    ics = np.array([REGULAR_IC, (0.94, 1.238), (0.2, -0.5), (-1.0, 0.3)])
+    ref = np.stack([solve_ivp_section(FIG1C, ic, 30, rtol=1e-13, atol=1e-13) for ic in ics])
+    blk, _, bb = _run(FIG1C, ics, 30, method=method, rtol=1e-10, atol=1e-10, block=16)
+    one, _, b1 = _run(FIG1C, ics, 30, method=method, rtol=1e-10, atol=1e-10, block=1)
+    assert np.abs(blk - ref).max() < 1e-7 and np.abs(one - ref).max() < 1e-7
+    # One step sequence for the block: every member takes as many steps as the fastest.
+    assert len(set(bb.nsteps.tolist())) == 1 and bb.nsteps[0] >= b1.nsteps.max()
+
+
+def test_failure_in_a_block_does_not_stop_the_others() -> None:
+    ics = np.array([[0.0, 8.0], REGULAR_IC, [1e155, 1e155], (0.2, -0.5)])
+    out, npts, batch = _run(FIG1A, ics, 200, rtol=1e-8, atol=1e-8, bound=20.0, block=16)
+    assert batch.status.tolist() == [Status.ESCAPED, Status.OK, Status.NONFINITE, Status.OK]
+    assert npts[1] == npts[3] == 200 and 0 < npts[0] < 200 and npts[2] == 0
+    single, _, _ = _run(FIG1A, ics[[1, 3]], 200, rtol=1e-8, atol=1e-8, block=1)
+    np.testing.assert_allclose(out[[1, 3]], single, atol=1e-5)
+
+
+def test_block_results_do_not_depend_on_worker_count() -> None:
+    ics = np.random.default_rng(2).uniform(-2, 2, (50, 2))
+    a, _, ba = _run(FIG1C, ics, 8, block=16, workers=1)
+    b, _, bb = _run(FIG1C, ics, 8, block=16, workers=2)
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(ba.nsteps, bb.nsteps)
