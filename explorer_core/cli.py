@@ -287,6 +287,365 @@ def cmd_tprime(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Interrupt:
+    """Ctrl-C sets a flag that long work polls (``cancel``); the previous handler is restored."""
+
+    def __init__(self) -> None:
+        self.flag = False
+        self._old: Any = None
+
+    def __enter__(self) -> _Interrupt:
+        def on_signal(signum: int, frame: Any) -> None:
+            self.flag = True
+
+        self._old = signal.signal(signal.SIGINT, on_signal)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        signal.signal(signal.SIGINT, self._old)
+
+    def __call__(self) -> bool:
+        return self.flag
+
+
+def _progress_line(quiet: bool):
+    """A throttled ``\r``-progress writer for stderr (silent unless stderr is a terminal)."""
+    show = not quiet and sys.stderr.isatty()
+    last = [0.0]
+
+    def write(text: str, final: bool = False) -> None:
+        now = time.perf_counter()
+        if show and (final or now - last[0] > 0.2):
+            last[0] = now
+            sys.stderr.write(f"\r{text} ")
+            sys.stderr.flush()
+
+    return write, show
+
+
+def _ics_arg(args: argparse.Namespace, scene: Scene | None) -> np.ndarray | None:
+    if args.ic:
+        return np.array([_floats(s, 2, "--ic") for s in args.ic])
+    return None
+
+
+def cmd_lyapunov(args: argparse.Namespace) -> int:
+    from explorer_core.lyapunov import attractor_ensemble, lyapunov_spectrum
+
+    params, scene = _params(args)
+    ics = _ics_arg(args, scene)
+    if ics is None:
+        if scene is None or not scene.points:
+            raise UsageError("give an initial condition: --ic Q,R")
+        ics = np.array(scene.points[:1])
+    transient = args.transient if args.transient is not None else (scene.transient if scene else 100)
+    numerics = _numerics(args, None, args.periods)
+    if args.ensemble > 1:
+        if ics.shape[0] > 1:
+            raise UsageError("--ensemble M takes one --ic (the members are placed on its attractor)")
+        ics = attractor_ensemble(
+            params, ics[0], args.ensemble, transient=transient, offset=args.offset, seed=args.seed, numerics=numerics
+        )
+    write, show = _progress_line(args.quiet)
+    with _Interrupt() as stop:
+        res = lyapunov_spectrum(
+            params,
+            ics,
+            args.periods,
+            transient=transient,
+            numerics=numerics,
+            progress=lambda p: write(
+                f"{p.phase} {p.done_periods}/{p.total_periods} periods, "
+                f"L1 ~ {float(p.running[0, 0]):.5f}, {p.elapsed_s:.1f} s"
+            ),
+            cancel=stop,
+        )
+    if show:
+        sys.stderr.write("\n")
+    summary = res.summary()
+    if args.scene:
+        summary["scene"] = args.scene
+    if args.history:
+        _check_out(args.history)
+        with open(args.history, "w") as fh:
+            fh.write("member,k,L1,L2,divergence_mean\n")
+            for i in range(res.ics.shape[0]):
+                run = res.running(i)
+                m = run.shape[0]
+                dmean = np.cumsum(res.divs[i, :m]) / (np.arange(1, m + 1) * res.period)
+                for k in range(m):
+                    fh.write(f"{i},{res.transient + k + 1},{run[k, 0]!r},{run[k, 1]!r},{dmean[k]!r}\n")
+        summary["history_csv"] = args.history
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        if summary["exponents"] is None:
+            print(f"status {summary['status']}: no member completed the measurement")
+        else:
+            l1, l2, _ = summary["exponents"]
+            s1, s2, _ = summary["spread"]
+            print(f"Lambda (per unit time) = {l1:.6f} +- {s1:.6f}, {l2:.6f} +- {s2:.6f}, 0")
+            it = summary["per_iteration"]
+            print(f"per iteration (x T = {res.period:.6g}): {it[0]:.6f}, {it[1]:.6f}")
+            print(
+                f"Kaplan-Yorke D = {summary['kaplan_yorke']:.6f}; L1 + L2 = {l1 + l2:.6e}, "
+                f"mean divergence = {summary['divergence_mean']:.6e}; status {summary['status']}"
+            )
+    if not res.completed:
+        sys.stderr.write("bilimovich: interrupted; the estimate covers the periods computed so far\n")
+        return 130
+    return 0
+
+
+def cmd_bifurcation(args: argparse.Namespace) -> int:
+    from explorer_core.bifurcation import bifurcation_diagram, sweep_values
+
+    params, scene = _params(args)
+    if not args.out and not args.json:
+        raise UsageError("give --out FILE.csv and/or --json")
+    if args.out:
+        _check_out(args.out)
+    lo, hi = _floats(args.range, 2, "--range")
+    values = sweep_values((lo, hi), args.n_values)
+    ics = _ics_arg(args, scene)
+    if ics is None:
+        ics = np.array(scene.points[:1]) if scene is not None and scene.points else np.array([[0.1, 0.1]])
+    sweeps = tuple(s.strip() for s in args.sweeps.split(",")) if args.sweeps else ("forward", "backward")
+    write, show = _progress_line(args.quiet)
+    with _Interrupt() as stop:
+        diag = bifurcation_diagram(
+            params,
+            args.param,
+            values,
+            points=args.points,
+            transient=args.transient,
+            seeding=args.seeding,
+            ics=ics,
+            sweeps=sweeps,
+            numerics=_numerics(args, None, args.transient + args.points),
+            progress=lambda p: write(f"{p.done}/{p.total} values, {p.elapsed_s:.1f} s"),
+            cancel=stop,
+        )
+    if show:
+        sys.stderr.write("\n")
+    summary = diag.summary()
+    if args.out:
+        summary["csv"] = {"path": args.out, "rows": diag.to_csv(args.out)}
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        print(f"{diag.values.size} values x {diag.sweeps.size} sweeps, status {summary['status']}, "
+              f"{diag.elapsed_s:.2f} s")  # fmt: skip
+    if not diag.completed:
+        sys.stderr.write("bilimovich: interrupted; the values computed so far were written\n")
+        return 130
+    return 0
+
+
+def cmd_chart(args: argparse.Namespace) -> int:
+    from explorer_core.regimes import DEFAULT_CHART_TOL, chart_spec, regime_chart
+
+    params, scene = _params(args)
+    outs = args.out or []
+    for path in outs:
+        _check_out(path)
+        if not path.lower().endswith((".npz", ".csv", ".png")):
+            raise UsageError(f"--out must end in .npz, .csv or .png, got {path!r}")
+    if not outs and not args.json:
+        raise UsageError("give --out FILE(.npz/.csv/.png) (repeatable) and/or --json")
+    grid = [int(v) for v in _floats(args.grid, 2, "--grid")]
+    ics = _ics_arg(args, scene)
+    if ics is None:
+        ics = np.array(scene.points[:1]) if scene is not None and scene.points else np.array([[0.1, 0.1]])
+    if args.rtol is None and args.atol is None:
+        args.rtol = DEFAULT_CHART_TOL  # a chart needs the regime, not 1e-10 accuracy
+    spec = chart_spec(
+        params,
+        args.x_param,
+        _floats(args.x_range, 2, "--x-range"),
+        args.y_param,
+        _floats(args.y_range, 2, "--y-range"),
+        grid,
+        ics=ics,
+        transient=args.transient,
+        periods=args.periods,
+        p_max=args.p_max,
+        tol=args.tol,
+        lyap_threshold=args.lyap_threshold,
+        numerics=_numerics(args, None, args.transient + args.periods),
+    )
+    write, show = _progress_line(args.quiet)
+    with _Interrupt() as stop:
+        chart = regime_chart(
+            spec,
+            coarse=args.coarse,
+            progress=lambda u: write(
+                f"{int(u.chart.computed.sum())}/{u.chart.computed.size} pixels, {u.chart.elapsed_s:.1f} s"
+            ),
+            cancel=stop,
+        )
+    if show:
+        sys.stderr.write("\n")
+    summary = chart.summary()
+    written = []
+    for path in outs:
+        low = path.lower()
+        if low.endswith(".npz"):
+            chart.to_npz(path)
+        elif low.endswith(".csv"):
+            chart.to_csv(path)
+        else:
+            from app.render import render_chart  # matplotlib only when a picture is asked for
+
+            render_chart(chart, path)
+        written.append(path)
+    summary["out"] = written
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        print(f"{summary['computed']}/{summary['pixels']} pixels, {summary['counts']}, {chart.elapsed_s:.1f} s")
+    if not chart.completed:
+        sys.stderr.write("bilimovich: interrupted; the pixels computed so far were written\n")
+        return 130
+    return 0
+
+
+def cmd_fit(args: argparse.Namespace) -> int:
+    from explorer_core.drift import drift_fit
+
+    params, scene = _params(args)
+    k0, k1 = (int(v) for v in _floats(args.window, 2, "--window"))
+    dq, dr = (int(v) for v in _floats(args.degree, 2, "--degree"))
+    ics = _ics_arg(args, scene)
+    box = check_box(_floats(args.box, 4, "--box")) if args.box else (scene.box if scene else None)
+    if ics is None and box is None:
+        raise UsageError("give --ic Q,R (repeatable) or --box QMIN,QMAX,RMIN,RMAX for random members")
+    if args.out:
+        _check_out(args.out)
+    write, show = _progress_line(args.quiet)
+    with _Interrupt() as stop:
+        fit = drift_fit(
+            params,
+            (k0, k1),
+            degree=(dq, dr),
+            m=args.members,
+            ics=ics,
+            box=box,
+            seed=args.seed,
+            criterion=args.criterion,
+            numerics=_numerics(args, None, k1),
+            progress=lambda found, draws: write(f"{found}/{args.members} members on the drift, {draws} tried"),
+            cancel=stop,
+        )
+    if show:
+        sys.stderr.write("\n")
+    summary = fit.summary()
+    if args.out:
+        with open(args.out, "w") as fh:
+            fh.write("member,k,q,r\n")
+            for i, x in enumerate(fit.series):
+                for k in range(x.shape[0]):
+                    fh.write(f"{i},{k},{x[k, 0]!r},{x[k, 1]!r}\n")
+        summary["csv"] = args.out
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        print(f"{summary['members']} members (rejected {summary['rejected']}, failed {summary['failed']})")
+        print(f"q(k) = {summary['q']['formula']}")
+        print(f"r(k) = {summary['r']['formula']}")
+        print(f"residual RMS q {summary['residual_rms']['q']:.4g}, r {summary['residual_rms']['r']:.4g}")
+    return 0
+
+
+def cmd_symmetry(args: argparse.Namespace) -> int:
+    from explorer_core.symmetry import check_symmetry
+
+    params, scene = _params(args)
+    ics = _ics_arg(args, scene)
+    if ics is None:
+        box = check_box(_floats(args.box, 4, "--box")) if args.box else (-1.0, 1.0, -1.0, 1.0)
+        ics = random_ics(args.random, box, seed=args.seed)
+    numerics = _numerics(args, None, args.periods) if (args.rtol or args.method) else None
+    check = check_symmetry(params, ics, args.periods, centre=args.centre, tol=args.tol, numerics=numerics)
+    summary = check.summary()
+    if args.json:
+        _write_json(summary)
+    else:
+        verdict = "holds" if check.holds else "is broken"
+        print(f"involution t -> {2 * check.centre:g} - t, r -> -r {verdict}: max distance {check.max_distance:.3g}")
+        for reason in summary["broken_by"]:
+            print(f"  broken by: {reason}")
+    return 0
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    """Run the web app: ``panel serve app/main.py`` with the project's flags."""
+    from pathlib import Path
+
+    import app
+
+    here = Path(app.__file__).resolve().parent
+    origins = args.allow_websocket_origin or [f"localhost:{args.port}", f"127.0.0.1:{args.port}"]
+    cmd = [
+        sys.executable, "-m", "panel", "serve", str(here / "main.py"),
+        "--port", str(args.port), "--address", args.address,
+        "--setup", str(here / "warm.py"),  # compile/load the kernels before the first visitor
+        "--num-threads", str(args.threads),
+        "--liveness",
+        "--check-unused-sessions", "5000", "--unused-session-lifetime", "15000",
+    ]  # fmt: skip
+    for origin in origins:
+        if not re.fullmatch(r"[A-Za-z0-9.\-\[\]:]+", origin) or origin == "*":
+            raise UsageError(f"--allow-websocket-origin must be HOST[:PORT] (never '*'), got {origin!r}")
+        cmd += ["--allow-websocket-origin", origin]
+    if args.show:
+        cmd.append("--show")
+    sys.stderr.write(f"Bilimovich Explorer on http://{args.address}:{args.port}/main\n")
+    sys.stderr.flush()
+    os.execv(sys.executable, cmd)
+    return 0  # not reached
+
+
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    from explorer_core.reproduce import reproduce
+
+    out = os.path.abspath(args.out)
+    parent = os.path.dirname(out)
+    if not os.path.isdir(parent):
+        raise UsageError(f"--out parent directory does not exist: {parent}")
+    os.makedirs(out, exist_ok=True)
+    size = args.size or ("quick" if args.quick else "full")
+    stages = tuple(s.strip() for s in args.stages.split(",")) if args.stages else None
+    start = time.perf_counter()
+
+    def progress(stage: str, elapsed: float) -> None:
+        if not args.quiet:
+            sys.stderr.write(f"{stage}: {elapsed:.1f} s\n")
+            sys.stderr.flush()
+
+    with _Interrupt() as stop:
+        rep = reproduce(size, stages=stages, progress=progress, cancel=stop)
+    from app.render import render_reproduction  # matplotlib only here
+
+    figures = render_reproduction(rep, out)
+    rep.write_table(os.path.join(out, "table.md"), os.path.join(out, "table.csv"))
+    summary = rep.summary()
+    summary["figures"] = figures
+    summary["table"] = [os.path.join(out, "table.md"), os.path.join(out, "table.csv")]
+    summary["elapsed_s"] = round(time.perf_counter() - start, 2)
+    with open(os.path.join(out, "reproduce.json"), "w") as fh:
+        json.dump(summary, fh, indent=1)
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        print(rep.table_markdown())
+        print(f"{len(figures)} figures and the table in {out} ({summary['elapsed_s']:.0f} s, size {size})")
+    if not rep.completed:
+        sys.stderr.write("bilimovich: interrupted; what was computed was written\n")
+        return 130
+    return 0
+
+
 def cmd_warmup(args: argparse.Namespace) -> int:
     from explorer_core.integrators import warmup
 
@@ -344,6 +703,102 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_tprime)
 
+    p = sub.add_parser("lyapunov", help="Lyapunov exponents, Kaplan-Yorke dimension, divergence check")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable: one member each)")
+    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), help="periods dropped first")
+    p.add_argument("--periods", type=_count("periods", 1, config.MAX_PERIODS), default=2000, help="measured periods")
+    p.add_argument("--ensemble", type=_count("ensemble", 1, 10_000), default=1, metavar="M", help="members")
+    p.add_argument("--offset", type=_number("offset"), default=1e-6, help="relative offset of ensemble members")
+    p.add_argument("--seed", type=_count("seed", 0, 2**63 - 1), default=0)
+    p.add_argument("--history", metavar="FILE.csv", help="running estimates per period (member,k,L1,L2,...)")
+    p.add_argument("--json", action="store_true", help="print the JSON summary")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=cmd_lyapunov)
+
+    p = sub.add_parser("bifurcation", help="orbit diagram of the Poincare map over one parameter")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
+    p.add_argument("--range", required=True, metavar="A,B", help="parameter range")
+    p.add_argument("--n-values", type=_count("n-values", 1, 65536), default=200, metavar="N")
+    p.add_argument("--points", type=_count("points", 1, 1_000_000), default=200, help="section points per value")
+    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), default=500)
+    p.add_argument("--seeding", choices=["continuation", "fixed"], default="continuation")
+    p.add_argument("--sweeps", metavar="forward,backward", help="continuation sweeps (default both)")
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
+    p.add_argument("--out", metavar="FILE.csv", help="CSV sweep,value_index,value,ic,k,q,r,status")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_bifurcation)
+
+    p = sub.add_parser("chart", help="chart of dynamical regimes on a plane of two parameters")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--x-param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
+    p.add_argument("--x-range", required=True, metavar="A,B")
+    p.add_argument("--y-param", required=True)
+    p.add_argument("--y-range", required=True, metavar="C,D")
+    p.add_argument("--grid", default="40,40", metavar="NX,NY", help="pixels (default 40,40)")
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition per pixel (repeatable)")
+    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), default=500)
+    p.add_argument("--periods", type=_count("periods", 4, 1_000_000), default=500, help="measured periods")
+    p.add_argument("--p-max", type=_count("p-max", 1, 1000), default=16, help="longest cycle detected")
+    p.add_argument("--tol", type=_number("tol"), default=1e-5, help="return tolerance (relative to 1 + |x|)")
+    p.add_argument("--lyap-threshold", type=_number("lyap-threshold"), default=5e-3, help="chaos above (per time)")
+    p.add_argument("--coarse", type=_count("coarse", 1, 1024), default=8, help="stride of the first coarse pass")
+    p.add_argument("--out", action="append", metavar="FILE", help=".npz, .csv or .png (repeatable)")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_chart)
+
+    p = sub.add_parser("fit", help="polynomial fits of the drift q_k, r_k over a window of k, and the implied map")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--window", required=True, metavar="K0,K1", help="inclusive k range (k = 0 is the IC)")
+    p.add_argument("--degree", default="1,2", metavar="DQ,DR", help="degrees of the q and r polynomials")
+    p.add_argument("--members", type=_count("members", 1, 10_000), default=10, help="drifting ICs to average")
+    p.add_argument("--ic", action="append", metavar="Q,R", help="explicit ICs instead of random ones")
+    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for random ICs (default: the scene's)")
+    p.add_argument("--seed", type=_count("seed", 0, 2**63 - 1), default=0)
+    p.add_argument("--criterion", choices=["on_curve", "leaves"], default="on_curve", help="which ICs count")
+    p.add_argument("--out", metavar="FILE.csv", help="the members' series member,k,q,r")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_fit)
+
+    p = sub.add_parser("symmetry", help="check the involution t -> -t, q -> q, r -> -r on sections")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
+    p.add_argument("--random", type=_count("random", 1, 10_000), default=4, metavar="N", help="random ICs")
+    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for random ICs (default +-1)")
+    p.add_argument("--seed", type=_count("seed", 0, 2**63 - 1), default=0)
+    p.add_argument("--periods", type=_count("periods", 1, 100_000), default=10, help="compared section points")
+    p.add_argument("--centre", type=_number("centre"), help="centre s of t -> 2s - t (default t0)")
+    p.add_argument("--tol", type=_number("tol"), default=1e-6, help="largest distance counted as symmetric")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_symmetry)
+
+    p = sub.add_parser("serve", help="run the web explorer (panel serve app/main.py)")
+    p.add_argument("--port", type=_count("port", 1, 65535), default=5006)
+    p.add_argument("--address", default="127.0.0.1", help="interface to listen on (0.0.0.0 for all)")
+    p.add_argument("--threads", type=_count("threads", 1, 64), default=4, help="threads for session callbacks")
+    p.add_argument("--allow-websocket-origin", action="append", metavar="HOST[:PORT]",
+                   help="public host names browsers may connect from (default: localhost)")  # fmt: skip
+    p.add_argument("--show", action="store_true", help="open a browser")
+    p.set_defaults(func=cmd_serve)
+
+    p = sub.add_parser("reproduce", help="every figure of the paper as PNG and the table of its numbers")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
+    p.add_argument("--quick", action="store_true", help="reduced sizes: a few minutes on 2 cores")
+    p.add_argument("--size", choices=["tiny", "quick", "full"], help="explicit size (overrides --quick)")
+    p.add_argument("--stages", metavar="LIST", help="subset of sections,lyapunov,drift,bifurcation,chart")
+    p.add_argument("--json", action="store_true")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_reproduce)
+
     p = sub.add_parser("warmup", help="compile the numba kernels into the on-disk cache")
     p.set_defaults(func=cmd_warmup)
     return parser
@@ -351,6 +806,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: Options whose value is a comma list that may start with a minus sign.
 _LIST_OPTIONS = {"--ic", "--box", "--inertia", "--q-range", "--r-range"}
+# Options of the analyses (bifurcation, chart, fit) whose values may start with a minus sign.
+_LIST_OPTIONS |= {"--range", "--x-range", "--y-range", "--window", "--ic-box"}
 
 
 def _glue_negative_lists(argv: list[str]) -> list[str]:

@@ -1,0 +1,1 @@
+"""Bilimovich Explorer web app (Panel). Holds no numerics: it calls explorer_core."""

@@ -1,0 +1,434 @@
+"""Bifurcation (orbit) diagrams of the Poincare map over one parameter.
+
+For each value of the swept parameter (``alpha``, an inertia entry, ``g0``,
+``g1``, ``g2`` or ``omega``) a trajectory is run through a transient and then
+``points`` section points ``x_k`` are kept (the paper's Fig. 10 sweeps
+``alpha`` over ``[-0.42, -0.35]`` for the tensor (i3)). Seeding:
+
+``continuation``
+    the first value starts from the given initial conditions, every next value
+    from the previous value's final state. A **forward** sweep (increasing
+    values) and a **backward** sweep (decreasing) follow different branches
+    where attractors coexist, which exposes hysteresis.
+``fixed``
+    every value starts from the same initial conditions; values are independent
+    and are computed in parallel.
+
+Escaped (noncompact) or failed trajectories are marked by their status, never
+drawn: their points are not part of the diagram. A value for which the system
+is not defined (e.g. a tensor that is not positive definite) is marked
+``invalid_params``; a continuation sweep carries its state across it.
+
+The sweep engine (:func:`sweep_orbits`) is independent of the ODE: it takes a
+function that computes orbits at one value, so it is tested on the logistic
+map, whose period-doubling points are known.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from explorer_core import config
+from explorer_core.integrators import Batch, Status, advance
+from explorer_core.model import INERTIA_NAMES, Model, ParameterError, Params
+from explorer_core.section import Numerics, check_ics
+
+#: Parameters a diagram (or a chart of regimes) can sweep.
+SWEEP_PARAMS = ("alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega")
+#: Status code of a parameter value that does not define a system (beyond :class:`Status`).
+INVALID_PARAMS = 9
+#: Status code of work that was cancelled before it ran.
+NOT_RUN = 10
+SEEDINGS = ("continuation", "fixed")
+SWEEPS = ("forward", "backward")
+
+
+def status_label(code: int) -> str:
+    """Label of a status code: :class:`Status` labels plus ``invalid_params`` and ``not_run``."""
+    if code == INVALID_PARAMS:
+        return "invalid_params"
+    if code == NOT_RUN:
+        return "not_run"
+    return Status(int(code)).label
+
+
+def check_param(name: str) -> str:
+    """Canonical name of a sweepable parameter (case-insensitive: ``Omega`` is ``omega``)."""
+    for p in SWEEP_PARAMS:
+        if str(name).strip().lower() == p.lower():
+            return p
+    raise ParameterError(f"cannot sweep {name!r}; choose one of {', '.join(SWEEP_PARAMS)}")
+
+
+def sweep_values(rng: Sequence[float], n: int) -> np.ndarray:
+    """``n`` equally spaced values over ``rng = (lo, hi)`` (both ends included)."""
+    try:
+        lo, hi = (float(v) for v in rng)
+    except (TypeError, ValueError):
+        raise ParameterError(f"range must be two numbers lo,hi, got {rng!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ParameterError(f"range must be finite with lo < hi, got {rng!r}")
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 1 <= n <= config.MAX_GRID * 16:
+        raise ParameterError(f"n_values must be an integer in [1, {config.MAX_GRID * 16}], got {n!r}")
+    return np.linspace(lo, hi, int(n)) if n > 1 else np.array([lo])
+
+
+def params_at(base: Params, name: str, value: float) -> Params | str:
+    """``base`` with ``name = value``, or the reason the result is not a valid system."""
+    try:
+        return base.with_(**{name: float(value)})
+    except ParameterError as exc:
+        return str(exc)
+
+
+def detect_period(points: np.ndarray, p_max: int, tol: float) -> int:
+    """Smallest ``p <= p_max`` with ``|x_{k+p} - x_k| <= tol`` for every ``k`` of ``points``; 0 if none.
+
+    ``points`` are consecutive section points after a transient, shape (m, 2),
+    ``m > p_max``; ``tol`` is absolute (in units of ``q``, ``r``).
+    """
+    pts = np.asarray(points, dtype=float)
+    m = pts.shape[0]
+    for p in range(1, min(p_max, m - 1) + 1):
+        d = np.abs(pts[p:] - pts[:-p]).max()
+        if d <= tol:
+            return p
+    return 0
+
+
+# ---------------------------------------------------------------------------
+# The engine: any "orbits at one value" function.
+
+#: ``orbits(value_index, ics (n, 2), workers) -> (points (n, m, 2), npts (n,), status (n,), final (n, 2))``
+OrbitFn = Callable[[int, np.ndarray, int], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class SweepProgress:
+    """Passed to ``progress`` after each computed value."""
+
+    done: int
+    total: int
+    elapsed_s: float
+
+
+def sweep_orbits(
+    orbits: OrbitFn,
+    n_values: int,
+    ics: np.ndarray,
+    n_points: int,
+    *,
+    valid: np.ndarray | None = None,
+    seeding: str = "continuation",
+    sweeps: Sequence[str] = SWEEPS,
+    workers: int | None = None,
+    progress: Callable[[SweepProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> dict[str, np.ndarray]:
+    """Run ``orbits`` over every value, seeded by continuation or from fixed ``ics``.
+
+    Returns arrays indexed ``[sweep, value, ic]``: ``points`` (+ ``(n_points, 2)``),
+    ``npts``, ``status``, ``final`` (+ ``(2,)``). With ``fixed`` seeding there is one
+    sweep; with ``continuation`` one per entry of ``sweeps``.
+    """
+    if seeding not in SEEDINGS:
+        raise ParameterError(f"seeding must be one of {', '.join(SEEDINGS)}, got {seeding!r}")
+    sweeps = tuple(sweeps)
+    if seeding == "fixed":
+        sweeps = ("fixed",)
+    elif not sweeps or any(s not in SWEEPS for s in sweeps) or len(set(sweeps)) != len(sweeps):
+        raise ParameterError(f"sweeps must be distinct entries of {', '.join(SWEEPS)}, got {sweeps!r}")
+    valid = np.ones(n_values, bool) if valid is None else np.asarray(valid, bool)
+    n_ics = ics.shape[0]
+    shape = (len(sweeps), n_values, n_ics)
+    points = np.zeros((*shape, n_points, 2))
+    npts = np.zeros(shape, dtype=np.int64)
+    status = np.full(shape, NOT_RUN, dtype=np.int64)
+    final = np.zeros((*shape, 2))
+    status[:, ~valid] = INVALID_PARAMS
+    total = int(valid.sum()) * len(sweeps)
+    done = [0]
+    start = time.perf_counter()
+    workers = max(1, workers or config.N_WORKERS)
+
+    def record(s: int, v: int, out: tuple) -> None:
+        pts, n, st, fin = out
+        points[s, v] = pts
+        npts[s, v] = n
+        status[s, v] = st
+        final[s, v] = fin
+        done[0] += 1
+        if progress is not None:
+            progress(SweepProgress(done[0], total, time.perf_counter() - start))
+
+    def stopped() -> bool:
+        return cancel is not None and bool(cancel())
+
+    if seeding == "fixed":
+        todo = [v for v in range(n_values) if valid[v]]
+        if workers <= 1 or len(todo) <= 1:
+            for v in todo:
+                if stopped():
+                    break
+                record(0, v, orbits(v, ics, workers))
+        else:
+            # Values are independent: one per thread (the kernels release the GIL).
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                it = iter(todo)
+                running = {}
+                for v in it:
+                    running[pool.submit(orbits, v, ics, 1)] = v
+                    if len(running) >= 2 * workers:
+                        break
+                while running:
+                    fut = next(iter(running))
+                    v = running.pop(fut)
+                    record(0, v, fut.result())
+                    if not stopped():
+                        nxt = next(it, None)
+                        if nxt is not None:
+                            running[pool.submit(orbits, nxt, ics, 1)] = nxt
+    else:
+
+        def run_sweep(s: int, threads: int) -> None:
+            order = range(n_values) if sweeps[s] == "forward" else range(n_values - 1, -1, -1)
+            seed = ics.copy()
+            for v in order:
+                if not valid[v]:
+                    continue  # carry the state across a hole in the parameter range
+                if stopped():
+                    return
+                out = orbits(v, seed, threads)
+                record(s, v, out)
+                st, fin = out[2], out[3]
+                # Continue from the final state; a failed trajectory restarts from its IC.
+                seed = np.where((st == Status.OK)[:, None], fin, ics)
+
+        if len(sweeps) > 1 and workers > 1:
+            with ThreadPoolExecutor(max_workers=len(sweeps)) as pool:
+                futs = [pool.submit(run_sweep, s, max(1, workers // len(sweeps))) for s in range(len(sweeps))]
+                for f in futs:
+                    f.result()
+        else:
+            for s in range(len(sweeps)):
+                run_sweep(s, workers)
+    return {"sweeps": np.array(sweeps), "points": points, "npts": npts, "status": status, "final": final}
+
+
+# ---------------------------------------------------------------------------
+# The Bilimovich system.
+
+
+@dataclass(frozen=True)
+class OrbitDiagram:
+    """A bifurcation diagram: section points per parameter value, sweep and initial condition.
+
+    ``points[s, v, i, :npts[s, v, i]]`` are the points of initial condition ``i`` at
+    ``values[v]`` in sweep ``sweeps[s]``, at ``k = transient + 1, ...``; only
+    trajectories with ``status == 0`` (ok) belong to the diagram (see :meth:`long`).
+    ``errors[v]`` says why ``values[v]`` is invalid (empty if valid).
+    """
+
+    params: Params
+    param: str
+    values: np.ndarray
+    sweeps: np.ndarray
+    seeding: str
+    ics: np.ndarray
+    transient: int
+    n_points: int
+    points: np.ndarray
+    npts: np.ndarray
+    status: np.ndarray
+    final: np.ndarray
+    errors: tuple[str, ...]
+    numerics: Numerics
+    elapsed_s: float
+    completed: bool
+
+    @property
+    def valid(self) -> np.ndarray:
+        return np.array([not e for e in self.errors])
+
+    def drawn(self) -> np.ndarray:
+        """Mask ``[sweep, value, ic]`` of trajectories whose points are drawn (completed, ok)."""
+        return (self.status == Status.OK) & (self.npts == self.n_points)
+
+    def long(self) -> tuple[np.ndarray, ...]:
+        """Drawn points as flat columns ``(sweep, value_index, value, ic, k, q, r)``."""
+        s, v, i, j = np.nonzero(self.drawn()[..., None] & (np.arange(self.n_points) >= 0))
+        pts = self.points[s, v, i, j]
+        return s, v, self.values[v], i, self.transient + 1 + j, pts[:, 0], pts[:, 1]
+
+    def periods(self, p_max: int = 16, tol: float = 1e-6) -> np.ndarray:
+        """Detected period per ``[sweep, value, ic]`` (0: none up to ``p_max``; -1: not drawn)."""
+        out = np.full(self.status.shape, -1, dtype=np.int64)
+        for idx in zip(*np.nonzero(self.drawn()), strict=True):
+            pts = self.points[idx]
+            out[idx] = detect_period(pts, p_max, tol * (1.0 + np.abs(pts).max()))
+        return out
+
+    def status_counts(self) -> dict[str, int]:
+        codes, counts = np.unique(self.status, return_counts=True)
+        return {status_label(int(c)): int(n) for c, n in zip(codes, counts, strict=True)}
+
+    def to_csv(self, path: str) -> int:
+        """Rows ``sweep,value_index,value,ic,k,q,r,status``: every drawn point, plus one row
+        with empty ``k,q,r`` for each trajectory that is not drawn (escaped, failed, invalid)."""
+        rows = 0
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["sweep", "value_index", "value", "ic", "k", "q", "r", "status"])
+            drawn = self.drawn()
+            for s in range(self.sweeps.size):
+                for v in range(self.values.size):
+                    for i in range(self.ics.shape[0]):
+                        if drawn[s, v, i]:
+                            for j in range(self.n_points):
+                                q, r = self.points[s, v, i, j]
+                                w.writerow(
+                                    (self.sweeps[s], v, repr(float(self.values[v])), i, self.transient + 1 + j,
+                                     repr(float(q)), repr(float(r)), "ok")
+                                )  # fmt: skip
+                                rows += 1
+                        else:
+                            lab = status_label(int(self.status[s, v, i]))
+                            if lab == "ok":
+                                lab = "incomplete"
+                            w.writerow((self.sweeps[s], v, repr(float(self.values[v])), i, "", "", "", lab))
+                            rows += 1
+        return rows
+
+    def summary(self, p_max: int = 16) -> dict[str, Any]:
+        """JSON summary: settings, status counts, detected periods per value (first IC)."""
+        per = self.periods(p_max)
+        return {
+            "param": self.param,
+            "range": [float(self.values[0]), float(self.values[-1])],
+            "n_values": int(self.values.size),
+            "seeding": self.seeding,
+            "sweeps": [str(s) for s in self.sweeps],
+            "ics": self.ics.tolist(),
+            "transient": self.transient,
+            "points": self.n_points,
+            "status": self.status_counts(),
+            "invalid_values": [
+                {"value": float(v), "error": e} for v, e in zip(self.values, self.errors, strict=True) if e
+            ],
+            "periods": {str(s): per[k, :, 0].tolist() for k, s in enumerate(self.sweeps)},
+            "completed": self.completed,
+            "elapsed_s": round(self.elapsed_s, 6),
+            "params": self.params.as_dict(),
+            "numerics": self.numerics.as_dict(),
+        }
+
+
+def bilimovich_orbits(
+    params: Params, ics: np.ndarray, transient: int, n_points: int, numerics: Numerics, workers: int = 1
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Orbits of the Poincare map at one parameter set: transient, then ``n_points`` points.
+
+    Returns ``(points (n, n_points, 2), npts (n,), status (n,), final (n, 2))``.
+    """
+    model = Model(params)
+    batch = Batch.start(ics, params.t0, params.period)
+    kw = numerics.kernel_kwargs()
+    if transient:
+        advance(model, batch, transient, store=False, workers=workers, **kw)
+    pts, npts = advance(model, batch, n_points, workers=workers, **kw)
+    return pts, npts, batch.status.copy(), batch.y.copy()
+
+
+def bifurcation_diagram(
+    params: Params,
+    param: str,
+    values: Any,
+    *,
+    points: int = 200,
+    transient: int = 500,
+    seeding: str = "continuation",
+    ics: Any = None,
+    sweeps: Sequence[str] = SWEEPS,
+    numerics: Numerics | None = None,
+    progress: Callable[[SweepProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+) -> OrbitDiagram:
+    """Orbit diagram of the Poincare map over ``param`` (paper, Fig. 10).
+
+    Parameters
+    ----------
+    params : the system at the other parameters' values.
+    param : one of :data:`SWEEP_PARAMS` (case-insensitive).
+    values : the parameter values (1-D, in sweep order for ``forward``), e.g.
+        :func:`sweep_values` ``((lo, hi), n)``.
+    points : section points kept per value and initial condition.
+    transient : periods run first at every value.
+    seeding : ``"continuation"`` (forward/backward sweeps from the previous final state)
+        or ``"fixed"`` (every value from ``ics``).
+    ics : (n, 2) initial conditions at ``t0`` (default ``[(0.1, 0.1)]``).
+    sweeps : the continuation sweeps to run (``"forward"``, ``"backward"``); both run at once.
+    numerics : integration settings (escape bound included).
+    progress, cancel : called / polled after each value.
+    workers : threads (default: both cores).
+    """
+    start = time.perf_counter()
+    param = check_param(param)
+    vals = np.asarray(values, dtype=float).ravel()
+    if vals.size == 0 or not np.all(np.isfinite(vals)):
+        raise ParameterError(f"values must be a non-empty list of finite numbers, got {values!r}")
+    if isinstance(points, bool) or not isinstance(points, int | np.integer) or not 1 <= points <= 1_000_000:
+        raise ParameterError(f"points must be an integer in [1, 1000000], got {points!r}")
+    if isinstance(transient, bool) or not isinstance(transient, int | np.integer) or not 0 <= transient:
+        raise ParameterError(f"transient must be a non-negative integer, got {transient!r}")
+    ics = check_ics([(0.1, 0.1)] if ics is None else ics)
+    numerics = numerics or Numerics()
+    n_sweeps = 1 if seeding == "fixed" else len(tuple(sweeps))
+    if n_sweeps * vals.size * ics.shape[0] * points > config.MAX_POINTS:
+        raise ParameterError(f"{vals.size} values x {ics.shape[0]} ICs x {points} points exceeds {config.MAX_POINTS}")
+    per_value = [params_at(params, param, v) for v in vals]
+    errors = tuple("" if isinstance(p, Params) else p for p in per_value)
+
+    def orbits(v: int, seed: np.ndarray, threads: int):
+        p = per_value[v]
+        assert isinstance(p, Params)
+        return bilimovich_orbits(p, seed, int(transient), int(points), numerics, threads)
+
+    out = sweep_orbits(
+        orbits,
+        vals.size,
+        ics,
+        int(points),
+        valid=np.array([not e for e in errors]),
+        seeding=seeding,
+        sweeps=sweeps,
+        workers=workers,
+        progress=progress,
+        cancel=cancel,
+    )
+    return OrbitDiagram(
+        params=params,
+        param=param,
+        values=vals,
+        sweeps=out["sweeps"],
+        seeding=seeding,
+        ics=ics,
+        transient=int(transient),
+        n_points=int(points),
+        points=out["points"],
+        npts=out["npts"],
+        status=out["status"],
+        final=out["final"],
+        errors=errors,
+        numerics=numerics,
+        elapsed_s=time.perf_counter() - start,
+        completed=not np.any(out["status"] == NOT_RUN),
+    )

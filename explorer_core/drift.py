@@ -1,0 +1,416 @@
+"""Drift of noncompact trajectories: polynomial fits of ``q_k``, ``r_k`` and the implied map.
+
+The paper (Figs. 3, 6 and 9) follows trajectories on a noncompact attractive
+curve, fits univariate polynomials to the section data ``q_k``, ``r_k`` over a
+window of ``k`` (e.g. ``k = 200..900``), averages the coefficients over ten
+random initial conditions and reads an approximate map from them. For Fig. 3::
+
+    q = -0.300263,   r = a t^2 + b t + c,
+    q_{k+1} = q_k,   r_{k+1} = r_k + 2 pi sqrt(b^2 - 4 a c + 4 a r_k) + 4 a pi^2.
+
+The fitted values only make sense with the **period index** ``k`` as the
+polynomials' variable (``r`` reaches about -400 at ``k = 900``; with the time
+``t = 2 pi k`` it would be about -9500), while the map's ``2 pi`` steps assume
+the time ``t``. Fits here are in ``k``, and are converted to ``t = t0 + k T``
+on request; :func:`implied_map` advances ``k`` by one on the fitted curve (in
+``t``: by ``T``), and :func:`quadratic_map` is the paper's closed form for any
+step, with the branch of the square root chosen by the sign of ``r'``.
+
+Members: a random initial condition counts only if its trajectory is on the
+drift (see :func:`on_drift`: along the curve during the whole window, or leaving
+the compact region within it); random draws continue until ``m`` members
+qualify, as the paper chose ten trajectories "turning into a noncompact
+attractive curve".
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.polynomial import polynomial as P
+
+from explorer_core import config
+from explorer_core.integrators import Batch, Status, advance
+from explorer_core.model import Model, ParameterError, Params
+from explorer_core.section import Numerics, check_box, check_ics
+
+#: Criteria for a member to count (see :func:`on_drift`).
+CRITERIA = ("on_curve", "leaves")
+#: "on_curve": fraction of window steps in which |x_k| grows, and the largest allowed
+#: turn (radians) of the step direction x_{k+1} - x_k over the window.
+MONOTONE_FRACTION = 0.95
+MAX_TURN = 0.05
+#: "leaves": growth factor of |x| over the window.
+LEAVE_GROWTH = 10.0
+
+
+def fit_polynomial(k: np.ndarray, x: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares polynomial in ``k``: coefficients lowest first, and the residuals.
+
+    The fit is done on a scaled variable (well conditioned for high degree and
+    large ``k``) and converted back to powers of ``k``.
+    """
+    k = np.asarray(k, dtype=float)
+    x = np.asarray(x, dtype=float)
+    if k.size <= degree:
+        raise ParameterError(f"a degree-{degree} fit needs more than {degree} points, got {k.size}")
+    poly = np.polynomial.Polynomial.fit(k, x, degree)
+    coef = poly.convert().coef
+    coef = np.concatenate([coef, np.zeros(degree + 1 - coef.size)])
+    return coef, x - P.polyval(k, coef)
+
+
+def to_time(coef_k: np.ndarray, t0: float, period: float) -> np.ndarray:
+    """Coefficients in ``t`` of the polynomial given in ``k``, with ``t = t0 + k T``."""
+    # k = (t - t0) / T: substitute the linear polynomial into the power series (Horner).
+    lin = np.array([-t0 / period, 1.0 / period])
+    out = np.array([coef_k[-1]])
+    for c in coef_k[-2::-1]:
+        out = P.polyadd(P.polymul(out, lin), [c])
+    return np.concatenate([out, np.zeros(coef_k.size - out.size)])
+
+
+def on_drift(x: np.ndarray, criterion: str = "on_curve") -> bool:
+    """Whether the window ``x`` (shape (n, 2), consecutive section points) is drift.
+
+    ``"on_curve"``: the points move away along the curve's asymptotic direction the
+    whole time -- ``|x_k|`` grows in at least :data:`MONOTONE_FRACTION` of the steps
+    and the direction of the steps turns by at most :data:`MAX_TURN` radians over the
+    window (a trajectory still sliding onto the curve turns by tens of degrees, one on
+    a compact attractor all the way round); the paper's fits over ``k = 200..900``
+    (Figs. 3, 6).
+    ``"leaves"``: ``|x_k|`` grows by :data:`LEAVE_GROWTH` over the window (it leaves the
+    compact region within it); the paper's fits over ``k = 0..60`` (Fig. 9).
+    """
+    x = np.asarray(x, dtype=float)
+    norms = np.hypot(x[:, 0], x[:, 1])
+    if criterion == "leaves":
+        return bool(norms[-1] >= LEAVE_GROWTH * max(1.0, norms[0]))
+    if criterion != "on_curve":
+        raise ParameterError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
+    d1 = np.diff(x, axis=0)
+    if d1.shape[0] < 2:
+        return False
+    angle = np.unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
+    return bool(
+        np.mean(np.diff(norms) > 0) >= MONOTONE_FRACTION
+        and angle.max() - angle.min() <= MAX_TURN
+        and norms[-1] > norms[0]
+    )
+
+
+def quadratic_map(
+    a: float, b: float, c: float, r: np.ndarray | float, step: float = 1.0, sign: float = 1.0
+) -> np.ndarray:
+    """``r(s + step)`` on the curve ``r = a s^2 + b s + c`` through ``r(s) = r_k``.
+
+    ``2 a s + b = sign * sqrt(b^2 - 4 a c + 4 a r)``: ``sign`` picks the branch (the
+    sign of ``dr/ds`` where the data lie). The paper's map is ``step = 2 pi`` and
+    ``sign = +1``; on its own fit (``a, b < 0``, ``s = k > 0``) the branch is ``-1``.
+    """
+    r = np.asarray(r, dtype=float)
+    disc = np.maximum(b * b - 4 * a * c + 4 * a * r, 0.0)
+    return r + step * sign * np.sqrt(disc) + a * step * step
+
+
+def implied_map(coef: np.ndarray, x: np.ndarray, k_guess: np.ndarray, step: float = 1.0) -> np.ndarray:
+    """``P(kappa + step)`` where ``P(kappa) = x`` with ``kappa`` the real root nearest ``k_guess``.
+
+    The fitted drift curve read as a map: the polynomial is a clock, one
+    iteration advances it by ``step`` (1 in ``k``).
+    """
+    out = np.empty(np.shape(x))
+    for n, (xv, kg) in enumerate(zip(np.ravel(x), np.ravel(k_guess), strict=True)):
+        c = coef.astype(float).copy()
+        c[0] -= xv
+        roots = P.polyroots(c) if np.any(c[1:] != 0) else np.array([kg])
+        real = roots[np.abs(roots.imag) <= 1e-7 * (1 + np.abs(roots.real))].real
+        kappa = real[np.argmin(np.abs(real - kg))] if real.size else kg
+        out.flat[n] = P.polyval(kappa + step, coef)
+    return out
+
+
+@dataclass(frozen=True)
+class DriftFit:
+    """Polynomial fits of the drift over a window, per member and averaged.
+
+    Coefficients are lowest power first, in the **period index** ``k``
+    (``coef_*_t`` in the time ``t = t0 + k T``). ``members`` are the initial
+    conditions that were on the drift through the window; ``series[m]`` their
+    ``(k, q, r)`` over ``0..k1``.
+    """
+
+    params: Params | None
+    t0: float
+    period: float
+    window: tuple[int, int]
+    degree: tuple[int, int]
+    criterion: str
+    members: np.ndarray
+    rejected: int
+    failed: int
+    series: np.ndarray  # (M, k1 + 1, 2) q, r at k = 0..k1
+    coef_q: np.ndarray  # (M, dq + 1)
+    coef_r: np.ndarray  # (M, dr + 1)
+    rms_q: np.ndarray  # (M,) residual RMS of each member's own fit
+    rms_r: np.ndarray
+    growth_rate: np.ndarray  # (M,) slope of log |x_k| per period over the window
+    numerics: Numerics
+    elapsed_s: float
+
+    @property
+    def k(self) -> np.ndarray:
+        k0, k1 = self.window
+        return np.arange(k0, k1 + 1)
+
+    def mean(self) -> tuple[np.ndarray, np.ndarray]:
+        """Averaged coefficients (the paper's procedure)."""
+        return self.coef_q.mean(axis=0), self.coef_r.mean(axis=0)
+
+    def spread(self) -> tuple[np.ndarray, np.ndarray]:
+        """Standard deviation of the coefficients over members (ddof=1; zeros for one member)."""
+        if self.members.shape[0] < 2:
+            return np.zeros_like(self.coef_q[0]), np.zeros_like(self.coef_r[0])
+        return self.coef_q.std(axis=0, ddof=1), self.coef_r.std(axis=0, ddof=1)
+
+    def mean_in_time(self) -> tuple[np.ndarray, np.ndarray]:
+        """Averaged coefficients in ``t = t0 + k T``."""
+        cq, cr = self.mean()
+        return to_time(cq, self.t0, self.period), to_time(cr, self.t0, self.period)
+
+    def residuals_of_mean(self) -> tuple[float, float]:
+        """RMS over all members and window points of data minus the averaged polynomials."""
+        cq, cr = self.mean()
+        k0, k1 = self.window
+        k = self.k
+        dq = self.series[:, k0 : k1 + 1, 0] - P.polyval(k, cq)
+        dr = self.series[:, k0 : k1 + 1, 1] - P.polyval(k, cr)
+        return float(np.sqrt(np.mean(dq * dq))), float(np.sqrt(np.mean(dr * dr)))
+
+    def map_error(self) -> dict[str, float]:
+        """One-step RMS error of the implied map ``r_k -> r_{k+1}`` on the members' data.
+
+        ``implied``: the averaged ``r`` polynomial advanced by one in ``k``;
+        ``paper_formula``: for a quadratic fit, the paper's closed form with steps of
+        ``2 pi`` (its reading of the variable as time), sign as printed (``+``).
+        """
+        _, cr = self.mean()
+        k0, k1 = self.window
+        r = self.series[:, k0:k1, 1]
+        nxt = self.series[:, k0 + 1 : k1 + 1, 1]
+        kk = np.broadcast_to(np.arange(k0, k1), r.shape)
+        out = {"implied": float(np.sqrt(np.mean((implied_map(cr, r, kk) - nxt) ** 2)))}
+        if cr.size == 3:
+            c, b, a = cr
+            disc = np.maximum(b * b - 4 * a * c + 4 * a * r, 0.0)
+            paper = r + 2 * math.pi * np.sqrt(disc) + 4 * a * math.pi**2
+            out["paper_formula"] = float(np.sqrt(np.mean((paper - nxt) ** 2)))
+            sign = math.copysign(1.0, 2 * a * 0.5 * (k0 + k1) + b)  # dr/dk in the window
+            out["quadratic_in_k"] = float(np.sqrt(np.mean((quadratic_map(a, b, c, r, 1.0, sign) - nxt) ** 2)))
+        out["mean_step"] = float(np.mean(np.abs(nxt - r)))
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        cq, cr = self.mean()
+        sq, sr = self.spread()
+        tq, tr = self.mean_in_time()
+        rq, rr = self.residuals_of_mean()
+        return {
+            "window": list(self.window),
+            "degree": list(self.degree),
+            "criterion": self.criterion,
+            "variable": "k (period index); *_t: time t = t0 + k T",
+            "members": int(self.members.shape[0]),
+            "rejected": self.rejected,
+            "failed": self.failed,
+            "q": {"coef": cq.tolist(), "spread": sq.tolist(), "coef_t": tq.tolist(), "formula": poly_text(cq, "k")},
+            "r": {"coef": cr.tolist(), "spread": sr.tolist(), "coef_t": tr.tolist(), "formula": poly_text(cr, "k")},
+            "residual_rms": {
+                "q": rq,
+                "r": rr,
+                "q_member_mean": float(self.rms_q.mean()),
+                "r_member_mean": float(self.rms_r.mean()),
+            },
+            "map_error": self.map_error(),
+            "growth_rate_per_period": float(self.growth_rate.mean()),
+            "ics": self.members.tolist(),
+            "elapsed_s": round(self.elapsed_s, 6),
+            "params": self.params.as_dict() if self.params is not None else None,
+            "numerics": self.numerics.as_dict(),
+        }
+
+
+def poly_text(coef: np.ndarray, var: str = "k", digits: int = 7) -> str:
+    """``c_n var^n + ... + c_0``, highest power first (the paper's way of writing)."""
+    terms = []
+    for p in range(coef.size - 1, -1, -1):
+        c = float(coef[p])
+        v = f"{c:.{digits}g}"
+        terms.append(v if p == 0 else f"{v} {var}" if p == 1 else f"{v} {var}^{p}")
+    return " + ".join(terms).replace("+ -", "- ")
+
+
+@dataclass(frozen=True)
+class Tables:
+    """A quadratic field given by raw coefficient tables (the format of :class:`Model`)."""
+
+    num: np.ndarray
+    gpc: np.ndarray
+    den: np.ndarray
+    forcing: np.ndarray
+    t0: float
+    period: float
+
+
+def _series(field: Tables, ics: np.ndarray, k1: int, numerics: Numerics) -> tuple[np.ndarray, np.ndarray]:
+    """``x_k`` for ``k = 0..k1`` (k = 0 is the IC) and the status of each trajectory."""
+    batch = Batch.start(ics, field.t0, field.period)
+    pts, npts = advance(field, batch, k1, **numerics.kernel_kwargs())  # type: ignore[arg-type]
+    out = np.concatenate([ics[:, None, :], pts], axis=1)
+    ok = (batch.status == Status.OK) & (npts == k1)
+    return out, np.where(ok, Status.OK, np.where(batch.status == Status.OK, Status.TOO_MANY_STEPS, batch.status))
+
+
+def drift_fit(params: Params, window: Sequence[int], **kw: Any) -> DriftFit:
+    """Fit polynomials to the drift of the Bilimovich system (see :func:`drift_fit_tables`)."""
+    model = Model(params)
+    field = Tables(model.num, model.gpc, model.den, np.ascontiguousarray(model.forcing), params.t0, params.period)
+    return drift_fit_tables(field, window, params=params, **kw)
+
+
+def drift_fit_tables(
+    field: Tables,
+    window: Sequence[int],
+    *,
+    degree: Sequence[int] = (1, 2),
+    m: int = 10,
+    ics: Any = None,
+    box: Sequence[float] | None = None,
+    seed: int | None = 0,
+    max_draws: int | None = None,
+    criterion: str = "on_curve",
+    numerics: Numerics | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    params: Params | None = None,
+) -> DriftFit:
+    """Fit polynomials to ``q_k``, ``r_k`` over ``window = (k0, k1)``, averaged over drifting members.
+
+    Parameters
+    ----------
+    field : the quadratic field's tables, section phase ``t0`` and period (any field in
+        the model's format: :func:`drift_fit` passes the Bilimovich system's).
+    window : inclusive ``k`` range of the fit (``k = 0`` is the initial condition).
+    degree : ``(degree of q, degree of r)``.
+    m : members wanted (ignored when ``ics`` is given: all of them are tried).
+    ics : explicit initial conditions; else uniform random ones in ``box`` drawn in
+        batches (seeded) until ``m`` are on the drift or ``max_draws`` (default ``50 m``) are spent.
+    criterion : which trajectories count as drifting (:func:`on_drift`): ``"on_curve"``
+        through the whole window, or ``"leaves"`` the compact region within it.
+    numerics : integration settings; the escape ``bound`` must exceed the drift's reach.
+    progress : ``progress(members found, draws)`` after each batch; ``cancel`` polled between batches.
+    params : recorded in the result (``None`` for a field that is not a Bilimovich system).
+
+    Raises
+    ------
+    ParameterError
+        If no member is on the drift (the message says how many were tried and why they failed).
+    """
+    start = time.perf_counter()
+    try:
+        k0, k1 = (int(v) for v in window)
+    except (TypeError, ValueError):
+        raise ParameterError(f"window must be two integers k0,k1, got {window!r}") from None
+    if not 0 <= k0 < k1 <= config.MAX_PERIODS:
+        raise ParameterError(f"window must satisfy 0 <= k0 < k1, got {window!r}")
+    try:
+        dq, dr = (int(v) for v in degree)
+    except (TypeError, ValueError):
+        raise ParameterError(f"degree must be two integers (q, r), got {degree!r}") from None
+    for d in (dq, dr):
+        if not 0 <= d <= 12 or d >= k1 - k0 + 1:
+            raise ParameterError(f"degree must be in [0, 12] and below the window length, got {degree!r}")
+    if criterion not in CRITERIA:
+        raise ParameterError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
+    numerics = numerics or Numerics()
+    if ics is not None:
+        pool = check_ics(ics)
+        batches = [pool]
+    else:
+        if box is None:
+            raise ParameterError("give initial conditions (ics) or a box for random ones")
+        box = check_box(box)
+        if isinstance(m, bool) or not isinstance(m, int | np.integer) or not 1 <= m <= 10_000:
+            raise ParameterError(f"m must be an integer in [1, 10000], got {m!r}")
+        rng = np.random.default_rng(seed)
+        max_draws = max_draws or 50 * m
+        batches = None
+    members, series, rejected, failed, draws = [], [], 0, 0, 0
+
+    def consider(ic_batch: np.ndarray) -> None:
+        nonlocal rejected, failed
+        xs, status = _series(field, ic_batch, k1, numerics)
+        for ic, x, st in zip(ic_batch, xs, status, strict=True):
+            if st != Status.OK:
+                failed += 1
+            elif on_drift(x[k0 : k1 + 1], criterion):
+                members.append(ic)
+                series.append(x)
+            else:
+                rejected += 1
+
+    if batches is not None:
+        consider(batches[0])
+        draws = batches[0].shape[0]
+    else:
+        while len(members) < m and draws < max_draws:
+            if cancel is not None and cancel():
+                break
+            n = min(max(2 * config.N_WORKERS, 2 * (m - len(members))), max_draws - draws)
+            batch = np.column_stack([rng.uniform(box[0], box[1], n), rng.uniform(box[2], box[3], n)])
+            consider(batch)
+            draws += n
+            if progress is not None:
+                progress(len(members), draws)
+        del members[m:], series[m:]
+    if not members:
+        raise ParameterError(
+            f"no trajectory is on the drift over k = {k0}..{k1}: {draws} tried, {rejected} not drifting "
+            f"(criterion {criterion!r}), {failed} failed or escaped (raise the bound?)"
+        )
+    ser = np.array(series)
+    k = np.arange(k0, k1 + 1)
+    cq, cr, rq, rr, gr = [], [], [], [], []
+    for x in ser:
+        c, res = fit_polynomial(k, x[k0 : k1 + 1, 0], dq)
+        cq.append(c)
+        rq.append(float(np.sqrt(np.mean(res * res))))
+        c, res = fit_polynomial(k, x[k0 : k1 + 1, 1], dr)
+        cr.append(c)
+        rr.append(float(np.sqrt(np.mean(res * res))))
+        norms = np.log(np.hypot(x[k0 : k1 + 1, 0], x[k0 : k1 + 1, 1]))
+        gr.append(float(np.polyfit(k, norms, 1)[0]))
+    return DriftFit(
+        params=params,
+        t0=float(field.t0),
+        period=float(field.period),
+        window=(k0, k1),
+        degree=(dq, dr),
+        criterion=criterion,
+        members=np.array(members),
+        rejected=rejected,
+        failed=failed,
+        series=ser,
+        coef_q=np.array(cq),
+        coef_r=np.array(cr),
+        rms_q=np.array(rq),
+        rms_r=np.array(rr),
+        growth_rate=np.array(gr),
+        numerics=numerics,
+        elapsed_s=time.perf_counter() - start,
+    )

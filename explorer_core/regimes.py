@@ -1,0 +1,506 @@
+"""Charts of dynamical regimes on a plane of two parameters (paper, Fig. 11).
+
+Every pixel ``(x_i, y_j)`` of the parameter plane is classified from the
+trajectory of one or more initial conditions: after a transient, ``periods``
+section points are computed together with the largest Lyapunov exponent
+(:mod:`explorer_core.lyapunov`'s kernel) and the regime is
+
+* ``periodic`` with period ``p`` (``1 <= p <= p_max``): the section point
+  returns to itself after ``p`` iterations within ``tol`` over the last part of
+  the measurement -- a stable cycle;
+* ``chaotic``: no period and largest exponent ``> lyap_threshold`` (per unit time);
+* ``quasi-periodic``: no period and largest exponent ``<= lyap_threshold``
+  (an invariant curve, or a cycle longer than ``p_max``);
+* ``escaped``: the trajectory left the bound (noncompact motion);
+* ``failed``: any other integration failure; ``invalid``: the parameters do not
+  define a system (e.g. a tensor that is not positive definite).
+
+The work is organised in **tiles**: :func:`compute_tile` is a pure function of
+a :class:`ChartSpec` and a :class:`TileSpec` (both plain picklable data), so a
+task scheduler can run tiles anywhere. :func:`plan_tiles` orders them
+progressively -- every ``coarse``-th pixel first, then each finer level -- and
+:func:`iter_chart` streams partial charts (with :meth:`Chart.filled` showing a
+coarse picture at once) while both cores work.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from explorer_core import config
+from explorer_core.bifurcation import check_param, detect_period, params_at
+from explorer_core.integrators import Status
+from explorer_core.lyapunov import TangentBatch, advance_tangent
+from explorer_core.model import Model, ParameterError, Params
+from explorer_core.section import Numerics, check_ics
+
+#: Regime codes of :attr:`Chart.regime`.
+NOT_COMPUTED, PERIODIC, QUASI_PERIODIC, CHAOTIC, ESCAPED, FAILED, INVALID = range(7)
+REGIMES = ("not_computed", "periodic", "quasi_periodic", "chaotic", "escaped", "failed", "invalid")
+#: Defaults: charts need the regime, not 1e-10 accuracy; cycles attract integration errors anyway.
+DEFAULT_CHART_TOL = 1e-8
+
+
+def classify(
+    points: np.ndarray, npts: int, status: int, lyap: float, *, p_max: int, tol: float, lyap_threshold: float
+) -> tuple[int, int]:
+    """Regime and period of one trajectory.
+
+    Parameters
+    ----------
+    points : (m, 2) section points after the transient; the first ``npts`` are valid.
+    status : integration status (:class:`~explorer_core.integrators.Status`).
+    lyap : largest Lyapunov exponent over the measurement (per unit time).
+    p_max, tol : cycles up to period ``p_max`` are detected over the second half of the
+        points, with tolerance ``tol * (1 + max |x|)``.
+    lyap_threshold : exponents above it are chaos.
+
+    Returns
+    -------
+    (regime, period) with ``period = 0`` unless the regime is periodic.
+    """
+    if status == Status.ESCAPED:
+        return ESCAPED, 0
+    if status != Status.OK or npts < points.shape[0]:
+        return FAILED, 0
+    tail = points[max(0, points.shape[0] // 2 - 1) :]
+    if tail.shape[0] > p_max:
+        p = detect_period(tail, p_max, tol * (1.0 + float(np.abs(tail).max())))
+        if p:
+            return PERIODIC, p
+    return (CHAOTIC if lyap > lyap_threshold else QUASI_PERIODIC), 0
+
+
+@dataclass(frozen=True)
+class ChartSpec:
+    """Everything that defines a chart (plain data: picklable, hashable by value of its JSON)."""
+
+    params: Params
+    x_param: str
+    x_values: np.ndarray
+    y_param: str
+    y_values: np.ndarray
+    ics: np.ndarray
+    transient: int = 500
+    periods: int = 500
+    p_max: int = 16
+    tol: float = 1e-5
+    lyap_threshold: float = 5e-3
+    numerics: Numerics = field(default_factory=lambda: Numerics(rtol=DEFAULT_CHART_TOL, atol=DEFAULT_CHART_TOL))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(ny, nx)``: rows are ``y`` values, columns ``x`` values."""
+        return self.y_values.size, self.x_values.size
+
+    def pixel_params(self, j: int, i: int) -> Params | str:
+        """Parameters at pixel ``(y_j, x_i)``, or why they are invalid."""
+        p = params_at(self.params, self.x_param, float(self.x_values[i]))
+        if isinstance(p, str):
+            return p
+        return params_at(p, self.y_param, float(self.y_values[j]))
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "params": self.params.as_dict(),
+            "x_param": self.x_param,
+            "x_range": [float(self.x_values[0]), float(self.x_values[-1])],
+            "y_param": self.y_param,
+            "y_range": [float(self.y_values[0]), float(self.y_values[-1])],
+            "grid": [int(self.x_values.size), int(self.y_values.size)],
+            "ics": self.ics.tolist(),
+            "transient": self.transient,
+            "periods": self.periods,
+            "p_max": self.p_max,
+            "tol": self.tol,
+            "lyap_threshold": self.lyap_threshold,
+            "numerics": self.numerics.as_dict(),
+        }
+
+
+def chart_spec(
+    params: Params,
+    x_param: str,
+    x_range: Sequence[float],
+    y_param: str,
+    y_range: Sequence[float],
+    grid: Sequence[int],
+    *,
+    ics: Any = ((0.1, 0.1),),
+    transient: int = 500,
+    periods: int = 500,
+    p_max: int = 16,
+    tol: float = 1e-5,
+    lyap_threshold: float = 5e-3,
+    numerics: Numerics | None = None,
+) -> ChartSpec:
+    """Validated :class:`ChartSpec` over ``x_range x y_range`` with ``grid = (nx, ny)`` pixels.
+
+    Pixel centres include both ends of each range. ``ics`` are used at every pixel
+    (several: multistability is seen per pixel).
+    """
+    from explorer_core.bifurcation import sweep_values
+
+    xp, yp = check_param(x_param), check_param(y_param)
+    if xp == yp:
+        raise ParameterError(f"x and y parameters must differ, both are {xp!r}")
+    try:
+        nx, ny = (int(v) for v in grid)
+    except (TypeError, ValueError):
+        raise ParameterError(f"grid must be two integers NX,NY, got {grid!r}") from None
+    for n in (nx, ny):
+        if not 1 <= n <= config.MAX_GRID:
+            raise ParameterError(f"grid must be between 1 and {config.MAX_GRID} per axis, got {grid!r}")
+    ics = check_ics(ics)
+    for name, v, lo, hi in (("transient", transient, 0, config.MAX_PERIODS), ("periods", periods, 4, 10**6)):
+        if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
+            raise ParameterError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
+    if isinstance(p_max, bool) or not isinstance(p_max, int | np.integer) or not 1 <= p_max < periods // 2:
+        raise ParameterError(f"p_max must be an integer in [1, periods/2), got {p_max!r}")
+    if not (isinstance(tol, int | float) and 0 < tol < 1):
+        raise ParameterError(f"tol must be in (0, 1), got {tol!r}")
+    if not (isinstance(lyap_threshold, int | float) and np.isfinite(lyap_threshold)):
+        raise ParameterError(f"lyap_threshold must be a finite number, got {lyap_threshold!r}")
+    if nx * ny * ics.shape[0] * periods > 50 * config.MAX_POINTS:
+        raise ParameterError(f"chart of {nx}x{ny} pixels x {ics.shape[0]} ICs x {periods} periods is too large")
+    return ChartSpec(
+        params=params,
+        x_param=xp,
+        x_values=sweep_values(x_range, nx),
+        y_param=yp,
+        y_values=sweep_values(y_range, ny),
+        ics=ics,
+        transient=int(transient),
+        periods=int(periods),
+        p_max=int(p_max),
+        tol=float(tol),
+        lyap_threshold=float(lyap_threshold),
+        numerics=numerics or Numerics(rtol=DEFAULT_CHART_TOL, atol=DEFAULT_CHART_TOL),
+    )
+
+
+# ---------------------------------------------------------------------------
+# Tiles.
+
+
+@dataclass(frozen=True)
+class TileSpec:
+    """A block of pixels at one refinement level.
+
+    The tile covers rows ``j0 <= j < j1`` and columns ``i0 <= i < i1`` and holds
+    the pixels on the ``stride`` lattice (``i % stride == 0 == j % stride``) that
+    no coarser level (``2 * stride`` lattice, up to ``coarsest``) has computed.
+    """
+
+    stride: int
+    coarsest: int
+    j0: int
+    j1: int
+    i0: int
+    i1: int
+
+    def pixels(self) -> list[tuple[int, int]]:
+        """``(j, i)`` of the tile's pixels, row by row."""
+        s = self.stride
+        out = []
+        for j in range(self.j0 + (-self.j0) % s, self.j1, s):
+            for i in range(self.i0 + (-self.i0) % s, self.i1, s):
+                if s < self.coarsest and j % (2 * s) == 0 and i % (2 * s) == 0:
+                    continue  # done at a coarser level
+                out.append((j, i))
+        return out
+
+
+def plan_tiles(shape: tuple[int, int], coarse: int = 8, tile_pixels: int = 64) -> list[TileSpec]:
+    """Tiles covering every pixel of a ``(ny, nx)`` chart exactly once, coarse levels first.
+
+    ``coarse`` (a power of two) is the stride of the first level; every level is
+    split into blocks of about ``tile_pixels`` pixels.
+    """
+    ny, nx = shape
+    if coarse < 1 or coarse & (coarse - 1):
+        raise ParameterError(f"coarse must be a power of two, got {coarse!r}")
+    if tile_pixels < 1:
+        raise ParameterError(f"tile_pixels must be >= 1, got {tile_pixels!r}")
+    tiles = []
+    stride = coarse
+    while stride >= 1:
+        # Side in pixels of a block holding ~tile_pixels lattice points of this level.
+        side = max(stride, round(float(np.sqrt(tile_pixels))) * stride)
+        for j0 in range(0, ny, side):
+            for i0 in range(0, nx, side):
+                t = TileSpec(stride, coarse, j0, min(ny, j0 + side), i0, min(nx, i0 + side))
+                if t.pixels():
+                    tiles.append(t)
+        stride //= 2
+    return tiles
+
+
+@dataclass(frozen=True)
+class TileResult:
+    """Regimes of a tile's pixels; arrays are indexed ``[pixel, ic]`` in ``tile.pixels()`` order."""
+
+    tile: TileSpec
+    jj: np.ndarray
+    ii: np.ndarray
+    regime: np.ndarray
+    period: np.ndarray
+    lyap: np.ndarray
+    status: np.ndarray
+    errors: tuple[str, ...]
+    elapsed_s: float
+
+
+def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
+    """Classify every pixel of ``tile`` (a pure function of its arguments; single-threaded)."""
+    start = time.perf_counter()
+    pix = tile.pixels()
+    n_ic = spec.ics.shape[0]
+    regime = np.zeros((len(pix), n_ic), dtype=np.int8)
+    period = np.zeros((len(pix), n_ic), dtype=np.int16)
+    lyap = np.zeros((len(pix), n_ic))
+    status = np.zeros((len(pix), n_ic), dtype=np.int8)
+    errors = []
+    for n, (j, i) in enumerate(pix):
+        p = spec.pixel_params(j, i)
+        if isinstance(p, str):
+            regime[n] = INVALID
+            errors.append(p)
+            continue
+        errors.append("")
+        model = Model(p)
+        batch = TangentBatch.start(spec.ics, p.t0, p.period)
+        if spec.transient:
+            advance_tangent(model.num, model.gpc, model.den, model.forcing, batch, spec.transient, spec.numerics, 1)
+        logs, _, pts, npts = advance_tangent(
+            model.num, model.gpc, model.den, model.forcing, batch, spec.periods, spec.numerics, 1
+        )
+        for k in range(n_ic):
+            m = int(npts[k])
+            lyap[n, k] = logs[k, :m, 0].sum() / (max(m, 1) * p.period)
+            status[n, k] = batch.status[k]
+            regime[n, k], period[n, k] = classify(
+                pts[k],
+                m,
+                int(batch.status[k]),
+                lyap[n, k],
+                p_max=spec.p_max,
+                tol=spec.tol,
+                lyap_threshold=spec.lyap_threshold,
+            )
+    jj = np.array([j for j, _ in pix], dtype=np.int64)
+    ii = np.array([i for _, i in pix], dtype=np.int64)
+    return TileResult(tile, jj, ii, regime, period, lyap, status, tuple(errors), time.perf_counter() - start)
+
+
+# ---------------------------------------------------------------------------
+# The chart.
+
+
+@dataclass
+class Chart:
+    """A (possibly partial) chart of regimes. Arrays are ``[row j (y), column i (x), ic]``.
+
+    ``regime`` holds the codes of :data:`REGIMES`; ``period`` the cycle's period
+    (0 unless periodic); ``lyap`` the largest exponent per unit time; ``status``
+    the integration status. ``computed[j, i]`` says whether a pixel is done.
+    """
+
+    spec: ChartSpec
+    regime: np.ndarray
+    period: np.ndarray
+    lyap: np.ndarray
+    status: np.ndarray
+    computed: np.ndarray
+    errors: dict[tuple[int, int], str] = field(default_factory=dict)
+    elapsed_s: float = 0.0
+    completed: bool = False
+
+    @classmethod
+    def empty(cls, spec: ChartSpec) -> Chart:
+        ny, nx = spec.shape
+        n = spec.ics.shape[0]
+        return cls(
+            spec,
+            np.zeros((ny, nx, n), dtype=np.int8),
+            np.zeros((ny, nx, n), dtype=np.int16),
+            np.zeros((ny, nx, n)),
+            np.zeros((ny, nx, n), dtype=np.int8),
+            np.zeros((ny, nx), dtype=bool),
+        )
+
+    def add(self, res: TileResult) -> None:
+        self.regime[res.jj, res.ii] = res.regime
+        self.period[res.jj, res.ii] = res.period
+        self.lyap[res.jj, res.ii] = res.lyap
+        self.status[res.jj, res.ii] = res.status
+        self.computed[res.jj, res.ii] = True
+        for j, i, e in zip(res.jj, res.ii, res.errors, strict=True):
+            if e:
+                self.errors[(int(j), int(i))] = e
+
+    def code(self) -> np.ndarray:
+        """One integer per pixel and IC for colouring: ``p`` for a period-``p`` cycle, else ``-regime``."""
+        return np.where(self.regime == PERIODIC, self.period.astype(np.int64), -self.regime.astype(np.int64))
+
+    def filled(self) -> Chart:
+        """A copy where every uncomputed pixel shows its nearest computed coarser-lattice pixel."""
+        out = Chart(
+            self.spec,
+            self.regime.copy(),
+            self.period.copy(),
+            self.lyap.copy(),
+            self.status.copy(),
+            self.computed.copy(),
+            dict(self.errors),
+            self.elapsed_s,
+            self.completed,
+        )
+        ny, nx = self.computed.shape
+        jj, ii = np.mgrid[0:ny, 0:nx]
+        s = 2
+        while not out.computed.all() and s <= 2 * max(ny, nx):
+            pj, pi = (jj // s) * s, (ii // s) * s
+            take = ~out.computed & self.computed[pj, pi]
+            for arr, src in ((out.regime, self.regime), (out.period, self.period), (out.lyap, self.lyap)):
+                arr[take] = src[pj[take], pi[take]]
+            out.status[take] = self.status[pj[take], pi[take]]
+            out.computed |= take
+            s *= 2
+        return out
+
+    def multistable(self) -> np.ndarray:
+        """``[j, i]``: True where the initial conditions found different regimes or periods."""
+        c = self.code()
+        return np.any(c != c[..., :1], axis=-1)
+
+    def counts(self, ic: int = 0) -> dict[str, int]:
+        """Pixels per regime (periodic split by period) for initial condition ``ic``."""
+        out: dict[str, int] = {}
+        sel = self.computed
+        for code in np.unique(self.code()[..., ic][sel]):
+            key = f"period_{code}" if code > 0 else REGIMES[-code]
+            out[key] = int(np.count_nonzero(self.code()[..., ic][sel] == code))
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            **self.spec.as_dict(),
+            "computed": int(self.computed.sum()),
+            "pixels": int(self.computed.size),
+            "counts": self.counts(),
+            "multistable_pixels": int(self.multistable()[self.computed].sum()),
+            "invalid_pixels": len(self.errors),
+            "completed": self.completed,
+            "elapsed_s": round(self.elapsed_s, 6),
+        }
+
+    def to_npz(self, path: str) -> None:
+        """Arrays plus the spec as JSON, so the file says what it holds."""
+        np.savez_compressed(
+            path,
+            x=self.spec.x_values,
+            y=self.spec.y_values,
+            regime=self.regime,
+            period=self.period,
+            lyap=self.lyap,
+            status=self.status,
+            computed=self.computed,
+            regimes=np.array(REGIMES),
+            spec=json.dumps(self.spec.as_dict()),
+        )
+
+    def to_csv(self, path: str) -> int:
+        """Rows ``i,j,x,y,ic,regime,period,lyap,status`` for the computed pixels."""
+        rows = 0
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["i", "j", self.spec.x_param, self.spec.y_param, "ic", "regime", "period", "lyap", "status"])
+            for j, i in zip(*np.nonzero(self.computed), strict=True):
+                for k in range(self.spec.ics.shape[0]):
+                    st = int(self.status[j, i, k])
+                    w.writerow(
+                        (int(i), int(j), repr(float(self.spec.x_values[i])), repr(float(self.spec.y_values[j])), k,
+                         REGIMES[self.regime[j, i, k]], int(self.period[j, i, k]), repr(float(self.lyap[j, i, k])),
+                         Status(st).label)
+                    )  # fmt: skip
+                    rows += 1
+        return rows
+
+
+@dataclass(frozen=True)
+class ChartUpdate:
+    """Yielded by :func:`iter_chart` after each tile; ``chart`` is the live (partial) chart."""
+
+    tile: TileResult
+    done_tiles: int
+    total_tiles: int
+    chart: Chart
+
+
+def iter_chart(
+    spec: ChartSpec,
+    *,
+    coarse: int = 8,
+    tile_pixels: int = 64,
+    workers: int | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Iterator[ChartUpdate]:
+    """Compute the chart tile by tile, coarse levels first, yielding after every tile.
+
+    Tiles run in ``workers`` threads (default: both cores); ``cancel`` is polled
+    whenever a tile finishes, and no new tile starts once it returns True.
+    """
+    start = time.perf_counter()
+    tiles = plan_tiles(spec.shape, coarse, tile_pixels)
+    chart = Chart.empty(spec)
+    workers = max(1, workers or config.N_WORKERS)
+    done = 0
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        queue = iter(tiles)
+        running: set[Future] = set()
+        stop = False
+        while True:
+            while not stop and len(running) < workers:
+                t = next(queue, None)
+                if t is None:
+                    break
+                running.add(pool.submit(compute_tile, spec, t))
+            if not running:
+                break
+            finished, running = wait(running, return_when=FIRST_COMPLETED)
+            for f in sorted(finished, key=lambda f: f.result().tile.stride, reverse=True):
+                res = f.result()
+                chart.add(res)
+                done += 1
+                chart.elapsed_s = time.perf_counter() - start
+                chart.completed = done == len(tiles)
+                yield ChartUpdate(res, done, len(tiles), chart)
+            if cancel is not None and cancel():
+                stop = True
+
+
+def regime_chart(
+    spec: ChartSpec,
+    *,
+    coarse: int = 8,
+    tile_pixels: int = 64,
+    workers: int | None = None,
+    progress: Callable[[ChartUpdate], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Chart:
+    """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``."""
+    chart = Chart.empty(spec)
+    for upd in iter_chart(spec, coarse=coarse, tile_pixels=tile_pixels, workers=workers, cancel=cancel):
+        chart = upd.chart
+        if progress is not None:
+            progress(upd)
+    return chart

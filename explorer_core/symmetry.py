@@ -1,0 +1,210 @@
+"""Reversibility of the reduced system: the involution ``t -> -t, q -> q, r -> -r``.
+
+The paper (section "Two critical points") states that for an even ``g`` the
+equations are invariant under ``t -> -t, q -> q, r -> -r``, so attractors and
+repellers of the Poincare map come in symmetric pairs. For a centre ``s`` of
+the involution (``t -> 2 s - t``) the field must satisfy::
+
+    Q(q, -r, t) = -Q(q, r, 2 s - t),     R(q, -r, t) = R(q, r, 2 s - t).
+
+Then the backward section from ``(q0, -r0)`` at ``s`` is the mirror image of the
+forward section from ``(q0, r0)``: ``y_k = (q_k, -r_k)``. This module checks it
+both ways:
+
+* on the field (:func:`field_residual`: the two identities on sample points),
+* on computed sections (:func:`check_symmetry`: the distance between the
+  backward section and the reflected forward one),
+
+and names what breaks it. Verified here (and in ``tests/test_symmetry.py``): it
+holds for ``I13 = I23 = 0`` with any ``I12``; ``I13 != 0`` or ``I23 != 0`` (the
+tensors of Figs. 4-11) break it. ``g = g0 + g1 cos(w t) + g2 sin(w t)`` is even
+about ``phi = atan2(g2, g1) / w`` (and ``phi + T/2``), so ``g2 != 0`` breaks the
+involution about ``t = 0`` only: about ``phi`` it holds again.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from explorer_core.model import Model, ParameterError, Params
+from explorer_core.section import Numerics, check_ics, section
+
+#: A residual of the field identities below this (relative to the field's size) is rounding.
+FIELD_TOL = 1e-12
+
+
+def symmetry_centres(params: Params) -> list[float]:
+    """The times ``s`` in ``[0, T)`` about which ``g`` is even (all ``t`` if ``g`` is constant: ``[]``)."""
+    if params.g1 == 0.0 and params.g2 == 0.0:
+        return []
+    phi = math.atan2(params.g2, params.g1) / params.omega
+    T = params.period
+    return sorted({phi % T, (phi + T / 2) % T})
+
+
+def g_is_even_about(params: Params, s: float) -> bool:
+    """``g(s + tau) == g(s - tau)`` for all ``tau``."""
+    if params.g1 == 0.0 and params.g2 == 0.0:
+        return True
+    # g(s + tau) - g(s - tau) = -2 sin(w tau) (g1 sin(w s) - g2 cos(w s)).
+    w = params.omega
+    odd = params.g1 * math.sin(w * s) - params.g2 * math.cos(w * s)
+    return abs(odd) <= 1e-12 * math.hypot(params.g1, params.g2)
+
+
+def field_residual(params: Params, s: float, n: int = 64, seed: int = 0) -> float:
+    """Largest relative violation of the field identities of the involution about ``s``.
+
+    Sampled at ``n`` random ``(q, r, t)`` with ``|q|, |r| <= 3`` and ``t`` over a period.
+    0 (to rounding) iff the field is reversible about ``s``.
+    """
+    model = Model(params)
+    rng = np.random.default_rng(seed)
+    worst = 0.0
+    for _ in range(n):
+        q, r = rng.uniform(-3, 3, 2)
+        t = s + rng.uniform(0, params.period)
+        qa, ra = model.field(q, -r, t)
+        qb, rb = model.field(q, r, 2 * s - t)
+        scale = 1.0 + float(np.abs(model.field(q, r, t)).max())
+        worst = max(worst, abs(float(qa + qb)) / scale, abs(float(ra - rb)) / scale)
+    return worst
+
+
+@dataclass(frozen=True)
+class SymmetryCheck:
+    """The involution about ``centre`` checked on a section.
+
+    ``distance[i, k-1]`` is ``|y_k - (q_k, -r_k)|`` for initial condition ``i``
+    (``y``: backward section from ``(q0, -r0)``), over the periods both runs completed.
+    """
+
+    params: Params
+    centre: float
+    ics: np.ndarray
+    periods: int
+    distance: np.ndarray
+    npts: np.ndarray
+    status: list[str]
+    g_even: bool
+    field_residual: float
+    tol: float
+    numerics: Numerics
+    elapsed_s: float
+
+    @property
+    def max_distance(self) -> float:
+        vals = [self.distance[i, : self.npts[i]].max() for i in range(self.ics.shape[0]) if self.npts[i]]
+        return float(max(vals)) if vals else 0.0
+
+    @property
+    def holds(self) -> bool:
+        """The section is symmetric: every compared point within ``tol`` (and something was compared)."""
+        return bool(self.npts.sum() > 0 and self.max_distance <= self.tol)
+
+    def broken_by(self) -> list[str]:
+        """What breaks the involution (empty if it holds)."""
+        if self.holds:
+            return []
+        p = self.params
+        out = []
+        if not self.g_even:
+            even = symmetry_centres(p)
+            out.append(
+                f"g is not even about t = {self.centre:.6g} (g2 = {p.g2:g}); it is even about "
+                + (", ".join(f"{c:.6g}" for c in even) if even else "every t")
+            )
+        i13, i23 = p.inertia[4], p.inertia[5]
+        if i13 != 0.0:
+            out.append(f"I13 = {i13:g} != 0")
+        if i23 != 0.0:
+            out.append(f"I23 = {i23:g} != 0")
+        if not out:
+            out.append("numerical distance above tol (chaotic amplification or loose tolerance?)")
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "holds": self.holds,
+            "centre": self.centre,
+            "g_even": self.g_even,
+            "even_centres": symmetry_centres(self.params),
+            "field_residual": self.field_residual,
+            "max_distance": self.max_distance,
+            "first_period_distance": float(self.distance[:, 0].max()) if self.npts.min() > 0 else None,
+            "tol": self.tol,
+            "broken_by": self.broken_by(),
+            "trajectories": [
+                {"ic": [float(q), float(r)], "status": st, "periods": int(n), "max_distance": float(d[:n].max())}
+                if n
+                else {"ic": [float(q), float(r)], "status": st, "periods": 0, "max_distance": None}
+                for (q, r), st, n, d in zip(self.ics, self.status, self.npts, self.distance, strict=True)
+            ],
+            "periods": self.periods,
+            "elapsed_s": round(self.elapsed_s, 6),
+            "params": self.params.as_dict(),
+            "numerics": self.numerics.as_dict(),
+        }
+
+
+def check_symmetry(
+    params: Params,
+    ics: Any,
+    periods: int = 10,
+    *,
+    centre: float | None = None,
+    tol: float = 1e-6,
+    numerics: Numerics | None = None,
+) -> SymmetryCheck:
+    """Check ``t -> 2 s - t, q -> q, r -> -r`` on sections started at the centre ``s``.
+
+    Parameters
+    ----------
+    params : the system (its ``t0`` is replaced by the centre).
+    ics : (n, 2) initial conditions ``(q0, r0)`` at ``s``.
+    periods : compared section points per trajectory; keep it short on chaotic orbits,
+        where integration errors (~tolerance) grow like the Lyapunov exponent.
+    centre : ``s``; default ``params.t0`` (the paper: ``t0 = 0``, ``g = cos t``).
+    tol : largest distance still counted as symmetric.
+    numerics : default DOP853 with rtol = atol = 1e-12.
+    """
+    start = time.perf_counter()
+    ics = check_ics(ics)
+    s = float(params.t0 if centre is None else centre)
+    if not math.isfinite(s):
+        raise ParameterError(f"centre must be finite, got {centre!r}")
+    if not (isinstance(tol, int | float) and tol > 0):
+        raise ParameterError(f"tol must be positive, got {tol!r}")
+    numerics = numerics or Numerics(rtol=1e-12, atol=1e-12)
+    p = params.with_(t0=s)
+    fwd = section(p, ics, periods, numerics=numerics)
+    mirrored = ics * np.array([1.0, -1.0])
+    bwd = section(p, mirrored, periods, numerics=numerics, direction=-1)
+    npts = np.minimum(fwd.npts, bwd.npts)
+    dist = np.zeros((ics.shape[0], periods))
+    refl = fwd.points * np.array([1.0, -1.0])
+    for i in range(ics.shape[0]):
+        m = int(npts[i])
+        dist[i, :m] = np.hypot(*(bwd.points[i, :m] - refl[i, :m]).T)
+    status = [
+        a if a != "ok" else b for a, b in zip(fwd.status_labels(), bwd.status_labels(), strict=True)
+    ]  # a failure in either direction
+    return SymmetryCheck(
+        params=p,
+        centre=s,
+        ics=ics,
+        periods=int(periods),
+        distance=dist,
+        npts=npts,
+        status=status,
+        g_even=g_is_even_about(p, s),
+        field_residual=field_residual(p, s),
+        tol=float(tol),
+        numerics=numerics,
+        elapsed_s=time.perf_counter() - start,
+    )

@@ -1,0 +1,217 @@
+"""Bifurcation diagrams: the sweep engine on maps with known bifurcations, then the ODE."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from explorer_core.bifurcation import (
+    INVALID_PARAMS,
+    bifurcation_diagram,
+    bilimovich_orbits,
+    check_param,
+    detect_period,
+    sweep_orbits,
+    sweep_values,
+)
+from explorer_core.integrators import Status
+from explorer_core.model import ParameterError
+from explorer_core.scenes import get_scene
+from explorer_core.section import Numerics
+
+FIG10 = get_scene("fig10").params
+
+
+def map_orbits(step, values, transient: int, n: int):
+    """An OrbitFn for a 1-D map ``x -> step(x, value)``; points are ``(x, 0)``."""
+
+    def orbits(v: int, seed: np.ndarray, threads: int):
+        x = seed[:, 0].copy()
+        for _ in range(transient):
+            x = step(x, values[v])
+        pts = np.empty((x.size, n, 2))
+        pts[..., 1] = 0.0
+        for j in range(n):
+            x = step(x, values[v])
+            pts[:, j, 0] = x
+        final = np.column_stack([x, np.zeros_like(x)])
+        return pts, np.full(x.size, n), np.zeros(x.size, dtype=np.int64), final
+
+    return orbits
+
+
+def logistic(x, r):
+    return r * x * (1.0 - x)
+
+
+def test_logistic_map_period_doubling_points() -> None:
+    """Periods 1, 2, 4, 8 and the period-3 window; doublings at r = 3 and 1 + sqrt(6)."""
+    rs = np.concatenate([np.linspace(2.9, 3.6, 141), [3.83]])
+    out = sweep_orbits(map_orbits(logistic, rs, 4000, 64), rs.size, np.array([[0.3, 0.0]]), 64, seeding="fixed")
+    per = np.array([detect_period(out["points"][0, v, 0], 16, 1e-7) for v in range(rs.size)])
+    assert per[-1] == 3
+    first_2 = rs[np.argmax(per == 2)]
+    first_4 = rs[np.argmax(per == 4)]
+    first_8 = rs[np.argmax(per == 8)]
+    # Slow convergence right at a doubling (multiplier -1) shifts the detected onset by a grid step or two.
+    assert 3.0 - 0.005 <= first_2 <= 3.0 + 0.015
+    assert 1 + math.sqrt(6) - 0.005 <= first_4 <= 1 + math.sqrt(6) + 0.015
+    assert 3.5441 - 0.005 <= first_8 <= 3.5441 + 0.015  # r3 = 3.54409...
+    assert set(per[(rs > 3.02) & (rs < 3.44)]) == {2}
+    assert np.all(per[:-1][rs[:-1] > 3.575] == 0)  # chaos beyond the accumulation point (r = 3.5699...)
+
+
+def test_continuation_exposes_hysteresis_of_a_bistable_map() -> None:
+    """x -> x + 0.1 (c + x - x^3): two stable fixed points for |c| < 2/(3 sqrt 3); folds at +-0.3849."""
+    cs = np.linspace(-0.6, 0.6, 121)
+    fold = 2 / (3 * math.sqrt(3))
+    out = sweep_orbits(
+        map_orbits(lambda x, c: x + 0.1 * (c + x - x**3), cs, 500, 4),
+        cs.size,
+        np.array([[-1.5, 0.0]]),
+        4,
+        seeding="continuation",
+    )
+    assert out["sweeps"].tolist() == ["forward", "backward"]
+    fwd = out["points"][0, :, 0, -1, 0]
+    bwd = out["points"][1, :, 0, -1, 0]
+    # Forward stays on the lower branch until the upper fold, backward on the upper until the lower fold.
+    jump_up = cs[np.argmax(fwd > 0)]
+    jump_down = cs[::-1][np.argmax(bwd[::-1] < 0)]
+    assert fold - 0.011 <= jump_up <= fold + 0.011
+    assert -fold - 0.011 <= jump_down <= -fold + 0.011
+    inside = np.abs(cs) < fold - 0.02
+    assert np.all(fwd[inside] < 0) and np.all(bwd[inside] > 0)
+    # Fixed seeding from x = -1.5 never sees the upper branch below the fold.
+    fixed = sweep_orbits(
+        map_orbits(lambda x, c: x + 0.1 * (c + x - x**3), cs, 500, 4), cs.size, np.array([[-1.5, 0.0]]), 4,
+        seeding="fixed",
+    )  # fmt: skip
+    np.testing.assert_allclose(fixed["points"][0, inside], out["points"][0, inside], atol=1e-9)
+
+
+def test_detect_period() -> None:
+    cyc = np.array([[0.0, 1.0], [1.0, 0.0], [2.0, 2.0]])
+    pts = np.tile(cyc, (10, 1))
+    assert detect_period(pts, 8, 1e-12) == 3
+    assert detect_period(pts[:, ::-1] * 0 + 1.0, 8, 0.0) == 1
+    assert detect_period(pts + np.arange(30)[:, None] * 1e-3, 8, 1e-6) == 0
+    assert detect_period(pts, 2, 1e-12) == 0
+
+
+def test_period_doubling_cascade_in_fig10_range() -> None:
+    """Fig. 10: a period-1 cycle at alpha = -0.36 doubles to 2 and 4 as alpha decreases; chaos by -0.42.
+
+    At -0.36 a period-4 cycle coexists with the fixed point (multistability): the
+    second initial condition finds it.
+    """
+    vals = np.array([-0.42, -0.409, -0.39, -0.36])
+    ics = [(-0.09, -2.0), (-0.5, -1.0)]
+    d = bifurcation_diagram(FIG10, "alpha", vals, points=64, transient=400, ics=ics, seeding="fixed")
+    assert d.status_counts() == {"ok": 8}
+    per = d.periods()[0]
+    assert per[:, 0].tolist() == [0, 4, 2, 1]
+    assert per[3, 1] == 4
+
+
+def test_continuation_seeds_each_value_from_the_previous_final_state() -> None:
+    vals = sweep_values((-0.40, -0.38), 3)
+    num = Numerics(rtol=1e-9, atol=1e-9)
+    d = bifurcation_diagram(FIG10, "alpha", vals, points=20, transient=30, ics=[(-0.5, -1.0)], numerics=num)
+    assert d.sweeps.tolist() == ["forward", "backward"]
+    # Forward value 1 starts where value 0 ended; backward value 1 where value 2 ended.
+    for s, src in ((0, 0), (1, 2)):
+        pts, npts, st, fin = bilimovich_orbits(FIG10.with_(alpha=vals[1]), d.final[s, src], 30, 20, num)
+        np.testing.assert_array_equal(pts, d.points[s, 1])
+        np.testing.assert_array_equal(fin, d.final[s, 1])
+
+
+def test_invalid_values_are_marked_and_skipped() -> None:
+    """I11 below ~0.066 makes the fig. 8 tensor indefinite: marked invalid, the rest computed."""
+    vals = np.array([0.0, 0.05, 1.0, 1.2])
+    d = bifurcation_diagram(FIG10, "I11", vals, points=5, transient=5, ics=[(-0.5, -1.0)])
+    assert d.status[:, :2].ravel().tolist() == [INVALID_PARAMS] * 4
+    assert d.valid.tolist() == [False, False, True, True]
+    assert "positive definite" in d.errors[0]
+    assert np.all(d.status[:, 2:] == Status.OK)
+    assert d.summary()["invalid_values"][0]["value"] == 0.0
+
+
+def test_escaped_trajectories_are_not_drawn(tmp_path) -> None:
+    d = bifurcation_diagram(
+        FIG10, "alpha", [-0.6, -0.36], points=10, transient=50, ics=[(0.0, 3.0), (-0.5, -1.0)], seeding="fixed",
+        numerics=Numerics(bound=50.0),
+    )  # fmt: skip
+    assert d.status[0, 0, 0] == Status.ESCAPED and d.status[0, 1, 1] == Status.OK
+    s, v, val, i, k, q, r = d.long()
+    assert not np.any((v == 0) & (i == 0))
+    assert np.all(np.isfinite(q)) and k.min() == 51 and k.max() == 60
+    path = tmp_path / "b.csv"
+    rows = d.to_csv(str(path))
+    lines = list(csv.reader(path.open()))
+    assert lines[0] == ["sweep", "value_index", "value", "ic", "k", "q", "r", "status"]
+    assert len(lines) == rows + 1
+    escaped = [row for row in lines[1:] if row[7] == "escaped"]
+    assert escaped and all(row[4:7] == ["", "", ""] for row in escaped)
+    assert sum(row[7] == "ok" for row in lines[1:]) == q.size
+
+
+def test_cancel_and_progress() -> None:
+    seen = []
+    d = bifurcation_diagram(
+        FIG10, "alpha", sweep_values((-0.4, -0.36), 40), points=5, transient=5, seeding="fixed",
+        progress=seen.append, cancel=lambda: len(seen) >= 3, workers=1,
+    )  # fmt: skip
+    assert not d.completed and len(seen) == 3 and seen[-1].total == 40
+    assert d.status_counts()["not_run"] == 37
+
+
+@pytest.mark.parametrize(
+    ("call", "needle"),
+    [
+        (lambda: check_param("beta"), "cannot sweep 'beta'"),
+        (lambda: sweep_values((1, 0), 5), "lo < hi"),
+        (lambda: sweep_values((0, 1), 0), "n_values"),
+        (lambda: bifurcation_diagram(FIG10, "alpha", [0.1], seeding="random"), "seeding must be"),
+        (lambda: bifurcation_diagram(FIG10, "alpha", [0.1], sweeps=("up",)), "sweeps must be"),
+        (lambda: bifurcation_diagram(FIG10, "alpha", [np.nan]), "finite"),
+        (lambda: bifurcation_diagram(FIG10, "alpha", [0.1], points=0), "points must be"),
+    ],
+)
+def test_bad_input_named(call, needle: str) -> None:
+    with pytest.raises(ParameterError, match=needle):
+        call()
+
+
+def test_omega_is_accepted_in_any_case() -> None:
+    assert check_param("Omega") == "omega" and check_param("i13") == "I13"
+
+
+def _cli(capsys, *args: str):
+    from explorer_core.cli import main
+
+    try:
+        rc = main(list(args))
+    except SystemExit as exc:
+        rc = exc.code
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def test_cli(capsys, tmp_path) -> None:
+    path = tmp_path / "b.csv"
+    rc, out, err = _cli(
+        capsys, "bifurcation", "--scene", "fig10", "--param", "alpha", "--range", "-0.40,-0.36", "--n-values", "3",
+        "--points", "8", "--transient", "20", "--ic", "-0.5,-1", "--out", str(path), "--json",
+    )  # fmt: skip
+    assert rc == 0, err
+    s = json.loads(out)
+    assert s["param"] == "alpha" and s["n_values"] == 3 and s["sweeps"] == ["forward", "backward"]
+    assert s["status"] == {"ok": 6} and s["csv"]["rows"] == 6 * 8
+    assert len(list(csv.reader(path.open()))) == 1 + 48
+    rc, _, err = _cli(capsys, "bifurcation", "--param", "beta", "--range", "0,1", "--n-values", "3", "--out", "x.csv")
+    assert rc == 2 and "beta" in err

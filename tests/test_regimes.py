@@ -1,0 +1,214 @@
+"""Charts of regimes: classification on maps with known answers, tiles, progressive runs, outputs."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from explorer_core.bifurcation import bifurcation_diagram
+from explorer_core.integrators import Status
+from explorer_core.lyapunov import lyapunov_spectrum
+from explorer_core.model import ParameterError
+from explorer_core.regimes import (
+    CHAOTIC,
+    ESCAPED,
+    FAILED,
+    INVALID,
+    PERIODIC,
+    QUASI_PERIODIC,
+    REGIMES,
+    TileSpec,
+    chart_spec,
+    classify,
+    compute_tile,
+    iter_chart,
+    plan_tiles,
+    regime_chart,
+)
+from explorer_core.scenes import get_scene
+
+FIG11 = get_scene("fig11").params
+IC = (-0.09, -2.0)
+KW = {"p_max": 16, "tol": 1e-6, "lyap_threshold": 5e-3}
+
+
+def logistic_orbit(r: float, n: int = 400, transient: int = 5000) -> tuple[np.ndarray, float]:
+    """Points (x, 0) of the logistic map and its Lyapunov exponent mean log|r (1 - 2x)|."""
+    x = 0.3
+    for _ in range(transient):
+        x = r * x * (1 - x)
+    xs = np.empty(n)
+    for k in range(n):
+        x = r * x * (1 - x)
+        xs[k] = x
+    lyap = float(np.mean(np.log(np.abs(r * (1 - 2 * xs)))))
+    return np.column_stack([xs, np.zeros(n)]), lyap
+
+
+@pytest.mark.parametrize(
+    ("r", "regime", "period"),
+    [(2.8, PERIODIC, 1), (3.2, PERIODIC, 2), (3.5, PERIODIC, 4), (3.555, PERIODIC, 8), (3.83, PERIODIC, 3),
+     (3.9, CHAOTIC, 0), (4.0, CHAOTIC, 0)],
+)  # fmt: skip
+def test_classify_logistic_map(r: float, regime: int, period: int) -> None:
+    pts, lyap = logistic_orbit(r)
+    assert classify(pts, pts.shape[0], Status.OK, lyap, **KW) == (regime, period)
+
+
+def test_classify_quasi_periodic_rotation_escape_and_failure() -> None:
+    """An irrational rotation of a circle: no period, zero exponent."""
+    k = np.arange(400)
+    theta = 2 * math.pi * k * (math.sqrt(5) - 1) / 2
+    circle = np.column_stack([np.cos(theta), np.sin(theta)])
+    assert classify(circle, 400, Status.OK, 0.0, **KW) == (QUASI_PERIODIC, 0)
+    # A cycle longer than p_max is not a detected period either.
+    assert classify(np.tile(circle[:20], (20, 1)), 400, Status.OK, 0.0, **KW) == (QUASI_PERIODIC, 0)
+    assert classify(circle, 17, Status.ESCAPED, 0.0, **KW) == (ESCAPED, 0)
+    assert classify(circle, 17, Status.STEP_COLLAPSED, 0.0, **KW) == (FAILED, 0)
+    assert classify(circle, 399, Status.OK, 0.0, **KW) == (FAILED, 0)  # incomplete: cancelled
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 37), st.integers(1, 29), st.sampled_from([1, 2, 4, 8, 16]), st.integers(1, 80))
+def test_tiles_cover_every_pixel_once_coarse_first(ny: int, nx: int, coarse: int, tile_pixels: int) -> None:
+    tiles = plan_tiles((ny, nx), coarse, tile_pixels)
+    seen = [p for t in tiles for p in t.pixels()]
+    assert len(seen) == len(set(seen)) == ny * nx
+    strides = [t.stride for t in tiles]
+    assert strides == sorted(strides, reverse=True) and strides[0] <= coarse
+    # Every pixel of the first level lies on the coarse lattice.
+    assert all(j % coarse == 0 and i % coarse == 0 for t in tiles if t.stride == coarse for j, i in t.pixels())
+
+
+def test_line_of_the_chart_agrees_with_the_bifurcation_diagram_and_lyapunov() -> None:
+    """Along I11 = 1 the chart sees chaos, period 4, 2, 1 (as Fig. 10's diagram does, computed independently)."""
+    alphas = [-0.42, -0.409, -0.39, -0.36]
+    spec = chart_spec(FIG11, "alpha", (-0.42, -0.36), "I11", (1.0, 2.0), (4, 1), ics=[IC], transient=400, periods=128)
+    spec = spec.__class__(**{**spec.__dict__, "x_values": np.array(alphas)})
+    chart = regime_chart(spec, workers=1)
+    assert chart.completed and chart.computed.all()
+    assert chart.regime[0, :, 0].tolist() == [CHAOTIC, PERIODIC, PERIODIC, PERIODIC]
+    assert chart.period[0, :, 0].tolist() == [0, 4, 2, 1]
+    d = bifurcation_diagram(FIG11.with_(I11=1.0), "alpha", alphas, points=128, transient=400, ics=[IC], seeding="fixed")
+    assert d.periods(tol=1e-5)[0, 1:, 0].tolist() == [4, 2, 1]
+    lyap = lyapunov_spectrum(FIG11.with_(I11=1.0, alpha=-0.42), [IC], 128, transient=400, numerics=spec.numerics)
+    assert chart.lyap[0, 0, 0] == pytest.approx(lyap.exponents[0, 0], rel=1e-12)
+    assert lyap.exponents[0, 0] > 0.02
+
+
+def _small_spec(**kw):
+    base = {"ics": [IC], "transient": 60, "periods": 40, "p_max": 8}
+    base.update(kw)
+    return chart_spec(FIG11, "alpha", (-0.6, -0.36), "I11", (1.0, 2.0), (6, 5), **base)
+
+
+def test_tile_is_a_pure_function_and_threads_do_not_change_the_chart() -> None:
+    spec = _small_spec()
+    tile = plan_tiles(spec.shape, 2, 4)[0]
+    a, b = compute_tile(spec, tile), compute_tile(spec, tile)
+    for name in ("regime", "period", "lyap", "status"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    one = regime_chart(spec, workers=1, coarse=2, tile_pixels=4)
+    two = regime_chart(spec, workers=2, coarse=2, tile_pixels=4)
+    np.testing.assert_array_equal(one.regime, two.regime)
+    np.testing.assert_array_equal(one.lyap, two.lyap)
+    # The chart equals its tiles computed one by one.
+    for t in plan_tiles(spec.shape, 2, 4):
+        res = compute_tile(spec, t)
+        np.testing.assert_array_equal(one.regime[res.jj, res.ii], res.regime)
+
+
+def test_progressive_coarse_picture_first_then_cancel() -> None:
+    spec = _small_spec()
+    updates = []
+    for u in iter_chart(spec, coarse=4, tile_pixels=4, workers=1):
+        updates.append((u.tile.tile.stride, int(u.chart.computed.sum()), u.chart.filled().computed.all()))
+    assert updates[0][0] == 4 and updates[-1][1] == 30
+    # Once the coarse level is done, the filled picture already covers every pixel.
+    n_coarse = sum(1 for s, _, _ in updates if s == 4)
+    assert updates[n_coarse - 1][2]
+    calls = []
+    part = regime_chart(spec, coarse=4, tile_pixels=4, workers=1, progress=calls.append, cancel=lambda: len(calls) >= 2)
+    assert not part.completed and 0 < part.computed.sum() < 30 and len(calls) == 2
+    filled = part.filled()
+    assert filled.computed.all()
+    np.testing.assert_array_equal(filled.regime[part.computed], part.regime[part.computed])
+
+
+def test_invalid_pixels_and_several_initial_conditions(tmp_path) -> None:
+    spec = chart_spec(
+        FIG11, "alpha", (-0.4, -0.36), "I11", (0.0, 1.0), (2, 3), ics=[IC, (-0.5, -1.0)], transient=300, periods=64,
+    )  # fmt: skip
+    chart = regime_chart(spec, workers=2)
+    assert chart.regime.shape == (3, 2, 2)
+    assert np.all(chart.regime[0] == INVALID) and "positive definite" in chart.errors[(0, 0)]
+    assert np.all(chart.regime[1:] != INVALID)
+    s = chart.summary()
+    assert s["invalid_pixels"] == 2 and s["computed"] == 6
+    # At alpha = -0.36, I11 = 1 the second initial condition finds the coexisting period-4 cycle.
+    assert chart.period[2, 1].tolist() == [1, 4] and chart.multistable()[2, 1]
+    npz = tmp_path / "c.npz"
+    chart.to_npz(str(npz))
+    with np.load(npz) as z:
+        np.testing.assert_array_equal(z["regime"], chart.regime)
+        assert json.loads(str(z["spec"]))["y_param"] == "I11" and list(z["regimes"]) == list(REGIMES)
+    path = tmp_path / "c.csv"
+    assert chart.to_csv(str(path)) == 12
+    rows = list(csv.reader(path.open()))
+    assert rows[0] == ["i", "j", "alpha", "I11", "ic", "regime", "period", "lyap", "status"]
+    assert {r[5] for r in rows[1:3]} == {"invalid"}
+
+
+def test_png_with_legend(tmp_path) -> None:
+    pytest.importorskip("matplotlib")
+    from app.render import render_chart
+
+    chart = regime_chart(_small_spec(), workers=2, coarse=2)
+    path = tmp_path / "c.png"
+    render_chart(chart, str(path))
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 5000
+
+
+@pytest.mark.parametrize(
+    ("kw", "needle"),
+    [
+        ({"x_param": "beta"}, "cannot sweep"),
+        ({"y_param": "alpha"}, "must differ"),
+        ({"grid": (0, 3)}, "grid must be"),
+        ({"p_max": 40}, "p_max"),
+        ({"tol": 0.0}, "tol must be"),
+        ({"periods": 2}, "periods must be"),
+    ],
+)
+def test_bad_input_named(kw, needle: str) -> None:
+    args = {"x_param": "alpha", "y_param": "I11", "grid": (3, 3), "p_max": 8, "tol": 1e-5, "periods": 40}
+    args.update(kw)
+    with pytest.raises(ParameterError, match=needle):
+        chart_spec(FIG11, args.pop("x_param"), (-0.6, -0.4), args.pop("y_param"), (1, 2), args.pop("grid"), **args)
+    with pytest.raises(ParameterError, match="power of two"):
+        plan_tiles((4, 4), 3)
+
+
+def test_tile_spec_pixels_skip_coarser_levels() -> None:
+    t = TileSpec(stride=1, coarsest=2, j0=0, j1=2, i0=0, i1=3)
+    assert t.pixels() == [(0, 1), (1, 0), (1, 1), (1, 2)]
+
+
+def test_cli(capsys, tmp_path) -> None:
+    from explorer_core.cli import main
+
+    out = tmp_path / "c.npz"
+    args = ["chart", "--scene", "fig11", "--x-param", "alpha", "--x-range", "-0.42,-0.36", "--y-param", "I11",
+            "--y-range", "1,1.2", "--grid", "2,2", "--ic", "-0.09,-2", "--transient", "50", "--periods", "40",
+            "--p-max", "8", "--out", str(out), "--json"]  # fmt: skip
+    assert main(args) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["computed"] == 4 and s["grid"] == [2, 2] and s["numerics"]["rtol"] == 1e-8 and out.exists()
+    assert main([*args[:-3], "--out", str(tmp_path / "c.txt")]) == 2
+    assert "--out must end" in capsys.readouterr().err
