@@ -1,0 +1,380 @@
+"""One browser session: state changes -> core computations -> figures.
+
+:class:`ExplorerSession` watches an :class:`~app.state.ExplorerState`, starts
+jobs on a :class:`~app.runner.Runner` and applies their results to the figures
+on the document thread. Invalid input shows a message and leaves the last valid
+picture in place. All numerics are calls into :mod:`explorer_core`.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import os
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import param
+
+from app.runner import Runner
+from app.state import SYSTEM_FIELDS, ExplorerState, SectionRequest
+from app.views import SectionFigure, SeriesFigures
+from explorer_core.equilibria import equilibrium_tracks
+from explorer_core.integrators import Status
+from explorer_core.model import Model, ParameterError, Params
+from explorer_core.section import iter_section
+from explorer_core.tprime import energy_change_map, tprime_map
+
+log = logging.getLogger(__name__)
+#: BILIMOVICH_TRACE=1 logs the timeline of each recompute (latency work).
+TRACE = bool(os.environ.get("BILIMOVICH_TRACE"))
+
+#: State fields whose change invalidates the section.
+SECTION_FIELDS = (*SYSTEM_FIELDS, "method", "accuracy", "steps_per_period", "n_random", "seed", "periods", "transient")
+SECTION_FIELDS += ("box",)
+LAYER_FIELDS = ("show_tracks", "show_tprime", "tprime_kind")
+#: Longest chunk streamed to the browser: bounds how long a cancel waits.
+MAX_CHUNK = 32
+#: Shortest time between two point updates sent to the browser (seconds).
+EMIT_INTERVAL = 0.08
+TRACK_SAMPLES = 360
+TPRIME_GRID = 160
+PER_PERIOD_GRID = 80
+
+
+class ExplorerSession(param.Parameterized):
+    """Controller of one session. ``status`` and ``error`` are plain text for the page."""
+
+    status = param.String(default="")
+    error = param.String(default="")
+    running = param.Boolean(default=False)
+    escaped = param.List(default=[])
+    failed = param.List(default=[])
+
+    def __init__(
+        self,
+        state: ExplorerState,
+        runner: Runner,
+        section_fig: SectionFigure | None = None,
+        series: SeriesFigures | None = None,
+        on_query: Callable[[dict[str, str]], None] | None = None,
+    ) -> None:
+        super().__init__()
+        self.state = state
+        self.runner = runner
+        self.fig = section_fig or SectionFigure(state.q_range, state.r_range)
+        self.series = series or SeriesFigures()
+        self._on_query = on_query
+        self._params: Params | None = None  # system of the data on screen
+        self._chunks: list[tuple[np.ndarray, ...]] = []
+        self._n_traj = 0
+        self._t_start = 0.0
+        self._suspend = False
+        self._t_req = time.perf_counter()
+        state.param.watch(self._on_section_change, list(SECTION_FIELDS))
+        state.param.watch(self._on_layers_change, list(LAYER_FIELDS))
+        state.param.watch(self._on_view_change, ["q_range", "r_range"])
+        state.param.watch(lambda *e: self.runner.ui(self._update_series), ["selected"])
+        state.param.watch(lambda *e: self.recompute(), ["clicked"])
+
+    # --- reacting to the state ------------------------------------------------------------
+
+    def _on_section_change(self, *events: Any) -> None:
+        if not self._suspend:
+            self.recompute()
+
+    def _on_layers_change(self, *events: Any) -> None:
+        if not self._suspend:
+            self._start_layers()
+            self._publish_query()
+
+    def _on_view_change(self, *events: Any) -> None:
+        if not self._suspend:
+            q_range, r_range = self.state.q_range, self.state.r_range
+            self.runner.ui(lambda: self.fig.set_view(q_range, r_range))
+            self._start_layers(tracks=False)
+            self._publish_query()
+
+    def apply_scene(self, scene_id: str) -> None:
+        """Set every control from a scene and recompute once."""
+        self._suspend = True
+        try:
+            self.state.apply_scene(scene_id)
+        finally:
+            self._suspend = False
+        q_range, r_range = self.state.q_range, self.state.r_range
+        self.runner.ui(lambda: self.fig.set_view(q_range, r_range))
+        self.recompute()
+
+    def set_view_from_plot(self, q_range: tuple[float, float], r_range: tuple[float, float]) -> None:
+        """The user panned/zoomed: remember the window (URL) and refresh the T' map for it."""
+        self._suspend = True
+        try:
+            self.state.param.update(q_range=tuple(q_range), r_range=tuple(r_range))
+        finally:
+            self._suspend = False
+        self._start_layers(tracks=False)
+        self._publish_query()
+
+    # --- the section ------------------------------------------------------------------------
+
+    def _trace(self, label: str) -> None:
+        if TRACE:
+            log.warning("trace %8.1f ms %s", 1e3 * (time.perf_counter() - self._t_req), label)
+
+    def recompute(self) -> None:
+        """Validate, then restart the section and the layers; a bad value keeps the last picture."""
+        self._t_req = time.perf_counter()
+        self._trace("recompute")
+        try:
+            req = self.state.section_request()
+        except ParameterError as exc:
+            self.error = str(exc)
+            self.runner.cancel("section")
+            self.running = False
+            return
+        self.error = ""
+        self._start_section(req, start_layers=self._start_layers)
+        self._publish_query()
+
+    def _start_section(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
+        self.running = True
+        self.status = "computing…"
+
+        def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
+            self._trace("section job starts")
+            emit(lambda: self._reset(req))
+            last_status = None
+            pending: list[tuple[np.ndarray, ...]] = []
+            last_emit = 0.0
+            first = True
+
+            def flush(status: np.ndarray, done: int, total: int) -> None:
+                cols = tuple(np.concatenate([p[i] for p in pending]) for i in range(4))
+                pending.clear()
+                emit(lambda: self._apply_chunk(cols, status, done, total))
+
+            for chunk in iter_section(
+                req.params,
+                req.ics,
+                req.periods,
+                transient=req.transient,
+                numerics=req.numerics,
+                max_chunk=MAX_CHUNK,
+                cancel=cancelled,
+            ):
+                pending.append(chunk.long())
+                last_status = chunk.status
+                now = time.perf_counter()
+                # The first points go out at once; after that at most one browser update
+                # per EMIT_INTERVAL, so the page redraws a few times, not once per chunk.
+                if first or now - last_emit >= EMIT_INTERVAL:
+                    flush(chunk.status, chunk.done_periods, chunk.total_periods)
+                    last_emit = now
+                    if first and start_layers is not None:
+                        start_layers()  # after the first points: the layers must not delay them
+                    first = False
+            if pending and last_status is not None:
+                flush(last_status, req.periods, req.periods)
+            done = not cancelled()
+            emit(lambda: self._finish(done, last_status))
+
+        self.runner.start("section", job)
+
+    def stop(self) -> None:
+        """Stop the section in flight; what was computed stays."""
+        self.runner.cancel("section")
+        if self.running:
+            self.running = False
+            self.status = self.status.replace("computing", "stopped") + " — stopped"
+
+    def _reset(self, req: SectionRequest) -> None:
+        self._params = req.params
+        self._chunks = []
+        self._n_traj = req.ics.shape[0]
+        self._t_start = time.perf_counter()
+        self.escaped, self.failed = [], []
+        self.fig.clear_points()
+        self.fig.set_ics(np.array(self.state.clicked, dtype=float).reshape(-1, 2))
+        if self.state.selected >= self._n_traj:
+            self.state.selected = 0
+        self.series.set(*(np.zeros(0),) * 4)
+
+    def _apply_chunk(self, cols: tuple[np.ndarray, ...], status: np.ndarray, done: int, total: int) -> None:
+        traj, k, q, r = cols
+        if not self._chunks:
+            self._trace("first chunk on the document thread")
+        self._chunks.append(cols)
+        self.fig.stream_points(traj, k, q, r)
+        self._set_status(status, done, total, running=True)
+        if traj.size and np.any(traj == self.state.selected):
+            self._update_series()
+
+    def _finish(self, done: bool, status: np.ndarray | None) -> None:
+        self._trace("last chunk on the document thread")
+        self.running = False
+        if status is not None:
+            self._set_status(status, None, None, running=False, stopped=not done)
+        self._update_series()
+
+    def _set_status(self, status: np.ndarray, done: int | None, total: int | None, *, running: bool,
+                    stopped: bool = False) -> None:  # fmt: skip
+        n_points = sum(c[0].size for c in self._chunks)
+        self.escaped = [int(i) for i in np.flatnonzero(status == Status.ESCAPED)]
+        self.failed = [int(i) for i in np.flatnonzero((status != Status.OK) & (status != Status.ESCAPED))]
+        elapsed = time.perf_counter() - self._t_start
+        parts = [f"{n_points:,} points", f"{self._n_traj} trajectories", f"{elapsed:.2f} s"]
+        if running and done is not None:
+            parts.insert(0, f"computing {done}/{total} periods")
+        if self.escaped:
+            parts.append(f"{len(self.escaped)} escaped")
+        if self.failed:
+            parts.append(f"{len(self.failed)} failed")
+        if stopped:
+            parts.append("stopped")
+        self.status = " · ".join(parts)
+
+    # --- clicks --------------------------------------------------------------------------------
+
+    def add_initial_condition(self, q: float, r: float) -> None:
+        """Add a trajectory where the user clicked and compute only it."""
+        if not (np.isfinite(q) and np.isfinite(r)):
+            return
+        if len(self.state.clicked) >= 200:
+            self.error = "at most 200 clicked initial conditions; clear some first"
+            return
+        with param.parameterized.discard_events(self.state):
+            self.state.clicked = [*self.state.clicked, (float(q), float(r))]
+        try:
+            req = self.state.section_request()
+        except ParameterError as exc:
+            self.error = str(exc)
+            return
+        index = req.ics.shape[0] - 1
+        single = SectionRequest(req.params, req.ics[index:], req.periods, req.transient, req.numerics)
+
+        def job(cancelled, emit) -> None:
+            for chunk in iter_section(
+                single.params, single.ics, single.periods, transient=single.transient, numerics=single.numerics,
+                max_chunk=MAX_CHUNK, cancel=cancelled,
+            ):  # fmt: skip
+                traj, k, qq, rr = chunk.long()
+                emit(lambda c=(traj + index, k, qq, rr), s=chunk.status: self._apply_extra(c, s, index))
+
+        self._n_traj = req.ics.shape[0]
+        clicked = np.array(self.state.clicked, dtype=float).reshape(-1, 2)
+        self.runner.ui(lambda: self.fig.set_ics(clicked))
+        self.state.selected = index
+        self.runner.start("section", job, bump=False)
+        self._publish_query()
+
+    def _apply_extra(self, cols: tuple[np.ndarray, ...], status: np.ndarray, index: int) -> None:
+        self._chunks.append(cols)
+        self.fig.stream_points(*cols)
+        if status[0] == Status.ESCAPED and index not in self.escaped:
+            self.escaped = [*self.escaped, index]
+        self._update_series()
+
+    def select_nearest(self, q: float, r: float) -> None:
+        """Select the trajectory whose section point is nearest the click (in screen-like units)."""
+        traj, k, qq, rr = self.data()
+        if traj.size == 0:
+            return
+        sq = self.state.q_range[1] - self.state.q_range[0]
+        sr = self.state.r_range[1] - self.state.r_range[0]
+        i = int(np.argmin(((qq - q) / sq) ** 2 + ((rr - r) / sr) ** 2))
+        self.state.selected = int(traj[i])
+
+    def clear_clicked(self) -> None:
+        self.state.clicked = []
+
+    # --- layers: equilibrium tracks and the T' map ---------------------------------------------
+
+    def _start_layers(self, tracks: bool = True) -> None:
+        try:
+            params = self.state.system()
+        except ParameterError:
+            return  # the error is already shown by recompute
+        st = self.state
+        show_tracks, show_tp, kind = st.show_tracks, st.show_tprime, st.tprime_kind
+        q_range, r_range = st.q_range, st.r_range
+        numerics = st.numerics()
+
+        if tracks:
+
+            def tracks_job(cancelled, emit) -> None:
+                if not show_tracks:
+                    emit(lambda: (self.fig.set_tracks([]), self.fig.set_equilibria([], [], ())))
+                    return
+                tr = equilibrium_tracks(params, n_t=TRACK_SAMPLES)
+                segments = _segments_by_type(tr.branches())
+                at_t0 = tr.section()
+                emit(lambda: (self.fig.set_tracks(segments), self.fig.set_equilibria(at_t0.q, at_t0.r, at_t0.types)))
+
+            self.runner.start("tracks", tracks_job)
+
+        def tprime_job(cancelled, emit) -> None:
+            if not show_tp:
+                emit(lambda: self.fig.set_tprime(None, np.zeros(0), np.zeros(0), ""))
+                return
+            if kind == "per-period":
+                m = energy_change_map(params, q_range, r_range, PER_PERIOD_GRID, numerics=numerics)
+                title = "T(t0+T) − T(t0) — red: energy gained over a period, blue: lost"
+            else:
+                m = tprime_map(params, params.t0, q_range, r_range, TPRIME_GRID)
+                title = "T′ at the section phase — red: energy gain, blue: loss"
+            emit(lambda: self.fig.set_tprime(m.values, m.q, m.r, title))
+
+        self.runner.start("tprime", tprime_job)
+
+    # --- data out ------------------------------------------------------------------------------
+
+    def data(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """All section points on screen as ``(traj, k, q, r)``."""
+        if not self._chunks:
+            z = np.zeros(0)
+            return z.astype(int), z.astype(int), z, z
+        return tuple(np.concatenate([c[i] for c in self._chunks]) for i in range(4))  # type: ignore[return-value]
+
+    def _update_series(self) -> None:
+        traj, k, q, r = self.data()
+        sel = traj == self.state.selected
+        if self._params is None or not sel.any():
+            self.series.set(*(np.zeros(0),) * 4)
+            return
+        order = np.argsort(k[sel], kind="stable")
+        ks, qs, rs = k[sel][order], q[sel][order], r[sel][order]
+        energy = Model(self._params).energy(qs, rs, self._params.t0)
+        self.series.set(ks, qs, rs, energy)
+
+    def csv_bytes(self) -> io.BytesIO:
+        """The section on screen as CSV ``traj,k,q,r`` with the settings in a comment header."""
+        traj, k, q, r = self.data()
+        buf = io.StringIO()
+        buf.write("# Bilimovich Explorer section; " + "&".join(f"{a}={b}" for a, b in self.state.to_query().items()))
+        buf.write("\ntraj,k,q,r\n")
+        for row in zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True):
+            buf.write(f"{row[0]},{row[1]},{row[2]!r},{row[3]!r}\n")
+        return io.BytesIO(buf.getvalue().encode())
+
+    def _publish_query(self) -> None:
+        if self._on_query is not None:
+            self._on_query(self.state.to_query())
+
+
+def _segments_by_type(branches) -> list[tuple[np.ndarray, np.ndarray, str]]:
+    """Split each track where the equilibrium's type changes, so each piece has one colour."""
+    out: list[tuple[np.ndarray, np.ndarray, str]] = []
+    for b in branches:
+        q, r, types = b["q"], b["r"], b["types"]
+        start = 0
+        for i in range(1, len(types) + 1):
+            if i == len(types) or types[i] != types[start]:
+                # Overlap one sample so consecutive pieces join.
+                end = min(i + 1, len(types))
+                if end - start >= 2:
+                    out.append((q[start:end], r[start:end], types[start]))
+                start = i
+    return out

@@ -1,0 +1,254 @@
+"""The Bilimovich Explorer web app: ``panel serve app/main.py`` (or ``bilimovich serve``).
+
+Layout: a sidebar with the scene selector, sliders for the system, the numerics
+and the layers; the main area with the (q, r) plane (section points streamed as
+they are computed, equilibrium tracks, the T' map) and the k-series of the
+selected trajectory. The URL carries the whole state.
+"""
+
+from __future__ import annotations
+
+import html
+import logging
+from typing import Any
+
+import panel as pn
+from bokeh.events import RangesUpdate, Tap
+
+from app import warm
+from app.analyses import BifurcationTab, ChartTab, LyapunovTab
+from app.controller import ExplorerSession
+from app.runner import WARM, Runner
+from app.state import SLIDER_RANGES, SYSTEM_FIELDS, ExplorerState, state_from_query
+from app.views import TYPE_COLORS, SectionFigure, SeriesFigures
+from explorer_core.scenes import get_scene
+
+log = logging.getLogger(__name__)
+
+pn.extension(notifications=False)
+
+LABELS = {
+    "alpha": "α (constraint p − g q = α)",
+    "g0": "g0  (g = g0 + g1 cos Ωt + g2 sin Ωt)",
+    "g1": "g1",
+    "g2": "g2",
+    "omega": "Ω (forcing frequency)",
+    "t0": "t0 (section phase)",
+}
+
+
+def _slider(state: ExplorerState, field: str) -> pn.widgets.EditableFloatSlider:
+    lo, hi, step = SLIDER_RANGES[field]
+    w = pn.widgets.EditableFloatSlider(
+        label=LABELS.get(field, field),
+        start=lo,
+        end=hi,
+        step=step,
+        value=float(getattr(state, field)),
+        fixed_start=None,
+        fixed_end=None,
+        format="0[.]000",
+        sizing_mode="stretch_width",
+        css_classes=[f"ctl-{field}"],
+    )
+
+    # Recompute on release (value_throttled), not on every pixel of a drag.
+    def to_state(event: Any) -> None:
+        if getattr(state, field) != event.new:
+            state.param.update(**{field: float(event.new), "scene": "custom"})
+
+    w.param.watch(to_state, "value_throttled")
+    state.param.watch(lambda e: setattr(w, "value", float(e.new)), field)
+    return w
+
+
+def _int_input(state: ExplorerState, field: str, label: str) -> pn.widgets.IntInput:
+    p = state.param[field]
+    lo, hi = p.bounds
+    w = pn.widgets.IntInput(label=label, value=getattr(state, field), start=lo, end=hi, sizing_mode="stretch_width",
+                            css_classes=[f"ctl-{field}"])  # fmt: skip
+    w.param.watch(lambda e: setattr(state, field, int(e.new)) if e.new is not None else None, "value")
+    state.param.watch(lambda e: setattr(w, "value", int(e.new)), field)
+    return w
+
+
+def create_app() -> pn.template.FastListTemplate:
+    """Build one session's page."""
+    warm.start()
+    query = dict(pn.state.location.query_params) if pn.state.location else {}
+    state, url_errors = state_from_query(query)
+    doc = pn.state.curdoc
+    location = pn.state.location
+
+    def deliver(fn) -> None:
+        if doc is not None:
+            doc.add_next_tick_callback(fn)
+        else:
+            fn()
+
+    def publish(q: dict[str, str]) -> None:
+        if location is not None:
+            location.update_query(**q)
+
+    runner = Runner(deliver, on_error=lambda ch, exc: setattr(session, "error", f"{ch} computation failed: {exc}"))
+    fig = SectionFigure(state.q_range, state.r_range)
+    series = SeriesFigures()
+    session = ExplorerSession(state, runner, fig, series, on_query=publish)
+
+    # --- sidebar ------------------------------------------------------------------------------
+    scene_select = pn.widgets.Select(
+        label="Scene (the paper's figures)", options=["custom", *state.scene_ids()], value=state.scene,
+        css_classes=["ctl-scene"],
+    )  # fmt: skip
+    scene_info = pn.pane.Markdown("", sizing_mode="stretch_width", css_classes=["scene-info"])
+
+    def show_scene_info(sid: str) -> None:
+        if sid == "custom":
+            scene_info.object = "*Custom parameters.*"
+        else:
+            s = get_scene(sid)
+            scene_info.object = f"**{html.escape(s.figure)}** — {html.escape(s.title)}. {html.escape(s.shows)}"
+
+    def on_scene(event: Any) -> None:
+        if event.new != "custom" and event.new != state.scene:
+            session.apply_scene(event.new)
+        show_scene_info(event.new)
+
+    scene_select.param.watch(on_scene, "value")
+    state.param.watch(lambda e: setattr(scene_select, "value", e.new), "scene")
+    show_scene_info(state.scene)
+
+    error_box = pn.pane.Alert("", alert_type="danger", visible=False, sizing_mode="stretch_width",
+                              css_classes=["error-box"])  # fmt: skip
+
+    def show_error(*_: Any) -> None:
+        msgs = [m for m in [session.error, *url_errors] if m]
+        error_box.object = "<br>".join(html.escape(m) for m in msgs)
+        error_box.visible = bool(msgs)
+
+    session.param.watch(show_error, "error")
+    show_error()
+
+    sliders = {f: _slider(state, f) for f in SYSTEM_FIELDS}
+    method = pn.widgets.Select.from_param(state.param.method, label="Method", css_classes=["ctl-method"])
+    accuracy = pn.widgets.RadioButtonGroup.from_param(state.param.accuracy, label="Accuracy")
+    accuracy_help = pn.pane.Markdown(
+        "<small>Accuracy — *plot*: tolerance tied to the pixel size (error under a quarter pixel on "
+        "regular orbits); *high*: tolerance 1e-12.</small>"
+    )
+    n_random = _int_input(state, "n_random", "Random initial conditions")
+    periods = _int_input(state, "periods", "Periods (section points each)")
+    transient = _int_input(state, "transient", "Transient periods (dropped)")
+    seed = _int_input(state, "seed", "Random seed")
+    steps = _int_input(state, "steps_per_period", "RK4 steps per period")
+    show_tracks = pn.widgets.Checkbox.from_param(state.param.show_tracks, label="Equilibrium tracks over one period")
+    show_tp = pn.widgets.Checkbox.from_param(state.param.show_tprime, label="T′ map under the points")
+    tp_kind = pn.widgets.RadioButtonGroup.from_param(state.param.tprime_kind, label="T′ map")
+    click_mode = pn.widgets.RadioButtonGroup(label="Click in the plot", options=["add trajectory", "select trajectory"],
+                                             value="add trajectory")  # fmt: skip
+    stop = pn.widgets.Button(label="Stop", button_type="warning", css_classes=["ctl-stop"])
+    stop.on_click(lambda e: session.stop())
+    clear = pn.widgets.Button(label="Clear clicked points", css_classes=["ctl-clear"])
+    clear.on_click(lambda e: session.clear_clicked())
+    download = pn.widgets.FileDownload(callback=session.csv_bytes, filename="section.csv", label="Download section CSV",
+                                       button_type="primary")  # fmt: skip
+    selected = _int_input(state, "selected", "Trajectory shown below")
+
+    # --- main area ------------------------------------------------------------------------------
+    status = pn.pane.Str("", css_classes=["status-line"], sizing_mode="stretch_width")
+    warming = pn.pane.Alert(
+        "The server is warming up (compiling the numerical kernels); the first points will appear in a moment.",
+        alert_type="warning",
+        visible=not WARM.is_set(),
+        css_classes=["warming"],
+    )
+
+    def show_status(*_: Any) -> None:
+        text = session.status
+        if session.escaped:
+            ids = ", ".join(str(i) for i in session.escaped[:12]) + (" …" if len(session.escaped) > 12 else "")
+            text += f"  |  escaped (noncompact drift, left the bound): {ids}"
+        if session.failed:
+            text += f"  |  failed: {', '.join(str(i) for i in session.failed[:12])}"
+        status.object = text
+        if WARM.is_set() and warming.visible:
+            warming.visible = False
+
+    session.param.watch(show_status, ["status", "escaped", "failed"])
+
+    def on_tap(event: Tap) -> None:
+        if click_mode.value == "add trajectory":
+            session.add_initial_condition(event.x, event.y)
+        else:
+            session.select_nearest(event.x, event.y)
+
+    fig.fig.on_event(Tap, on_tap)
+
+    def on_ranges(event: RangesUpdate) -> None:
+        if None not in (event.x0, event.x1, event.y0, event.y1):
+            session.set_view_from_plot((event.x0, event.x1), (event.y0, event.y1))
+
+    fig.fig.on_event(RangesUpdate, on_ranges)
+
+    legend = " ".join(f'<span style="color:{c}">◆</span> {t}' for t, c in TYPE_COLORS.items() if t != "degenerate")
+    sidebar = [
+        scene_select,
+        scene_info,
+        error_box,
+        pn.pane.Markdown("### Inertia tensor"),
+        *(sliders[f] for f in ("I11", "I22", "I33", "I12", "I13", "I23")),
+        pn.pane.Markdown("### Constraint and forcing"),
+        *(sliders[f] for f in ("alpha", "g0", "g1", "g2", "omega", "t0")),
+        pn.pane.Markdown("### Numerics"),
+        method,
+        accuracy,
+        accuracy_help,
+        steps,
+        n_random,
+        seed,
+        periods,
+        transient,
+        pn.pane.Markdown("### Layers"),
+        show_tracks,
+        show_tp,
+        tp_kind,
+    ]
+    section_tab = pn.Column(
+        warming,
+        pn.Row(click_mode, stop, clear, download, sizing_mode="stretch_width"),
+        status,
+        pn.pane.Bokeh(fig.fig, sizing_mode="stretch_width", height=650),
+        pn.pane.HTML(f"<small>Equilibria (frozen field at t0; tracks over one period): {legend}</small>"),
+        selected,
+        pn.Row(*(pn.pane.Bokeh(f, sizing_mode="stretch_width") for f in series.figs), sizing_mode="stretch_width"),
+        sizing_mode="stretch_width",
+    )
+    tabs = pn.Tabs(
+        ("Poincaré section", section_tab),
+        ("Lyapunov spectrum", LyapunovTab(session).panel()),
+        ("Bifurcation diagram", BifurcationTab(session).panel()),
+        ("Chart of regimes", ChartTab(session).panel()),
+        sizing_mode="stretch_width",
+        dynamic=False,
+    )
+    main = [tabs]
+    template = pn.template.FastListTemplate(
+        title="Bilimovich Explorer",
+        sidebar=sidebar,
+        main=main,
+        sidebar_width=340,
+        accent="#2c5f8a",
+        theme_toggle=False,
+    )
+    pn.state.on_session_destroyed(lambda ctx: runner.close())
+
+    def start() -> None:
+        session.recompute()
+
+    # Start once the page is loaded, so the first chunk streams into a live plot.
+    pn.state.onload(start)
+    return template
+
+
+if __name__.startswith("bokeh_app") or __name__ == "__main__":
+    create_app().servable(title="Bilimovich Explorer")

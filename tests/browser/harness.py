@@ -1,0 +1,143 @@
+"""Serve the app and drive it in Debian's Chromium with Playwright (tests and latency benchmark)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from collections.abc import Iterator
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@contextlib.contextmanager
+def served_app(log_path: str | None = None, threads: int = 4) -> Iterator[str]:
+    """Run ``bilimovich serve`` on a free port until /liveness answers; yield the app URL."""
+    port = free_port()
+    log = open(log_path or os.devnull, "w")
+    # The same entry point users run (bilimovich serve execs panel serve with the project's flags).
+    cmd = [
+        sys.executable, "-m", "explorer_core.cli", "serve", "--port", str(port), "--address", "127.0.0.1",
+        "--allow-websocket-origin", f"127.0.0.1:{port}", "--allow-websocket-origin", f"localhost:{port}",
+        "--threads", str(threads),
+    ]  # fmt: skip
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        deadline = time.time() + 120
+        while True:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/liveness", timeout=2) as r:
+                    if r.status == 200:
+                        break
+            except OSError:
+                pass
+            if proc.poll() is not None or time.time() > deadline:
+                raise RuntimeError(f"panel serve did not start (exit {proc.poll()}); see {log_path}")
+            time.sleep(0.3)
+        yield f"http://127.0.0.1:{port}/main"
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+        log.close()
+
+
+# In-page probes (BokehJS models are looked up by the names set in app/views.py).
+JS_COUNT = "() => Bokeh.documents[0].get_model_by_name('section_source').get_length()"
+
+#: Watches the section source after a user action: time of the action (pointerup or
+#: Enter), of the first animation frame holding points of the new generation (the
+#: server stamps each reset in `tags`), and of the frame holding `expected` of them.
+JS_INSTALL_PROBE = """
+(expected) => {
+  const src = Bokeh.documents[0].get_model_by_name('section_source');
+  const gen0 = src.tags.length ? src.tags[0] : 0;
+  const p = {t0: null, first: null, full: null};
+  window.__probe = p;
+  const mark = () => { if (p.t0 === null) p.t0 = performance.now(); };
+  window.addEventListener('pointerup', mark, {capture: true, once: true});
+  window.addEventListener('keydown', (e) => { if (e.key === 'Enter') mark(); }, {capture: true, once: true});
+  const tick = () => {
+    const fresh = src.tags.length && src.tags[0] !== gen0;
+    const n = src.get_length();
+    if (p.t0 !== null && fresh) {
+      if (n > 0 && p.first === null) p.first = performance.now();
+      if (n >= expected && p.full === null) p.full = performance.now();
+    }
+    if (p.full === null) requestAnimationFrame(tick);
+  };
+  requestAnimationFrame(tick);
+}
+"""
+JS_READ_PROBE = "() => window.__probe"
+
+
+def wait_points(page, n: int, timeout: float = 60.0) -> None:
+    """Wait until the section source holds at least ``n`` points."""
+    page.wait_for_function(f"() => Bokeh.documents.length && ({JS_COUNT})() >= {n}", timeout=timeout * 1000)
+
+
+def text(page, css: str) -> str:
+    """Visible text of a Panel pane (its content lives in a shadow root)."""
+    return page.locator(css).first.evaluate(
+        "el => { const r = el.shadowRoot; if (!r) return el.innerText;"
+        " return Array.from(r.children).filter(c => !['STYLE', 'LINK'].includes(c.tagName))"
+        ".map(c => c.innerText).join('\\n'); }"
+    )
+
+
+def wait_finished(page, timeout: float = 60.0) -> str:
+    """Wait until the status line reports a finished run; return it."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        status = text(page, ".status-line")
+        if "trajectories" in status and not status.startswith("computing"):
+            return status
+        time.sleep(0.1)
+    raise TimeoutError(f"run did not finish; status {status!r}")
+
+
+def section_q(page) -> list[float]:
+    return page.evaluate("() => Array.from(Bokeh.documents[0].get_model_by_name('section_source').data.q)")
+
+
+def set_number(page, field: str, value: float) -> None:
+    """Type a value into a control's number box and press Enter, like a user."""
+    box = page.locator(f".ctl-{field} input").first
+    box.fill(str(value))
+    box.press("Enter")
+
+
+def drag_slider(page, field: str, fraction: float) -> None:
+    """Drag a slider's handle to ``fraction`` of its track and release it."""
+    handle = page.locator(f".ctl-{field} .noUi-handle").first
+    track = page.locator(f".ctl-{field} .noUi-base").first
+    hb = handle.bounding_box()
+    tb = track.bounding_box()
+    page.mouse.move(hb["x"] + hb["width"] / 2, hb["y"] + hb["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(tb["x"] + fraction * tb["width"], hb["y"] + hb["height"] / 2, steps=8)
+    page.mouse.up()

@@ -1,0 +1,174 @@
+"""The app's state objects without a browser: parameters -> core calls -> data."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from app.controller import ExplorerSession
+from app.runner import WARM, InlineExecutor, Runner
+from app.state import MAX_POINTS, ExplorerState, parse_query, state_from_query
+from explorer_core.scenes import get_scene
+from explorer_core.section import section
+
+
+@pytest.fixture(autouse=True)
+def _warm() -> None:
+    WARM.set()
+
+
+def make_session(**state_kw) -> ExplorerSession:
+    state = ExplorerState(**state_kw)
+    runner = Runner(lambda fn: fn(), executor=InlineExecutor())
+    return ExplorerSession(state, runner)
+
+
+def test_default_state_is_the_default_scene() -> None:
+    s = ExplorerState()
+    assert s.scene == "fig1C"
+    assert s.system() == get_scene("fig1C").params
+    assert s.initial_conditions().shape == (60, 2)
+
+
+def test_query_round_trip() -> None:
+    s = ExplorerState(scene="fig8B")
+    s.param.update(alpha=-0.41, I13=0.45, g2=0.1, clicked=[(0.1, -0.2), (1.5, 2.0)], periods=123, method="dp5",
+                   show_tprime=True, tprime_kind="per-period", q_range=(-1.0, 2.0))  # fmt: skip
+    restored, errors = state_from_query(s.to_query())
+    assert errors == []
+    for f in ("alpha", "I13", "g2", "clicked", "periods", "method", "tprime_kind", "q_range", "r_range", "box", "seed"):
+        assert getattr(restored, f) == getattr(s, f), f
+    assert restored.scene == "custom"
+
+
+@pytest.mark.parametrize(
+    ("query", "needle"),
+    [
+        ({"alpha": "nan"}, "alpha must be finite"),
+        ({"I11": "<script>"}, "I11 must be a number"),
+        ({"periods": "99999999"}, "periods must be between"),
+        ({"n": "-1"}, "n must be between"),
+        ({"method": "euler"}, "must be one of dop853"),
+        ({"box": "1,0,0,1"}, "qmin < qmax"),
+        ({"qr": "2,1"}, "lo < hi"),
+        ({"ics": "1,2;3"}, "ics needs 2"),
+        ({"scene": "<b>x</b>"}, "unknown scene"),
+        ({"tprime": "maybe"}, "inst, period, off"),
+    ],
+)
+def test_bad_query_values_are_reported_and_skipped(query, needle) -> None:
+    updates, errors = parse_query(query)
+    assert len(errors) == 1 and needle in errors[0]
+    assert not any(k in updates for k in ("alpha", "I11", "periods", "n_random", "method", "box"))
+
+
+def test_invalid_tensor_in_url_gives_a_message_and_no_computation() -> None:
+    state, errors = state_from_query({"scene": "fig1C", "I12": "5"})
+    assert errors == [] and state.I12 == 5.0
+    sess = ExplorerSession(state, Runner(lambda fn: fn(), executor=InlineExecutor()))
+    sess.recompute()
+    assert "not positive definite" in sess.error and len(sess.fig.points.data["q"]) == 0
+
+
+def test_recompute_streams_the_section_the_core_computes() -> None:
+    sess = make_session(scene="fig1C")
+    sess.state.param.update(n_random=5, periods=20)
+    n = len(sess.fig.points.data["q"])
+    assert n == 5 * 20
+    ref = section(sess.state.system(), sess.state.initial_conditions(), 20, numerics=sess.state.numerics())
+    traj, k, q, r = ref.long()
+    np.testing.assert_array_equal(np.sort(np.asarray(sess.fig.points.data["q"])), np.sort(q))
+    assert "100 points" in sess.status and not sess.running
+
+
+def test_moving_alpha_changes_the_points_and_layers() -> None:
+    sess = make_session(scene="fig1C")
+    sess.state.param.update(n_random=3, periods=10)
+    before = np.asarray(sess.fig.points.data["q"]).copy()
+    eq_before = list(sess.fig.equilibria.data["q"])
+    sess.state.alpha = 0.3
+    after = np.asarray(sess.fig.points.data["q"])
+    assert after.size == before.size and not np.allclose(after, before)
+    assert list(sess.fig.equilibria.data["q"]) != eq_before
+    assert len(sess.fig.tprime.data["image"]) == 1
+
+
+def test_invalid_tensor_shows_message_and_keeps_last_picture() -> None:
+    sess = make_session(scene="fig1C")
+    sess.state.param.update(n_random=3, periods=10)
+    before = np.asarray(sess.fig.points.data["q"]).copy()
+    sess.state.I12 = 3.0
+    assert "not positive definite" in sess.error and "I12=3" in sess.error
+    np.testing.assert_array_equal(np.asarray(sess.fig.points.data["q"]), before)
+    sess.state.I12 = 0.0
+    assert sess.error == ""
+
+
+def test_too_much_work_is_refused_with_a_message() -> None:
+    sess = make_session(scene="fig1C")
+    sess.state.param.update(n_random=500, periods=5000)
+    assert str(MAX_POINTS) in sess.error
+
+
+def test_click_adds_one_trajectory_and_selects_it() -> None:
+    sess = make_session(scene="fig1C")
+    sess.state.param.update(n_random=2, periods=15)
+    sess.add_initial_condition(0.3, 0.4)
+    traj, k, q, r = sess.data()
+    assert sorted(set(traj.tolist())) == [0, 1, 2]
+    assert np.count_nonzero(traj == 2) == 15
+    assert sess.state.selected == 2 and sess.state.clicked == [(0.3, 0.4)]
+    assert len(sess.series.source.data["k"]) == 15
+    assert "ics=0.3,0.4" in "&".join(f"{a}={b}" for a, b in sess.state.to_query().items())
+
+
+def test_series_is_the_selected_trajectory_with_its_energy() -> None:
+    sess = make_session(scene="fig1C")
+    sess.state.param.update(n_random=3, periods=12)
+    sess.state.selected = 1
+    d = sess.series.source.data
+    ref = section(sess.state.system(), sess.state.initial_conditions(), 12, numerics=sess.state.numerics())
+    k, q, r = ref.trajectory(1)
+    np.testing.assert_array_equal(d["k"], k)
+    np.testing.assert_allclose(d["q"], q)
+    assert np.all(np.asarray(d["T"]) > 0)
+
+
+def test_stale_results_never_overwrite_newer_ones() -> None:
+    """Deliver the callbacks of an older job after a newer one: they must be dropped."""
+    queue: list = []
+    state = ExplorerState(scene="fig1C")
+    state.param.update(n_random=2, periods=5)
+    sess = ExplorerSession(state, Runner(queue.append, executor=InlineExecutor()))
+    older = list(queue)
+    queue.clear()
+    state.alpha = 0.25  # a newer job
+    newer = list(queue)
+    for fn in newer + older:  # the old ones arrive late
+        fn()
+    ref = section(state.system(), state.initial_conditions(), 5, numerics=state.numerics())
+    np.testing.assert_array_equal(np.sort(np.asarray(sess.fig.points.data["q"])), np.sort(ref.long()[2]))
+
+
+def test_escaped_trajectories_are_listed() -> None:
+    sess = make_session(scene="fig3")
+    sess.state.param.update(periods=2000, q_range=(-1.0, 1.0), r_range=(-5.0, 5.0))  # leaves |r| < 1e3 at k ~ 1400
+    assert sess.escaped == [0]
+    assert "1 escaped" in sess.status
+
+
+def test_csv_export_has_settings_and_rows() -> None:
+    sess = make_session(scene="fig1C")
+    sess.state.param.update(n_random=2, periods=3)
+    text = sess.csv_bytes().getvalue().decode()
+    lines = text.strip().splitlines()
+    assert lines[0].startswith("# Bilimovich Explorer section; scene=fig1C")
+    assert lines[1] == "traj,k,q,r" and len(lines) == 2 + 6
+
+
+def test_scene_selection_sets_every_control() -> None:
+    sess = make_session(scene="fig1C")
+    sess.apply_scene("fig8B")
+    s = sess.state
+    assert (s.I13, s.I23, s.alpha, s.transient) == (0.5, 0.3, -0.45, 100)
+    assert s.scene == "fig8B" and s.q_range == get_scene("fig8B").q_range
