@@ -304,7 +304,8 @@ class BifurcationTab(_Tab):
         self._draw()
         counts = d.status_counts()
         self.progress.visible = False
-        self.message.object = f"{len(d.values)} values, {d.elapsed_s:.1f} s, trajectories: {counts}" + (
+        summary = ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in counts.items())
+        self.message.object = f"{len(d.values)} values, {d.elapsed_s:.1f} s, trajectories: {summary}" + (
             "" if d.completed else " (stopped)"
         )
 
@@ -371,7 +372,8 @@ class ChartTab(_Tab):
         return pn.Column(
             pn.pane.Markdown(CHART_HELP),
             pn.Row(self.x_param, self.x_range, self.y_param, self.y_range),
-            pn.Row(self.grid, self.periods, self.transient, self.run_button, self.stop_button, self.download),
+            pn.Row(self.grid, self.periods, self.transient),
+            pn.Row(self.run_button, self.stop_button, self.download),
             self.error,
             self.progress,
             self.message,
@@ -440,7 +442,8 @@ class ChartTab(_Tab):
             "dh": [ys[-1] - ys[0] + dy],
         }
         counts = chart.counts() if final else {}
-        self.set_progress(done, total, f"{done}/{total} tiles" + (f" — {counts}" if counts else ""))
+        summary = ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in counts.items())
+        self.set_progress(done, total, f"{done}/{total} tiles" + (f" — pixels: {summary}" if summary else ""))
 
     def _on_tap(self, event) -> None:
         """A click on a pixel sets those two parameters; the section tab recomputes."""

@@ -37,8 +37,9 @@ SECTION_FIELDS += ("box",)
 LAYER_FIELDS = ("show_tracks", "show_tprime", "tprime_kind")
 #: Longest chunk streamed to the browser: bounds how long a cancel waits.
 MAX_CHUNK = 32
-#: Shortest time between two point updates sent to the browser (seconds).
-EMIT_INTERVAL = 0.08
+#: Time between point updates sent to the browser: starts here, doubles up to the max (seconds).
+EMIT_INTERVAL = 0.25
+MAX_EMIT_INTERVAL = 1.0
 TRACK_SAMPLES = 360
 TPRIME_GRID = 160
 PER_PERIOD_GRID = 80
@@ -122,7 +123,7 @@ class ExplorerSession(param.Parameterized):
 
     def _trace(self, label: str) -> None:
         if TRACE:
-            log.warning("trace %8.1f ms %s", 1e3 * (time.perf_counter() - self._t_req), label)
+            log.warning("trace %.3f %8.1f ms %s", time.time(), 1e3 * (time.perf_counter() - self._t_req), label)
 
     def recompute(self) -> None:
         """Validate, then restart the section and the layers; a bad value keeps the last picture."""
@@ -141,20 +142,21 @@ class ExplorerSession(param.Parameterized):
 
     def _start_section(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
         self.running = True
+        self._t_start = time.perf_counter()
         self.status = "computing…"
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
             self._trace("section job starts")
-            emit(lambda: self._reset(req))
             last_status = None
             pending: list[tuple[np.ndarray, ...]] = []
             last_emit = 0.0
+            interval = EMIT_INTERVAL
             first = True
 
-            def flush(status: np.ndarray, done: int, total: int) -> None:
+            def flush(status: np.ndarray, done: int, total: int, replace: bool) -> None:
                 cols = tuple(np.concatenate([p[i] for p in pending]) for i in range(4))
                 pending.clear()
-                emit(lambda: self._apply_chunk(cols, status, done, total))
+                emit(lambda: self._apply_chunk(cols, status, done, total, req if replace else None))
 
             for chunk in iter_section(
                 req.params,
@@ -168,16 +170,17 @@ class ExplorerSession(param.Parameterized):
                 pending.append(chunk.long())
                 last_status = chunk.status
                 now = time.perf_counter()
-                # The first points go out at once; after that at most one browser update
-                # per EMIT_INTERVAL, so the page redraws a few times, not once per chunk.
-                if first or now - last_emit >= EMIT_INTERVAL:
-                    flush(chunk.status, chunk.done_periods, chunk.total_periods)
+                # The first points go out at once; then updates back off (0.25, 0.5, 1 s):
+                # each one makes the browser redraw every point, which costs more than the data.
+                if first or now - last_emit >= interval:
+                    flush(chunk.status, chunk.done_periods, chunk.total_periods, replace=first)
                     last_emit = now
+                    interval = min(2 * interval, MAX_EMIT_INTERVAL) if not first else interval
                     if first and start_layers is not None:
                         start_layers()  # after the first points: the layers must not delay them
                     first = False
             if pending and last_status is not None:
-                flush(last_status, req.periods, req.periods)
+                flush(last_status, req.periods, req.periods, replace=first)
             done = not cancelled()
             emit(lambda: self._finish(done, last_status))
 
@@ -194,23 +197,30 @@ class ExplorerSession(param.Parameterized):
         self._params = req.params
         self._chunks = []
         self._n_traj = req.ics.shape[0]
-        self._t_start = time.perf_counter()
         self.escaped, self.failed = [], []
-        self.fig.clear_points()
         self.fig.set_ics(np.array(self.state.clicked, dtype=float).reshape(-1, 2))
         if self.state.selected >= self._n_traj:
             self.state.selected = 0
         self.series.set(*(np.zeros(0),) * 4)
 
-    def _apply_chunk(self, cols: tuple[np.ndarray, ...], status: np.ndarray, done: int, total: int) -> None:
+    def _apply_chunk(
+        self, cols: tuple[np.ndarray, ...], status: np.ndarray, done: int, total: int, new_run: SectionRequest | None
+    ) -> None:
         traj, k, q, r = cols
-        if not self._chunks:
+        if new_run is not None:
+            # The old picture stays until the new run's first points replace it, in one
+            # update: no blank plot, and the browser redraws once, not twice.
             self._trace("first chunk on the document thread")
-        self._chunks.append(cols)
-        self.fig.stream_points(traj, k, q, r)
+            self._reset(new_run)
+            self._chunks.append(cols)
+            self.fig.replace_points(traj, k, q, r)
+        else:
+            self._chunks.append(cols)
+            self.fig.stream_points(traj, k, q, r)
         self._set_status(status, done, total, running=True)
         if traj.size and np.any(traj == self.state.selected):
             self._update_series()
+        self._trace(f"{traj.size} points applied")
 
     def _finish(self, done: bool, status: np.ndarray | None) -> None:
         self._trace("last chunk on the document thread")

@@ -112,10 +112,11 @@ class SectionFigure:
         self.x_range.update(start=q_range[0], end=q_range[1])
         self.y_range.update(start=r_range[0], end=r_range[1])
 
-    def clear_points(self) -> None:
-        # The generation stamp lets a page (and the latency probe) tell new data from old.
+    def replace_points(self, traj: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray) -> None:
+        """Start a new run's points. The generation stamp (set after the data) lets a page,
+        and the latency probe, tell the new data from the old."""
+        self.points.data = {"q": q, "r": r, "traj": traj, "k": k, "c": traj % N_COLORS}
         self.points.tags = [int(self.points.tags[0]) + 1 if self.points.tags else 1]
-        self.points.data = _empty_points()
 
     def stream_points(self, traj: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray) -> None:
         if traj.size:
@@ -174,7 +175,7 @@ class SeriesFigures:
                 x_axis_label="k",
                 y_axis_label=label,
                 tools="pan,wheel_zoom,box_zoom,reset,save",
-                output_backend=BACKEND,
+                output_backend="canvas",  # a few hundred points: WebGL's blit would cost more than it saves
                 **shared,
             )
             f.toolbar.logo = None

@@ -585,7 +585,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     import app
 
     here = Path(app.__file__).resolve().parent
-    origins = args.allow_websocket_origin or [f"localhost:{args.port}", f"127.0.0.1:{args.port}"]
+    env_origins = [o.strip() for o in os.environ.get("BILIMOVICH_ALLOWED_ORIGINS", "").split(",") if o.strip()]
+    origins = args.allow_websocket_origin or env_origins or [f"localhost:{args.port}", f"127.0.0.1:{args.port}"]
     cmd = [
         sys.executable, "-m", "panel", "serve", str(here / "main.py"),
         "--port", str(args.port), "--address", args.address,
@@ -782,11 +783,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_symmetry)
 
     p = sub.add_parser("serve", help="run the web explorer (panel serve app/main.py)")
-    p.add_argument("--port", type=_count("port", 1, 65535), default=5006)
-    p.add_argument("--address", default="127.0.0.1", help="interface to listen on (0.0.0.0 for all)")
-    p.add_argument("--threads", type=_count("threads", 1, 64), default=4, help="threads for session callbacks")
+    # Defaults come from the environment so a container (exec-form CMD) can be configured.
+    env = os.environ
+    p.add_argument("--port", type=_count("port", 1, 65535), default=env.get("BILIMOVICH_PORT", "5006"))
+    p.add_argument("--address", default=env.get("BILIMOVICH_ADDRESS", "127.0.0.1"),
+                   help="interface to listen on (0.0.0.0 for all); env BILIMOVICH_ADDRESS")  # fmt: skip
+    p.add_argument("--threads", type=_count("threads", 1, 64), default=env.get("BILIMOVICH_SESSION_THREADS", "4"),
+                   help="threads for session callbacks; env BILIMOVICH_SESSION_THREADS")  # fmt: skip
     p.add_argument("--allow-websocket-origin", action="append", metavar="HOST[:PORT]",
-                   help="public host names browsers may connect from (default: localhost)")  # fmt: skip
+                   help="host names browsers may connect from (repeatable; default localhost); "
+                        "env BILIMOVICH_ALLOWED_ORIGINS, comma-separated")  # fmt: skip
     p.add_argument("--show", action="store_true", help="open a browser")
     p.set_defaults(func=cmd_serve)
 

@@ -75,15 +75,18 @@ JS_INSTALL_PROBE = """
 (expected) => {
   const src = Bokeh.documents[0].get_model_by_name('section_source');
   const gen0 = src.tags.length ? src.tags[0] : 0;
-  const p = {t0: null, first: null, full: null};
+  const p = {t0: null, first: null, full: null, cleared: false};
   window.__probe = p;
   const mark = () => { if (p.t0 === null) p.t0 = performance.now(); };
   window.addEventListener('pointerup', mark, {capture: true, once: true});
   window.addEventListener('keydown', (e) => { if (e.key === 'Enter') mark(); }, {capture: true, once: true});
+  // The server replaces the data (reset), then stamps a new generation; only points
+  // streamed after both count.
+  src.properties.data.change.connect(() => { if (p.t0 !== null) p.cleared = true; });
   const tick = () => {
-    const fresh = src.tags.length && src.tags[0] !== gen0;
+    const fresh = p.cleared && src.tags.length && src.tags[0] !== gen0;
     const n = src.get_length();
-    if (p.t0 !== null && fresh) {
+    if (fresh) {
       if (n > 0 && p.first === null) p.first = performance.now();
       if (n >= expected && p.full === null) p.full = performance.now();
     }
