@@ -23,7 +23,7 @@ from bokeh.palettes import Category10, Category20
 from bokeh.plotting import figure
 
 from app.controller import ExplorerSession
-from app.views import BACKEND
+from app.views import BACKEND, ERROR_STYLE
 from explorer_core.bifurcation import bifurcation_diagram, sweep_values
 from explorer_core.lyapunov import lyapunov_spectrum
 from explorer_core.model import INERTIA_NAMES, ParameterError
@@ -72,7 +72,7 @@ class _Tab:
     def __init__(self, session: ExplorerSession) -> None:
         self.session = session
         self.message = pn.pane.Str("", sizing_mode="stretch_width", css_classes=[f"{self.channel}-status"])
-        self.error = pn.pane.Alert("", alert_type="danger", visible=False, sizing_mode="stretch_width")
+        self.error = pn.pane.HTML("", visible=False, sizing_mode="stretch_width", css_classes=[f"{self.channel}-error"])
         self.progress = pn.indicators.Progress(value=0, max=100, sizing_mode="stretch_width", visible=False)
         self.run_button = pn.widgets.Button(label="Run", button_type="primary", css_classes=[f"{self.channel}-run"])
         self.stop_button = pn.widgets.Button(label="Stop", button_type="warning")
@@ -80,7 +80,7 @@ class _Tab:
         self.stop_button.on_click(lambda e: self.stop())
 
     def fail(self, msg: str) -> None:
-        self.error.object = html.escape(msg)
+        self.error.object = f'<div style="{ERROR_STYLE}">{html.escape(msg)}</div>'
         self.error.visible = True
 
     def ok(self) -> None:

@@ -20,7 +20,7 @@ from app.analyses import BifurcationTab, ChartTab, LyapunovTab
 from app.controller import ExplorerSession
 from app.runner import WARM, Runner
 from app.state import SLIDER_RANGES, SYSTEM_FIELDS, ExplorerState, state_from_query
-from app.views import TYPE_COLORS, SectionFigure, SeriesFigures
+from app.views import ERROR_STYLE, TYPE_COLORS, SectionFigure, SeriesFigures
 from explorer_core.scenes import get_scene
 
 log = logging.getLogger(__name__)
@@ -118,12 +118,11 @@ def create_app() -> pn.template.FastListTemplate:
     state.param.watch(lambda e: setattr(scene_select, "value", e.new), "scene")
     show_scene_info(state.scene)
 
-    error_box = pn.pane.Alert("", alert_type="danger", visible=False, sizing_mode="stretch_width",
-                              css_classes=["error-box"])  # fmt: skip
+    error_box = pn.pane.HTML("", visible=False, sizing_mode="stretch_width", css_classes=["error-box"])
 
     def show_error(*_: Any) -> None:
         msgs = [m for m in [session.error, *url_errors] if m]
-        error_box.object = "<br>".join(html.escape(m) for m in msgs)
+        error_box.object = f'<div style="{ERROR_STYLE}">' + "<br>".join(html.escape(m) for m in msgs) + "</div>"
         error_box.visible = bool(msgs)
 
     session.param.watch(show_error, "error")

@@ -34,6 +34,9 @@ TYPE_COLORS = {
     "degenerate": "#7f7f7f",
 }
 N_COLORS = 20
+#: Style of the error boxes. They are HTML panes holding escaped text: a Markdown pane
+#: (pn.pane.Alert) would turn values such as ![x](https://...) into images or links.
+ERROR_STYLE = "color:#842029;background:#f8d7da;border:1px solid #f5c2c7;border-radius:4px;padding:8px 12px"
 #: Bokeh output backend of the point plots ("webgl" or "canvas"); see README (performance).
 BACKEND = os.environ.get("BILIMOVICH_BACKEND", "webgl")
 

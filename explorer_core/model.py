@@ -53,8 +53,9 @@ class ParameterError(ValueError):
 def _check_finite(name: str, value: Any) -> float:
     try:
         v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        shown = repr(value) if len(repr(value)) <= 60 else repr(value)[:57] + "..."
+        raise ParameterError(f"{name} must be a finite number, got {shown}") from None
     if not math.isfinite(v):
         raise ParameterError(f"{name} must be finite, got {value!r}")
     return v
@@ -86,6 +87,8 @@ class Params:
 
     def __post_init__(self) -> None:
         ent = self.inertia
+        if isinstance(ent, str | bytes):
+            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got the string {ent[:40]!r}")
         if isinstance(ent, np.ndarray) and ent.shape == (3, 3):
             ent = inertia_entries(ent)
         try:
@@ -120,7 +123,10 @@ class Params:
 
     def with_(self, **changes: Any) -> Params:
         """A copy with some fields changed; accepts inertia entries by name (``I11=...``)."""
-        ent = list(changes.pop("inertia", self.inertia))
+        new = changes.pop("inertia", self.inertia)
+        if isinstance(new, str | bytes) or not hasattr(new, "__len__"):
+            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {new!r}")
+        ent = list(new)
         if len(ent) != 6:
             raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {len(ent)}: {ent!r}")
         for i, n in enumerate(INERTIA_NAMES):

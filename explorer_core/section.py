@@ -90,6 +90,8 @@ def check_box(box: Sequence[float], name: str = "box") -> tuple[float, float, fl
         raise ParameterError(f"{name} must be four finite numbers qmin,qmax,rmin,rmax, got {box!r}")
     if not (vals[0] < vals[1] and vals[2] < vals[3]):
         raise ParameterError(f"{name} must have qmin < qmax and rmin < rmax, got {vals!r}")
+    if not (math.isfinite(vals[1] - vals[0]) and math.isfinite(vals[3] - vals[2])):
+        raise ParameterError(f"{name} is too wide: its width overflows, got {vals!r}")
     return vals  # type: ignore[return-value]
 
 
@@ -101,7 +103,12 @@ def _check_int(name: str, v: Any, lo: int, hi: int) -> int:
 
 def check_ics(ics: Any) -> np.ndarray:
     """Initial conditions as a finite (n, 2) float array."""
-    arr = np.asarray(ics, dtype=float)
+    try:
+        arr = np.asarray(ics, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(
+            f"initial conditions must be real (q, r) pairs of equal shape, got {str(ics)[:60]}"
+        ) from None
     if arr.ndim == 1 and arr.size == 2:
         arr = arr.reshape(1, 2)
     if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] == 0:
@@ -192,7 +199,7 @@ def iter_section(
     ics = check_ics(ics)
     periods = _check_int("periods", periods, 1, config.MAX_PERIODS)
     transient = _check_int("transient", transient, 0, config.MAX_PERIODS)
-    if direction not in (1, -1):
+    if direction not in (1, -1) or isinstance(direction, bool):
         raise ParameterError(f"direction must be +1 or -1, got {direction!r}")
     model = Model(params)
     batch = Batch.start(ics, params.t0, direction * params.period)
@@ -313,6 +320,9 @@ def section(
     numerics = numerics or Numerics()
     ics = check_ics(ics)
     periods = _check_int("periods", periods, 1, config.MAX_PERIODS)
+    transient = _check_int("transient", transient, 0, config.MAX_PERIODS)
+    if direction not in (1, -1) or isinstance(direction, bool):
+        raise ParameterError(f"direction must be +1 or -1, got {direction!r}")
     n = ics.shape[0]
     if n * periods > config.MAX_POINTS:
         raise ParameterError(

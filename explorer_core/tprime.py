@@ -88,13 +88,19 @@ def check_range(rng: Any, name: str) -> tuple[float, float]:
 
 
 def _grid(q_range: Any, r_range: Any, grid: Any) -> tuple[np.ndarray, np.ndarray]:
+    def whole(v: Any) -> int:
+        if isinstance(v, bool) or not isinstance(v, int | np.integer):
+            raise ParameterError(f"grid must be an integer N or a pair (NQ, NR) of integers, got {grid!r}")
+        return int(v)
+
     if isinstance(grid, int | np.integer) and not isinstance(grid, bool):
         nq = nr = int(grid)
     else:
         try:
-            nq, nr = (int(v) for v in grid)
+            gq, gr = grid
         except (TypeError, ValueError):
             raise ParameterError(f"grid must be N or (NQ, NR), got {grid!r}") from None
+        nq, nr = whole(gq), whole(gr)
     for v in (nq, nr):
         if not 2 <= v <= config.MAX_GRID:
             raise ParameterError(f"grid must be between 2 and {config.MAX_GRID} per axis, got {grid!r}")
@@ -106,7 +112,10 @@ def _grid(q_range: Any, r_range: Any, grid: Any) -> tuple[np.ndarray, np.ndarray
 def tprime_map(params: Params, t: float, q_range: Any, r_range: Any, grid: Any = 200) -> TPrimeMap:
     """``T' = alpha * lambda`` on a grid at the frozen time ``t``."""
     start = time.perf_counter()
-    t = float(t)
+    try:
+        t = float(t)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"t must be a finite number, got {t!r}") from None
     if not math.isfinite(t):
         raise ParameterError(f"t must be finite, got {t!r}")
     q, r = _grid(q_range, r_range, grid)

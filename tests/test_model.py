@@ -118,7 +118,7 @@ def test_energy_is_conserved_at_alpha_zero() -> None:
         ({"alpha": float("inf")}, "alpha"),
         ({"omega": 0.0}, "omega must be > 0"),
         ({"omega": -2.0}, "-2.0"),
-        ({"g1": "abc"}, "g1 must be a number"),
+        ({"g1": "abc"}, "g1 must be a finite number"),
         ({"t0": float("nan")}, "t0 must be finite"),
     ],
 )
