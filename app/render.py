@@ -114,7 +114,10 @@ def render_bifurcation(
         if sweeps is not None and name not in sweeps:
             continue
         sel = s == k
-        ax.plot(vals[sel], y[sel], ",", color=colours.get(name, "k"), alpha=0.6 if len(names) > 1 else 1.0, label=name)
+        ax.plot(
+            vals[sel], y[sel], ".", ms=0.6, mew=0, color=colours.get(name, "k"), alpha=0.6 if len(names) > 1 else 1.0
+        )
+        ax.plot([], [], "o", ms=5, color=colours.get(name, "k"), label=name)  # legend handle
     bad = ~diagram.drawn().all(axis=(0, 2))
     for v in np.flatnonzero(bad):
         ax.axvline(diagram.values[v], color="#f3c0c0", lw=0.5, zorder=0)
@@ -122,7 +125,7 @@ def render_bifurcation(
     ax.set_ylabel(f"{coord}_k")
     ax.set_title(title or f"Bifurcation diagram ({diagram.values.size} values)")
     if len(names) > 1:
-        ax.legend(loc="best", markerscale=20, fontsize=8)
+        ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

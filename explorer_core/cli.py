@@ -648,7 +648,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def cmd_warmup(args: argparse.Namespace) -> int:
-    from explorer_core.integrators import warmup
+    from explorer_core.integrators import warmup_all as warmup
 
     start = time.perf_counter()
     warmup()

@@ -833,3 +833,11 @@ def warmup() -> None:
         for block in (1, config.BLOCK_SIZE):
             batch = Batch.start(np.array([[0.1, 0.2], [0.3, 0.1]]), 0.0, 2 * math.pi)
             advance(model, batch, 1, method=name, steps_per_period=8, workers=1, block=block)
+
+
+def warmup_all() -> None:
+    """Compile every numba kernel of the package: sections and the variational (Lyapunov) one."""
+    from explorer_core import lyapunov
+
+    warmup()
+    lyapunov.warmup()

@@ -356,6 +356,20 @@ def _drift(rep: Reproduction, stop: Callable[[], bool]) -> None:
     sq, sr = fit.spread()
     st = f"{fit.members.shape[0]} members leaving over k = 0..60 (random in {list(sc.box)}, seed 1), bound 1e12"
     note = f"growth is exponential: |x_k| ~ e^({_fmt(float(fit.growth_rate.mean()), 3)} k)"
+    # The coefficients scale with e^(rate * escape time) and scatter by ~100%; their ratio r/q
+    # is the direction of the noncompact curve and is well defined.
+    ratio = fit.coef_r[:, 6] / fit.coef_q[:, 6]
+    rep.rows.append(
+        Row(
+            "Fig. 9",
+            "ratio r/q of the k^6 coefficients",
+            _fmt(PAPER["fig9"]["r6"] / PAPER["fig9"]["q6"], 3),
+            _fmt(float(ratio.mean()), 4),
+            f"+-{_fmt(float(ratio.std(ddof=1)) if ratio.size > 1 else 0.0, 2)}",
+            st,
+            "direction of the escape: r ~ 5 q on the noncompact curve",
+        )
+    )
     for var, c, s in (("q", cq, sq), ("r", cr, sr)):
         for p in (6, 5):
             rep.rows.append(
