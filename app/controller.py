@@ -227,6 +227,10 @@ class ExplorerSession(param.Parameterized):
         self.running = False
         if status is not None:
             self._set_status(status, None, None, running=False, stopped=not done)
+        traj = self.data()[0]
+        if traj.size and not np.any(traj == self.state.selected):
+            # The selected trajectory left (e.g. escaped in the transient): show one that has points.
+            self.state.selected = int(traj.min())
         self._update_series()
 
     def _set_status(self, status: np.ndarray, done: int | None, total: int | None, *, running: bool,

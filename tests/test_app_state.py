@@ -172,3 +172,14 @@ def test_scene_selection_sets_every_control() -> None:
     s = sess.state
     assert (s.I13, s.I23, s.alpha, s.transient) == (0.5, 0.3, -0.45, 100)
     assert s.scene == "fig8B" and s.q_range == get_scene("fig8B").q_range
+
+
+def test_selection_moves_to_a_trajectory_with_points() -> None:
+    sess = make_session(scene="fig3")
+    # (0, 8) drifts past the escape bound (k ~ 1400) during the transient: no points at all.
+    sess.state.param.update(q_range=(-1.0, 1.0), r_range=(-5.0, 5.0))  # escape bound 1e3
+    sess.state.param.update(clicked=[(0.0, 8.0), (0.1, 0.1)], periods=5, transient=1500)
+    traj = sess.data()[0]
+    assert sess.escaped == [0] and 0 not in set(traj.tolist())
+    assert sess.state.selected == 1
+    assert len(sess.series.source.data["k"]) == 5
