@@ -24,7 +24,6 @@ import sys
 import tempfile
 import time
 import urllib.request
-import warnings
 from pathlib import Path
 
 import dockerfile_sim as sim
@@ -210,7 +209,7 @@ def _seconds(text: str) -> float:
 
 
 @pytest.mark.slow
-def test_image_commands_install_and_serve_the_app(df: sim.Dockerfile) -> None:
+def test_image_commands_install_and_serve_the_app(df: sim.Dockerfile, browser) -> None:
     harness = _harness()
     root = _scratch_dir()
     # Bytecode compilation of ~850 MB of site-packages costs ~25 s on two cores and changes no
@@ -272,24 +271,19 @@ def test_image_commands_install_and_serve_the_app(df: sim.Dockerfile) -> None:
         # Only the configured origins may open the websocket.
         assert _websocket_status(port, "http://evil.example") == 403
 
-        if os.path.exists(harness.CHROMIUM):
-            from playwright.sync_api import sync_playwright
-
-            t = time.perf_counter()
-            with sync_playwright() as p:
-                browser = p.chromium.launch(executable_path=harness.CHROMIUM, args=harness.CHROMIUM_ARGS)
-                try:
-                    pg = browser.new_page(viewport={"width": 1400, "height": 1000})
-                    errors: list[str] = []
-                    pg.on("pageerror", lambda e: errors.append(str(e)))
-                    pg.goto(f"http://localhost:{port}/main")
-                    harness.wait_points(pg, 1, timeout=120)  # websocket up, kernels ran, points drawn
-                    assert errors == [], errors
-                finally:
-                    browser.close()
-            timings["chromium until points"] = time.perf_counter() - t
-        else:
-            warnings.warn(f"{harness.CHROMIUM} missing: the image's page was not rendered", stacklevel=1)
+        # The shared Chromium (tests/conftest.py): Playwright's sync API runs once per process.
+        t = time.perf_counter()
+        ctx = browser.new_context(viewport={"width": 1400, "height": 1000})
+        try:
+            pg = ctx.new_page()
+            errors: list[str] = []
+            pg.on("pageerror", lambda e: errors.append(str(e)))
+            pg.goto(f"http://localhost:{port}/main")
+            harness.wait_points(pg, 1, timeout=120)  # websocket up, kernels ran, points drawn
+            assert errors == [], errors
+        finally:
+            ctx.close()
+        timings["chromium until points"] = time.perf_counter() - t
 
         # docker stop sends SIGTERM to PID 1 (the server: bilimovich serve execs panel serve). PID 1 gets
         # no default signal action, so the server must handle SIGTERM itself and exit.
