@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from clirun import run_cli
 
 from explorer_core.bifurcation import (
     INVALID_PARAMS,
@@ -191,21 +192,10 @@ def test_omega_is_accepted_in_any_case() -> None:
     assert check_param("Omega") == "omega" and check_param("i13") == "I13"
 
 
-def _cli(capsys, *args: str):
-    from explorer_core.cli import main
-
-    try:
-        rc = main(list(args))
-    except SystemExit as exc:
-        rc = exc.code
-    out, err = capsys.readouterr()
-    return rc, out, err
-
-
-def test_cli(capsys, tmp_path) -> None:
+def test_cli(tmp_path) -> None:
     path = tmp_path / "b.csv"
-    rc, out, err = _cli(
-        capsys, "bifurcation", "--scene", "fig10", "--param", "alpha", "--range", "-0.40,-0.36", "--n-values", "3",
+    rc, out, err = run_cli(
+        "bifurcation", "--scene", "fig10", "--param", "alpha", "--range", "-0.40,-0.36", "--n-values", "3",
         "--points", "8", "--transient", "20", "--ic", "-0.5,-1", "--out", str(path), "--json",
     )  # fmt: skip
     assert rc == 0, err
@@ -213,5 +203,5 @@ def test_cli(capsys, tmp_path) -> None:
     assert s["param"] == "alpha" and s["n_values"] == 3 and s["sweeps"] == ["forward", "backward"]
     assert s["status"] == {"ok": 6} and s["csv"]["rows"] == 6 * 8
     assert len(list(csv.reader(path.open()))) == 1 + 48
-    rc, _, err = _cli(capsys, "bifurcation", "--param", "beta", "--range", "0,1", "--n-values", "3", "--out", "x.csv")
+    rc, _, err = run_cli("bifurcation", "--param", "beta", "--range", "0,1", "--n-values", "3", "--out", "x.csv")
     assert rc == 2 and "beta" in err

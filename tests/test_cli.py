@@ -9,23 +9,12 @@ import sys
 
 import numpy as np
 import pytest
-
-from explorer_core.cli import main
-
-
-def run(capsys, *args: str) -> tuple[int, str, str]:
-    try:
-        rc = main(list(args))
-    except SystemExit as exc:  # argparse exits on usage errors
-        rc = exc.code
-    out, err = capsys.readouterr()
-    return rc, out, err
+from clirun import run_cli
 
 
-def test_section_csv_and_json(capsys, tmp_path) -> None:
+def test_section_csv_and_json(tmp_path) -> None:
     out = tmp_path / "s.csv"
-    rc, stdout, err = run(
-        capsys,
+    rc, stdout, err = run_cli(
         "section",
         "--scene",
         "fig1C",
@@ -52,9 +41,8 @@ def test_section_csv_and_json(capsys, tmp_path) -> None:
     assert len(rows) == 15 and rows[1][:2] == ["0", "3"] and rows[-1][:2] == ["1", "9"]
 
 
-def test_explicit_flags_override_scene(capsys) -> None:
-    rc, stdout, _ = run(
-        capsys,
+def test_explicit_flags_override_scene() -> None:
+    rc, stdout, _ = run_cli(
         "section",
         "--scene",
         "fig8B",
@@ -82,9 +70,8 @@ def test_explicit_flags_override_scene(capsys) -> None:
     assert len(s["trajectories"]) == 3
 
 
-def test_escaped_trajectory_reported(capsys) -> None:
-    rc, stdout, _ = run(
-        capsys,
+def test_escaped_trajectory_reported() -> None:
+    rc, stdout, _ = run_cli(
         "section",
         "--inertia",
         "1,2,4,0,0,0",
@@ -103,8 +90,8 @@ def test_escaped_trajectory_reported(capsys) -> None:
     assert t["status"] == "escaped" and 0 < t["points"] < 300
 
 
-def test_critical_json_shape(capsys) -> None:
-    rc, stdout, _ = run(capsys, "critical", "--inertia", "1,2,4,0,0,0", "--alpha", "0.1", "--t", "0.3", "--json")
+def test_critical_json_shape() -> None:
+    rc, stdout, _ = run_cli("critical", "--inertia", "1,2,4,0,0,0", "--alpha", "0.1", "--t", "0.3", "--json")
     assert rc == 0
     d = json.loads(stdout)
     assert d["t"] == 0.3
@@ -114,19 +101,18 @@ def test_critical_json_shape(capsys) -> None:
         assert len(e["eigenvalues"]) == 2 and len(e["eigenvalues"][0]) == 2 and isinstance(e["type"], str)
 
 
-def test_critical_track_csv(capsys, tmp_path) -> None:
+def test_critical_track_csv(tmp_path) -> None:
     out = tmp_path / "tracks.csv"
-    rc, _, err = run(capsys, "critical", "--scene", "fig8B", "--track", "--n-t", "101", "--out", str(out))
+    rc, _, err = run_cli("critical", "--scene", "fig8B", "--track", "--n-t", "101", "--out", str(out))
     assert rc == 0, err
     rows = list(csv.reader(out.open()))
     assert rows[0][:5] == ["branch", "t", "q", "r", "type"]
     assert len(rows) > 100
 
 
-def test_tprime_npz(capsys, tmp_path) -> None:
+def test_tprime_npz(tmp_path) -> None:
     out = tmp_path / "t.npz"
-    rc, _, err = run(
-        capsys,
+    rc, _, err = run_cli(
         "tprime",
         "--scene",
         "fig1A",
@@ -144,16 +130,16 @@ def test_tprime_npz(capsys, tmp_path) -> None:
     assert rc == 0, err
     with np.load(out) as z:
         assert z["values"].shape == (12, 12) and str(z["kind"]) == "instantaneous"
-    rc, _, err = run(capsys, "tprime", "--scene", "fig1A", "--grid", "6", "--per-period", "--out", str(out))
+    rc, _, err = run_cli("tprime", "--scene", "fig1A", "--grid", "6", "--per-period", "--out", str(out))
     assert rc == 0, err
     with np.load(out) as z:
         assert str(z["kind"]) == "per-period"
 
 
-def test_scenes_listing(capsys) -> None:
-    rc, stdout, _ = run(capsys, "scenes")
+def test_scenes_listing() -> None:
+    rc, stdout, _ = run_cli("scenes")
     assert rc == 0 and "fig8B" in stdout and "fig11" in stdout
-    rc, stdout, _ = run(capsys, "scenes", "--json")
+    rc, stdout, _ = run_cli("scenes", "--json")
     assert len(json.loads(stdout)) == 22
 
 
@@ -180,8 +166,8 @@ def test_scenes_listing(capsys) -> None:
         (["critical", "--track"], "--track needs --out"),
     ],
 )
-def test_bad_input_one_line_no_traceback(capsys, args, needle) -> None:
-    rc, _, err = run(capsys, *args)
+def test_bad_input_one_line_no_traceback(args, needle) -> None:
+    rc, _, err = run_cli(*args)
     assert rc == 2
     assert needle in err
     assert "Traceback" not in err

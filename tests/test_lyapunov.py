@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg
+from clirun import run_cli
 from naive import solve_ivp_lyapunov
 
 from explorer_core.integrators import Status
@@ -222,24 +223,13 @@ def test_bad_input_named(call, needle: str) -> None:
         call()
 
 
-def _cli(capsys, *args: str) -> tuple[int, str, str]:
-    from explorer_core.cli import main
-
-    try:
-        rc = main(list(args))
-    except SystemExit as exc:
-        rc = exc.code
-    out, err = capsys.readouterr()
-    return rc, out, err
-
-
-def test_cli_json_and_history(capsys, tmp_path) -> None:
+def test_cli_json_and_history(tmp_path) -> None:
     import csv
     import json
 
     hist = tmp_path / "h.csv"
-    rc, out, err = _cli(
-        capsys, "lyapunov", "--scene", "fig8B", "--ic", "-0.5,-1", "--transient", "20", "--periods", "60",
+    rc, out, err = run_cli(
+        "lyapunov", "--scene", "fig8B", "--ic", "-0.5,-1", "--transient", "20", "--periods", "60",
         "--ensemble", "2", "--history", str(hist), "--json",
     )  # fmt: skip
     assert rc == 0, err
@@ -253,10 +243,10 @@ def test_cli_json_and_history(capsys, tmp_path) -> None:
     assert rows[1][1] == "21"
 
 
-def test_cli_errors_are_one_line(capsys) -> None:
-    rc, _, err = _cli(capsys, "lyapunov", "--scene", "fig8B", "--periods", "5")
+def test_cli_errors_are_one_line() -> None:
+    rc, _, err = run_cli("lyapunov", "--scene", "fig8B", "--periods", "5")
     assert rc == 2 and "--ic" in err and err.count("\n") == 1
-    rc, _, err = _cli(capsys, "lyapunov", "--ic", "0,1", "--ic", "1,1", "--ensemble", "3", "--periods", "5")
+    rc, _, err = run_cli("lyapunov", "--ic", "0,1", "--ic", "1,1", "--ensemble", "3", "--periods", "5")
     assert rc == 2 and "--ensemble" in err
-    rc, _, err = _cli(capsys, "lyapunov", "--ic", "0,1", "--I11", "-1", "--periods", "5")
+    rc, _, err = run_cli("lyapunov", "--ic", "0,1", "--I11", "-1", "--periods", "5")
     assert rc == 2 and "positive definite" in err

@@ -13,18 +13,17 @@ from __future__ import annotations
 
 import contextlib
 import html
-import io
 import math
 import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+from clirun import run_cli
 from hypothesis import HealthCheck, assume, event, example, given, settings
 from hypothesis import strategies as st
 
 from app.state import SYSTEM_FIELDS, parse_query, state_from_query
-from explorer_core.cli import main
 from explorer_core.equilibria import TYPES, equilibria
 from explorer_core.integrators import Status, warmup
 from explorer_core.model import INERTIA_NAMES, ParameterError, Params
@@ -308,16 +307,6 @@ def _box_overflows(value: str) -> bool:
     return not (math.isfinite(q1 - q0) and math.isfinite(r1 - r0))
 
 
-def _run_cli(argv: list[str]) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            rc = main(argv)
-        except SystemExit as exc:  # argparse
-            rc = exc.code
-    return rc, out.getvalue(), err.getvalue()
-
-
 @settings(max_examples=200, deadline=5000, suppress_health_check=[HealthCheck.too_slow])
 @given(option=st.sampled_from(sorted(CLI_CASES)), value=bad_strings, glued=st.booleans())
 @example(option="--inertia", value="<script>alert(1)</script>", glued=True)
@@ -332,7 +321,7 @@ def test_cli_bad_values_exit_2_with_one_line(option, value, glued) -> None:
     if not glued:
         assume(not value.startswith("-"))  # "--alpha -x" is argparse's business ("expected one argument")
     argv = [*CLI_CASES[option], f"{option}={value}"] if glued else [*CLI_CASES[option], option, value]
-    rc, _, err = _run_cli(argv)
+    rc, _, err = run_cli(*argv)
     assert rc in (0, 2), (argv, rc, err)
     assert "Traceback" not in err
     if rc == 2:
@@ -422,7 +411,7 @@ def test_url_values_never_become_markup_in_the_error_box() -> None:
 
 
 def test_box_with_overflowing_width_is_a_usage_error() -> None:
-    rc, _, err = _run_cli([*CLI_CASES["--box"], "--box=-1e308,1e308,0,1"])
+    rc, _, err = run_cli(*CLI_CASES["--box"], "--box=-1e308,1e308,0,1")
     assert rc == 2 and "internal error" not in err, err
 
 
