@@ -35,7 +35,7 @@ MAX_POINTS = 50_000_000
 
 #: Trajectories integrated in lock-step by the adaptive batch kernel (1 = one step
 #: sequence each). Measured trade-off in the README (performance).
-BLOCK_SIZE = 16
+BLOCK_SIZE = 32
 
 #: Worker threads for batch kernels (the kernels release the GIL).
 N_WORKERS = max(1, min(os.cpu_count() or 1, int(os.environ.get("BILIMOVICH_THREADS", "0")) or (os.cpu_count() or 1)))

@@ -342,6 +342,17 @@ def _coefs(num, gpc, den, forcing, t, c) -> None:
 
 
 @_jit
+def _swap(p, last, slot, yq, yr, kq, kr) -> None:
+    # Move a failed trajectory out of the packed live range [0, last).
+    slot[p], slot[last] = slot[last], slot[p]
+    yq[p], yq[last] = yq[last], yq[p]
+    yr[p], yr[last] = yr[last], yr[p]
+    for st in range(kq.shape[0]):
+        kq[st, p], kq[st, last] = kq[st, last], kq[st, p]
+        kr[st, p], kr[st, last] = kr[st, last], kr[st, p]
+
+
+@_jit
 def advance_adaptive_block(
     a_mat,
     b_vec,
@@ -380,16 +391,23 @@ def advance_adaptive_block(
     coefficients are computed once per stage for the whole block (they depend on t
     only), which is what makes this faster. A trajectory that fails (escapes, overflows,
     or alone forces the step below the round-off floor) leaves the block; the others go on.
+
+    Layout, for speed: live trajectories are kept packed at the front (a failed one is
+    swapped with the last live one) and stages are stored as ``(stage, trajectory)``
+    rows, so every inner loop runs over a contiguous, branch-free range and vectorises.
     """
     s = b_vec.shape[0]
     m = idx.shape[0]
-    kk = np.empty((s + 1, m, 2))
+    kq = np.empty((s + 1, m))
+    kr = np.empty((s + 1, m))
     yq = np.empty(m)
     yr = np.empty(m)
     qn = np.empty(m)
     rn = np.empty(m)
-    live = np.zeros(m, dtype=np.bool_)
-    live0 = np.zeros(m, dtype=np.bool_)
+    sq = np.empty(m)
+    sr = np.empty(m)
+    errp = np.empty(m)
+    slot = np.empty(m, dtype=np.int64)
     c = np.empty((2, 6))
     work = np.empty((2, 6))
     d = 1.0 if period > 0.0 else -1.0
@@ -401,10 +419,10 @@ def advance_adaptive_block(
         i = idx[p]
         npts[i] = 0
         if status[i] == _OK:
-            live[p] = True
+            slot[n_live] = i
+            yq[n_live] = y[i, 0]
+            yr[n_live] = y[i, 1]
             n_live += 1
-            yq[p] = y[i, 0]
-            yr[p] = y[i, 1]
             if h[i] > 0.0 and (habs == 0.0 or h[i] < habs):
                 habs = h[i]
     if n_live == 0:
@@ -413,39 +431,30 @@ def advance_adaptive_block(
         ta = t_base + (k_first + j) * period
         tb = t_base + (k_first + j + 1) * period
         t = ta
-        live0[:] = live
         _coefs(num, gpc, den, forcing, t, c)
-        for p in range(m):
-            if live[p]:
-                kk[0, p, 0], kk[0, p, 1] = _quad2(c, yq[p], yr[p])
-                if not (math.isfinite(kk[0, p, 0]) and math.isfinite(kk[0, p, 1])):
-                    live[p] = False
-                    n_live -= 1
-                    status[idx[p]] = _NONFINITE
+        p = 0
+        while p < n_live:
+            qq = yq[p]
+            rr = yr[p]
+            fq = c[0, 0] + qq * (c[0, 1] + c[0, 3] * qq + c[0, 4] * rr) + rr * (c[0, 2] + c[0, 5] * rr)
+            fr = c[1, 0] + qq * (c[1, 1] + c[1, 3] * qq + c[1, 4] * rr) + rr * (c[1, 2] + c[1, 5] * rr)
+            kq[0, p] = fq
+            kr[0, p] = fr
+            if not (math.isfinite(fq) and math.isfinite(fr)):
+                status[slot[p]] = _NONFINITE
+                n_live -= 1
+                _swap(p, n_live, slot, yq, yr, kq, kr)
+            else:
+                p += 1
         if n_live == 0:
             break
         if habs <= 0.0:
             habs = span
-            for p in range(m):
-                if live[p]:
-                    hp = _initial_step(
-                        num,
-                        gpc,
-                        den,
-                        forcing,
-                        t,
-                        yq[p],
-                        yr[p],
-                        kk[0, p, 0],
-                        kk[0, p, 1],
-                        d,
-                        span,
-                        order,
-                        rtol,
-                        atol,
-                        work,
-                    )
-                    habs = min(habs, hp)
+            for p in range(n_live):
+                hp = _initial_step(
+                    num, gpc, den, forcing, t, yq[p], yr[p], kq[0, p], kr[0, p], d, span, order, rtol, atol, work
+                )
+                habs = min(habs, hp)
         steps = 0
         saw_nonfinite = False
         while n_live > 0:
@@ -459,58 +468,101 @@ def advance_adaptive_block(
                 hstep = remaining
                 last = True
             hs = d * hstep
+            n = n_live
             for st in range(1, s):
                 _coefs(num, gpc, den, forcing, t + c_vec[st] * hs, c)
-                for p in range(m):
-                    if not live[p]:
-                        continue
-                    sq = 0.0
-                    sr = 0.0
-                    for mm in range(st):
-                        am = a_mat[st, mm]
-                        if am != 0.0:
-                            sq += am * kk[mm, p, 0]
-                            sr += am * kk[mm, p, 1]
-                    kk[st, p, 0], kk[st, p, 1] = _quad2(c, yq[p] + hs * sq, yr[p] + hs * sr)
+                c00, c01, c02, c03, c04, c05 = c[0, 0], c[0, 1], c[0, 2], c[0, 3], c[0, 4], c[0, 5]
+                c10, c11, c12, c13, c14, c15 = c[1, 0], c[1, 1], c[1, 2], c[1, 3], c[1, 4], c[1, 5]
+                for p in range(n):
+                    sq[p] = 0.0
+                    sr[p] = 0.0
+                for mm in range(st):
+                    am = a_mat[st, mm] * hs
+                    if am != 0.0:
+                        for p in range(n):
+                            sq[p] += am * kq[mm, p]
+                            sr[p] += am * kr[mm, p]
+                for p in range(n):
+                    qq = yq[p] + sq[p]
+                    rr = yr[p] + sr[p]
+                    kq[st, p] = c00 + qq * (c01 + c03 * qq + c04 * rr) + rr * (c02 + c05 * rr)
+                    kr[st, p] = c10 + qq * (c11 + c13 * qq + c14 * rr) + rr * (c12 + c15 * rr)
             tn = tb if last else t + hs
             _coefs(num, gpc, den, forcing, tn, c)
+            c00, c01, c02, c03, c04, c05 = c[0, 0], c[0, 1], c[0, 2], c[0, 3], c[0, 4], c[0, 5]
+            c10, c11, c12, c13, c14, c15 = c[1, 0], c[1, 1], c[1, 2], c[1, 3], c[1, 4], c[1, 5]
+            for p in range(n):
+                sq[p] = 0.0
+                sr[p] = 0.0
+            for mm in range(s):
+                bm = b_vec[mm] * hs
+                if bm != 0.0:
+                    for p in range(n):
+                        sq[p] += bm * kq[mm, p]
+                        sr[p] += bm * kr[mm, p]
+            for p in range(n):
+                qq = yq[p] + sq[p]
+                rr = yr[p] + sr[p]
+                qn[p] = qq
+                rn[p] = rr
+                kq[s, p] = c00 + qq * (c01 + c03 * qq + c04 * rr) + rr * (c02 + c05 * rr)
+                kr[s, p] = c10 + qq * (c11 + c13 * qq + c14 * rr) + rr * (c12 + c15 * rr)
+            if dop853_error:
+                # Two passes over the stages: the 5th-order estimate first (its norm kept in errp), then the 3rd.
+                for p in range(n):
+                    sq[p] = 0.0
+                    sr[p] = 0.0
+                for mm in range(s + 1):
+                    em = e5_vec[mm]
+                    if em != 0.0:
+                        for p in range(n):
+                            sq[p] += em * kq[mm, p]
+                            sr[p] += em * kr[mm, p]
+                for p in range(n):
+                    scq = atol + rtol * max(abs(yq[p]), abs(qn[p]))
+                    scr = atol + rtol * max(abs(yr[p]), abs(rn[p]))
+                    a = sq[p] / scq
+                    b = sr[p] / scr
+                    errp[p] = a * a + b * b
+                    sq[p] = 0.0
+                    sr[p] = 0.0
+                for mm in range(s + 1):
+                    em = e3_vec[mm]
+                    if em != 0.0:
+                        for p in range(n):
+                            sq[p] += em * kq[mm, p]
+                            sr[p] += em * kr[mm, p]
+                for p in range(n):
+                    scq = atol + rtol * max(abs(yq[p]), abs(qn[p]))
+                    scr = atol + rtol * max(abs(yr[p]), abs(rn[p]))
+                    a = sq[p] / scq
+                    b = sr[p] / scr
+                    n5 = errp[p]
+                    n3 = a * a + b * b
+                    den2 = (n5 + 0.01 * n3) * 2.0
+                    errp[p] = hstep * n5 / math.sqrt(den2) if den2 > 0.0 else 0.0
+            else:
+                for p in range(n):
+                    sq[p] = 0.0
+                    sr[p] = 0.0
+                for mm in range(s + 1):
+                    em = e_vec[mm]
+                    if em != 0.0:
+                        for p in range(n):
+                            sq[p] += em * kq[mm, p]
+                            sr[p] += em * kr[mm, p]
+                for p in range(n):
+                    scq = atol + rtol * max(abs(yq[p]), abs(qn[p]))
+                    scr = atol + rtol * max(abs(yr[p]), abs(rn[p]))
+                    a = sq[p] / scq
+                    b = sr[p] / scr
+                    errp[p] = hstep * math.sqrt(0.5 * (a * a + b * b))
             err = 0.0
             worst = -1
             any_nonfinite = False
-            for p in range(m):
-                if not live[p]:
-                    continue
-                bq = 0.0
-                br = 0.0
-                for mm in range(s):
-                    bq += b_vec[mm] * kk[mm, p, 0]
-                    br += b_vec[mm] * kk[mm, p, 1]
-                qn[p] = yq[p] + hs * bq
-                rn[p] = yr[p] + hs * br
-                kk[s, p, 0], kk[s, p, 1] = _quad2(c, qn[p], rn[p])
-                scq = atol + rtol * max(abs(yq[p]), abs(qn[p]))
-                scr = atol + rtol * max(abs(yr[p]), abs(rn[p]))
-                if dop853_error:
-                    e5q = 0.0
-                    e5r = 0.0
-                    e3q = 0.0
-                    e3r = 0.0
-                    for mm in range(s + 1):
-                        e5q += e5_vec[mm] * kk[mm, p, 0]
-                        e5r += e5_vec[mm] * kk[mm, p, 1]
-                        e3q += e3_vec[mm] * kk[mm, p, 0]
-                        e3r += e3_vec[mm] * kk[mm, p, 1]
-                    n5 = (e5q / scq) ** 2 + (e5r / scr) ** 2
-                    n3 = (e3q / scq) ** 2 + (e3r / scr) ** 2
-                    ep = 0.0 if (n5 == 0.0 and n3 == 0.0) else hstep * n5 / math.sqrt((n5 + 0.01 * n3) * 2.0)
-                else:
-                    eq = 0.0
-                    er = 0.0
-                    for mm in range(s + 1):
-                        eq += e_vec[mm] * kk[mm, p, 0]
-                        er += e_vec[mm] * kk[mm, p, 1]
-                    ep = hstep * _rms_norm2(eq, er, scq, scr)
-                if not (math.isfinite(ep) and math.isfinite(kk[s, p, 0]) and math.isfinite(kk[s, p, 1])):
+            for p in range(n):
+                ep = errp[p]
+                if not (math.isfinite(ep) and math.isfinite(kq[s, p]) and math.isfinite(kr[s, p])):
                     any_nonfinite = True
                     ep = math.inf
                 if ep > err:
@@ -519,16 +571,21 @@ def advance_adaptive_block(
             steps += 1
             if err <= 1.0:
                 t = tn
-                for p in range(m):
-                    if live[p]:
-                        yq[p] = qn[p]
-                        yr[p] = rn[p]
-                        kk[0, p, 0] = kk[s, p, 0]
-                        kk[0, p, 1] = kk[s, p, 1]
-                        if abs(qn[p]) > bound or abs(rn[p]) > bound:
-                            live[p] = False
-                            n_live -= 1
-                            status[idx[p]] = _ESCAPED
+                p = 0
+                while p < n_live:
+                    yq[p] = qn[p]
+                    yr[p] = rn[p]
+                    kq[0, p] = kq[s, p]
+                    kr[0, p] = kr[s, p]
+                    if abs(qn[p]) > bound or abs(rn[p]) > bound:
+                        status[slot[p]] = _ESCAPED
+                        nsteps[slot[p]] += steps
+                        n_live -= 1
+                        _swap(p, n_live, slot, yq, yr, kq, kr)
+                        qn[p], qn[n_live] = qn[n_live], qn[p]
+                        rn[p], rn[n_live] = rn[n_live], rn[p]
+                    else:
+                        p += 1
                 factor = _MAX_FACTOR if err == 0.0 else min(_MAX_FACTOR, _SAFETY * err**expo)
                 habs = max(habs, hstep * factor) if last else hstep * factor
             else:
@@ -538,29 +595,26 @@ def advance_adaptive_block(
                 else:
                     habs = hstep * max(_MIN_FACTOR, _SAFETY * err**expo)
                 if habs < hmin:
-                    # Only the trajectory that forces the step down fails; the block goes on.
-                    live[worst] = False
+                    status[slot[worst]] = _NONFINITE if saw_nonfinite else _COLLAPSED
+                    nsteps[slot[worst]] += steps
                     n_live -= 1
-                    status[idx[worst]] = _NONFINITE if saw_nonfinite else _COLLAPSED
+                    _swap(worst, n_live, slot, yq, yr, kq, kr)
                     saw_nonfinite = False
                     habs = hstep
             if steps >= max_steps:
-                for p in range(m):
-                    if live[p]:
-                        live[p] = False
-                        status[idx[p]] = _TOO_MANY
+                for p in range(n_live):
+                    status[slot[p]] = _TOO_MANY
+                    nsteps[slot[p]] += steps
                 n_live = 0
-        for p in range(m):
-            i = idx[p]
-            if live0[p]:
-                nsteps[i] += steps
-            if live[p]:
-                y[i, 0] = yq[p]
-                y[i, 1] = yr[p]
-                if store:
-                    out[i, j, 0] = yq[p]
-                    out[i, j, 1] = yr[p]
-                npts[i] = j + 1
+        for p in range(n_live):
+            i = slot[p]
+            nsteps[i] += steps
+            y[i, 0] = yq[p]
+            y[i, 1] = yr[p]
+            if store:
+                out[i, j, 0] = yq[p]
+                out[i, j, 1] = yr[p]
+            npts[i] = j + 1
         if n_live == 0:
             break
     for p in range(m):
@@ -802,15 +856,24 @@ def advance(
         blocks = [order[i : i + block] for i in range(0, order.size, block)]
         npts[:] = 0
 
-        def run_blocks(bs: list[np.ndarray]) -> None:
-            for b in bs:
+        # Workers pull the next block when they finish one: block costs differ a lot
+        # (drifting trajectories need many more steps), so a fixed share would idle a core.
+        # The blocks are sorted by state size; the costly (large) ones go first.
+        queue = iter(blocks[::-1])
+        queue_lock = threading.Lock()
+
+        def run_blocks() -> None:
+            while True:
+                with queue_lock:
+                    b = next(queue, None)
+                if b is None:
+                    return
                 advance_adaptive_block(*kernel_args, np.ascontiguousarray(b, dtype=np.int64))
 
-        shares = [blocks[w::parts] for w in range(parts)]
         if parts <= 1 or len(blocks) <= 1:
-            run_blocks(blocks)
+            run_blocks()
         else:
-            futures = [_pool().submit(run_blocks, sh) for sh in shares if sh]
+            futures = [_pool().submit(run_blocks) for _ in range(min(parts, len(blocks)))]
             for f in futures:
                 f.result()
     elif parts <= 1:
