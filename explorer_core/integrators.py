@@ -56,6 +56,8 @@ _SAFETY, _MIN_FACTOR, _MAX_FACTOR = config.SAFETY, config.MIN_FACTOR, config.MAX
 _EPS = float(np.finfo(float).eps)
 
 _jit = nb.njit(nogil=True, cache=True, error_model="numpy")
+#: Small pieces of the block kernel, inlined into it (numba IR inlining) so its loops stay fused and fast.
+_jit_inline = nb.njit(nogil=True, cache=True, error_model="numpy", inline="always")
 
 
 @_jit
@@ -341,6 +343,41 @@ def _coefs(num, gpc, den, forcing, t, c) -> None:
     coefficients_at(num[:2], gpc[:2], den, g, gp, c)
 
 
+@_jit_inline
+def _combine(w, row, scale, upto, kq, kr, n, sq, sr) -> None:
+    # sq[p] = scale * sum_{mm < upto} w[row, mm] kq[mm, p] for the n packed members (zero weights skipped).
+    for p in range(n):
+        sq[p] = 0.0
+        sr[p] = 0.0
+    for mm in range(upto):
+        wm = w[row, mm] * scale
+        if wm != 0.0:
+            for p in range(n):
+                sq[p] += wm * kq[mm, p]
+                sr[p] += wm * kr[mm, p]
+
+
+@_jit_inline
+def _field(c, yq, yr, dq, dr, n, kq, kr, st) -> None:
+    # k[st] = f(y + d) for the n packed members at one time (coefficients c).
+    c00, c01, c02, c03, c04, c05 = c[0, 0], c[0, 1], c[0, 2], c[0, 3], c[0, 4], c[0, 5]
+    c10, c11, c12, c13, c14, c15 = c[1, 0], c[1, 1], c[1, 2], c[1, 3], c[1, 4], c[1, 5]
+    for p in range(n):
+        qq = yq[p] + dq[p]
+        rr = yr[p] + dr[p]
+        kq[st, p] = c00 + qq * (c01 + c03 * qq + c04 * rr) + rr * (c02 + c05 * rr)
+        kr[st, p] = c10 + qq * (c11 + c13 * qq + c14 * rr) + rr * (c12 + c15 * rr)
+
+
+@_jit_inline
+def _scaled_norm2(eq, er, yq, yr, qn, rn, atol, rtol, n, out) -> None:
+    # Squared error over the mixed absolute/relative scale of the old and new states.
+    for p in range(n):
+        a = eq[p] / (atol + rtol * max(abs(yq[p]), abs(qn[p])))
+        b = er[p] / (atol + rtol * max(abs(yr[p]), abs(rn[p])))
+        out[p] = a * a + b * b
+
+
 @_jit
 def _swap(p, last, slot, yq, yr, kq, kr) -> None:
     # Move a failed trajectory out of the packed live range [0, last).
@@ -407,6 +444,13 @@ def advance_adaptive_block(
     sq = np.empty(m)
     sr = np.empty(m)
     errp = np.empty(m)
+    err3 = np.empty(m)
+    # Weights as rows of 2-D arrays, so _combine sees one array type for all of them.
+    b_mat = b_vec.reshape(1, s)
+    e_mat = np.empty((3, s + 1))
+    e_mat[0] = e_vec[: s + 1]
+    e_mat[1] = e5_vec[: s + 1]
+    e_mat[2] = e3_vec[: s + 1]
     slot = np.empty(m, dtype=np.int64)
     c = np.empty((2, 6))
     work = np.empty((2, 6))
@@ -471,92 +515,29 @@ def advance_adaptive_block(
             n = n_live
             for st in range(1, s):
                 _coefs(num, gpc, den, forcing, t + c_vec[st] * hs, c)
-                c00, c01, c02, c03, c04, c05 = c[0, 0], c[0, 1], c[0, 2], c[0, 3], c[0, 4], c[0, 5]
-                c10, c11, c12, c13, c14, c15 = c[1, 0], c[1, 1], c[1, 2], c[1, 3], c[1, 4], c[1, 5]
-                for p in range(n):
-                    sq[p] = 0.0
-                    sr[p] = 0.0
-                for mm in range(st):
-                    am = a_mat[st, mm] * hs
-                    if am != 0.0:
-                        for p in range(n):
-                            sq[p] += am * kq[mm, p]
-                            sr[p] += am * kr[mm, p]
-                for p in range(n):
-                    qq = yq[p] + sq[p]
-                    rr = yr[p] + sr[p]
-                    kq[st, p] = c00 + qq * (c01 + c03 * qq + c04 * rr) + rr * (c02 + c05 * rr)
-                    kr[st, p] = c10 + qq * (c11 + c13 * qq + c14 * rr) + rr * (c12 + c15 * rr)
+                _combine(a_mat, st, hs, st, kq, kr, n, sq, sr)
+                _field(c, yq, yr, sq, sr, n, kq, kr, st)
             tn = tb if last else t + hs
             _coefs(num, gpc, den, forcing, tn, c)
-            c00, c01, c02, c03, c04, c05 = c[0, 0], c[0, 1], c[0, 2], c[0, 3], c[0, 4], c[0, 5]
-            c10, c11, c12, c13, c14, c15 = c[1, 0], c[1, 1], c[1, 2], c[1, 3], c[1, 4], c[1, 5]
+            _combine(b_mat, 0, hs, s, kq, kr, n, sq, sr)
             for p in range(n):
-                sq[p] = 0.0
-                sr[p] = 0.0
-            for mm in range(s):
-                bm = b_vec[mm] * hs
-                if bm != 0.0:
-                    for p in range(n):
-                        sq[p] += bm * kq[mm, p]
-                        sr[p] += bm * kr[mm, p]
-            for p in range(n):
-                qq = yq[p] + sq[p]
-                rr = yr[p] + sr[p]
-                qn[p] = qq
-                rn[p] = rr
-                kq[s, p] = c00 + qq * (c01 + c03 * qq + c04 * rr) + rr * (c02 + c05 * rr)
-                kr[s, p] = c10 + qq * (c11 + c13 * qq + c14 * rr) + rr * (c12 + c15 * rr)
+                qn[p] = yq[p] + sq[p]
+                rn[p] = yr[p] + sr[p]
+            _field(c, yq, yr, sq, sr, n, kq, kr, s)  # FSAL: f at the new state
             if dop853_error:
-                # Two passes over the stages: the 5th-order estimate first (its norm kept in errp), then the 3rd.
+                # Hairer's combined estimate from the 5th- and 3rd-order embedded solutions.
+                _combine(e_mat, 1, 1.0, s + 1, kq, kr, n, sq, sr)
+                _scaled_norm2(sq, sr, yq, yr, qn, rn, atol, rtol, n, errp)
+                _combine(e_mat, 2, 1.0, s + 1, kq, kr, n, sq, sr)
+                _scaled_norm2(sq, sr, yq, yr, qn, rn, atol, rtol, n, err3)
                 for p in range(n):
-                    sq[p] = 0.0
-                    sr[p] = 0.0
-                for mm in range(s + 1):
-                    em = e5_vec[mm]
-                    if em != 0.0:
-                        for p in range(n):
-                            sq[p] += em * kq[mm, p]
-                            sr[p] += em * kr[mm, p]
-                for p in range(n):
-                    scq = atol + rtol * max(abs(yq[p]), abs(qn[p]))
-                    scr = atol + rtol * max(abs(yr[p]), abs(rn[p]))
-                    a = sq[p] / scq
-                    b = sr[p] / scr
-                    errp[p] = a * a + b * b
-                    sq[p] = 0.0
-                    sr[p] = 0.0
-                for mm in range(s + 1):
-                    em = e3_vec[mm]
-                    if em != 0.0:
-                        for p in range(n):
-                            sq[p] += em * kq[mm, p]
-                            sr[p] += em * kr[mm, p]
-                for p in range(n):
-                    scq = atol + rtol * max(abs(yq[p]), abs(qn[p]))
-                    scr = atol + rtol * max(abs(yr[p]), abs(rn[p]))
-                    a = sq[p] / scq
-                    b = sr[p] / scr
-                    n5 = errp[p]
-                    n3 = a * a + b * b
-                    den2 = (n5 + 0.01 * n3) * 2.0
-                    errp[p] = hstep * n5 / math.sqrt(den2) if den2 > 0.0 else 0.0
+                    den2 = (errp[p] + 0.01 * err3[p]) * 2.0
+                    errp[p] = hstep * errp[p] / math.sqrt(den2) if den2 > 0.0 else 0.0
             else:
+                _combine(e_mat, 0, 1.0, s + 1, kq, kr, n, sq, sr)
+                _scaled_norm2(sq, sr, yq, yr, qn, rn, atol, rtol, n, errp)
                 for p in range(n):
-                    sq[p] = 0.0
-                    sr[p] = 0.0
-                for mm in range(s + 1):
-                    em = e_vec[mm]
-                    if em != 0.0:
-                        for p in range(n):
-                            sq[p] += em * kq[mm, p]
-                            sr[p] += em * kr[mm, p]
-                for p in range(n):
-                    scq = atol + rtol * max(abs(yq[p]), abs(qn[p]))
-                    scr = atol + rtol * max(abs(yr[p]), abs(rn[p]))
-                    a = sq[p] / scq
-                    b = sr[p] / scr
-                    errp[p] = hstep * math.sqrt(0.5 * (a * a + b * b))
+                    errp[p] = hstep * math.sqrt(0.5 * errp[p])
             err = 0.0
             worst = -1
             any_nonfinite = False
