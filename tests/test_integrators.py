@@ -47,6 +47,19 @@ def test_rk4_kernel_matches_plain_python_rk4() -> None:
     np.testing.assert_allclose(out[0], ref, rtol=1e-12, atol=1e-13)
 
 
+def test_rk4_lock_step_blocks_match_plain_python_rk4_per_trajectory() -> None:
+    # More trajectories than one RK4 block, some failing (overflow at once, escapes at
+    # different periods) so members leave the packed range while the others go on.
+    rng = np.random.default_rng(7)
+    ics = np.concatenate([rng.uniform(-1.5, 1.5, (70, 2)), [[1e200, 1e200]], [[0.0, 13.5], [0.0, 14.0]]])
+    out, npts, batch = _run(FIG1A, ics, 30, method="rk4", steps_per_period=40, bound=20.0)
+    assert batch.status[70] == Status.NONFINITE and npts[70] == 0
+    assert batch.status[71] == batch.status[72] == Status.ESCAPED and npts[71] > npts[72]
+    for i in (*range(0, 70, 7), 71, 72):
+        ref = rk4_section(FIG1A, ics[i], int(npts[i]), 40)
+        np.testing.assert_allclose(out[i, : npts[i]], ref, rtol=1e-12, atol=1e-13)
+
+
 def test_generic_kernel_with_rk4_tableau_matches_hand_written_rk4() -> None:
     a, _, _ = _run(FIG1C, REGULAR_IC, 4, method="rk4", steps_per_period=64)
     b, _, _ = _run(FIG1C, REGULAR_IC, 4, method="rk4-tableau", steps_per_period=64)
