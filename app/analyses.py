@@ -25,6 +25,7 @@ from bokeh.plotting import figure
 from app.controller import ExplorerSession
 from app.views import BACKEND, ERROR_STYLE
 from explorer_core.bifurcation import bifurcation_diagram, sweep_values
+from explorer_core.distributed import SchedulerError, scheduler_from_env
 from explorer_core.lyapunov import lyapunov_spectrum
 from explorer_core.model import INERTIA_NAMES, ParameterError
 from explorer_core.regimes import REGIMES, chart_spec, iter_chart
@@ -275,12 +276,13 @@ class BifurcationTab(_Tab):
                     f"transient 0..{LIMITS['transient']}"
                 )
             ics = st.initial_conditions()[:4]
+            scheduler = scheduler_from_env()  # BILIMOVICH_SCHEDULER: a Dask cluster runs the sweep
         except (ParameterError, TypeError) as exc:
             self.fail(str(exc))
             return
         self.ok()
         values = sweep_values((lo, hi), n)
-        self.set_progress(0, n, "computing…")
+        self.set_progress(0, n, f"computing on {scheduler}…" if scheduler else "computing…")
         seeding = self.seeding.value
         numerics = Numerics(method="dop853", rtol=1e-9, atol=1e-9, bound=1e3)
 
@@ -293,8 +295,13 @@ class BifurcationTab(_Tab):
                     last[0] = now
                     emit(lambda: self.set_progress(p.done, p.total, f"{p.done}/{p.total} values, {p.elapsed_s:.1f} s"))
 
-            d = bifurcation_diagram(params, name, values, points=pts, transient=tr, seeding=seeding, ics=ics,
-                                    numerics=numerics, progress=progress, cancel=cancelled)  # fmt: skip
+            try:
+                d = bifurcation_diagram(params, name, values, points=pts, transient=tr, seeding=seeding, ics=ics,
+                                        numerics=numerics, progress=progress, cancel=cancelled,
+                                        scheduler=scheduler)  # fmt: skip
+            except SchedulerError as exc:  # unreachable or unusable cluster: say so in the tab
+                emit(lambda msg=str(exc): self.set_progress(1, 1, "not computed") or self.fail(msg))
+                return
             emit(lambda: self._done(d))
 
         self.session.runner.start(self.channel, job)
@@ -395,23 +402,28 @@ class ChartTab(_Tab):
             spec = chart_spec(params, self.x_param.value, xr, self.y_param.value, yr, (nx, ny),
                               ics=st.initial_conditions()[:1], transient=int(self.transient.value),
                               periods=periods, p_max=max(1, min(16, (periods - 1) // 2)))  # fmt: skip
+            scheduler = scheduler_from_env()  # BILIMOVICH_SCHEDULER: tiles run on a Dask cluster
         except (ParameterError, TypeError, ValueError) as exc:
             self.fail(str(exc))
             return
         self.ok()
         labels = (self.x_param.value, self.y_param.value)
         self.session.runner.ui(lambda: self._label(*labels))
-        self.set_progress(0, 1, "computing…")
+        self.set_progress(0, 1, f"computing on {scheduler}…" if scheduler else "computing…")
 
         def job(cancelled, emit) -> None:
             last = [0.0]
             upd = None
-            for upd in iter_chart(spec, cancel=cancelled):
-                now = time.perf_counter()
-                if now - last[0] > REFRESH:
-                    last[0] = now
-                    snap = upd.chart.filled()
-                    emit(lambda c=snap, u=upd: self._show(c, u.done_tiles, u.total_tiles))
+            try:
+                for upd in iter_chart(spec, cancel=cancelled, scheduler=scheduler):
+                    now = time.perf_counter()
+                    if now - last[0] > REFRESH:
+                        last[0] = now
+                        snap = upd.chart.filled()
+                        emit(lambda c=snap, u=upd: self._show(c, u.done_tiles, u.total_tiles))
+            except SchedulerError as exc:  # unreachable or unusable cluster: say so in the tab
+                emit(lambda msg=str(exc): self.set_progress(1, 1, "not computed") or self.fail(msg))
+                return
             if upd is not None:
                 final = upd.chart
                 emit(lambda: self._show(final, upd.done_tiles, upd.total_tiles, final=True))

@@ -21,9 +21,10 @@ import param
 from app.runner import Runner
 from app.state import SYSTEM_FIELDS, ExplorerState, SectionRequest
 from app.views import SectionFigure, SeriesFigures
-from explorer_core.equilibria import equilibrium_tracks
+from explorer_core.equilibria import Cancelled, equilibrium_tracks
 from explorer_core.integrators import Status
 from explorer_core.model import Model, ParameterError, Params
+from explorer_core.reliability import assess
 from explorer_core.section import iter_section
 from explorer_core.tprime import energy_change_map, tprime_map
 
@@ -38,8 +39,13 @@ LAYER_FIELDS = ("show_tracks", "show_tprime", "tprime_kind")
 #: Longest chunk streamed to the browser: bounds how long a cancel waits.
 MAX_CHUNK = 32
 #: Time between point updates sent to the browser: starts here, doubles up to the max (seconds).
-EMIT_INTERVAL = 0.25
+EMIT_INTERVAL = 0.5
 MAX_EMIT_INTERVAL = 1.0
+#: The layers (T' map, tracks) of a new setting are computed once the section is done, or
+#: this long (seconds) into a longer run: computed alongside, they would take CPU (and the
+#: GIL: the tracks are Python) from the section's first points, and every update they send
+#: makes the browser redraw the whole plot while the points are still coming.
+LAYER_DELAY = 1.0
 TRACK_SAMPLES = 360
 TPRIME_GRID = 160
 PER_PERIOD_GRID = 80
@@ -53,6 +59,8 @@ class ExplorerSession(param.Parameterized):
     running = param.Boolean(default=False)
     escaped = param.List(default=[])
     failed = param.List(default=[])
+    #: Reliability warnings (explorer_core.reliability) as dicts: level, code, message.
+    reliability = param.List(default=[])
 
     def __init__(
         self,
@@ -152,6 +160,8 @@ class ExplorerSession(param.Parameterized):
             last_emit = 0.0
             interval = EMIT_INTERVAL
             first = True
+            t_job = time.perf_counter()
+            layers_pending = start_layers is not None
 
             def flush(status: np.ndarray, done: int, total: int, replace: bool) -> None:
                 cols = tuple(np.concatenate([p[i] for p in pending]) for i in range(4))
@@ -170,25 +180,30 @@ class ExplorerSession(param.Parameterized):
                 pending.append(chunk.long())
                 last_status = chunk.status
                 now = time.perf_counter()
-                # The first points go out at once; then updates back off (0.25, 0.5, 1 s):
+                # The first points go out at once; then updates back off (0.5, 1 s):
                 # each one makes the browser redraw every point, which costs more than the data.
                 if first or now - last_emit >= interval:
                     flush(chunk.status, chunk.done_periods, chunk.total_periods, replace=first)
                     last_emit = now
                     interval = min(2 * interval, MAX_EMIT_INTERVAL) if not first else interval
-                    if first and start_layers is not None:
-                        start_layers()  # after the first points: the layers must not delay them
                     first = False
+                if layers_pending and now - t_job >= LAYER_DELAY:
+                    layers_pending = False
+                    start_layers()  # a long run: the layers need not wait for its end
             if pending and last_status is not None:
                 flush(last_status, req.periods, req.periods, replace=first)
             done = not cancelled()
+            if layers_pending and done:
+                start_layers()  # stale runs start none: the newer run starts its own
             emit(lambda: self._finish(done, last_status))
 
         self.runner.start("section", job)
+        self._update_reliability(req)  # a priori: the new numerics against the states on screen
 
     def stop(self) -> None:
-        """Stop the section in flight; what was computed stays."""
+        """Stop the section in flight; what was computed stays (and gets its layers)."""
         self.runner.cancel("section")
+        self._start_layers()
         if self.running:
             self.running = False
             self.status = self.status.replace("computing", "stopped") + " — stopped"
@@ -227,6 +242,7 @@ class ExplorerSession(param.Parameterized):
         self.running = False
         if status is not None:
             self._set_status(status, None, None, running=False, stopped=not done)
+            self._update_reliability(None, status)
         traj = self.data()[0]
         if traj.size and not np.any(traj == self.state.selected):
             # The selected trajectory left (e.g. escaped in the transient): show one that has points.
@@ -249,6 +265,38 @@ class ExplorerSession(param.Parameterized):
         if stopped:
             parts.append("stopped")
         self.status = " · ".join(parts)
+
+    def _update_reliability(self, req: SectionRequest | None, status: np.ndarray | None = None) -> None:
+        """Warn when the method is unreliable for this scene (explorer_core.reliability.assess).
+
+        The check integrates a few probe states (RK4's error estimate), so it runs as a job
+        of its own, after the section's job has started: it never delays the first points.
+        """
+        st = self.state
+        try:
+            req = req or st.section_request()
+        except ParameterError:
+            return
+        # Points on screen tell how large the states get, if they belong to this system.
+        same = self._params == req.params and bool(self._chunks)
+        traj, _, q, r = self.data() if same else (None, None, None, None)
+        status = status if status is not None and status.size == req.ics.shape[0] else None
+        window, pixel = (*st.q_range, *st.r_range), st.pixel_size()
+
+        def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
+            try:
+                found = assess(
+                    req.params, req.numerics, periods=req.periods, transient=req.transient, ics=req.ics,
+                    points=np.column_stack([q, r]) if same else None, traj=traj, status=status,
+                    window=window, pixel=pixel,
+                )  # fmt: skip
+            except Exception:  # a failed check must never break the page
+                log.exception("reliability check failed")
+                found = []
+            warnings = [w.as_dict() for w in found]
+            emit(lambda: setattr(self, "reliability", warnings))
+
+        self.runner.start("reliability", job)
 
     # --- clicks --------------------------------------------------------------------------------
 
@@ -322,7 +370,10 @@ class ExplorerSession(param.Parameterized):
                 if not show_tracks:
                     emit(lambda: (self.fig.set_tracks([]), self.fig.set_equilibria([], [], ())))
                     return
-                tr = equilibrium_tracks(params, n_t=TRACK_SAMPLES)
+                try:
+                    tr = equilibrium_tracks(params, n_t=TRACK_SAMPLES, cancel=cancelled)
+                except Cancelled:  # a newer setting: its own tracks job is on the way
+                    return
                 segments = _segments_by_type(tr.branches())
                 at_t0 = tr.section()
                 emit(lambda: (self.fig.set_tracks(segments), self.fig.set_equilibria(at_t0.q, at_t0.r, at_t0.types)))

@@ -19,6 +19,8 @@ import numpy as np
 from matplotlib.colors import ListedColormap
 from matplotlib.patches import Patch
 
+from explorer_core.bench import LINE_COLOURS
+
 #: Colours of the non-periodic regimes (by regime name) in charts.
 REGIME_COLOURS = {
     "chaotic": "#000000",
@@ -298,3 +300,65 @@ def render_reproduction(rep: Any, outdir: str) -> list[str]:
                 res.append((title, rep.lyapunov[sid], (paper["L1"], paper["L2"])))
         render_convergence(res, path("lyapunov_convergence.png"))
     return out
+
+
+_WP_COLOURS = LINE_COLOURS
+
+
+def render_work_precision(data: dict[str, Any], path: str) -> None:
+    """PNG of work-precision diagrams from a ``bench.json`` dict: one log-log panel per case.
+
+    Error against the reference (y) over wall time per trajectory (x), one line per method and
+    implementation (dashed: our batch mode, per-trajectory share of the batch), the reference's
+    error bound as a dotted floor. Failed points (no error) are left out.
+    """
+    cases = list(data["cases"])
+    n = max(1, len(cases))
+    cols = 2 if n > 1 else 1
+    rows = (n + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(6.4 * cols, 4.6 * rows), dpi=_DPI, squeeze=False)
+    for ax, name in zip(axes.ravel(), cases, strict=False):
+        info = data["cases"][name]
+        lines: dict[str, list[dict[str, Any]]] = {}
+        for row in data["rows"]:
+            if row["case"] == name and row["error"] is not None and row["error"] > 0:
+                lines.setdefault(row["series"], []).append(row)
+        for series, pts in lines.items():  # rows come in the order of their settings, loose to tight
+            colour = _WP_COLOURS.get((pts[0]["implementation"], pts[0]["method"]), "k")
+            batch = pts[0]["mode"] == "batch"
+            ax.plot(
+                [r["time_per_traj_s"] for r in pts],
+                [r["error"] for r in pts],
+                "--" if batch else "-",
+                marker="s" if batch else "o",
+                ms=3.5,
+                lw=1.1,
+                color=colour,
+                label=series,
+            )
+        bound = info.get("reference_bound")
+        if bound:
+            ax.axhline(bound, color="0.5", ls=":", lw=1.0, label="reference bound")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("wall time per trajectory (s)")
+        ax.set_ylabel("max error over k = 1..K")
+        ax.set_title(
+            f"{name} ({info.get('scene', '')}), K = {info['horizon']} periods"
+            + ("" if info["horizon"] == info["k_max"] else " (chaos horizon)"),
+            fontsize=9,
+        )
+        ax.grid(True, which="major", color="0.9", lw=0.6)
+    for ax in axes.ravel()[len(cases) :]:
+        ax.set_visible(False)
+    handles, labels = {}, []
+    for ax in axes.ravel()[: len(cases)]:
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            if lab not in handles:
+                handles[lab] = h
+                labels.append(lab)
+    fig.legend([handles[lab] for lab in labels], labels, loc="lower center", ncol=min(5, len(labels)), fontsize=7,
+               frameon=False)  # fmt: skip
+    fig.tight_layout(rect=(0, 0.06 + 0.02 * (len(labels) // 5), 1, 1))
+    fig.savefig(path)
+    plt.close(fig)

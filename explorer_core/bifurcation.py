@@ -111,6 +111,42 @@ def detect_period(points: np.ndarray, p_max: int, tol: float) -> int:
 OrbitFn = Callable[[int, np.ndarray, int], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
 
 
+def check_sweeps(seeding: str, sweeps: Sequence[str]) -> tuple[str, ...]:
+    """The sweeps a run has: ``("fixed",)`` for fixed seeding, else the validated continuation sweeps."""
+    if seeding not in SEEDINGS:
+        raise ParameterError(f"seeding must be one of {', '.join(SEEDINGS)}, got {seeding!r}")
+    sweeps = tuple(sweeps)
+    if seeding == "fixed":
+        return ("fixed",)
+    if not sweeps or any(s not in SWEEPS for s in sweeps) or len(set(sweeps)) != len(sweeps):
+        raise ParameterError(f"sweeps must be distinct entries of {', '.join(SWEEPS)}, got {sweeps!r}")
+    return sweeps
+
+
+def sweep_order(sweep: str, n_values: int, valid: np.ndarray) -> list[int]:
+    """Value indices a sweep visits, in order; invalid values are skipped (continuation carries across them)."""
+    order = range(n_values - 1, -1, -1) if sweep == "backward" else range(n_values)
+    return [v for v in order if valid[v]]
+
+
+def next_seed(status: np.ndarray, final: np.ndarray, ics: np.ndarray) -> np.ndarray:
+    """Continuation: the next value starts from the final state; a failed trajectory restarts from its IC."""
+    return np.where((np.asarray(status) == Status.OK)[:, None], final, ics)
+
+
+def empty_sweep_arrays(n_sweeps: int, valid: np.ndarray, n_ics: int, n_points: int) -> dict[str, np.ndarray]:
+    """``points, npts, status, final`` of a sweep before any value ran (``NOT_RUN`` / ``INVALID_PARAMS``)."""
+    shape = (n_sweeps, valid.size, n_ics)
+    status = np.full(shape, NOT_RUN, dtype=np.int64)
+    status[:, ~valid] = INVALID_PARAMS
+    return {
+        "points": np.zeros((*shape, n_points, 2)),
+        "npts": np.zeros(shape, dtype=np.int64),
+        "status": status,
+        "final": np.zeros((*shape, 2)),
+    }
+
+
 @dataclass(frozen=True)
 class SweepProgress:
     """Passed to ``progress`` after each computed value."""
@@ -139,21 +175,10 @@ def sweep_orbits(
     ``npts``, ``status``, ``final`` (+ ``(2,)``). With ``fixed`` seeding there is one
     sweep; with ``continuation`` one per entry of ``sweeps``.
     """
-    if seeding not in SEEDINGS:
-        raise ParameterError(f"seeding must be one of {', '.join(SEEDINGS)}, got {seeding!r}")
-    sweeps = tuple(sweeps)
-    if seeding == "fixed":
-        sweeps = ("fixed",)
-    elif not sweeps or any(s not in SWEEPS for s in sweeps) or len(set(sweeps)) != len(sweeps):
-        raise ParameterError(f"sweeps must be distinct entries of {', '.join(SWEEPS)}, got {sweeps!r}")
+    sweeps = check_sweeps(seeding, sweeps)
     valid = np.ones(n_values, bool) if valid is None else np.asarray(valid, bool)
-    n_ics = ics.shape[0]
-    shape = (len(sweeps), n_values, n_ics)
-    points = np.zeros((*shape, n_points, 2))
-    npts = np.zeros(shape, dtype=np.int64)
-    status = np.full(shape, NOT_RUN, dtype=np.int64)
-    final = np.zeros((*shape, 2))
-    status[:, ~valid] = INVALID_PARAMS
+    arrays = empty_sweep_arrays(len(sweeps), valid, ics.shape[0], n_points)
+    points, npts, status, final = arrays["points"], arrays["npts"], arrays["status"], arrays["final"]
     total = int(valid.sum()) * len(sweeps)
     done = [0]
     start = time.perf_counter()
@@ -199,18 +224,13 @@ def sweep_orbits(
     else:
 
         def run_sweep(s: int, threads: int) -> None:
-            order = range(n_values) if sweeps[s] == "forward" else range(n_values - 1, -1, -1)
             seed = ics.copy()
-            for v in order:
-                if not valid[v]:
-                    continue  # carry the state across a hole in the parameter range
+            for v in sweep_order(sweeps[s], n_values, valid):  # invalid values: the state carries across
                 if stopped():
                     return
                 out = orbits(v, seed, threads)
                 record(s, v, out)
-                st, fin = out[2], out[3]
-                # Continue from the final state; a failed trajectory restarts from its IC.
-                seed = np.where((st == Status.OK)[:, None], fin, ics)
+                seed = next_seed(out[2], out[3], ics)
 
         if len(sweeps) > 1 and workers > 1:
             with ThreadPoolExecutor(max_workers=len(sweeps)) as pool:
@@ -344,7 +364,71 @@ def bilimovich_orbits(
     if transient:
         advance(model, batch, transient, store=False, workers=workers, **kw)
     pts, npts = advance(model, batch, n_points, workers=workers, **kw)
+    pts[np.arange(n_points)[None, :] >= npts[:, None]] = 0.0  # not data (unset memory): make results reproducible
     return pts, npts, batch.status.copy(), batch.y.copy()
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """What defines the orbits at every value of a diagram (plain data: picklable, sent to Dask workers)."""
+
+    params: Params
+    param: str
+    values: np.ndarray
+    ics: np.ndarray
+    transient: int
+    n_points: int
+    numerics: Numerics
+
+    def params_at(self, v: int) -> Params | str:
+        return params_at(self.params, self.param, float(self.values[v]))
+
+    def orbits(self, v: int, seed: np.ndarray, threads: int = 1) -> tuple[np.ndarray, ...]:
+        """:func:`bilimovich_orbits` at ``values[v]`` from ``seed`` (results do not depend on ``threads``)."""
+        p = self.params_at(v)
+        if isinstance(p, str):
+            raise ParameterError(p)
+        return bilimovich_orbits(p, seed, self.transient, self.n_points, self.numerics, threads)
+
+
+@dataclass(frozen=True)
+class SweepChunk:
+    """Orbits at consecutive values of one sweep; arrays are ``[k, ic, ...]`` for ``indices[k]``."""
+
+    sweep: int
+    indices: tuple[int, ...]
+    points: np.ndarray
+    npts: np.ndarray
+    status: np.ndarray
+    final: np.ndarray
+    seed: np.ndarray  # where a continuation sweep goes on after this chunk
+    elapsed_s: float
+
+
+def sweep_chunk(
+    spec: SweepSpec, sweep: int, indices: Sequence[int], seed: np.ndarray, continuation: bool, threads: int = 1
+) -> SweepChunk:
+    """Orbits at ``values[indices]`` in that order: a pure function of its arguments (a Dask task).
+
+    With ``continuation`` the first value starts from ``seed`` and every next one
+    from the previous final state (:func:`next_seed`), exactly as :func:`sweep_orbits`
+    does; otherwise every value starts from ``spec.ics``.
+    """
+    start = time.perf_counter()
+    outs = []
+    seed = np.asarray(seed, dtype=float)
+    for v in indices:
+        out = spec.orbits(int(v), seed if continuation else spec.ics, threads)
+        outs.append(out)
+        if continuation:
+            seed = next_seed(out[2], out[3], spec.ics)
+    return SweepChunk(
+        sweep,
+        tuple(int(v) for v in indices),
+        *(np.stack([o[k] for o in outs]) for k in range(4)),
+        seed=seed,
+        elapsed_s=time.perf_counter() - start,
+    )
 
 
 def bifurcation_diagram(
@@ -361,6 +445,7 @@ def bifurcation_diagram(
     progress: Callable[[SweepProgress], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
+    scheduler: Any = None,
 ) -> OrbitDiagram:
     """Orbit diagram of the Poincare map over ``param`` (paper, Fig. 10).
 
@@ -379,6 +464,9 @@ def bifurcation_diagram(
     numerics : integration settings (escape bound included).
     progress, cancel : called / polled after each value.
     workers : threads (default: both cores).
+    scheduler : ``None`` (local threads), or a Dask scheduler (``"tcp://HOST:PORT"``, ``"local:N"``
+        or a ``distributed.Client``): chunks of values run as tasks there, with identical results
+        (:mod:`explorer_core.distributed`).
     """
     start = time.perf_counter()
     param = check_param(param)
@@ -394,26 +482,26 @@ def bifurcation_diagram(
     n_sweeps = 1 if seeding == "fixed" else len(tuple(sweeps))
     if n_sweeps * vals.size * ics.shape[0] * points > config.MAX_POINTS:
         raise ParameterError(f"{vals.size} values x {ics.shape[0]} ICs x {points} points exceeds {config.MAX_POINTS}")
-    per_value = [params_at(params, param, v) for v in vals]
-    errors = tuple("" if isinstance(p, Params) else p for p in per_value)
+    spec = SweepSpec(params, param, vals, ics, int(transient), int(points), numerics)
+    errors = tuple("" if isinstance(p, Params) else p for p in (spec.params_at(v) for v in range(vals.size)))
+    valid = np.array([not e for e in errors])
+    if scheduler is not None:
+        from explorer_core.distributed import run_sweeps
 
-    def orbits(v: int, seed: np.ndarray, threads: int):
-        p = per_value[v]
-        assert isinstance(p, Params)
-        return bilimovich_orbits(p, seed, int(transient), int(points), numerics, threads)
-
-    out = sweep_orbits(
-        orbits,
-        vals.size,
-        ics,
-        int(points),
-        valid=np.array([not e for e in errors]),
-        seeding=seeding,
-        sweeps=sweeps,
-        workers=workers,
-        progress=progress,
-        cancel=cancel,
-    )
+        out = run_sweeps(spec, valid, seeding, sweeps, scheduler, progress=progress, cancel=cancel)
+    else:
+        out = sweep_orbits(
+            spec.orbits,
+            vals.size,
+            ics,
+            int(points),
+            valid=valid,
+            seeding=seeding,
+            sweeps=sweeps,
+            workers=workers,
+            progress=progress,
+            cancel=cancel,
+        )
     return OrbitDiagram(
         params=params,
         param=param,

@@ -16,12 +16,13 @@ import re
 import signal
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
 from explorer_core import __version__, config
+from explorer_core.distributed import SchedulerError
 from explorer_core.model import INERTIA_NAMES, ParameterError, Params
 from explorer_core.scenes import Scene, get_scene, list_scenes
 from explorer_core.section import Numerics, SectionChunk, check_box, random_ics, section
@@ -223,12 +224,23 @@ def cmd_section(args: argparse.Namespace) -> int:
         summary["scene"] = args.scene
     if rows is not None:
         summary["csv"] = {"path": args.out, "rows": rows}
+    warnings = []
+    if args.json or not args.quiet:
+        from explorer_core.reliability import assess_section
+
+        window = (*scene.q_range, *scene.r_range) if scene else None
+        warnings = assess_section(sec, pixel=scene.pixel_size() if scene else None, window=window)
+        summary["reliability"] = [w.as_dict() for w in warnings]
     if args.json:
         _write_json(summary)
     elif not args.quiet:
         labels = sec.status_labels()
         counts = {lab: labels.count(lab) for lab in sorted(set(labels))}
         print(f"{sec.n} trajectories, {int(sec.npts.sum())} points, {sec.elapsed_s:.3f} s, status {counts}")
+    if not args.quiet:
+        # When the method is unreliable for this run, say so (one line each; --quiet silences them).
+        for w in warnings:
+            sys.stderr.write(f"bilimovich section: {w.line()}\n")
     if not sec.completed:
         sys.stderr.write("bilimovich: interrupted; the points computed so far were written\n")
         return 130
@@ -425,10 +437,13 @@ def cmd_bifurcation(args: argparse.Namespace) -> int:
             numerics=_numerics(args, None, args.transient + args.points),
             progress=lambda p: write(f"{p.done}/{p.total} values, {p.elapsed_s:.1f} s"),
             cancel=stop,
+            scheduler=args.scheduler,
         )
     if show:
         sys.stderr.write("\n")
     summary = diag.summary()
+    if args.scheduler:
+        summary["scheduler"] = args.scheduler
     if args.out:
         summary["csv"] = {"path": args.out, "rows": diag.to_csv(args.out)}
     if args.json:
@@ -483,10 +498,13 @@ def cmd_chart(args: argparse.Namespace) -> int:
                 f"{int(u.chart.computed.sum())}/{u.chart.computed.size} pixels, {u.chart.elapsed_s:.1f} s"
             ),
             cancel=stop,
+            scheduler=args.scheduler,
         )
     if show:
         sys.stderr.write("\n")
     summary = chart.summary()
+    if args.scheduler:
+        summary["scheduler"] = args.scheduler
     written = []
     for path in outs:
         low = path.lower()
@@ -593,7 +611,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
         "--setup", str(here / "warm.py"),  # compile/load the kernels before the first visitor
         "--num-threads", str(args.threads),
         "--liveness",
-        "--check-unused-sessions", "5000", "--unused-session-lifetime", "15000",
+        # A closed tab's session (its document, figures, data) is freed this long after it closed;
+        # its jobs stop at once (app/main.py). A page must connect its websocket within it.
+        "--check-unused-sessions", str(min(5000, max(200, args.session_lifetime // 3))),
+        "--unused-session-lifetime", str(args.session_lifetime),
     ]  # fmt: skip
     for origin in origins:
         if not re.fullmatch(r"[A-Za-z0-9.\-\[\]:]+", origin) or origin == "*":
@@ -607,9 +628,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0  # not reached
 
 
-def cmd_reproduce(args: argparse.Namespace) -> int:
-    from explorer_core.reproduce import reproduce
-
+def _staged_run(args: argparse.Namespace) -> tuple[str, str, tuple[str, ...] | None, Callable[[str, float], None]]:
+    """Output folder (created), size, stages and a progress printer of ``reproduce`` / ``failures``."""
     out = os.path.abspath(args.out)
     parent = os.path.dirname(out)
     if not os.path.isdir(parent):
@@ -617,12 +637,20 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     os.makedirs(out, exist_ok=True)
     size = args.size or ("quick" if args.quick else "full")
     stages = tuple(s.strip() for s in args.stages.split(",")) if args.stages else None
-    start = time.perf_counter()
 
     def progress(stage: str, elapsed: float) -> None:
         if not args.quiet:
             sys.stderr.write(f"{stage}: {elapsed:.1f} s\n")
             sys.stderr.flush()
+
+    return out, size, stages, progress
+
+
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    from explorer_core.reproduce import reproduce
+
+    out, size, stages, progress = _staged_run(args)
+    start = time.perf_counter()
 
     with _Interrupt() as stop:
         rep = reproduce(size, stages=stages, progress=progress, cancel=stop)
@@ -643,6 +671,83 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         print(f"{len(figures)} figures and the table in {out} ({summary['elapsed_s']:.0f} s, size {size})")
     if not rep.completed:
         sys.stderr.write("bilimovich: interrupted; what was computed was written\n")
+        return 130
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from explorer_core import bench
+
+    cfg = bench.quick_config() if args.quick else bench.full_config()
+    changes: dict[str, Any] = {}
+    if args.cases:
+        changes["cases"] = tuple(c.strip() for c in args.cases.split(",") if c.strip())
+    if args.repeat is not None:
+        changes["repeat"] = args.repeat
+    if args.no_peers:
+        changes["peers"] = ()
+    if args.no_throughput:
+        changes["throughput"] = False
+    cfg = dataclasses.replace(cfg, **changes)
+    cfg.validate()
+    out = os.path.abspath(args.out)
+    if not os.path.isdir(os.path.dirname(out)):
+        raise UsageError(f"--out parent directory does not exist: {os.path.dirname(out)}")
+    os.makedirs(out, exist_ok=True)
+
+    def progress(p: Any) -> None:
+        if not args.quiet:
+            sys.stderr.write(f"[{p.done}/{p.total} {p.elapsed_s:5.0f} s] {p.text}\n")
+            sys.stderr.flush()
+
+    with _Interrupt() as stop:
+        res = bench.run_bench(cfg, cache_dir_=args.cache_dir, progress=progress, cancel=stop)
+    data = res.as_dict()
+    files = res.write(out)
+    from app.render import render_work_precision  # matplotlib only here
+
+    png = os.path.join(out, "work_precision.png")
+    render_work_precision(data, png)
+    files.append(png)
+    bench.save_latest(data, args.cache_dir)  # the app's speed-vs-accuracy tab shows the latest run
+    summary = {"out": files, "completed": res.completed, "elapsed_s": round(res.elapsed_s, 1),
+               "horizons": {k: c.horizon for k, c in res.cases.items()}, "peers": res.peers,
+               "ratios": data["ratios"], "throughput": data["throughput"]}  # fmt: skip
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        print(res.headline())
+        print(f"{len(res.rows)} rows; {', '.join(os.path.basename(f) for f in files)} in {out}")
+    if not res.completed:
+        sys.stderr.write("bilimovich: interrupted; what was measured was written\n")
+        return 130
+    return 0
+
+
+def cmd_failures(args: argparse.Namespace) -> int:
+    from explorer_core.failures import failure_map
+
+    out, size, stages, progress = _staged_run(args)
+    start = time.perf_counter()
+
+    with _Interrupt() as stop:
+        fm = failure_map(size, stages=stages, progress=progress, cancel=stop)
+    from app.failure_render import render_failures  # matplotlib only here
+
+    figures = render_failures(fm, out)
+    summary = fm.summary()
+    summary["figures"] = figures
+    summary["elapsed_s"] = round(time.perf_counter() - start, 2)
+    with open(os.path.join(out, "failures.json"), "w") as fh:
+        json.dump(summary, fh, indent=1)
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        print(f"failures.json and {len(figures)} pictures in {out} ({summary['elapsed_s']:.0f} s, size {size})")
+    if not fm.completed:
+        sys.stderr.write("bilimovich: interrupted; what was measured was written\n")
         return 130
     return 0
 
@@ -730,6 +835,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sweeps", metavar="forward,backward", help="continuation sweeps (default both)")
     p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
     p.add_argument("--out", metavar="FILE.csv", help="CSV sweep,value_index,value,ic,k,q,r,status")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask cluster: tcp://HOST:PORT or local:N (docs/dask.md)")
     p.add_argument("--json", action="store_true")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_bifurcation)
@@ -750,6 +856,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lyap-threshold", type=_number("lyap-threshold"), default=5e-3, help="chaos above (per time)")
     p.add_argument("--coarse", type=_count("coarse", 1, 1024), default=8, help="stride of the first coarse pass")
     p.add_argument("--out", action="append", metavar="FILE", help=".npz, .csv or .png (repeatable)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask cluster: tcp://HOST:PORT or local:N (docs/dask.md)")
     p.add_argument("--json", action="store_true")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_chart)
@@ -793,6 +900,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--allow-websocket-origin", action="append", metavar="HOST[:PORT]",
                    help="host names browsers may connect from (repeatable; default localhost); "
                         "env BILIMOVICH_ALLOWED_ORIGINS, comma-separated")  # fmt: skip
+    p.add_argument("--session-lifetime", type=_count("session-lifetime", 1000, 3_600_000), default=15000,
+                   metavar="MS", help="discard a closed tab's session after this many ms (default 15000)")  # fmt: skip
     p.add_argument("--show", action="store_true", help="open a browser")
     p.set_defaults(func=cmd_serve)
 
@@ -804,6 +913,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_reproduce)
+
+    p = sub.add_parser("bench", help="work-precision benchmark: error vs time, ours against solve_ivp/numbalsoda")
+    p.add_argument("--out", required=True, metavar="DIR", help="writes bench.json/.csv/.md, work_precision.png, ...")
+    p.add_argument("--quick", action="store_true", help="a small run (under a minute): short horizons, few settings")
+    p.add_argument("--cases", metavar="LIST", help="subset of regular,chaotic,attractor,drift")
+    p.add_argument("--repeat", type=_count("repeat", 1, 100), help="timing repeats (median; default 3, quick 1)")
+    p.add_argument("--no-peers", action="store_true", help="only this project's methods")
+    p.add_argument("--no-throughput", action="store_true", help="skip the throughput and target measurements")
+    p.add_argument("--cache-dir", metavar="DIR", help="reference cache (default $BILIMOVICH_CACHE_DIR/bench)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("failures", help="where the methods fail: RK4 on the drift, costs, statuses, float32, Lyapunov")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (created): failures.json, PNGs")
+    p.add_argument("--quick", action="store_true", help="reduced sizes: about 30 s on 2 cores")
+    p.add_argument("--size", choices=["tiny", "quick", "full"], help="explicit size (overrides --quick)")
+    p.add_argument("--stages", metavar="LIST", help="subset of rk4,cost,scenarios,floats,lyapunov")
+    p.add_argument("--json", action="store_true", help="print the JSON summary")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=cmd_failures)
 
     p = sub.add_parser("warmup", help="compile the numba kernels into the on-disk cache")
     p.set_defaults(func=cmd_warmup)
@@ -836,7 +966,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(_glue_negative_lists(list(sys.argv[1:] if argv is None else argv)))
     try:
         return args.func(args)
-    except (UsageError, ParameterError, ValueError) as exc:
+    except (UsageError, ParameterError, ValueError, SchedulerError) as exc:
         sys.stderr.write(f"bilimovich {args.command}: error: {exc}\n")
         return 2
     except OSError as exc:

@@ -39,7 +39,7 @@ import functools
 import itertools
 import math
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -61,6 +61,10 @@ _NOISE = 1e4 * _EPS
 _LOOSE_JUMP = 0.5
 # Length floor of the residual scale (units of q, r): only matters at an exact root at the origin.
 _L0 = 1e-12
+
+
+class Cancelled(Exception):
+    """Raised by :func:`equilibrium_tracks` when its ``cancel`` callback asks it to stop."""
 
 
 # ---------------------------------------------------------------------------
@@ -729,6 +733,7 @@ def equilibrium_tracks(
     max_refine: int | None = None,
     inf_norm: float = 1e8,
     rtol: float = 1e-12,
+    cancel: Callable[[], bool] | None = None,
 ) -> Tracks:
     """Equilibria of the frozen field followed over one period ``[t_start, t_start + T]``.
 
@@ -753,6 +758,9 @@ def equilibrium_tracks(
         I11 g'/(I22 - I33))``) ends and a new one starts.
     inf_norm, rtol : float
         As in :func:`equilibria`.
+    cancel : callable, optional
+        Polled between grid intervals; once it returns True the work stops and
+        :class:`Cancelled` is raised (the web app drops tracks of a stale setting).
 
     Returns
     -------
@@ -789,6 +797,8 @@ def equilibrium_tracks(
     links: dict[tuple[float, int], tuple[float, int]] = {}
     budget = max_refine
     for k in range(n_t - 1):
+        if cancel is not None and cancel():
+            raise Cancelled(f"equilibrium tracks stopped at sample {k} of {n_t}")
         stack = [(grid[k], grid[k + 1], 0)]
         while stack:
             ta, tb, depth = stack.pop()

@@ -29,6 +29,7 @@ shares the same coefficients.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
@@ -256,6 +257,17 @@ def build_tables(params: Params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return num, gpc, _pad(den, 3)
 
 
+@functools.lru_cache(maxsize=256)
+def _tables(params: Params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    # The exact polynomial algebra takes ~8 ms and one change of a slider builds the same model
+    # for the section, the tracks, the T' map and the reliability check: build it once.
+    # Read-only, so sharing them between models is safe.
+    out = build_tables(params)
+    for arr in out:
+        arr.setflags(write=False)
+    return out
+
+
 # ---------------------------------------------------------------------------
 # numba primitives shared by every kernel.
 
@@ -325,9 +337,8 @@ class Model:
     den: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        num, gpc, den = build_tables(self.params)
+        num, gpc, den = _tables(self.params)
         for name, arr in (("num", num), ("gpc", gpc), ("den", den)):
-            arr.setflags(write=False)
             object.__setattr__(self, name, arr)
 
     @property

@@ -453,17 +453,31 @@ def iter_chart(
     tile_pixels: int = 64,
     workers: int | None = None,
     cancel: Callable[[], bool] | None = None,
+    scheduler: Any = None,
 ) -> Iterator[ChartUpdate]:
     """Compute the chart tile by tile, coarse levels first, yielding after every tile.
 
     Tiles run in ``workers`` threads (default: both cores); ``cancel`` is polled
     whenever a tile finishes, and no new tile starts once it returns True.
+    With a ``scheduler`` (``"tcp://HOST:PORT"``, ``"local:N"`` or a ``distributed.Client``)
+    the tiles are Dask tasks instead (:mod:`explorer_core.distributed`): same
+    updates, same chart, and ``cancel`` also drops the tiles already queued there.
     """
     start = time.perf_counter()
     tiles = plan_tiles(spec.shape, coarse, tile_pixels)
     chart = Chart.empty(spec)
-    workers = max(1, workers or config.N_WORKERS)
     done = 0
+    if scheduler is not None:
+        from explorer_core.distributed import run_tiles
+
+        for res in run_tiles(spec, tiles, scheduler, cancel=cancel):
+            chart.add(res)
+            done += 1
+            chart.elapsed_s = time.perf_counter() - start
+            chart.completed = done == len(tiles)
+            yield ChartUpdate(res, done, len(tiles), chart)
+        return
+    workers = max(1, workers or config.N_WORKERS)
     with ThreadPoolExecutor(max_workers=workers) as pool:
         queue = iter(tiles)
         running: set[Future] = set()
@@ -496,10 +510,12 @@ def regime_chart(
     workers: int | None = None,
     progress: Callable[[ChartUpdate], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    scheduler: Any = None,
 ) -> Chart:
     """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``."""
     chart = Chart.empty(spec)
-    for upd in iter_chart(spec, coarse=coarse, tile_pixels=tile_pixels, workers=workers, cancel=cancel):
+    kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "scheduler": scheduler}
+    for upd in iter_chart(spec, **kw):
         chart = upd.chart
         if progress is not None:
             progress(upd)

@@ -1,0 +1,482 @@
+"""Charts of regimes and bifurcation sweeps on a Dask cluster (``dask.distributed``).
+
+A *scheduler* is ``"tcp://HOST:PORT"`` (a running ``dask scheduler``), ``"local:N"``
+(a :class:`distributed.LocalCluster` of ``N`` single-threaded worker processes,
+started on first use and kept for the life of this process) or a
+``distributed.Client``. The work is split as on one machine, and every task is a
+pure function of plain data:
+
+* a chart: one task per tile, :func:`~explorer_core.regimes.compute_tile`;
+* a bifurcation diagram: one task per chunk of values,
+  :func:`~explorer_core.bifurcation.sweep_chunk`; a continuation sweep submits its
+  next chunk from the previous chunk's final state, so forward and backward
+  sweeps run side by side, one chunk at a time each.
+
+Tasks run single-threaded with the same kernels and the same seeding, so the
+results are identical to the local run whatever the number of workers or threads.
+Results are gathered as they complete (``as_completed``) and handed back one by
+one, so charts fill in and progress is reported exactly as locally. A lost
+worker's tasks are rescheduled by the scheduler (``distributed.scheduler.allowed-failures``
+worker deaths per task); ``retries`` additionally re-runs a task that raised.
+``cancel`` is polled while waiting and cancels every outstanding task.
+
+``dask`` is imported only when a scheduler is used: the CLI and the app start
+as fast as before.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import atexit
+import hashlib
+import math
+import os
+import re
+import socket
+import threading
+import time
+import warnings
+import weakref
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import closing, suppress
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from explorer_core.model import ParameterError
+
+#: Environment variable the app reads its scheduler from (unset or empty: local).
+ENV_VAR = "BILIMOVICH_SCHEDULER"
+#: Seconds to wait for a scheduler to answer (and for it to have a worker).
+DEFAULT_TIMEOUT = 10.0
+#: Re-runs of a task that raised (a lost worker is handled by the scheduler itself).
+RETRIES = 2
+#: How often ``cancel`` is polled while tasks run (seconds).
+POLL_S = 0.05
+#: Tasks queued per worker thread: enough to keep workers busy, few enough that cancel is cheap.
+TASKS_PER_THREAD = 2
+MAX_LOCAL_WORKERS = 256
+#: Modules whose code decides the numbers; workers must run the same (see :func:`fingerprint`).
+NUMERIC_MODULES = ("config", "model", "tableaus", "integrators", "section", "lyapunov", "bifurcation", "regimes")
+
+
+class SchedulerError(ConnectionError):
+    """A Dask scheduler that cannot be reached or used; the message names its address."""
+
+
+_TCP = re.compile(r"tcp://(?P<host>\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(?P<port>[0-9]{1,5})")
+_LOCAL = re.compile(r"local(?::(?P<n>[0-9]{1,4}))?")
+
+
+def parse_scheduler(address: Any) -> str:
+    """Canonical scheduler address: ``tcp://HOST:PORT`` or ``local:N``.
+
+    ``local`` alone means one worker per core. Anything else is a
+    :class:`~explorer_core.model.ParameterError` that names the bad value.
+    """
+    text = str(address).strip() if isinstance(address, str) else None
+    hint = "use tcp://HOST:PORT (a running `dask scheduler`) or local:N (N worker processes on this machine)"
+    if not text:
+        raise ParameterError(f"scheduler address must be a non-empty string, got {address!r}; {hint}")
+    if m := _LOCAL.fullmatch(text):
+        n = int(m["n"]) if m["n"] is not None else (os.cpu_count() or 1)
+        if not 1 <= n <= MAX_LOCAL_WORKERS:
+            raise ParameterError(f"scheduler {text!r}: N must be in [1, {MAX_LOCAL_WORKERS}]")
+        return f"local:{n}"
+    m = _TCP.fullmatch(text)
+    if m is None:
+        raise ParameterError(f"bad scheduler address {text[:80]!r}; {hint}")
+    if not 1 <= int(m["port"]) <= 65535:
+        raise ParameterError(f"bad scheduler address {text!r}: port must be in [1, 65535]")
+    return f"tcp://{m['host']}:{int(m['port'])}"
+
+
+def scheduler_from_env(environ: dict[str, str] | None = None) -> str | None:
+    """The scheduler configured in ``BILIMOVICH_SCHEDULER`` (``None`` if unset or empty), validated."""
+    value = (os.environ if environ is None else environ).get(ENV_VAR, "").strip()
+    if not value:
+        return None
+    try:
+        return parse_scheduler(value)
+    except ParameterError as exc:
+        raise ParameterError(f"{ENV_VAR}: {exc}") from None
+
+
+# ---------------------------------------------------------------------------
+# What the workers must share with us for identical results.
+
+
+@cache
+def fingerprint() -> dict[str, str]:
+    """Versions that decide the numbers: the numeric modules' source and the numerical libraries."""
+    import llvmlite
+    import numba
+
+    here = Path(__file__).resolve().parent
+    h = hashlib.sha256()
+    for name in NUMERIC_MODULES:
+        h.update((here / f"{name}.py").read_bytes())
+    return {
+        "explorer_core": h.hexdigest()[:16],
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "llvmlite": llvmlite.__version__,
+    }
+
+
+def host_cpu() -> str:
+    """The CPU numba compiles for (kernels compiled for different CPUs may differ in the last bits)."""
+    import llvmlite.binding
+
+    return str(llvmlite.binding.get_host_cpu_name())
+
+
+def _worker_info() -> tuple[dict[str, str], str]:
+    return fingerprint(), host_cpu()
+
+
+_warm_lock = threading.Lock()
+_warmed = False
+
+
+def warm() -> None:
+    """Load every numba kernel once per process (from the on-disk cache when it is there)."""
+    global _warmed
+    with _warm_lock:
+        if not _warmed:
+            from explorer_core.integrators import warmup_all
+
+            warmup_all()
+            _warmed = True
+
+
+# ---------------------------------------------------------------------------
+# Clients.
+
+_clients: dict[str, Any] = {}
+_clusters: dict[str, Any] = {}
+_checked: weakref.WeakSet = weakref.WeakSet()
+_clients_lock = threading.Lock()
+
+
+def get_client(scheduler: Any, *, timeout: float = DEFAULT_TIMEOUT) -> Any:
+    """A ready ``distributed.Client`` for ``scheduler``, cached per address for the life of the process.
+
+    Connecting checks that the scheduler answers within ``timeout`` seconds, that
+    it has at least one worker and that the workers run the same numeric code and
+    libraries (:func:`fingerprint`); every failure is a :class:`SchedulerError`
+    naming the address. The workers' kernels are warmed before the first task.
+    """
+    from distributed import Client
+
+    if isinstance(scheduler, Client):
+        with _clients_lock:
+            if scheduler not in _checked:
+                _prepare(scheduler, str(scheduler.scheduler.address), timeout)
+                _checked.add(scheduler)
+        return scheduler
+    address = parse_scheduler(scheduler)
+    with _clients_lock:
+        client = _clients.get(address)
+        if client is not None and client.status == "running":
+            return client
+        client = _connect(address, timeout)
+        try:
+            _prepare(client, address, timeout)
+        except BaseException:
+            client.close()
+            raise
+        _clients[address] = client
+        return client
+
+
+def close_clients() -> None:
+    """Close every cached client and the local clusters this process started."""
+    with _clients_lock:
+        for client in _clients.values():
+            try:
+                client.close()
+            except Exception:  # closing at exit: nothing useful to do about it
+                pass
+        for cluster in _clusters.values():
+            try:
+                cluster.close()
+            except Exception:
+                pass
+        _clients.clear()
+        _clusters.clear()
+
+
+atexit.register(close_clients)
+
+
+def _connect(address: str, timeout: float) -> Any:
+    from distributed import Client, LocalCluster
+
+    if address.startswith("local:"):
+        cluster = _clusters.get(address)
+        if cluster is None:
+            # Processes: numba kernels release the GIL, but separate processes are what a real cluster is.
+            # No dashboard (its HTTP port would collide with other clusters); the scheduler listens on localhost.
+            try:
+                cluster = LocalCluster(
+                    n_workers=int(address.split(":")[1]),
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address="127.0.0.1:0",
+                    scheduler_kwargs={"dashboard": False},
+                )
+            except Exception as exc:  # e.g. a script without `if __name__ == "__main__":` re-running itself
+                raise SchedulerError(f"could not start a local Dask cluster ({address}): {exc}") from None
+            _clusters[address] = cluster
+        return Client(cluster, set_as_default=False)
+    host, port = address[len("tcp://") :].rsplit(":", 1)
+    # A plain TCP probe first: a refused or unroutable address fails at once with the OS's reason,
+    # instead of dask's retry loop and a half-built Client.
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as exc:
+        reason = exc.strerror or str(exc) or type(exc).__name__
+        raise SchedulerError(
+            f"cannot reach the Dask scheduler at {address}: {reason} (timeout {timeout:g} s)"
+        ) from None
+    # Then the Dask handshake, bounded by our own timeout: Client() itself can wait forever on a peer
+    # that accepts connections but never answers, and fails with odd errors (even MemoryError) on
+    # one that speaks another protocol. A thread of its own: the caller may be inside an event loop.
+    with ThreadPoolExecutor(1) as pool:
+        try:
+            reply = pool.submit(asyncio.run, _identity(address, timeout)).result()
+        except Exception as exc:
+            reply = f"{type(exc).__name__}: {str(exc)[:200]}" if str(exc) else type(exc).__name__
+    if not (isinstance(reply, dict) and reply.get("type") == "Scheduler"):
+        raise SchedulerError(
+            f"{address} accepts connections but does not answer as a Dask scheduler within {timeout:g} s ({reply})"
+        )
+    try:
+        return Client(address, timeout=timeout, set_as_default=False)
+    except Exception as exc:
+        raise SchedulerError(f"cannot connect to the Dask scheduler at {address}: {exc}") from None
+
+
+async def _identity(address: str, timeout: float) -> Any:
+    from distributed.comm import connect
+
+    comm = await asyncio.wait_for(connect(address, timeout=timeout), timeout)
+    try:
+        await asyncio.wait_for(comm.write({"op": "identity", "reply": True}), timeout)
+        return await asyncio.wait_for(comm.read(), timeout)
+    finally:
+        comm.abort()
+
+
+def _prepare(client: Any, address: str, timeout: float) -> None:
+    try:
+        client.wait_for_workers(1, timeout=timeout)
+    except Exception:
+        raise SchedulerError(
+            f"the Dask scheduler at {address} has no workers after {timeout:g} s; start some with "
+            f"`dask worker {address}` on machines where this package is installed"
+        ) from None
+    try:
+        info = client.run(_worker_info)
+    except Exception as exc:
+        raise SchedulerError(
+            f"the workers of {address} cannot run explorer_core ({type(exc).__name__}: {str(exc)[:200]}); "
+            "install the same bilimovich-explorer on every worker"
+        ) from None
+    mine = fingerprint()
+    for worker, (theirs, _) in info.items():
+        if theirs != mine:
+            diff = ", ".join(f"{k} {theirs.get(k)} (here {v})" for k, v in mine.items() if theirs.get(k) != v)
+            raise SchedulerError(
+                f"worker {worker} of {address} runs different code than this process ({diff}); results would "
+                "not be identical: install the same version of bilimovich-explorer and its libraries there"
+            )
+    # Compile or load the kernels on every worker now (in a task thread, not the worker's event loop),
+    # so the first tiles do not pay for it; a worker that joins later warms up in its first task.
+    client.gather([client.submit(warm, workers=[w], pure=False) for w in info])
+    cpus = {cpu for _, cpu in info.values()}
+    if cpus != {host_cpu()}:
+        warnings.warn(
+            f"the workers of {address} have CPUs {sorted(cpus)} and this machine {host_cpu()}: numba compiles for "
+            "each CPU, so results may differ in the last bits (set NUMBA_CPU_NAME=generic everywhere to avoid it)",
+            stacklevel=3,
+        )
+
+
+# ---------------------------------------------------------------------------
+# The task stream.
+
+
+def _label(scheduler: Any, client: Any) -> str:
+    return parse_scheduler(scheduler) if isinstance(scheduler, str) else str(client.scheduler.address)
+
+
+def _threads(client: Any) -> int:
+    return max(1, sum(client.nthreads().values()))
+
+
+def _stream(
+    client: Any, todo: deque, cancel: Callable[[], bool] | None, address: str
+) -> Iterator[list[tuple[Any, Any]]]:
+    """Run ``todo``'s ``(tag, func, args)`` as tasks, yielding batches of ``(tag, result)`` as they complete.
+
+    About :data:`TASKS_PER_THREAD` tasks per worker thread are queued at a time, in
+    ``todo`` order (earlier first, also by priority); the caller may append to
+    ``todo`` while iterating. ``cancel`` is polled every :data:`POLL_S` seconds; once
+    it is True, and whenever the caller stops iterating, outstanding tasks are
+    cancelled on the cluster.
+    """
+    from distributed import as_completed
+
+    tags: dict[Any, Any] = {}
+    done = as_completed(loop=client.loop)
+    submitted = 0
+    window, window_at = 0, 0.0
+
+    def top_up() -> None:
+        nonlocal submitted, window, window_at
+        now = time.monotonic()
+        if now - window_at > 2.0:  # workers may come and go; nthreads() is a round trip to the scheduler
+            window, window_at = TASKS_PER_THREAD * _threads(client), now
+        while todo and len(tags) < window:
+            tag, func, args = todo.popleft()
+            fut = client.submit(func, *args, retries=RETRIES, priority=-submitted, pure=False)
+            submitted += 1
+            tags[fut] = tag
+            done.add(fut)
+
+    lost = _LostScheduler(address)
+    try:
+        with lost:
+            top_up()
+        while tags:
+            if cancel is not None and cancel():
+                return
+            ready = done.next_batch(block=False)
+            if not ready:
+                if client.status in ("closing", "closed"):  # the client gave up reconnecting
+                    raise SchedulerError(f"lost the Dask scheduler at {address}")
+                time.sleep(POLL_S)
+                continue
+            if any(f.status == "error" for f in ready):
+                client.gather(ready)  # raises the task's own error (after RETRIES re-runs)
+            with lost:
+                results = client.gather(ready)
+            batch = [(tags.pop(f), r) for f, r in zip(ready, results, strict=True)]
+            yield batch
+            with lost:
+                top_up()
+    finally:
+        if tags and client.status == "running":
+            with suppress(Exception):  # a client that is going away has nothing left to cancel
+                client.cancel(list(tags))
+
+
+class _LostScheduler:
+    """Turns any failure of a call to the scheduler (not of a task) into a :class:`SchedulerError`."""
+
+    def __init__(self, address: str) -> None:
+        self.address = address
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, typ: Any, exc: BaseException | None, tb: Any) -> None:
+        if isinstance(exc, Exception) and not isinstance(exc, SchedulerError):
+            raise SchedulerError(f"lost the Dask scheduler at {self.address} ({type(exc).__name__}: {exc})") from None
+
+
+def run_tiles(
+    spec: Any,
+    tiles: Sequence[Any],
+    scheduler: Any,
+    *,
+    cancel: Callable[[], bool] | None = None,
+    timeout: float = DEFAULT_TIMEOUT,
+) -> Iterator[Any]:
+    """:func:`~explorer_core.regimes.compute_tile` of every tile on the cluster, yielding results as they finish.
+
+    Tiles are queued in plan order (coarse levels first); within a batch that
+    completes together, coarser tiles come first, as in the local run.
+    """
+    client = get_client(scheduler, timeout=timeout)
+    address = _label(scheduler, client)
+    todo = deque((n, _tile_task, (spec, tile)) for n, tile in enumerate(tiles))
+    with closing(_stream(client, todo, cancel, address)) as stream:  # closing: cancel tasks if our caller stops
+        for batch in stream:
+            yield from sorted((res for _, res in batch), key=lambda r: r.tile.stride, reverse=True)
+
+
+def _tile_task(spec: Any, tile: Any) -> Any:
+    from explorer_core.regimes import compute_tile
+
+    warm()
+    return compute_tile(spec, tile)
+
+
+def _chunk_task(spec: Any, sweep: int, indices: Sequence[int], seed: np.ndarray, continuation: bool) -> Any:
+    from explorer_core.bifurcation import sweep_chunk
+
+    warm()
+    return sweep_chunk(spec, sweep, indices, seed, continuation, 1)
+
+
+def run_sweeps(
+    spec: Any,
+    valid: np.ndarray,
+    seeding: str,
+    sweeps: Sequence[str],
+    scheduler: Any,
+    *,
+    progress: Callable[[Any], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    chunk: int | None = None,
+    timeout: float = DEFAULT_TIMEOUT,
+) -> dict[str, np.ndarray]:
+    """:func:`~explorer_core.bifurcation.sweep_orbits` for a :class:`~explorer_core.bifurcation.SweepSpec` on a cluster.
+
+    Same arguments and the same result dict (bit for bit); ``progress`` is called
+    once per value, in bursts of a chunk. ``chunk`` values per task (default: about
+    four tasks per worker thread with fixed seeding, 16 chunks per continuation sweep).
+    """
+    from explorer_core.bifurcation import SweepProgress, check_sweeps, empty_sweep_arrays, sweep_order
+
+    start = time.perf_counter()
+    names = check_sweeps(seeding, sweeps)
+    valid = np.asarray(valid, bool)
+    out = empty_sweep_arrays(len(names), valid, spec.ics.shape[0], spec.n_points)
+    orders = [sweep_order(s, valid.size, valid) for s in names]
+    total = sum(len(o) for o in orders)
+    continuation = seeding != "fixed"
+    client = get_client(scheduler, timeout=timeout)
+    address = _label(scheduler, client)
+    if chunk is None:
+        n = max(len(o) for o in orders) if orders else 0
+        chunk = math.ceil(n / 16) if continuation else math.ceil(n / (4 * _threads(client)))
+    chunk = max(1, min(64, int(chunk)))
+    pieces = [[o[i : i + chunk] for i in range(0, len(o), chunk)] for o in orders]
+    todo: deque = deque()
+    if continuation:  # each sweep's next chunk needs the previous one's final state
+        todo.extend(
+            ((s, 0), _chunk_task, (spec, s, pieces[s][0], spec.ics, True)) for s in range(len(names)) if pieces[s]
+        )
+    else:
+        todo.extend(((0, k), _chunk_task, (spec, 0, p, spec.ics, False)) for k, p in enumerate(pieces[0]))
+    done = 0
+    with closing(_stream(client, todo, cancel, address)) as stream:
+        for batch in stream:
+            for (s, k), res in batch:
+                for j, v in enumerate(res.indices):
+                    for name in ("points", "npts", "status", "final"):
+                        out[name][s, v] = getattr(res, name)[j]
+                    done += 1
+                    if progress is not None:
+                        progress(SweepProgress(done, total, time.perf_counter() - start))
+                if continuation and k + 1 < len(pieces[s]):
+                    todo.append(((s, k + 1), _chunk_task, (spec, s, pieces[s][k + 1], res.seed, True)))
+    return {"sweeps": np.array(names), **out}

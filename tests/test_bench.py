@@ -1,0 +1,244 @@
+"""The work-precision harness: rows, references and their cache, the horizon, the CLI and the app tab.
+
+Wall times are reported by the harness, never asserted (the machines are noisy).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+from clirun import run_cli
+from scipy.integrate import solve_ivp
+
+from app.bench_tab import MEASURED, BenchTab
+from app.controller import ExplorerSession
+from app.runner import WARM, InlineExecutor, Runner
+from app.state import ExplorerState
+from explorer_core import bench
+from explorer_core.integrators import Batch, advance
+from explorer_core.model import Model
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory) -> str:
+    return str(tmp_path_factory.mktemp("bench_cache"))
+
+
+@pytest.fixture(scope="module")
+def quick(cache: str) -> bench.BenchResult:
+    return bench.run_bench(bench.quick_config(), cache_dir_=cache)
+
+
+def test_quick_run_has_finite_errors_for_every_method_and_case(quick: bench.BenchResult) -> None:
+    cfg = quick.config
+    have_nbs = quick.peers["numbalsoda"].startswith("available")
+    expected = {f"ours {m}{' batch' if mode == 'batch' else ''}" for m in bench.OUR_METHODS for mode in cfg.modes}
+    expected |= {f"scipy.solve_ivp {p.split(':')[1]}" for p in cfg.peers if p.startswith("scipy")}
+    if have_nbs:
+        expected |= {f"numbalsoda {p.split(':')[1]}" for p in cfg.peers if p.startswith("numbalsoda")}
+    assert quick.completed
+    for case in cfg.cases:
+        lines = quick.series(case)
+        assert set(lines) == expected, case
+        for name, rows in lines.items():
+            for r in rows:
+                assert r.status == "ok", (case, name, r.setting, r.status)
+                assert r.error is not None and math.isfinite(r.error) and r.error > 0, (case, name, r.setting)
+                assert r.time_per_traj_s > 0 and r.periods == quick.cases[case].horizon
+    # The files' contents agree with the rows.
+    data = quick.as_dict()
+    assert len(data["rows"]) == len(quick.rows) and json.loads(json.dumps(data)) == data
+    assert quick.csv_text().count("\n") == len(quick.rows) + 1
+    assert "| regular |" in quick.markdown()
+
+
+def test_dop853_error_falls_with_the_tolerance_on_the_regular_orbit(quick: bench.BenchResult) -> None:
+    for line in ("ours dop853", "ours dop853 batch"):
+        rows = quick.series("regular")[line]
+        tols = [r.tol for r in rows]
+        assert tols == sorted(tols, reverse=True)
+        errors = [r.error for r in rows]
+        assert all(a > b for a, b in itertools.pairwise(errors)), errors
+        # Work grows as the tolerance tightens.
+        steps = [r.steps_per_period for r in rows]
+        assert steps == sorted(steps)
+
+
+def test_horizon_is_cut_on_chaotic_orbits_only(quick: bench.BenchResult) -> None:
+    cases = quick.cases
+    for name in ("regular", "drift"):
+        assert cases[name].horizon == cases[name].k_max
+    for name in ("chaotic", "attractor"):
+        assert 2 <= cases[name].horizon < cases[name].k_max
+        assert cases[name].amp_at_horizon <= quick.config.amp_max < cases[name].amp_at_k_max
+    for c in cases.values():
+        assert 0 < c.reference_bound < 1e-9  # far below every error measured
+
+
+def test_horizon_rule() -> None:
+    amp = np.array([[1.0, 5.0, 50.0, 2e3, 10.0], [1.0, 2.0, 3.0, 4.0, 5.0]])
+    assert bench.horizon(amp, 1e3, 5) == 3  # the first member crosses at k = 4; no coming back below
+    assert bench.horizon(amp[1:], 1e3, 5) == 5
+    assert bench.horizon(amp[1:], 1e3, 2) == 2
+    assert bench.horizon(np.array([[np.nan, 1.0]]), 1e3, 2) == 1  # a failed member counts as above
+
+
+def test_time_at_error_interpolates_along_a_line() -> None:
+    line = [(1e-2, 1.0), (1e-4, 10.0), (1e-8, 100.0)]
+    t, how = bench.time_at_error(line, 1e-6)
+    assert how == "interpolated" and t == pytest.approx(math.sqrt(10.0 * 100.0))
+    assert bench.time_at_error(line, 1e-1) == (1.0, "at most")
+    assert bench.time_at_error(line, 1e-9) == (None, "not reached")
+    assert bench.time_at_error([(None, 1.0), (1e-7, 2.0)], 1e-6) == (2.0, "at most")
+
+
+def test_reference_cache_is_hit_the_second_time(tmp_path) -> None:
+    case = bench.builtin_cases()["regular"]
+    first = bench.reference(case.params, case.ic, 3, cache_dir_=tmp_path)
+    assert not first.cache_hit and len(os.listdir(tmp_path)) == 1
+    second = bench.reference(case.params, case.ic, 3, cache_dir_=tmp_path)
+    assert second.cache_hit
+    np.testing.assert_array_equal(first.points, second.points)
+    assert second.bound == first.bound and second.periods == 3
+    other = bench.reference(case.params, case.ic, 4, cache_dir_=tmp_path)  # other horizon, other file
+    assert not other.cache_hit and len(os.listdir(tmp_path)) == 2
+
+
+def test_cache_dir_follows_the_environment(monkeypatch, tmp_path) -> None:
+    monkeypatch.setenv("BILIMOVICH_CACHE_DIR", str(tmp_path))
+    assert bench.cache_dir() == os.path.join(str(tmp_path), "bench")
+    assert bench.cache_dir(tmp_path / "x") == str(tmp_path / "x")
+
+
+def test_reference_agrees_with_independent_solvers_within_its_bound(cache: str) -> None:
+    case = bench.builtin_cases()["regular"]
+    model = Model(case.params)
+    f = bench.scipy_rhs(model)
+    period = case.params.period
+    # Radau (implicit collocation: nothing shared with DOP853) over two periods; its own error is
+    # estimated by the difference of two tolerances.
+    ref = bench.reference(case.params, case.ic, 2, cache_dir_=cache)
+    t_eval = period * np.arange(1, 3)
+    radau = {tol: solve_ivp(f, (0.0, 2 * period), case.ic, method="Radau", rtol=tol, atol=tol, t_eval=t_eval).y.T
+             for tol in (1e-12, 1e-13)}  # fmt: skip
+    own = np.linalg.norm(radau[1e-12] - radau[1e-13], axis=1)
+    diff = np.linalg.norm(radau[1e-13] - ref.points, axis=1)
+    assert np.all(diff <= ref.bound_k() + own), (diff, ref.bound_k(), own)
+    # scipy's DOP853 in one call with dense output (another step sequence) over the quick horizon.
+    ref = bench.reference(case.params, case.ic, 20, cache_dir_=cache)
+    t_eval = period * np.arange(1, 21)
+    dense = {tol: solve_ivp(f, (0.0, 20 * period), case.ic, method="DOP853", rtol=tol, atol=tol, t_eval=t_eval).y.T
+             for tol in (1e-12, 1e-13)}  # fmt: skip
+    own = np.linalg.norm(dense[1e-12] - dense[1e-13], axis=1)
+    diff = np.linalg.norm(dense[1e-13] - ref.points, axis=1)
+    assert np.all(diff <= ref.bound_k() + own)
+    assert ref.bound < 1e-11
+
+
+def test_ceiling_kernel_is_the_dop853_arithmetic() -> None:
+    case = bench.builtin_cases()["attractor"]
+    model = Model(case.params)
+    ics = case.ics(37)  # more than one block, the last one partial
+    end = bench.run_ceiling(model, ics, 2, 30)
+    b = Batch.start(ics, case.params.t0, case.params.period)
+    out, _ = advance(model, b, 2, method="dop853", adaptive=False, steps_per_period=30, workers=1, block=1)
+    np.testing.assert_allclose(end, out[:, -1], rtol=0, atol=1e-12)
+
+
+def test_numbalsoda_absence_is_reported_and_skipped(monkeypatch, tmp_path) -> None:
+    monkeypatch.setattr(bench, "numbalsoda_status", lambda: (None, "not available (no Fortran compiler)"))
+    cfg = dataclasses.replace(bench.quick_config(), cases=("regular",), k_max=3, rk4_steps=(50,), dp5_tols=(),
+                              dop853_tols=(1e-6,), modes=("single",), peers=("numbalsoda:lsoda", "scipy:DOP853"),
+                              peer_tols=(1e-6,), throughput=False)  # fmt: skip
+    res = bench.run_bench(cfg, cache_dir_=tmp_path)
+    assert res.peers["numbalsoda"] == "not available (no Fortran compiler)"
+    assert {r.implementation for r in res.rows} == {"ours", "scipy.solve_ivp"}
+    assert "numbalsoda: not available (no Fortran compiler)" in res.markdown()
+
+
+def test_bad_settings_are_rejected() -> None:
+    for bad in ({"cases": ("nope",)}, {"peers": ("julia:Tsit5",)}, {"dop853_tols": (0.0,)}, {"measured": 0}):
+        with pytest.raises(ValueError):
+            bench.run_bench(dataclasses.replace(bench.quick_config(), **bad))
+
+
+def test_cli_bench_quick_writes_every_file(tmp_path, cache: str, quick: bench.BenchResult) -> None:
+    out = tmp_path / "bench"
+    rc, stdout, err = run_cli("bench", "--quick", "--out", str(out), "--cache-dir", cache, "--json")
+    assert rc == 0, err
+    names = {"bench.json", "bench.csv", "bench.md", "throughput.json", "work_precision.png"}
+    assert names <= set(os.listdir(out))
+    assert (out / "work_precision.png").read_bytes()[:4] == b"\x89PNG"
+    summary = json.loads(stdout)
+    assert summary["completed"] and set(summary["horizons"]) == set(bench.CASE_NAMES)
+    data = bench.load_result(str(out / "bench.json"))
+    # The fixture's run computed the references: this one reads them all from the cache.
+    assert all(c["cache_misses"] == 0 and c["cache_hits"] >= 1 for c in data["cases"].values())
+    assert "target" in data["throughput"] and "kernel" in data["throughput"]
+    assert "[1/" in err and "horizon" in err  # progress lines on stderr
+    assert os.path.exists(bench.latest_path(cache))
+
+
+def test_cli_bench_bad_input_is_one_line(tmp_path) -> None:
+    rc, _, err = run_cli("bench", "--quick", "--out", str(tmp_path / "b"), "--cases", "regular,bogus")
+    assert rc == 2 and err.count("\n") == 1 and "bogus" in err
+    rc, _, err = run_cli("bench", "--quick", "--out", str(tmp_path / "missing" / "b"))
+    assert rc == 2 and "does not exist" in err
+
+
+# --- the app tab, without a browser ----------------------------------------------------------------
+
+
+@pytest.fixture
+def _warm() -> None:
+    WARM.set()
+
+
+def _session(scene: str = "fig1C") -> ExplorerSession:
+    st = ExplorerState(scene=scene)
+    st.param.update(n_random=2, periods=10)
+    return ExplorerSession(st, Runner(lambda fn: fn(), executor=InlineExecutor()))
+
+
+def test_bench_tab_measures_the_current_system(_warm, tmp_path) -> None:
+    tab = BenchTab(_session(), results_path=str(tmp_path / "none.json"), cache_dir=str(tmp_path))
+    assert tab.view.options == []  # no full run yet
+    tab.periods.value = 4
+    tab.run()
+    assert not tab.error.visible, tab.error.object
+    assert tab.view.value == MEASURED
+    labels = set(tab.solid.data["label"]) | set(tab.dashed.data["label"])
+    assert {"ours rk4", "ours dp5", "ours dop853", "ours dop853 batch", "scipy.solve_ivp DOP853"} <= labels
+    ys = np.asarray(tab.points.data["y"])
+    assert ys.size > 10 and np.all(np.isfinite(ys)) and np.all(ys > 0)
+    assert "K = 4" in tab.summary.object and tab.floor.visible
+    assert "measurements" in tab.message.object
+
+
+def test_bench_tab_shows_the_latest_full_run(_warm, tmp_path, quick: bench.BenchResult) -> None:
+    path = tmp_path / "bench.json"
+    path.write_text(json.dumps(quick.as_dict()))
+    tab = BenchTab(_session(), results_path=str(path), cache_dir=str(tmp_path))
+    assert len(tab.view.options) == len(quick.cases)
+    chaotic = next(o for o in tab.view.options if o.endswith("chaotic"))
+    tab.view.value = chaotic
+    tab._draw()
+    assert "chaos horizon" in tab.summary.object
+    assert len(tab.solid.data["xs"]) == len([s for s in quick.series("chaotic") if not s.endswith("batch")])
+
+
+def test_bench_tab_rejects_bad_input(_warm, tmp_path) -> None:
+    tab = BenchTab(_session(), results_path=str(tmp_path / "none.json"), cache_dir=str(tmp_path))
+    tab.ic.value = "a,b"
+    tab.run()
+    assert tab.error.visible and "initial condition" in tab.error.object
+    tab.ic.value = ""
+    tab.periods.value = 2
+    tab.load_results()
+    assert tab.error.visible and "bilimovich bench" in tab.error.object
