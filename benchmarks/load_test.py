@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import concurrent.futures
 import contextlib
 import html
 import itertools
@@ -599,7 +600,10 @@ def run(
                 report["cycles"] = await open_close_cycles(server, cycles, **cycle_kw)
             return report
 
-        report = asyncio.run(main())
+        # In a thread of its own: the caller may already run an event loop (pytest with the
+        # session's Playwright browser open does), and asyncio.run refuses to nest.
+        with concurrent.futures.ThreadPoolExecutor(1) as pool:
+            report = pool.submit(asyncio.run, main()).result()
     report["machine"] = {"cpus": os.cpu_count(), "loadavg_before": load0, "loadavg_after": os.getloadavg()}
     report["env"] = env or {}
     report["session_lifetime_ms"] = session_lifetime
