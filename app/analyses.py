@@ -378,8 +378,8 @@ class ChartTab(_Tab):
     def panel(self) -> pn.Column:
         return pn.Column(
             pn.pane.Markdown(CHART_HELP),
-            pn.Row(self.x_param, self.x_range, self.y_param, self.y_range),
-            pn.Row(self.grid, self.periods, self.transient),
+            # Wraps instead of running off the right edge on a narrow window (or a projector).
+            pn.FlexBox(self.x_param, self.x_range, self.y_param, self.y_range, self.grid, self.periods, self.transient),
             pn.Row(self.run_button, self.stop_button, self.download),
             self.error,
             self.progress,

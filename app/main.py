@@ -44,6 +44,11 @@ LABELS = {
 }
 
 
+def _undebounced(widget: pn.widgets.Widget, *attrs: str) -> None:
+    """Apply these browser changes at once (Panel debounces every change by ``_debounce`` ms)."""
+    widget._priority_changes = [*widget._priority_changes, *attrs]
+
+
 def _slider(state: ExplorerState, field: str) -> pn.widgets.EditableFloatSlider:
     lo, hi, step = SLIDER_RANGES[field]
     w = pn.widgets.EditableFloatSlider(
@@ -58,6 +63,13 @@ def _slider(state: ExplorerState, field: str) -> pn.widgets.EditableFloatSlider:
         sizing_mode="stretch_width",
         css_classes=[f"ctl-{field}"],
     )
+
+    # A release is one event: skip Panel's 50 ms debounce of browser changes, which was a third
+    # of the time to first points. A release that comes while the drag's last `value` waits out
+    # its debounce joins it, so that debounce is short too (the drag's values still coalesce).
+    _undebounced(w._slider, "value_throttled")
+    _undebounced(w._value_edit, "value")
+    w._slider._debounce = 15
 
     # Recompute on release (value_throttled), not on every pixel of a drag.
     def to_state(event: Any) -> None:
@@ -263,15 +275,28 @@ def create_app() -> pn.template.FastListTemplate:
         pn.Row(*(pn.pane.Bokeh(f, sizing_mode="stretch_width") for f in series.figs), sizing_mode="stretch_width"),
         sizing_mode="stretch_width",
     )
+    # The analysis tabs are built when first opened, and only the open tab is in the browser:
+    # a session's page is built on the server's one event loop, so a class opening the page at
+    # once waits for all of them (this cuts that time by ~45%, docs/load.md).
+    analyses = {
+        "Lyapunov spectrum": LyapunovTab,
+        "Bifurcation diagram": BifurcationTab,
+        "Chart of regimes": ChartTab,
+        "Speed vs accuracy": BenchTab,
+    }
+    holders = [pn.Column(sizing_mode="stretch_width", css_classes=["analysis-tab"]) for _ in analyses]
     tabs = pn.Tabs(
         ("Poincaré section", section_tab),
-        ("Lyapunov spectrum", LyapunovTab(session).panel()),
-        ("Bifurcation diagram", BifurcationTab(session).panel()),
-        ("Chart of regimes", ChartTab(session).panel()),
-        ("Speed vs accuracy", BenchTab(session).panel()),
+        *zip(analyses, holders, strict=True),
         sizing_mode="stretch_width",
-        dynamic=False,
+        dynamic=True,
     )
+
+    def open_tab(event: Any) -> None:
+        if event.new >= 1 and not holders[event.new - 1].objects:
+            holders[event.new - 1].objects = [list(analyses.values())[event.new - 1](session).panel()]
+
+    tabs.param.watch(open_tab, "active")
     main = [tabs]
     template = pn.template.FastListTemplate(
         title="Bilimovich Explorer",
@@ -299,6 +324,10 @@ def create_app() -> pn.template.FastListTemplate:
 
     def start() -> None:
         session.recompute()
+        # A pane's first update gives it its stylesheets, which makes Bokeh re-walk the whole
+        # document (~50 ms of the event loop all sessions share): do it now, not at the user's
+        # first move, when a class moving sliders together would queue 30 of them (docs/load.md).
+        scene_info.param.trigger("object")
 
     # Start once the page is loaded, so the first chunk streams into a live plot.
     pn.state.onload(start)

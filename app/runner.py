@@ -13,6 +13,9 @@ points of a section (a user just moved a control), the rest of a section, a
 layer (equilibrium tracks, T' map, reliability check), a heavy analysis (chart,
 bifurcation, Lyapunov, ...); a layer or heavy job that has waited
 ``max_wait`` seconds moves up to the rest-of-section tier, so nothing starves.
+While a section's first points are being computed (or wait for a slot) no layer or
+heavy job starts, unless it has waited ``max_wait``: the first period takes a few
+milliseconds alone, but tens with a layer beside it holding the GIL.
 Sessions without a running job go before a session that has ``per_session``
 running; first points and heavy jobs take turns across sessions (least recently
 served first), the rest of the sections and the layers go in the order of the
@@ -149,6 +152,7 @@ class FairScheduler:
         self._lock = threading.Lock()
         self._waiting: list[Ticket] = []
         self._running: dict[str, int] = {POINTS: 0, LAYER: 0, HEAVY: 0}
+        self._active: set[Ticket] = set()  # running tickets
         self._by_session: dict[int, int] = {}  # running jobs per session
         self._live: dict[int, int] = {}  # waiting + running tickets per session
         self._last: dict[int, float] = {}  # when each session was last given a slot
@@ -187,6 +191,13 @@ class FairScheduler:
         t.event.wait()
         return t.state == _RUNNING
 
+    def shown(self, t: Ticket) -> None:
+        """The job's first result is out: it stops going first, and holds nothing back any more."""
+        with self._lock:
+            t.fresh = False
+            if self._waiting:
+                self._dispatch()
+
     def release(self, t: Ticket) -> None:
         """The job ended (normally, cancelled or failed)."""
         with self._lock:
@@ -223,6 +234,7 @@ class FairScheduler:
 
     def _free(self, t: Ticket) -> None:
         self._running[t.kind] -= 1
+        self._active.discard(t)
         self._by_session[t.session] -= 1
         if not self._by_session[t.session]:
             del self._by_session[t.session]
@@ -255,12 +267,18 @@ class FairScheduler:
             t.event.set()
         now = self._clock()
         while sum(self._running.values()) < self.slots and self._waiting:
-            ready = [t for t in self._waiting if self._running[t.kind] < self._caps[t.kind]]
+            first_due = any(t.kind == POINTS and t.fresh for t in (*self._waiting, *self._active))
+            ready = [
+                t for t in self._waiting
+                if self._running[t.kind] < self._caps[t.kind]
+                and (t.kind == POINTS or not first_due or now - t.since >= self.max_wait)
+            ]  # fmt: skip
             if not ready:
                 return
             t = min(ready, key=lambda t: self._key(t, now))
             self._waiting.remove(t)
             self._running[t.kind] += 1
+            self._active.add(t)
             self._by_session[t.session] = self._by_session.get(t.session, 0) + 1
             # Strictly increasing, so sessions rotate even when the clock does not tick between grants.
             self._last[t.session] = max(now, max(self._last.values(), default=0.0) + 1e-9)
@@ -339,8 +357,8 @@ class Runner:
         def emit(fn: Callable[[], None]) -> None:
             if stale():
                 return
-            if ticket is not None:
-                ticket.fresh = False  # its first points are out: the rest waits behind others' first points
+            if ticket is not None and ticket.fresh:
+                sched.shown(ticket)  # its first points are out: the rest waits behind others' first points
             if stamps is not None and len(stamps) == 2:
                 stamps.append(time.perf_counter())
                 self._trace_later(channel, stamps)

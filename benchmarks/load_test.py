@@ -189,6 +189,7 @@ class Tab:
         self.chart_status = ""
         self.errors: list[str] = []
         self.probe: Change | None = None
+        self.tab_names: list[str | None] = []
         self.closed = False
         self._changed = asyncio.Event()
         self._replies: dict[str, asyncio.Future] = {}
@@ -231,6 +232,11 @@ class Tab:
 
     def _on_events(self, events: list[dict], t: float) -> None:
         ids = self.ids
+        if "tabs" in ids and any(ev.get("kind") == "ModelChanged" and isinstance(ev.get("new"), dict | list)
+                                 for ev in events):  # fmt: skip
+            # A tab was opened: its models come whole (the app builds a tab when first opened and
+            # sends only the open one), so read the state of the ones watched from them.
+            self._on_models(_models(events))
         for ev in events:
             mid = ev.get("model", {}).get("id") if isinstance(ev.get("model"), dict) else None
             kind, attr = ev.get("kind"), ev.get("attr")
@@ -312,14 +318,39 @@ class Tab:
             for c in attrs.get("css_classes") or []:
                 by_css.setdefault(c, m)
         self.ids["status"] = by_css["status-line"]["id"]
-        for key in ("chart-grid", "chart-periods", "chart-transient", "chart-run", "chart-status"):
-            self.ids[key.replace("-", "_")] = by_css[key]["id"]
+        tabs = next(m for m in models.values() if m.get("name") in ("Tabs", "panel.models.tabs.Tabs"))
+        self.ids["tabs"] = tabs["id"]
+        self.tab_names = [
+            models.get(p["id"], p).get("attributes", {}).get("title") for p in tabs["attributes"]["tabs"]
+        ]  # fmt: skip
+        self._index_chart(models)
         # A slider control is a Column (css class ctl-<field>) holding Bokeh's Slider.
         for css, m in by_css.items():
             if css.startswith("ctl-"):
                 slider = self._find(models, m, "Slider")
                 if slider is not None:
                     self.ids[f"slider:{css[4:]}"] = slider["id"]
+
+    def _on_models(self, models: dict[str, dict]) -> None:
+        if "chart_run" not in self.ids:
+            self._index_chart(models)
+        for key in ("status", "chart_status"):
+            text = models.get(self.ids.get(key, ""), {}).get("attributes", {}).get("text")
+            if text is not None:
+                if key == "status":
+                    self.status, self.status_seq = html.unescape(str(text)), self.status_seq + 1
+                else:
+                    self.chart_status = html.unescape(str(text))
+
+    async def show_tab(self, title: str) -> None:
+        """Open a tab of the page (as a click on it does)."""
+        await self._send("PATCH-DOC", {"events": [self._set("tabs", "active", self.tab_names.index(title))]})
+
+    def _index_chart(self, models: dict[str, dict]) -> None:
+        by_css = {c: m for m in models.values() for c in m.get("attributes", {}).get("css_classes") or []}
+        for key in ("chart-grid", "chart-periods", "chart-transient", "chart-run", "chart-status"):
+            if key in by_css:
+                self.ids[key.replace("-", "_")] = by_css[key]["id"]
 
     @staticmethod
     def _find(models: dict[str, dict], root: dict, type_name: str) -> dict | None:
@@ -355,7 +386,11 @@ class Tab:
         return p
 
     async def start_chart(self, grid: tuple[int, int], periods: int, transient: int) -> None:
-        """Fill in the Chart tab and press Run."""
+        """Open the Chart tab, fill it in and press Run."""
+        if "chart_run" not in self.ids:
+            await self.show_tab("Chart of regimes")
+            if not await self._until(lambda: "chart_run" in self.ids, 60.0):
+                raise TimeoutError(f"{self.name}: the Chart tab did not open")
         events = [
             self._set("chart_grid", "value", f"{grid[0]},{grid[1]}"),
             self._set("chart_periods", "value", periods),
@@ -365,6 +400,8 @@ class Tab:
         await asyncio.sleep(1.0)  # the widgets' values reach the app before the click does
         click = _ui_event("button_click", {"model": {"id": self.ids["chart_run"]}})
         await self._send("PATCH-DOC", {"events": [click]})
+        await asyncio.sleep(0.5)
+        await self.show_tab("Poincaré section")  # and back to the section, to move sliders meanwhile
 
     def chart_progress(self) -> tuple[int, int, bool]:
         """(tiles done, tiles, finished) from the Chart tab's message line."""
@@ -468,6 +505,8 @@ async def classroom(
     changes_s = time.perf_counter() - t_changes
     chart_report = None
     if chart is not None:
+        await tabs[0].show_tab("Chart of regimes")  # the chart's progress is on its own tab
+        await asyncio.sleep(1.0)
         done_during, total, _ = tabs[0].chart_progress()
         finished = await tabs[0]._until(lambda: tabs[0].chart_progress()[2], chart_timeout)
         chart_report = {

@@ -142,7 +142,7 @@ def test_at_most_one_layer_and_one_heavy_job_run_at_once() -> None:
     q.add("chart", session=2, channel="chart", hold=True, queued=False)
     q.add("tprime", session=3, channel="tprime", hold=True)  # a slot is free, but the layer one is taken
     q.add("bench", session=4, channel="bench", hold=True)
-    q.add("section", session=5, hold=True, queued=False)
+    q.add("section", session=5, hold=True, queued=False, fresh=False)
     assert sched.stats()["running"] == 3 and q.order == ["tracks", "chart", "section"]
     q.finish("tracks")
     _until(lambda: "tprime" in q.order)
@@ -165,6 +165,37 @@ def test_a_heavy_job_that_waited_long_goes_before_the_rest_of_the_sections() -> 
     q.join()
     # Under a steady stream of moves a chart still gets a tile now and then; first points still first.
     assert q.order == ["blocker", "first points", "chart", "more points", "tracks"]
+
+
+def test_nothing_else_starts_while_first_points_are_computed() -> None:
+    sched = FairScheduler(slots=3, max_wait=60)
+    q = Queue(sched)
+    first = sched.ticket(1, "section", lambda: False)
+    assert sched.acquire(first)  # computing its first period: fresh until it shows something
+    q.add("tracks", session=1, channel="tracks")
+    q.add("chart", session=2, channel="chart")
+    q.add("first points B", session=3, queued=False)  # other sections' first points still start
+    sched.poke()
+    time.sleep(0.05)
+    assert q.order == ["first points B"] and sched.stats()["waiting"] == 2  # though two slots are free
+    sched.shown(first)
+    q.join()
+    assert sorted(q.order[1:]) == ["chart", "tracks"]
+    sched.release(first)
+
+
+def test_a_layer_that_waited_max_wait_starts_beside_first_points() -> None:
+    now = [0.0]
+    sched = FairScheduler(slots=2, max_wait=2.0, clock=lambda: now[0])
+    q = Queue(sched)
+    first = sched.ticket(1, "section", lambda: False)
+    assert sched.acquire(first)
+    q.add("tracks", session=2, channel="tracks")
+    now[0] = 3.0
+    sched.poke()
+    q.join()
+    assert q.order == ["tracks"]
+    sched.release(first)
 
 
 def test_per_session_cap_leaves_room_for_other_sessions() -> None:
