@@ -18,7 +18,7 @@ import numpy as np
 import param
 
 from explorer_core.model import INERTIA_NAMES, ParameterError, Params
-from explorer_core.scenes import get_scene, list_scenes
+from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
 from explorer_core.section import Numerics, check_box, random_ics
 
 #: Per-session bounds: one browser tab cannot ask for unbounded work.
@@ -152,7 +152,7 @@ class ExplorerState(param.Parameterized):
         if self.accuracy == "high":
             tol = 1e-12
         else:
-            tol = min(1e-6, max(1e-12, 0.25 * self.pixel_size() / (0.2 * (self.periods + self.transient))))
+            tol = plot_tolerance(self.pixel_size(), self.periods + self.transient)
         span = max(abs(v) for v in (*self.q_range, *self.r_range))
         return Numerics(
             method=self.method,

@@ -179,7 +179,7 @@ def cmd_section(args: argparse.Namespace) -> int:
         ics = scene.initial_conditions()
     else:
         raise UsageError("give initial conditions: --ic Q,R (repeatable) or --random N")
-    numerics = _numerics(args, scene, periods)
+    numerics = _numerics(args, scene, periods + transient)
     if args.out:
         _check_out(args.out)
 

@@ -172,7 +172,8 @@ def _sections(rep: Reproduction, stop: Callable[[], bool]) -> None:
             if size.section_ics is not None:
                 ics = ics[: size.section_ics]
             periods = sc.periods if size.section_periods is None else min(sc.periods, size.section_periods)
-            rep.sections[sid] = section(sc.params, ics, periods, transient=sc.transient, numerics=sc.numerics(periods))
+            numerics = sc.numerics(periods + sc.transient)
+            rep.sections[sid] = section(sc.params, ics, periods, transient=sc.transient, numerics=numerics)
 
 
 def _find_attractor_ic(scene: Scene, tries: int, periods: int) -> tuple[float, float] | None:

@@ -63,20 +63,15 @@ class Scene:
         return min(self.q_range[1] - self.q_range[0], self.r_range[1] - self.r_range[0]) / pixels
 
     def numerics(self, periods: int | None = None, accuracy: str = "plot", pixels: int = PLOT_PIXELS) -> Numerics:
-        """Integration settings for this scene.
+        """Integration settings for this scene: ``"plot"`` (:func:`plot_tolerance`) or ``"high"`` (1e-12).
 
-        ``"plot"``: the error on regular orbits stays under a quarter pixel after
-        ``periods`` periods. DOP853's global error per period is about ``0.2 tol``
-        on these orbits (measured: README, accuracy section), so
-        ``tol = 0.25 px / (0.2 periods)``, kept within [1e-12, 1e-6]. On chaotic
-        orbits pointwise error grows anyway; the picture is then right in the
-        shadowing sense, and ``"high"`` (tol 1e-12) is the explicit choice.
+        On chaotic orbits pointwise error grows anyway; the picture is then right in the
+        shadowing sense, and ``"high"`` is the explicit choice for quantitative work.
         """
         if accuracy == "high":
             tol = 1e-12
         elif accuracy == "plot":
-            n = max(1, periods or self.periods)
-            tol = min(1e-6, max(1e-12, 0.25 * self.pixel_size(pixels) / (0.2 * n)))
+            tol = plot_tolerance(self.pixel_size(pixels), periods or self.periods + self.transient)
         else:
             raise ParameterError(f"accuracy must be 'plot' or 'high', got {accuracy!r}")
         return Numerics(method="dop853", rtol=tol, atol=tol, bound=self.bound)
@@ -97,6 +92,21 @@ class Scene:
             "bound": self.bound,
             **self.extra,
         }
+
+
+#: Pointwise error on regular orbits after k periods, in units of ``tol * k``, that the "plot"
+#: tolerance assumes: calibrated on every section scene of the paper against solve_ivp at 1e-12
+#: (``benchmarks/plot_accuracy.py``; docs/plot_accuracy.md). DOP853's error is not proportional
+#: to ``tol``: at 1e-6 the ratio reached ~55 (2-4 px off after 500 periods), far less at 1e-7.
+PLOT_ERROR_PER_PERIOD = 50.0
+
+
+def plot_tolerance(pixel: float, periods: int) -> float:
+    """DOP853 tolerance that keeps section points of regular orbits within a quarter pixel of the
+    exact ones after ``periods`` periods (the error is a phase drift along the invariant curve,
+    growing like k); clamped to [1e-12, 1e-6]."""
+    n = max(1, int(periods))
+    return min(1e-6, max(1e-12, 0.25 * float(pixel) / (PLOT_ERROR_PER_PERIOD * n)))
 
 
 def _scene_from(d: dict[str, Any]) -> Scene:

@@ -7,7 +7,7 @@ import pytest
 from naive import solve_ivp_section
 
 from explorer_core.model import ParameterError
-from explorer_core.scenes import get_scene, list_scenes
+from explorer_core.scenes import PLOT_ERROR_PER_PERIOD, get_scene, list_scenes, plot_tolerance
 from explorer_core.section import section
 
 PAPER_IDS = [
@@ -57,3 +57,25 @@ def test_unknown_scene_lists_valid_ids_and_does_not_echo_markup() -> None:
     with pytest.raises(ParameterError) as exc:
         get_scene("<script>alert(1)</script>" * 10)
     assert "<script>alert(1)</script><script>" not in str(exc.value)
+
+
+def test_plot_accuracy_keeps_a_sheared_regular_orbit_within_a_quarter_pixel_over_the_whole_scene() -> None:
+    # Fig. 1B's 10th seeded IC is on a regular orbit (a perturbation grows < 1000-fold) whose
+    # phase error at tol 1e-6 reaches 3.2 px after the scene's 500 periods: the old rule
+    # (tol = quarter pixel / (0.2 * periods), clamped to 1e-6) promised a quarter pixel.
+    s = get_scene("fig1B")
+    ic = s.initial_conditions()[9]
+    n = s.periods + s.transient
+    ref = solve_ivp_section(s.params, ic, n, rtol=1e-11, atol=1e-11)  # ~1 min: the naive field in Python
+    num = s.numerics()
+    assert num.rtol == plot_tolerance(s.pixel_size(), n) < 1e-6
+    _, q, r = section(s.params, [ic], s.periods, transient=s.transient, numerics=num).trajectory(0)
+    err = np.linalg.norm(np.column_stack([q, r]) - ref[s.transient :], axis=1).max()
+    assert err < 0.25 * s.pixel_size()
+
+
+def test_plot_tolerance_is_clamped_and_shrinks_with_the_periods() -> None:
+    assert plot_tolerance(1.0, 1) == 1e-6
+    assert plot_tolerance(1e-9, 10**6) == 1e-12
+    assert plot_tolerance(0.005, 1000) == pytest.approx(0.25 * 0.005 / (PLOT_ERROR_PER_PERIOD * 1000))
+    assert plot_tolerance(0.005, 2000) < plot_tolerance(0.005, 1000)
