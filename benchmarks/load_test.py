@@ -34,12 +34,9 @@ import json
 import os
 import random
 import re
-import socket
-import subprocess
 import sys
 import time
-import urllib.request
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -57,54 +54,8 @@ def discard_wait(lifetime_ms: int) -> float:
 
 # --- the server ------------------------------------------------------------------------------------
 
-
-@dataclass
-class Server:
-    url: str
-    pid: int
-    log_path: str
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@contextlib.contextmanager
-def serve(
-    log_path: str | None = None, threads: int = 4, env: dict[str, str] | None = None, session_lifetime: int = 15000
-) -> Iterator[Server]:
-    """Run ``bilimovich serve`` on a free port until /liveness answers (it execs panel: same pid)."""
-    port = free_port()
-    log_path = log_path or os.devnull
-    log = open(log_path, "w")
-    cmd = [
-        sys.executable, "-m", "explorer_core.cli", "serve", "--port", str(port), "--address", "127.0.0.1",
-        "--allow-websocket-origin", f"127.0.0.1:{port}", "--threads", str(threads),
-        "--session-lifetime", str(session_lifetime),
-    ]  # fmt: skip
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **(env or {})})
-    try:
-        deadline = time.time() + 180
-        while True:
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{port}/liveness", timeout=2) as r:
-                    if r.status == 200:
-                        break
-            except OSError:
-                pass
-            if proc.poll() is not None or time.time() > deadline:
-                raise RuntimeError(f"the server did not start (exit {proc.poll()}); see {log_path}")
-            time.sleep(0.3)
-        yield Server(f"http://127.0.0.1:{port}/main", proc.pid, log_path)
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-        log.close()
+sys.path.insert(0, str(ROOT / "tests" / "browser"))
+from harness import Server, serve  # noqa: E402  (one way to start the app for tests and benchmarks)
 
 
 def proc_status(pid: int) -> dict[str, float]:

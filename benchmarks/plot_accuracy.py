@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 from explorer_core import scenes
-from explorer_core.bench import amplification, reference
+from explorer_core.bench import amplification, reference, regular_members
 from explorer_core.section import section
 
 
@@ -32,7 +32,7 @@ def measure(scene_id: str, n_ics: int, cache_dir: str | None, max_orbits: int = 
     px = sc.pixel_size()
     num = sc.numerics()
     amp = amplification(sc.params, ics, n)
-    regular = [i for i in range(len(ics)) if np.all(np.isfinite(amp[i])) and amp[i].max() < 1e3][:max_orbits]
+    regular = regular_members(amp)[:max_orbits]
     row = {"scene": scene_id, "periods": n, "tol": num.rtol, "pixel": px, "ics": len(ics), "regular": len(regular)}
     if not regular:
         return row

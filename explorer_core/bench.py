@@ -620,6 +620,11 @@ def amplification(params: Params, ics: np.ndarray, periods: int, delta: float = 
     return amp
 
 
+def regular_members(amp: np.ndarray, amp_max: float = 1e3) -> list[int]:
+    """Rows of :func:`amplification` whose perturbation never failed and stayed below ``amp_max`` (regular orbits)."""
+    return [i for i in range(amp.shape[0]) if np.all(np.isfinite(amp[i])) and np.max(amp[i]) < amp_max]
+
+
 def horizon(amp: np.ndarray, amp_max: float, k_max: int) -> int:
     """Largest K <= k_max such that every member's amplification stays <= amp_max up to K (at least 1)."""
     a = np.atleast_2d(amp)[:, :k_max]
@@ -1178,7 +1183,7 @@ def _run_throughput(
     repeat = max(3, cfg.repeat)  # short runs on a shared machine: always a median
     cand = ics[: 2 * cfg.target_check]
     amp = amplification(params, cand, periods)
-    regular = [i for i in range(cand.shape[0]) if np.all(np.isfinite(amp[i])) and np.max(amp[i]) < cfg.amp_max]
+    regular = regular_members(amp, cfg.amp_max)
     check = regular[: cfg.target_check]
     refs = [reference(params, ics[i], periods, cache_dir_=cache_dir_) for i in check]
     tick(f"target: {len(check)} regular members with references ({sum(r.cache_hit for r in refs)} cached)")

@@ -628,13 +628,31 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0  # not reached
 
 
-def _staged_run(args: argparse.Namespace) -> tuple[str, str, tuple[str, ...] | None, Callable[[str, float], None]]:
-    """Output folder (created), size, stages and a progress printer of ``reproduce`` / ``failures``."""
+def _out_dir(args: argparse.Namespace) -> str:
+    """``--out`` as an absolute folder, created (its parent must exist: a typo fails at once)."""
     out = os.path.abspath(args.out)
     parent = os.path.dirname(out)
     if not os.path.isdir(parent):
         raise UsageError(f"--out parent directory does not exist: {parent}")
     os.makedirs(out, exist_ok=True)
+    return out
+
+
+def _report(args: argparse.Namespace, summary: dict[str, Any], lines: list[str], completed: bool, what: str) -> int:
+    """End of a long batch command: JSON or ``lines`` on stdout; exit 130 if interrupted (``what`` was written)."""
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        print("\n".join(lines))
+    if not completed:
+        sys.stderr.write(f"bilimovich: interrupted; what was {what} was written\n")
+        return 130
+    return 0
+
+
+def _staged_run(args: argparse.Namespace) -> tuple[str, str, tuple[str, ...] | None, Callable[[str, float], None]]:
+    """Output folder (created), size, stages and a progress printer of ``reproduce`` / ``failures``."""
+    out = _out_dir(args)
     size = args.size or ("quick" if args.quick else "full")
     stages = tuple(s.strip() for s in args.stages.split(",")) if args.stages else None
 
@@ -664,15 +682,11 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     summary["elapsed_s"] = round(time.perf_counter() - start, 2)
     with open(os.path.join(out, "reproduce.json"), "w") as fh:
         json.dump(summary, fh, indent=1)
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        print(rep.table_markdown())
-        print(f"{len(figures)} figures and the table in {out} ({summary['elapsed_s']:.0f} s, size {size})")
-    if not rep.completed:
-        sys.stderr.write("bilimovich: interrupted; what was computed was written\n")
-        return 130
-    return 0
+    lines = [
+        rep.table_markdown(),
+        f"{len(figures)} figures and the table in {out} ({summary['elapsed_s']:.0f} s, size {size})",
+    ]
+    return _report(args, summary, lines, rep.completed, "computed")
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
@@ -692,10 +706,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         changes["throughput"] = False
     cfg = dataclasses.replace(cfg, **changes)
     cfg.validate()
-    out = os.path.abspath(args.out)
-    if not os.path.isdir(os.path.dirname(out)):
-        raise UsageError(f"--out parent directory does not exist: {os.path.dirname(out)}")
-    os.makedirs(out, exist_ok=True)
+    out = _out_dir(args)
 
     def progress(p: Any) -> None:
         if not args.quiet:
@@ -715,15 +726,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     summary = {"out": files, "completed": res.completed, "elapsed_s": round(res.elapsed_s, 1),
                "horizons": {k: c.horizon for k, c in res.cases.items()}, "peers": res.peers,
                "ratios": data["ratios"], "throughput": data["throughput"]}  # fmt: skip
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        print(res.headline())
-        print(f"{len(res.rows)} rows; {', '.join(os.path.basename(f) for f in files)} in {out}")
-    if not res.completed:
-        sys.stderr.write("bilimovich: interrupted; what was measured was written\n")
-        return 130
-    return 0
+    lines = [res.headline(), f"{len(res.rows)} rows; {', '.join(os.path.basename(f) for f in files)} in {out}"]
+    return _report(args, summary, lines, res.completed, "measured")
 
 
 def cmd_failures(args: argparse.Namespace) -> int:
@@ -742,14 +746,8 @@ def cmd_failures(args: argparse.Namespace) -> int:
     summary["elapsed_s"] = round(time.perf_counter() - start, 2)
     with open(os.path.join(out, "failures.json"), "w") as fh:
         json.dump(summary, fh, indent=1)
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        print(f"failures.json and {len(figures)} pictures in {out} ({summary['elapsed_s']:.0f} s, size {size})")
-    if not fm.completed:
-        sys.stderr.write("bilimovich: interrupted; what was measured was written\n")
-        return 130
-    return 0
+    lines = [f"failures.json and {len(figures)} pictures in {out} ({summary['elapsed_s']:.0f} s, size {size})"]
+    return _report(args, summary, lines, fm.completed, "measured")
 
 
 def cmd_warmup(args: argparse.Namespace) -> int:

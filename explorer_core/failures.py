@@ -42,6 +42,7 @@ from scipy.integrate import solve_ivp
 from explorer_core.integrators import Batch, Status, advance, get_method
 from explorer_core.lyapunov import LyapunovResult, attractor_ensemble, lyapunov_spectrum
 from explorer_core.model import Model, ParameterError, Params, rhs
+from explorer_core.reproduce import check_stages, run_stages
 from explorer_core.scenes import get_scene
 from explorer_core.section import Numerics, random_ics, section
 
@@ -1110,10 +1111,7 @@ def failure_map(
 ) -> FailureMap:
     """Run the studies (all, or ``stages`` of :data:`STAGES`) at ``size``; ``progress(stage, seconds)`` after each."""
     sz = get_size(size)
-    stages = tuple(stages or STAGES)
-    bad = [s for s in stages if s not in STAGES]
-    if bad:
-        raise ParameterError(f"unknown stages {bad}; choose from {', '.join(STAGES)}")
+    stages = check_stages(stages or None, STAGES)
     fm = FailureMap(sz.name)
 
     def stop() -> bool:
@@ -1126,15 +1124,5 @@ def failure_map(
         "floats": lambda: setattr(fm, "floats", float_precision(sz, stop)),
         "lyapunov": lambda: setattr(fm, "lyapunov", lyapunov_sensitivity(sz, stop)),
     }
-    for name in stages:
-        if stop():
-            fm.completed = False
-            break
-        t = time.perf_counter()
-        runs[name]()
-        fm.timings[name] = time.perf_counter() - t
-        if progress is not None:
-            progress(name, fm.timings[name])
-    if stop():
-        fm.completed = False
+    fm.completed = run_stages([(name, runs[name]) for name in stages], fm.timings, progress, stop)
     return fm

@@ -23,7 +23,7 @@ from __future__ import annotations
 import csv
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -620,26 +620,39 @@ def reproduce(
             raise ParameterError(f"size must be one of {', '.join(SIZES)}, got {size!r}")
         size = SIZES[size]
     names = [n for n, _ in STAGES]
-    stages = tuple(names) if stages is None else tuple(stages)
-    bad = [s for s in stages if s not in names]
-    if bad:
-        raise ParameterError(f"unknown stages {bad}; choose from {', '.join(names)}")
+    chosen = check_stages(stages, names)
     rep = Reproduction(size)
 
     def stop() -> bool:
         return cancel is not None and bool(cancel())
 
-    for name, fn in STAGES:
-        if name not in stages:
-            continue
-        if stop():
-            rep.completed = False
-            break
-        t = time.perf_counter()
-        fn(rep, stop)
-        rep.timings[name] = time.perf_counter() - t
-        if progress is not None:
-            progress(name, rep.timings[name])
-    if stop():
-        rep.completed = False
+    runs = [(name, lambda fn=fn: fn(rep, stop)) for name, fn in STAGES if name in chosen]
+    rep.completed = run_stages(runs, rep.timings, progress, stop)
     return rep
+
+
+def check_stages(stages: Sequence[str] | None, names: Sequence[str]) -> tuple[str, ...]:
+    """``stages`` (default: all ``names``), each one of ``names``."""
+    stages = tuple(names) if stages is None else tuple(stages)
+    bad = [s for s in stages if s not in names]
+    if bad:
+        raise ParameterError(f"unknown stages {bad}; choose from {', '.join(names)}")
+    return stages
+
+
+def run_stages(
+    runs: Sequence[tuple[str, Callable[[], None]]],
+    timings: dict[str, float],
+    progress: Callable[[str, float], None] | None,
+    stop: Callable[[], bool],
+) -> bool:
+    """Run the named stages in order, timing each and reporting it; False if stopped before the end."""
+    for name, run in runs:
+        if stop():
+            return False
+        t = time.perf_counter()
+        run()
+        timings[name] = time.perf_counter() - t
+        if progress is not None:
+            progress(name, timings[name])
+    return not stop()

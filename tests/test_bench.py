@@ -121,23 +121,17 @@ def test_reference_agrees_with_independent_solvers_within_its_bound(cache: str) 
     model = Model(case.params)
     f = bench.scipy_rhs(model)
     period = case.params.period
-    # Radau (implicit collocation: nothing shared with DOP853) over two periods; its own error is
-    # estimated by the difference of two tolerances.
-    ref = bench.reference(case.params, case.ic, 2, cache_dir_=cache)
-    t_eval = period * np.arange(1, 3)
-    radau = {tol: solve_ivp(f, (0.0, 2 * period), case.ic, method="Radau", rtol=tol, atol=tol, t_eval=t_eval).y.T
-             for tol in (1e-12, 1e-13)}  # fmt: skip
-    own = np.linalg.norm(radau[1e-12] - radau[1e-13], axis=1)
-    diff = np.linalg.norm(radau[1e-13] - ref.points, axis=1)
-    assert np.all(diff <= ref.bound_k() + own), (diff, ref.bound_k(), own)
-    # scipy's DOP853 in one call with dense output (another step sequence) over the quick horizon.
-    ref = bench.reference(case.params, case.ic, 20, cache_dir_=cache)
-    t_eval = period * np.arange(1, 21)
-    dense = {tol: solve_ivp(f, (0.0, 20 * period), case.ic, method="DOP853", rtol=tol, atol=tol, t_eval=t_eval).y.T
-             for tol in (1e-12, 1e-13)}  # fmt: skip
-    own = np.linalg.norm(dense[1e-12] - dense[1e-13], axis=1)
-    diff = np.linalg.norm(dense[1e-13] - ref.points, axis=1)
-    assert np.all(diff <= ref.bound_k() + own)
+    # Radau (implicit collocation: nothing shared with DOP853) over two periods, and scipy's DOP853
+    # in one call with dense output (another step sequence) over the quick horizon; each one's own
+    # error is estimated by the difference of two tolerances.
+    for method, k in (("Radau", 2), ("DOP853", 20)):
+        ref = bench.reference(case.params, case.ic, k, cache_dir_=cache)
+        t_eval = period * np.arange(1, k + 1)
+        runs = {tol: solve_ivp(f, (0.0, k * period), case.ic, method=method, rtol=tol, atol=tol, t_eval=t_eval).y.T
+                for tol in (1e-12, 1e-13)}  # fmt: skip
+        own = np.linalg.norm(runs[1e-12] - runs[1e-13], axis=1)
+        diff = np.linalg.norm(runs[1e-13] - ref.points, axis=1)
+        assert np.all(diff <= ref.bound_k() + own), (method, diff, ref.bound_k(), own)
     assert ref.bound < 1e-11
 
 

@@ -1,4 +1,4 @@
-"""Serve the app and drive it in Debian's Chromium with Playwright (tests and latency benchmark)."""
+"""Serve the app and drive it in Debian's Chromium with Playwright (tests, latency and load benchmarks)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import time
 import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
+from typing import NamedTuple
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = "/usr/bin/chromium"
@@ -31,20 +32,28 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+class Server(NamedTuple):
+    url: str
+    pid: int
+    log_path: str
+
+
 @contextlib.contextmanager
-def served_app(log_path: str | None = None, threads: int = 4) -> Iterator[str]:
-    """Run ``bilimovich serve`` on a free port until /liveness answers; yield the app URL."""
+def serve(
+    log_path: str | None = None, threads: int = 4, env: dict[str, str] | None = None, session_lifetime: int = 15000
+) -> Iterator[Server]:
+    """Run ``bilimovich serve`` on a free port until /liveness answers (it execs panel: same pid)."""
     port = free_port()
     log = open(log_path or os.devnull, "w")
     # The same entry point users run (bilimovich serve execs panel serve with the project's flags).
     cmd = [
         sys.executable, "-m", "explorer_core.cli", "serve", "--port", str(port), "--address", "127.0.0.1",
         "--allow-websocket-origin", f"127.0.0.1:{port}", "--allow-websocket-origin", f"localhost:{port}",
-        "--threads", str(threads),
+        "--threads", str(threads), "--session-lifetime", str(session_lifetime),
     ]  # fmt: skip
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **(env or {})})
     try:
-        deadline = time.time() + 120
+        deadline = time.time() + 180
         while True:
             try:
                 with urllib.request.urlopen(f"http://127.0.0.1:{port}/liveness", timeout=2) as r:
@@ -53,9 +62,9 @@ def served_app(log_path: str | None = None, threads: int = 4) -> Iterator[str]:
             except OSError:
                 pass
             if proc.poll() is not None or time.time() > deadline:
-                raise RuntimeError(f"panel serve did not start (exit {proc.poll()}); see {log_path}")
+                raise RuntimeError(f"the server did not start (exit {proc.poll()}); see {log_path}")
             time.sleep(0.3)
-        yield f"http://127.0.0.1:{port}/main"
+        yield Server(f"http://127.0.0.1:{port}/main", proc.pid, log_path or os.devnull)
     finally:
         proc.terminate()
         try:
@@ -63,6 +72,13 @@ def served_app(log_path: str | None = None, threads: int = 4) -> Iterator[str]:
         except subprocess.TimeoutExpired:
             proc.kill()
         log.close()
+
+
+@contextlib.contextmanager
+def served_app(log_path: str | None = None, threads: int = 4) -> Iterator[str]:
+    """:func:`serve`, yielding the app's URL."""
+    with serve(log_path, threads) as server:
+        yield server.url
 
 
 # In-page probes (BokehJS models are looked up by the names set in app/views.py).
