@@ -24,13 +24,13 @@ from bokeh.plotting import figure
 
 from app.controller import ExplorerSession
 from app.views import BACKEND, ERROR_STYLE
-from explorer_core.bifurcation import bifurcation_diagram, sweep_values
-from explorer_core.distributed import SchedulerError, scheduler_from_env
-from explorer_core.lyapunov import lyapunov_spectrum
-from explorer_core.model import INERTIA_NAMES, ParameterError
-from explorer_core.regimes import REGIMES, chart_spec, iter_chart
+from explorer_core.analyses.bifurcation import bifurcation_diagram, sweep_values
+from explorer_core.analyses.lyapunov import lyapunov_spectrum
+from explorer_core.analyses.regimes import REGIMES, chart_spec, iter_chart
+from explorer_core.parallel.cluster import SchedulerError, scheduler_from_env
 from explorer_core.scenes import get_scene
-from explorer_core.section import Numerics
+from explorer_core.solve.section import Numerics
+from explorer_core.system.model import INERTIA_NAMES, ParameterError
 
 SWEEPABLE = ["alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega"]
 LIMITS = {"lyap_periods": 20000, "ensemble": 16, "bif_values": 400, "bif_points": 400, "transient": 5000}

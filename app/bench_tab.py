@@ -1,12 +1,12 @@
 """Speed vs accuracy tab: work-precision diagrams (error against time per trajectory, log-log).
 
-Two sources of data, both produced by :mod:`explorer_core.bench` (no numerics here):
+Two sources of data, both produced by :mod:`explorer_core.studies.bench` (no numerics here):
 
 * **Measure** runs a small benchmark on the session's current system and initial condition (a few
   methods and tolerances, a short horizon; a reference from ``solve_ivp`` at 3e-14, cached) on the
   session's :class:`~app.runner.Runner`, with progress and Stop.
 * The latest full ``bilimovich bench`` run, read from ``$BILIMOVICH_BENCH_RESULTS`` or the file
-  the command leaves in the cache (:func:`explorer_core.bench.latest_path`): one diagram per case.
+  the command leaves in the cache (:func:`explorer_core.studies.bench.latest_path`): one diagram per case.
 
 Timings measured in a shared server are indicative; the command line's are the measured ones.
 """
@@ -26,8 +26,8 @@ from bokeh.plotting import figure
 
 from app.controller import ExplorerSession
 from app.views import ERROR_STYLE
-from explorer_core import bench
-from explorer_core.model import ParameterError
+from explorer_core.studies import bench
+from explorer_core.system.model import ParameterError
 
 #: Label of the dataset measured in this session.
 MEASURED = "this system (Measure)"

@@ -21,12 +21,12 @@ import param
 from app.runner import Runner
 from app.state import SYSTEM_FIELDS, ExplorerState, SectionRequest
 from app.views import SectionFigure, SeriesFigures
-from explorer_core.equilibria import Cancelled, equilibrium_tracks
-from explorer_core.integrators import Status
-from explorer_core.model import Model, ParameterError, Params
-from explorer_core.reliability import assess
-from explorer_core.section import iter_section
-from explorer_core.tprime import energy_change_map, tprime_map
+from explorer_core.analyses.equilibria import Cancelled, equilibrium_tracks
+from explorer_core.analyses.reliability import assess
+from explorer_core.analyses.tprime import energy_change_map, tprime_map
+from explorer_core.solve.integrators import Status
+from explorer_core.solve.section import iter_section
+from explorer_core.system.model import Model, ParameterError, Params
 
 log = logging.getLogger(__name__)
 #: BILIMOVICH_TRACE=1 logs the timeline of each recompute (latency work).
@@ -59,7 +59,7 @@ class ExplorerSession(param.Parameterized):
     running = param.Boolean(default=False)
     escaped = param.List(default=[])
     failed = param.List(default=[])
-    #: Reliability warnings (explorer_core.reliability) as dicts: level, code, message.
+    #: Reliability warnings (explorer_core.analyses.reliability) as dicts: level, code, message.
     reliability = param.List(default=[])
 
     def __init__(
@@ -267,7 +267,7 @@ class ExplorerSession(param.Parameterized):
         self.status = " · ".join(parts)
 
     def _update_reliability(self, req: SectionRequest | None, status: np.ndarray | None = None) -> None:
-        """Warn when the method is unreliable for this scene (explorer_core.reliability.assess).
+        """Warn when the method is unreliable for this scene (explorer_core.analyses.reliability.assess).
 
         The check integrates a few probe states (RK4's error estimate), so it runs as a job
         of its own, after the section's job has started: it never delays the first points.

@@ -211,7 +211,7 @@ def create_app() -> pn.template.FastListTemplate:
 
     session.param.watch(show_status, ["status", "escaped", "failed"])
 
-    # When the method is unreliable for this scene (explorer_core.reliability): escaped text, one box each.
+    # When the method is unreliable for this scene (explorer_core.analyses.reliability): escaped text, one box each.
     reliability = pn.pane.HTML("", visible=False, sizing_mode="stretch_width", css_classes=["reliability-warning"])
 
     def show_reliability(*_: Any) -> None:

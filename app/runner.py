@@ -22,7 +22,7 @@ served first), the rest of the sections and the layers go in the order of the
 moves. A running job's ``cancelled()`` poll is also where it yields
 its slot when another job is due first, so one session's big chart cannot
 queue many tiles ahead of everyone's sections: the numerical kernels
-(which split each chunk over both cores, ``explorer_core.integrators``) only see
+(which split each chunk over both cores, ``explorer_core.solve.integrators``) only see
 the chunks of the jobs holding a slot.
 
 Why layers come after every section: they are pure Python/numpy and hold the

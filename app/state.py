@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 import param
 
-from explorer_core.model import INERTIA_NAMES, ParameterError, Params
 from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
-from explorer_core.section import Numerics, check_box, random_ics
+from explorer_core.solve.section import Numerics, check_box, random_ics
+from explorer_core.system.model import INERTIA_NAMES, ParameterError, Params
 
 #: Per-session bounds: one browser tab cannot ask for unbounded work.
 MAX_RANDOM = 500

@@ -5,9 +5,9 @@
 
 For every section scene of the paper (or those given): of the scene's first ``--ics`` seeded
 initial conditions, the first ``--max-orbits`` on regular orbits (a perturbation grows less than
-1000-fold over the scene's periods, ``explorer_core.bench.amplification``) are integrated at the
+1000-fold over the scene's periods, ``explorer_core.studies.bench.amplification``) are integrated at the
 scene's "plot" tolerance (``explorer_core.scenes.plot_tolerance``; ``--per-period C`` tries another calibration) and
-compared, point by point, with ``explorer_core.bench.reference`` (scipy's ``solve_ivp`` DOP853 at
+compared, point by point, with ``explorer_core.studies.bench.reference`` (scipy's ``solve_ivp`` DOP853 at
 1e-13, cached on disk). Prints, per scene, the largest and the median error in pixels of the
 scene's plot window (800 across): the promise is under a quarter pixel.
 """
@@ -21,8 +21,8 @@ import time
 import numpy as np
 
 from explorer_core import scenes
-from explorer_core.bench import amplification, reference, regular_members
-from explorer_core.section import section
+from explorer_core.solve.section import section
+from explorer_core.studies.bench import amplification, reference, regular_members
 
 
 def measure(scene_id: str, n_ics: int, cache_dir: str | None, max_orbits: int = 6) -> dict:

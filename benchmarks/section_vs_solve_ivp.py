@@ -18,10 +18,10 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from explorer_core.integrators import warmup
-from explorer_core.model import Model
 from explorer_core.scenes import get_scene
-from explorer_core.section import Numerics, random_ics, section
+from explorer_core.solve.integrators import warmup
+from explorer_core.solve.section import Numerics, random_ics, section
+from explorer_core.system.model import Model
 
 
 def ivp_section(model: Model, ic, periods: int, tol: float) -> np.ndarray:

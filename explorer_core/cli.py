@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 
 from explorer_core import __version__, config
-from explorer_core.distributed import SchedulerError
-from explorer_core.model import INERTIA_NAMES, ParameterError, Params
+from explorer_core.parallel.cluster import SchedulerError
 from explorer_core.scenes import Scene, get_scene, list_scenes
-from explorer_core.section import Numerics, SectionChunk, check_box, random_ics, section
+from explorer_core.solve.section import Numerics, SectionChunk, check_box, random_ics, section
+from explorer_core.system.model import INERTIA_NAMES, ParameterError, Params
 
 
 class UsageError(Exception):
@@ -226,7 +226,7 @@ def cmd_section(args: argparse.Namespace) -> int:
         summary["csv"] = {"path": args.out, "rows": rows}
     warnings = []
     if args.json or not args.quiet:
-        from explorer_core.reliability import assess_section
+        from explorer_core.analyses.reliability import assess_section
 
         window = (*scene.q_range, *scene.r_range) if scene else None
         warnings = assess_section(sec, pixel=scene.pixel_size() if scene else None, window=window)
@@ -248,7 +248,7 @@ def cmd_section(args: argparse.Namespace) -> int:
 
 
 def cmd_critical(args: argparse.Namespace) -> int:
-    from explorer_core.equilibria import equilibria, equilibrium_tracks
+    from explorer_core.analyses.equilibria import equilibria, equilibrium_tracks
 
     params, _ = _params(args)
     if args.track:
@@ -267,7 +267,7 @@ def cmd_critical(args: argparse.Namespace) -> int:
 
 
 def cmd_tprime(args: argparse.Namespace) -> int:
-    from explorer_core.tprime import energy_change_map, tprime_map
+    from explorer_core.analyses.tprime import energy_change_map, tprime_map
 
     params, scene = _params(args)
     q_range = _floats(args.q_range, 2, "--q-range") if args.q_range else (scene.q_range if scene else (-3.0, 3.0))
@@ -342,7 +342,7 @@ def _ics_arg(args: argparse.Namespace, scene: Scene | None) -> np.ndarray | None
 
 
 def cmd_lyapunov(args: argparse.Namespace) -> int:
-    from explorer_core.lyapunov import attractor_ensemble, lyapunov_spectrum
+    from explorer_core.analyses.lyapunov import attractor_ensemble, lyapunov_spectrum
 
     params, scene = _params(args)
     ics = _ics_arg(args, scene)
@@ -410,7 +410,7 @@ def cmd_lyapunov(args: argparse.Namespace) -> int:
 
 
 def cmd_bifurcation(args: argparse.Namespace) -> int:
-    from explorer_core.bifurcation import bifurcation_diagram, sweep_values
+    from explorer_core.analyses.bifurcation import bifurcation_diagram, sweep_values
 
     params, scene = _params(args)
     if not args.out and not args.json:
@@ -458,7 +458,7 @@ def cmd_bifurcation(args: argparse.Namespace) -> int:
 
 
 def cmd_chart(args: argparse.Namespace) -> int:
-    from explorer_core.regimes import DEFAULT_CHART_TOL, chart_spec, regime_chart
+    from explorer_core.analyses.regimes import DEFAULT_CHART_TOL, chart_spec, regime_chart
 
     params, scene = _params(args)
     outs = args.out or []
@@ -513,7 +513,7 @@ def cmd_chart(args: argparse.Namespace) -> int:
         elif low.endswith(".csv"):
             chart.to_csv(path)
         else:
-            from app.render import render_chart  # matplotlib only when a picture is asked for
+            from explorer_core.reports.render import render_chart  # matplotlib only when a picture is asked for
 
             render_chart(chart, path)
         written.append(path)
@@ -529,7 +529,7 @@ def cmd_chart(args: argparse.Namespace) -> int:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
-    from explorer_core.drift import drift_fit
+    from explorer_core.analyses.drift import drift_fit
 
     params, scene = _params(args)
     k0, k1 = (int(v) for v in _floats(args.window, 2, "--window"))
@@ -576,7 +576,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
 
 
 def cmd_symmetry(args: argparse.Namespace) -> int:
-    from explorer_core.symmetry import check_symmetry
+    from explorer_core.analyses.symmetry import check_symmetry
 
     params, scene = _params(args)
     ics = _ics_arg(args, scene)
@@ -665,14 +665,14 @@ def _staged_run(args: argparse.Namespace) -> tuple[str, str, tuple[str, ...] | N
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
-    from explorer_core.reproduce import reproduce
+    from explorer_core.studies.reproduce import reproduce
 
     out, size, stages, progress = _staged_run(args)
     start = time.perf_counter()
 
     with _Interrupt() as stop:
         rep = reproduce(size, stages=stages, progress=progress, cancel=stop)
-    from app.render import render_reproduction  # matplotlib only here
+    from explorer_core.reports.render import render_reproduction  # matplotlib only here
 
     figures = render_reproduction(rep, out)
     rep.write_table(os.path.join(out, "table.md"), os.path.join(out, "table.csv"))
@@ -692,7 +692,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from explorer_core import bench
+    from explorer_core.studies import bench
 
     cfg = bench.quick_config() if args.quick else bench.full_config()
     changes: dict[str, Any] = {}
@@ -717,7 +717,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         res = bench.run_bench(cfg, cache_dir_=args.cache_dir, progress=progress, cancel=stop)
     data = res.as_dict()
     files = res.write(out)
-    from app.render import render_work_precision  # matplotlib only here
+    from explorer_core.reports.render import render_work_precision  # matplotlib only here
 
     png = os.path.join(out, "work_precision.png")
     render_work_precision(data, png)
@@ -731,14 +731,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_failures(args: argparse.Namespace) -> int:
-    from explorer_core.failures import failure_map
+    from explorer_core.studies.failures import failure_map
 
     out, size, stages, progress = _staged_run(args)
     start = time.perf_counter()
 
     with _Interrupt() as stop:
         fm = failure_map(size, stages=stages, progress=progress, cancel=stop)
-    from app.failure_render import render_failures  # matplotlib only here
+    from explorer_core.reports.failure_render import render_failures  # matplotlib only here
 
     figures = render_failures(fm, out)
     summary = fm.summary()
@@ -751,7 +751,7 @@ def cmd_failures(args: argparse.Namespace) -> int:
 
 
 def cmd_warmup(args: argparse.Namespace) -> int:
-    from explorer_core.integrators import warmup_all as warmup
+    from explorer_core.solve.integrators import warmup_all as warmup
 
     start = time.perf_counter()
     warmup()

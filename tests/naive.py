@@ -11,7 +11,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from explorer_core.model import Params
+from explorer_core.system.model import Params
 
 
 class NaiveField:
@@ -82,7 +82,7 @@ def solve_ivp_section(params: Params, ic, periods: int, rtol: float = 1e-12, ato
 
 
 # ---------------------------------------------------------------------------
-# Lyapunov exponents (reference for explorer_core.lyapunov).
+# Lyapunov exponents (reference for explorer_core.analyses.lyapunov).
 
 
 def complex_step_jacobian(field: NaiveField, t: float, q: float, r: float, h: float = 1e-30) -> np.ndarray:

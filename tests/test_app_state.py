@@ -9,7 +9,7 @@ from app.controller import ExplorerSession
 from app.runner import WARM, InlineExecutor, Runner
 from app.state import MAX_POINTS, ExplorerState, parse_query, state_from_query
 from explorer_core.scenes import get_scene
-from explorer_core.section import section
+from explorer_core.solve.section import section
 
 
 @pytest.fixture(autouse=True)

@@ -20,9 +20,9 @@ from app.bench_tab import MEASURED, BenchTab
 from app.controller import ExplorerSession
 from app.runner import WARM, InlineExecutor, Runner
 from app.state import ExplorerState
-from explorer_core import bench
-from explorer_core.integrators import Batch, advance
-from explorer_core.model import Model
+from explorer_core.solve.integrators import Batch, advance
+from explorer_core.studies import bench
+from explorer_core.system.model import Model
 
 
 @pytest.fixture(scope="module")

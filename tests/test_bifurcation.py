@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from clirun import run_cli
 
-from explorer_core.bifurcation import (
+from explorer_core.analyses.bifurcation import (
     INVALID_PARAMS,
     bifurcation_diagram,
     bilimovich_orbits,
@@ -19,10 +19,10 @@ from explorer_core.bifurcation import (
     sweep_orbits,
     sweep_values,
 )
-from explorer_core.integrators import Status
-from explorer_core.model import ParameterError
 from explorer_core.scenes import get_scene
-from explorer_core.section import Numerics
+from explorer_core.solve.integrators import Status
+from explorer_core.solve.section import Numerics
+from explorer_core.system.model import ParameterError
 
 FIG10 = get_scene("fig10").params
 

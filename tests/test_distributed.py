@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 from clirun import run_cli
 
-from explorer_core import distributed as dd
-from explorer_core.bifurcation import NOT_RUN, bifurcation_diagram
-from explorer_core.model import ParameterError
-from explorer_core.regimes import chart_spec, iter_chart, plan_tiles, regime_chart
+from explorer_core.analyses.bifurcation import NOT_RUN, bifurcation_diagram
+from explorer_core.analyses.regimes import chart_spec, iter_chart, plan_tiles, regime_chart
+from explorer_core.parallel import cluster as dd
 from explorer_core.scenes import get_scene
+from explorer_core.system.model import ParameterError
 
 # One xdist worker runs the whole module (./dev test uses --dist loadgroup): one cluster, not two.
 pytestmark = pytest.mark.xdist_group("dask")

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from explorer_core.drift import (
+from explorer_core.analyses.drift import (
     Tables,
     drift_fit,
     drift_fit_tables,
@@ -19,9 +19,9 @@ from explorer_core.drift import (
     quadratic_map,
     to_time,
 )
-from explorer_core.model import ParameterError
 from explorer_core.scenes import get_scene
-from explorer_core.section import Numerics
+from explorer_core.solve.section import Numerics
+from explorer_core.system.model import ParameterError
 
 
 @pytest.mark.parametrize("degree", [0, 1, 2, 6])

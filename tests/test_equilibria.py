@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.optimize import root
 
-from explorer_core.equilibria import (
+from explorer_core.analyses.equilibria import (
     TYPES,
     Equilibria,
     classify,
@@ -19,7 +19,7 @@ from explorer_core.equilibria import (
     equilibrium_tracks,
     solve_conics,
 )
-from explorer_core.model import Model, ParameterError, Params, inertia_entries
+from explorer_core.system.model import Model, ParameterError, Params, inertia_entries
 
 PAPER_3 = (1.0, 2.0, 4.0, 0.0, 0.1, 0.0)  # [[1,0,0.1],[0,2,0],[0.1,0,4]]
 PAPER_4 = (1.0, 2.0, 4.0, 0.0, 0.5, 0.3)  # [[1,0,0.5],[0,2,0.3],[0.5,0.3,4]]

@@ -11,9 +11,7 @@ from clirun import run_cli
 from app.controller import ExplorerSession
 from app.runner import WARM, InlineExecutor, Runner
 from app.state import ExplorerState
-from explorer_core import failures as F
-from explorer_core.integrators import Status
-from explorer_core.reliability import (
+from explorer_core.analyses.reliability import (
     RK4_Z_DRIFT_LOST,
     RK4_Z_UNSTABLE,
     ReliabilityWarning,
@@ -21,7 +19,9 @@ from explorer_core.reliability import (
     assess_section,
 )
 from explorer_core.scenes import get_scene
-from explorer_core.section import Numerics, section
+from explorer_core.solve.integrators import Status
+from explorer_core.solve.section import Numerics, section
+from explorer_core.studies import failures as F
 
 FIG1A = get_scene("fig1A")
 WINDOW_1A = (*FIG1A.q_range, *FIG1A.r_range)

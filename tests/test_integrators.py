@@ -7,9 +7,9 @@ import pytest
 from naive import rk4_section, solve_ivp_section
 from scipy.integrate._ivp import dop853_coefficients, rk
 
-from explorer_core import tableaus
-from explorer_core.integrators import METHODS, Batch, Status, advance
-from explorer_core.model import Model, Params
+from explorer_core.solve import tableaus
+from explorer_core.solve.integrators import METHODS, Batch, Status, advance
+from explorer_core.system.model import Model, Params
 
 FIG1C = Params(inertia=(1, 4, 2, 0, 0, 0), alpha=0.1)
 REGULAR_IC = (0.32, 0.688)

@@ -10,8 +10,7 @@ import scipy.linalg
 from clirun import run_cli
 from naive import solve_ivp_lyapunov
 
-from explorer_core.integrators import Status
-from explorer_core.lyapunov import (
+from explorer_core.analyses.lyapunov import (
     attractor_ensemble,
     ensemble_ics,
     kaplan_yorke,
@@ -19,9 +18,10 @@ from explorer_core.lyapunov import (
     lyapunov_tables,
     qr_exponents,
 )
-from explorer_core.model import ParameterError, Params
 from explorer_core.scenes import get_scene
-from explorer_core.section import Numerics
+from explorer_core.solve.integrators import Status
+from explorer_core.solve.section import Numerics
+from explorer_core.system.model import ParameterError, Params
 
 TIGHT = Numerics(rtol=1e-11, atol=1e-11)
 FIG8B = get_scene("fig8B").params

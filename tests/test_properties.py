@@ -24,12 +24,12 @@ from hypothesis import HealthCheck, assume, event, example, given, settings
 from hypothesis import strategies as st
 
 from app.state import SYSTEM_FIELDS, parse_query, state_from_query
-from explorer_core.equilibria import TYPES, equilibria
-from explorer_core.integrators import Status, warmup
-from explorer_core.model import INERTIA_NAMES, ParameterError, Params
+from explorer_core.analyses.equilibria import TYPES, equilibria
+from explorer_core.analyses.tprime import tprime_map
 from explorer_core.scenes import get_scene, list_scenes
-from explorer_core.section import Numerics, section
-from explorer_core.tprime import tprime_map
+from explorer_core.solve.integrators import Status, warmup
+from explorer_core.solve.section import Numerics, section
+from explorer_core.system.model import INERTIA_NAMES, ParameterError, Params
 
 ROOT = Path(__file__).resolve().parents[1]
 # Overflow at 1e300 is the point of these inputs; the outcome is what is checked.

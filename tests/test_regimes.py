@@ -11,11 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from explorer_core.bifurcation import bifurcation_diagram
-from explorer_core.integrators import Status
-from explorer_core.lyapunov import lyapunov_spectrum
-from explorer_core.model import ParameterError
-from explorer_core.regimes import (
+from explorer_core.analyses.bifurcation import bifurcation_diagram
+from explorer_core.analyses.lyapunov import lyapunov_spectrum
+from explorer_core.analyses.regimes import (
     CHAOTIC,
     ESCAPED,
     FAILED,
@@ -32,6 +30,8 @@ from explorer_core.regimes import (
     regime_chart,
 )
 from explorer_core.scenes import get_scene
+from explorer_core.solve.integrators import Status
+from explorer_core.system.model import ParameterError
 
 FIG11 = get_scene("fig11").params
 IC = (-0.09, -2.0)
@@ -167,7 +167,7 @@ def test_invalid_pixels_and_several_initial_conditions(tmp_path) -> None:
 
 def test_png_with_legend(tmp_path) -> None:
     pytest.importorskip("matplotlib")
-    from app.render import render_chart
+    from explorer_core.reports.render import render_chart
 
     chart = regime_chart(_small_spec(), workers=2, coarse=2)
     path = tmp_path / "c.png"

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from explorer_core.model import ParameterError
-from explorer_core.reproduce import SIZES, reproduce
+from explorer_core.studies.reproduce import SIZES, reproduce
+from explorer_core.system.model import ParameterError
 
 
 def test_bad_size_and_stage_named() -> None:

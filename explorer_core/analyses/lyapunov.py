@@ -46,9 +46,9 @@ import numba as nb
 import numpy as np
 
 from explorer_core import config
-from explorer_core.integrators import Batch, Status, advance, get_method
-from explorer_core.model import Model, ParameterError, Params, coefficients_at, eval_quadratic, forcing_g
-from explorer_core.section import Numerics, check_ics
+from explorer_core.solve.integrators import Batch, Status, advance, get_method
+from explorer_core.solve.section import Numerics, check_ics
+from explorer_core.system.model import Model, ParameterError, Params, coefficients_at, eval_quadratic, forcing_g
 
 #: Components of the integrated state: q, r, the 2x2 tangent matrix by columns
 #: (v1 = (y2, y3), v2 = (y4, y5)) and the divergence integral over the period.
@@ -209,7 +209,7 @@ def lyapunov_kernel(
     Parameters
     ----------
     a_mat, b_vec, c_vec, e_vec, e3_vec, e5_vec, dop853_error, order, error_order
-        The embedded pair, exactly as :func:`explorer_core.integrators.advance_adaptive`.
+        The embedded pair, exactly as :func:`explorer_core.solve.integrators.advance_adaptive`.
     num, gpc, den, forcing
         Coefficient tables of the quadratic field (any quadratic field in this
         format works, e.g. a linear test field).
@@ -218,7 +218,7 @@ def lyapunov_kernel(
     y : (n, 6) array
         ``q, r`` and the orthonormal tangent basis; updated in place.
     h, status, nsteps : (n,) arrays
-        Step memory, :class:`~explorer_core.integrators.Status` codes, step counts.
+        Step memory, :class:`~explorer_core.solve.integrators.Status` codes, step counts.
     logs : (n, n_periods, 2) array
         ``log R_11, log R_22`` of the QR factorisation at each section time.
     divs : (n, n_periods) array
@@ -580,7 +580,7 @@ class LyapunovResult:
     divs : (M, periods) integral of the divergence over each period.
     points : (M, periods, 2) section points ``k = transient + 1, ...``.
     npts : (M,) measured periods per member (fewer than ``periods`` on failure).
-    status : (M,) :class:`~explorer_core.integrators.Status` codes.
+    status : (M,) :class:`~explorer_core.solve.integrators.Status` codes.
     """
 
     params: Params

@@ -3,7 +3,7 @@
 :func:`assess` looks at the system, the numerics and what is known of the states
 (initial conditions, the section's points, each trajectory's status) and returns
 plain-text :class:`ReliabilityWarning` s naming the values involved. Every
-threshold is a measured constant of :mod:`explorer_core.failures` (``bilimovich
+threshold is a measured constant of :mod:`explorer_core.studies.failures` (``bilimovich
 failures --out DIR``, full size; ``docs/failures.md``):
 
 * fixed-step RK4 is judged by ``z = rho h``, the field's fastest rate ``rho`` (the
@@ -31,11 +31,11 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core.failures import relative_error, spectral_rate, stability_interval
-from explorer_core.integrators import Batch, Status, advance
-from explorer_core.model import Model, Params
 from explorer_core.scenes import list_scenes
-from explorer_core.section import Numerics, Section
+from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.section import Numerics, Section
+from explorer_core.studies.failures import relative_error, spectral_rate, stability_interval
+from explorer_core.system.model import Model, Params
 
 LEVELS = ("warning", "error")
 
@@ -370,7 +370,7 @@ def assess_section(
     window: Sequence[float] | None = None,
     lyapunov_max: float | None = None,
 ) -> list[ReliabilityWarning]:
-    """:func:`assess` for a computed :class:`~explorer_core.section.Section` (states, statuses)."""
+    """:func:`assess` for a computed :class:`~explorer_core.solve.section.Section` (states, statuses)."""
     traj, _, q, r = sec.long()
     return assess(
         sec.params,

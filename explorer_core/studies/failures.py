@@ -2,7 +2,7 @@
 
 Each study returns data (a dataclass of arrays) and a JSON-ready ``summary()``;
 pictures are drawn elsewhere (``app/failure_render.py``) and
-:mod:`explorer_core.reliability` turns the measured thresholds into warnings.
+:mod:`explorer_core.analyses.reliability` turns the measured thresholds into warnings.
 
 * :func:`rk4_on_drift` -- fixed-step RK4 on the noncompact drift of Fig. 1A
   (``diag(1, 2, 4)``, ``alpha = 0.1``; the curve ``q -> -0.3``, ``|r|`` growing like
@@ -16,8 +16,8 @@ pictures are drawn elsewhere (``app/failure_render.py``) and
   drift, the fitted growth law, the stability floor ``rho T / beta`` of each tableau,
   the global error per period relative to the tolerance on regular orbits, and how a
   section's wall time scales with periods and initial conditions.
-* :func:`status_scenarios` -- each :class:`~explorer_core.integrators.Status` produced
-  by a realistic setting and reported by :func:`~explorer_core.section.section`,
+* :func:`status_scenarios` -- each :class:`~explorer_core.solve.integrators.Status` produced
+  by a realistic setting and reported by :func:`~explorer_core.solve.section.section`,
   plus where the step collapses against the size of ``t``.
 * :func:`float_precision` -- the kernels are float64 only; an RK4 in numpy run in
   float32 against float64 shows what single precision would cost.
@@ -39,12 +39,12 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from explorer_core.integrators import Batch, Status, advance, get_method
-from explorer_core.lyapunov import LyapunovResult, attractor_ensemble, lyapunov_spectrum
-from explorer_core.model import Model, ParameterError, Params, rhs
-from explorer_core.reproduce import check_stages, run_stages
+from explorer_core.analyses.lyapunov import LyapunovResult, attractor_ensemble, lyapunov_spectrum
 from explorer_core.scenes import get_scene
-from explorer_core.section import Numerics, random_ics, section
+from explorer_core.solve.integrators import Batch, Status, advance, get_method
+from explorer_core.solve.section import Numerics, random_ics, section
+from explorer_core.studies.reproduce import check_stages, run_stages
+from explorer_core.system.model import Model, ParameterError, Params, rhs
 
 #: The drift scene: Fig. 1A (the same system as Fig. 3), whose curve has q -> -0.3.
 DRIFT_SCENE = "fig1A"
@@ -277,7 +277,7 @@ class LocalMap:
     field's fastest rate at the start point), ``error`` the relative error after one
     period, ``step_ratio`` RK4's drift step ``r_1 - r_0`` over the reference's,
     ``richardson`` the error estimated from ``N`` against ``2N`` steps (what
-    :func:`explorer_core.reliability.rk4_probe` computes), and ``status`` the kernel's
+    :func:`explorer_core.analyses.reliability.rk4_probe` computes), and ``status`` the kernel's
     status code (NaN error where it failed).
     """
 
@@ -771,8 +771,8 @@ SCENARIOS = (
 
 
 def status_scenarios(cancel: Cancel | None = None) -> list[Scenario]:
-    """Run every scenario of :data:`SCENARIOS` through :func:`~explorer_core.section.section`."""
-    from explorer_core.reliability import assess_section  # reliability imports this module's constants
+    """Run every scenario of :data:`SCENARIOS` through :func:`~explorer_core.solve.section.section`."""
+    from explorer_core.analyses.reliability import assess_section  # reliability imports this module's constants
 
     out = []
     for name, expected, sid, changes, ics, periods, nkw, note in SCENARIOS:

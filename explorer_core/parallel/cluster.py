@@ -6,9 +6,9 @@ started on first use and kept for the life of this process) or a
 ``distributed.Client``. The work is split as on one machine, and every task is a
 pure function of plain data:
 
-* a chart: one task per tile, :func:`~explorer_core.regimes.compute_tile`;
+* a chart: one task per tile, :func:`~explorer_core.analyses.regimes.compute_tile`;
 * a bifurcation diagram: one task per chunk of values,
-  :func:`~explorer_core.bifurcation.sweep_chunk`; a continuation sweep submits its
+  :func:`~explorer_core.analyses.bifurcation.sweep_chunk`; a continuation sweep submits its
   next chunk from the previous chunk's final state, so forward and backward
   sweeps run side by side, one chunk at a time each.
 
@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core.model import ParameterError
+from explorer_core.system.model import ParameterError
 
 #: Environment variable the app reads its scheduler from (unset or empty: local).
 ENV_VAR = "BILIMOVICH_SCHEDULER"
@@ -61,7 +61,8 @@ POLL_S = 0.05
 TASKS_PER_THREAD = 2
 MAX_LOCAL_WORKERS = 256
 #: Modules whose code decides the numbers; workers must run the same (see :func:`fingerprint`).
-NUMERIC_MODULES = ("config", "model", "tableaus", "integrators", "section", "lyapunov", "bifurcation", "regimes")
+#: The code that decides the numbers: every module of these floors of the core (see docs/architecture.md).
+NUMERIC_PACKAGES = ("system", "solve", "analyses")
 
 
 class SchedulerError(ConnectionError):
@@ -76,7 +77,7 @@ def parse_scheduler(address: Any) -> str:
     """Canonical scheduler address: ``tcp://HOST:PORT`` or ``local:N``.
 
     ``local`` alone means one worker per core. Anything else is a
-    :class:`~explorer_core.model.ParameterError` that names the bad value.
+    :class:`~explorer_core.system.model.ParameterError` that names the bad value.
     """
     text = str(address).strip() if isinstance(address, str) else None
     hint = "use tcp://HOST:PORT (a running `dask scheduler`) or local:N (N worker processes on this machine)"
@@ -116,10 +117,11 @@ def fingerprint() -> dict[str, str]:
     import llvmlite
     import numba
 
-    here = Path(__file__).resolve().parent
-    h = hashlib.sha256()
-    for name in NUMERIC_MODULES:
-        h.update((here / f"{name}.py").read_bytes())
+    core = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256((core / "config.py").read_bytes())
+    for pkg in NUMERIC_PACKAGES:
+        for path in sorted((core / pkg).glob("*.py")):
+            h.update(path.name.encode() + path.read_bytes())
     return {
         "explorer_core": h.hexdigest()[:16],
         "numpy": np.__version__,
@@ -148,7 +150,7 @@ def warm() -> None:
     global _warmed
     with _warm_lock:
         if not _warmed:
-            from explorer_core.integrators import warmup_all
+            from explorer_core.solve.integrators import warmup_all
 
             warmup_all()
             _warmed = True
@@ -399,7 +401,7 @@ def run_tiles(
     cancel: Callable[[], bool] | None = None,
     timeout: float = DEFAULT_TIMEOUT,
 ) -> Iterator[Any]:
-    """:func:`~explorer_core.regimes.compute_tile` of every tile on the cluster, yielding results as they finish.
+    """:func:`~explorer_core.analyses.regimes.compute_tile` of every tile on the cluster, yielding results as done.
 
     Tiles are queued in plan order (coarse levels first); within a batch that
     completes together, coarser tiles come first, as in the local run.
@@ -413,14 +415,14 @@ def run_tiles(
 
 
 def _tile_task(spec: Any, tile: Any) -> Any:
-    from explorer_core.regimes import compute_tile
+    from explorer_core.analyses.regimes import compute_tile
 
     warm()
     return compute_tile(spec, tile)
 
 
 def _chunk_task(spec: Any, sweep: int, indices: Sequence[int], seed: np.ndarray, continuation: bool) -> Any:
-    from explorer_core.bifurcation import sweep_chunk
+    from explorer_core.analyses.bifurcation import sweep_chunk
 
     warm()
     return sweep_chunk(spec, sweep, indices, seed, continuation, 1)
@@ -438,13 +440,13 @@ def run_sweeps(
     chunk: int | None = None,
     timeout: float = DEFAULT_TIMEOUT,
 ) -> dict[str, np.ndarray]:
-    """:func:`~explorer_core.bifurcation.sweep_orbits` for a :class:`~explorer_core.bifurcation.SweepSpec` on a cluster.
+    """:func:`~explorer_core.analyses.bifurcation.sweep_orbits` for a ``SweepSpec`` on a cluster.
 
     Same arguments and the same result dict (bit for bit); ``progress`` is called
     once per value, in bursts of a chunk. ``chunk`` values per task (default: about
     four tasks per worker thread with fixed seeding, 16 chunks per continuation sweep).
     """
-    from explorer_core.bifurcation import SweepProgress, check_sweeps, empty_sweep_arrays, sweep_order
+    from explorer_core.analyses.bifurcation import SweepProgress, check_sweeps, empty_sweep_arrays, sweep_order
 
     start = time.perf_counter()
     names = check_sweeps(seeding, sweeps)

@@ -29,7 +29,7 @@ the conics always meet at infinity: at most three finite equilibria, for any
 tensor and any ``t`` (unless ``Q`` and ``R`` share a whole component).
 
 :func:`equilibrium_tracks` follows the equilibria over one forcing period.
-``python -m explorer_core.equilibria`` prints the counts for the paper's cases.
+``python -m explorer_core.analyses.equilibria`` prints the counts for the paper's cases.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from explorer_core.model import ROW_Q, ROW_R, Model, ParameterError, Params, coefficients_at
+from explorer_core.system.model import ROW_Q, ROW_R, Model, ParameterError, Params, coefficients_at
 
 #: Equilibrium types, as used in :attr:`Equilibria.types` and the CSV/JSON output.
 TYPES = ("saddle", "stable node", "unstable node", "stable focus", "unstable focus", "centre", "degenerate")
@@ -342,7 +342,7 @@ def solve_conics(
     Parameters
     ----------
     cq, cr : sequences of 6 floats
-        Monomial coefficients in the order ``(1, q, r, q^2, q r, r^2)`` (:data:`explorer_core.model.MONOMIALS`).
+        Monomial coefficients in the order ``(1, q, r, q^2, q r, r^2)`` (:data:`explorer_core.system.model.MONOMIALS`).
     inf_norm : float
         Points with ``|(q, r)| > inf_norm`` are counted as at infinity.
     imag_tol : float
@@ -934,7 +934,7 @@ def count_survey(params: Params, n_t: int = 20000, n_track: int = 1000) -> dict[
 
 
 def main() -> None:
-    """Print :func:`count_survey` for :data:`PAPER_CASES` (``python -m explorer_core.equilibria``)."""
+    """Print :func:`count_survey` for :data:`PAPER_CASES` (``python -m explorer_core.analyses.equilibria``)."""
     for name, inertia, alphas in PAPER_CASES:
         for alpha in alphas:
             s = count_survey(Params(inertia=inertia, alpha=alpha))

@@ -54,7 +54,7 @@ DOP853) with a numba ``cfunc`` doing the same coefficient evaluation, both with 
 section times; a peer's tolerance ladder stops once a run costs more than ``peer_budget_s`` per
 trajectory.
 
-No UI imports here; pictures are drawn by ``app.render.render_work_precision``.
+No UI imports here; pictures are drawn by ``explorer_core.reports.render.render_work_precision``.
 """
 
 from __future__ import annotations
@@ -79,11 +79,12 @@ import numba as nb
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from explorer_core import config, tableaus
-from explorer_core.integrators import Batch, Status, advance
-from explorer_core.model import Model, ParameterError, Params, coefficients_at, forcing_g
+from explorer_core import config
 from explorer_core.scenes import get_scene
-from explorer_core.section import random_ics
+from explorer_core.solve import tableaus
+from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.section import random_ics
+from explorer_core.system.model import Model, ParameterError, Params, coefficients_at, forcing_g
 
 #: Bumped whenever the reference computation changes (invalidates the disk cache).
 REFERENCE_VERSION = 1
@@ -334,7 +335,7 @@ def _cfunc_rhs() -> int:
     """Address of a numba ``cfunc`` rhs with numbalsoda's signature ``(t, u, du, p)``.
 
     ``p`` = num[Q] (6 x 5), num[R] (6 x 5), gpc[Q] (2), gpc[R] (2), den (3), forcing (4): the same
-    Horner evaluation of the coefficient tables as :func:`explorer_core.model.coefficients_at`.
+    Horner evaluation of the coefficient tables as :func:`explorer_core.system.model.coefficients_at`.
     Compiled lazily (cached on disk) so importing this module stays cheap.
     """
     dbl = nb.types.double
@@ -388,7 +389,7 @@ def numbalsoda_status() -> tuple[Any, str]:
 def lockstep_ceiling(a_mat, b_vec, c_vec, num, gpc, den, forcing, t0, period, n_periods, steps_per_period, y, block):
     """Fixed-step explicit RK (the tableau ``a, b, c``) on blocks of trajectories in lock-step.
 
-    The stage arithmetic of :func:`explorer_core.integrators.advance_adaptive_block` without error
+    The stage arithmetic of :func:`explorer_core.solve.integrators.advance_adaptive_block` without error
     control, step rejection, escape checks or bookkeeping, laid out for speed: per stage the
     coefficients are computed once for the block, then every loop runs over the block's members on
     contiguous arrays (vectorisable), with the step folded into the tableau. ``y``
@@ -842,7 +843,7 @@ class BenchResult:
         return markdown_report(self.as_dict())
 
     def write(self, outdir: str) -> list[str]:
-        """bench.json, bench.csv, bench.md and throughput.json in ``outdir`` (the PNG is drawn by app.render)."""
+        """bench.json, bench.csv, bench.md and throughput.json in ``outdir`` (the PNG: explorer_core.reports.render)."""
         os.makedirs(outdir, exist_ok=True)
         names = ("bench.json", "bench.csv", "bench.md", "throughput.json")
         paths = {name: os.path.join(outdir, name) for name in names}

@@ -33,8 +33,9 @@ from enum import IntEnum
 import numba as nb
 import numpy as np
 
-from explorer_core import config, tableaus
-from explorer_core.model import Model, coefficients_at, forcing_g, rhs
+from explorer_core import config
+from explorer_core.solve import tableaus
+from explorer_core.system.model import Model, coefficients_at, forcing_g, rhs
 
 
 class Status(IntEnum):
@@ -925,7 +926,7 @@ def advance(
 
 def warmup() -> None:
     """Compile (or load from the on-disk cache) every kernel, so no user waits for it."""
-    from explorer_core.model import Params
+    from explorer_core.system.model import Params
 
     model = Model(Params())
     for name in METHODS:
@@ -936,7 +937,7 @@ def warmup() -> None:
 
 def warmup_all() -> None:
     """Compile every numba kernel of the package: sections and the variational (Lyapunov) one."""
-    from explorer_core import lyapunov
+    from explorer_core.analyses import lyapunov
 
     warmup()
     lyapunov.warmup()

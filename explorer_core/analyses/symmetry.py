@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core.model import Model, ParameterError, Params
-from explorer_core.section import Numerics, check_ics, section
+from explorer_core.solve.section import Numerics, check_ics, section
+from explorer_core.system.model import Model, ParameterError, Params
 
 #: A residual of the field identities below this (relative to the field's size) is rounding.
 FIELD_TOL = 1e-12

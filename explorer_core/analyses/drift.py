@@ -35,9 +35,9 @@ import numpy as np
 from numpy.polynomial import polynomial as P
 
 from explorer_core import config
-from explorer_core.integrators import Batch, Status, advance
-from explorer_core.model import Model, ParameterError, Params
-from explorer_core.section import Numerics, check_box, check_ics
+from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.section import Numerics, check_box, check_ics
+from explorer_core.system.model import Model, ParameterError, Params
 
 #: Criteria for a member to count (see :func:`on_drift`).
 CRITERIA = ("on_curve", "leaves")

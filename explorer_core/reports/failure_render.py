@@ -1,6 +1,6 @@
-"""PNG pictures of the failure map (``explorer_core.failures``), in the style of ``app/render.py``.
+"""PNG pictures of the failure map (``explorer_core.studies.failures``), in the style of ``app/render.py``.
 
-Only pictures: every number comes from the :class:`~explorer_core.failures.FailureMap`.
+Only pictures: every number comes from the :class:`~explorer_core.studies.failures.FailureMap`.
 Imported lazily by ``bilimovich failures`` so the core never needs matplotlib.
 """
 
@@ -19,7 +19,7 @@ from matplotlib.colors import ListedColormap
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
-from app.render import _DPI, period_colours
+from explorer_core.reports.render import _DPI, period_colours
 
 #: Status colours (ok, escaped, step_collapsed, too_many_steps, nonfinite).
 STATUS_COLOURS = {
@@ -242,7 +242,7 @@ def render_lyapunov(lyap: Any, path: str) -> None:
 
 
 def render_failures(fm: Any, outdir: str) -> list[str]:
-    """Every picture of a :class:`~explorer_core.failures.FailureMap`; returns the paths."""
+    """Every picture of a :class:`~explorer_core.studies.failures.FailureMap`; returns the paths."""
     out: list[str] = []
 
     def path(name: str) -> str:

@@ -37,9 +37,9 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
-from explorer_core.integrators import Batch, Status, advance
-from explorer_core.model import INERTIA_NAMES, Model, ParameterError, Params
-from explorer_core.section import Numerics, check_ics
+from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.section import Numerics, check_ics
+from explorer_core.system.model import INERTIA_NAMES, Model, ParameterError, Params
 
 #: Parameters a diagram (or a chart of regimes) can sweep.
 SWEEP_PARAMS = ("alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega")
@@ -466,7 +466,7 @@ def bifurcation_diagram(
     workers : threads (default: both cores).
     scheduler : ``None`` (local threads), or a Dask scheduler (``"tcp://HOST:PORT"``, ``"local:N"``
         or a ``distributed.Client``): chunks of values run as tasks there, with identical results
-        (:mod:`explorer_core.distributed`).
+        (:mod:`explorer_core.parallel.cluster`).
     """
     start = time.perf_counter()
     param = check_param(param)
@@ -486,7 +486,7 @@ def bifurcation_diagram(
     errors = tuple("" if isinstance(p, Params) else p for p in (spec.params_at(v) for v in range(vals.size)))
     valid = np.array([not e for e in errors])
     if scheduler is not None:
-        from explorer_core.distributed import run_sweeps
+        from explorer_core.parallel.cluster import run_sweeps
 
         out = run_sweeps(spec, valid, seeding, sweeps, scheduler, progress=progress, cancel=cancel)
     else:

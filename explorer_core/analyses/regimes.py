@@ -3,7 +3,7 @@
 Every pixel ``(x_i, y_j)`` of the parameter plane is classified from the
 trajectory of one or more initial conditions: after a transient, ``periods``
 section points are computed together with the largest Lyapunov exponent
-(:mod:`explorer_core.lyapunov`'s kernel) and the regime is
+(:mod:`explorer_core.analyses.lyapunov`'s kernel) and the regime is
 
 * ``periodic`` with period ``p`` (``1 <= p <= p_max``): the section point
   returns to itself after ``p`` iterations within ``tol`` over the last part of
@@ -36,11 +36,11 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
-from explorer_core.bifurcation import check_param, detect_period, params_at
-from explorer_core.integrators import Status
-from explorer_core.lyapunov import TangentBatch, advance_tangent
-from explorer_core.model import Model, ParameterError, Params
-from explorer_core.section import Numerics, check_ics
+from explorer_core.analyses.bifurcation import check_param, detect_period, params_at
+from explorer_core.analyses.lyapunov import TangentBatch, advance_tangent
+from explorer_core.solve.integrators import Status
+from explorer_core.solve.section import Numerics, check_ics
+from explorer_core.system.model import Model, ParameterError, Params
 
 #: Regime codes of :attr:`Chart.regime`.
 NOT_COMPUTED, PERIODIC, QUASI_PERIODIC, CHAOTIC, ESCAPED, FAILED, INVALID = range(7)
@@ -57,7 +57,7 @@ def classify(
     Parameters
     ----------
     points : (m, 2) section points after the transient; the first ``npts`` are valid.
-    status : integration status (:class:`~explorer_core.integrators.Status`).
+    status : integration status (:class:`~explorer_core.solve.integrators.Status`).
     lyap : largest Lyapunov exponent over the measurement (per unit time).
     p_max, tol : cycles up to period ``p_max`` are detected over the second half of the
         points, with tolerance ``tol * (1 + max |x|)``.
@@ -147,7 +147,7 @@ def chart_spec(
     Pixel centres include both ends of each range. ``ics`` are used at every pixel
     (several: multistability is seen per pixel).
     """
-    from explorer_core.bifurcation import sweep_values
+    from explorer_core.analyses.bifurcation import sweep_values
 
     xp, yp = check_param(x_param), check_param(y_param)
     if xp == yp:
@@ -460,7 +460,7 @@ def iter_chart(
     Tiles run in ``workers`` threads (default: both cores); ``cancel`` is polled
     whenever a tile finishes, and no new tile starts once it returns True.
     With a ``scheduler`` (``"tcp://HOST:PORT"``, ``"local:N"`` or a ``distributed.Client``)
-    the tiles are Dask tasks instead (:mod:`explorer_core.distributed`): same
+    the tiles are Dask tasks instead (:mod:`explorer_core.parallel.cluster`): same
     updates, same chart, and ``cancel`` also drops the tiles already queued there.
     """
     start = time.perf_counter()
@@ -468,7 +468,7 @@ def iter_chart(
     chart = Chart.empty(spec)
     done = 0
     if scheduler is not None:
-        from explorer_core.distributed import run_tiles
+        from explorer_core.parallel.cluster import run_tiles
 
         for res in run_tiles(spec, tiles, scheduler, cancel=cancel):
             chart.add(res)

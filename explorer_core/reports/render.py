@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.colors import ListedColormap
 from matplotlib.patches import Patch
 
-from explorer_core.bench import LINE_COLOURS
+from explorer_core.studies.bench import LINE_COLOURS
 
 #: Colours of the non-periodic regimes (by regime name) in charts.
 REGIME_COLOURS = {
@@ -61,7 +61,7 @@ def period_colours(p_max: int) -> list[str]:
 
 def render_chart(chart: Any, path: str, ic: int = 0, title: str | None = None, filled: bool = True) -> None:
     """PNG of a chart of regimes: colour = period of the stable cycle, black = chaos, legend top right."""
-    from explorer_core.regimes import REGIMES
+    from explorer_core.analyses.regimes import REGIMES
 
     c = chart.filled() if filled else chart
     spec = c.spec
@@ -220,11 +220,11 @@ def render_convergence(results: Sequence[tuple[str, Any, Sequence[float] | None]
 
 
 def render_reproduction(rep: Any, outdir: str) -> list[str]:
-    """Every figure of the paper from a :class:`explorer_core.reproduce.Reproduction`; returns the paths."""
+    """Every figure of the paper from a :class:`explorer_core.studies.reproduce.Reproduction`; returns the paths."""
     import os
 
-    from explorer_core.reproduce import PAPER, SECTION_FIGURES
     from explorer_core.scenes import get_scene
+    from explorer_core.studies.reproduce import PAPER, SECTION_FIGURES
 
     P = np.polynomial.polynomial
     out: list[str] = []

@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
-from explorer_core.integrators import Batch, Status, advance
-from explorer_core.model import Model, ParameterError, Params
-from explorer_core.section import Numerics
+from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.section import Numerics
+from explorer_core.system.model import Model, ParameterError, Params
 
 
 @dataclass(frozen=True)
