@@ -24,13 +24,15 @@ from bokeh.plotting import figure
 
 from app.controller import ExplorerSession
 from app.views import BACKEND, ERROR_STYLE
-from explorer_core.analyses.bifurcation import bifurcation_diagram, sweep_values
+from explorer_core.analyses.bifurcation import bifurcation_diagram
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.regimes import REGIMES, chart_spec, iter_chart
-from explorer_core.parallel.cluster import SchedulerError, scheduler_from_env
+from explorer_core.analyses.sweeps import sweep_values
+from explorer_core.parallel.cluster import SchedulerError, executor_for, scheduler_from_env
 from explorer_core.scenes import get_scene
-from explorer_core.solve.section import Numerics
-from explorer_core.system.model import INERTIA_NAMES, ParameterError
+from explorer_core.solve.numerics import Numerics
+from explorer_core.system.params import INERTIA_NAMES, ParameterError
+from explorer_core.warm import warm_all
 
 SWEEPABLE = ["alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega"]
 LIMITS = {"lyap_periods": 20000, "ensemble": 16, "bif_values": 400, "bif_points": 400, "transient": 5000}
@@ -298,7 +300,7 @@ class BifurcationTab(_Tab):
             try:
                 d = bifurcation_diagram(params, name, values, points=pts, transient=tr, seeding=seeding, ics=ics,
                                         numerics=numerics, progress=progress, cancel=cancelled,
-                                        scheduler=scheduler)  # fmt: skip
+                                        executor=executor_for(scheduler, warm_all))  # fmt: skip
             except SchedulerError as exc:  # unreachable or unusable cluster: say so in the tab
                 emit(lambda msg=str(exc): self.set_progress(1, 1, "not computed") or self.fail(msg))
                 return
@@ -415,7 +417,7 @@ class ChartTab(_Tab):
             last = [0.0]
             upd = None
             try:
-                for upd in iter_chart(spec, cancel=cancelled, scheduler=scheduler):
+                for upd in iter_chart(spec, cancel=cancelled, executor=executor_for(scheduler, warm_all)):
                     now = time.perf_counter()
                     if now - last[0] > REFRESH:
                         last[0] = now

@@ -27,7 +27,7 @@ from bokeh.plotting import figure
 from app.controller import ExplorerSession
 from app.views import ERROR_STYLE
 from explorer_core.studies import bench
-from explorer_core.system.model import ParameterError
+from explorer_core.system.params import ParameterError
 
 #: Label of the dataset measured in this session.
 MEASURED = "this system (Measure)"

@@ -26,7 +26,8 @@ from explorer_core.analyses.reliability import assess
 from explorer_core.analyses.tprime import energy_change_map, tprime_map
 from explorer_core.solve.integrators import Status
 from explorer_core.solve.section import iter_section
-from explorer_core.system.model import Model, ParameterError, Params
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
 
 log = logging.getLogger(__name__)
 #: BILIMOVICH_TRACE=1 logs the timeline of each recompute (latency work).

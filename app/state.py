@@ -18,8 +18,8 @@ import numpy as np
 import param
 
 from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
-from explorer_core.solve.section import Numerics, check_box, random_ics
-from explorer_core.system.model import INERTIA_NAMES, ParameterError, Params
+from explorer_core.solve.numerics import Numerics, check_box, random_ics
+from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
 #: Per-session bounds: one browser tab cannot ask for unbounded work.
 MAX_RANDOM = 500

@@ -16,7 +16,7 @@ _thread: threading.Thread | None = None
 
 
 def _warm() -> None:
-    from explorer_core.solve.integrators import warmup_all as warmup
+    from explorer_core.warm import warm_all as warmup
 
     try:
         warmup()

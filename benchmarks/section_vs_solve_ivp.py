@@ -20,7 +20,8 @@ from scipy.integrate import solve_ivp
 
 from explorer_core.scenes import get_scene
 from explorer_core.solve.integrators import warmup
-from explorer_core.solve.section import Numerics, random_ics, section
+from explorer_core.solve.numerics import Numerics, random_ics
+from explorer_core.solve.section import section
 from explorer_core.system.model import Model
 
 

@@ -22,10 +22,9 @@ from typing import Any
 import numpy as np
 
 from explorer_core import __version__, config
-from explorer_core.parallel.cluster import SchedulerError
 from explorer_core.scenes import Scene, get_scene, list_scenes
-from explorer_core.solve.section import Numerics, SectionChunk, check_box, random_ics, section
-from explorer_core.system.model import INERTIA_NAMES, ParameterError, Params
+from explorer_core.solve.numerics import Numerics, check_box, random_ics
+from explorer_core.system.params import INERTIA_NAMES, Params
 
 
 class UsageError(Exception):
@@ -165,6 +164,8 @@ def cmd_scenes(args: argparse.Namespace) -> int:
 
 
 def cmd_section(args: argparse.Namespace) -> int:
+    from explorer_core.solve.section import SectionChunk, section
+
     params, scene = _params(args)
     periods = args.periods if args.periods is not None else (scene.periods if scene else None)
     if periods is None:
@@ -409,8 +410,17 @@ def cmd_lyapunov(args: argparse.Namespace) -> int:
     return 0
 
 
+def _executor(args: argparse.Namespace) -> Any:
+    """The Dask executor of ``--scheduler`` (None: this machine's threads)."""
+    from explorer_core.parallel.cluster import executor_for
+    from explorer_core.warm import warm_all
+
+    return executor_for(args.scheduler, warm=warm_all)
+
+
 def cmd_bifurcation(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.bifurcation import bifurcation_diagram, sweep_values
+    from explorer_core.analyses.bifurcation import bifurcation_diagram
+    from explorer_core.analyses.sweeps import sweep_values
 
     params, scene = _params(args)
     if not args.out and not args.json:
@@ -437,7 +447,7 @@ def cmd_bifurcation(args: argparse.Namespace) -> int:
             numerics=_numerics(args, None, args.transient + args.points),
             progress=lambda p: write(f"{p.done}/{p.total} values, {p.elapsed_s:.1f} s"),
             cancel=stop,
-            scheduler=args.scheduler,
+            executor=_executor(args),
         )
     if show:
         sys.stderr.write("\n")
@@ -498,7 +508,7 @@ def cmd_chart(args: argparse.Namespace) -> int:
                 f"{int(u.chart.computed.sum())}/{u.chart.computed.size} pixels, {u.chart.elapsed_s:.1f} s"
             ),
             cancel=stop,
-            scheduler=args.scheduler,
+            executor=_executor(args),
         )
     if show:
         sys.stderr.write("\n")
@@ -598,11 +608,14 @@ def cmd_symmetry(args: argparse.Namespace) -> int:
 
 def cmd_serve(args: argparse.Namespace) -> int:
     """Run the web app: ``panel serve app/main.py`` with the project's flags."""
+    from importlib.util import find_spec
     from pathlib import Path
 
-    import app
-
-    here = Path(app.__file__).resolve().parent
+    # The web app's folder, found without importing it: the core never imports the app (panel runs it).
+    spec = find_spec("app")
+    if spec is None or not spec.submodule_search_locations:
+        raise UsageError("the web app (package 'app') is not installed beside explorer_core")
+    here = Path(next(iter(spec.submodule_search_locations))).resolve()
     env_origins = [o.strip() for o in os.environ.get("BILIMOVICH_ALLOWED_ORIGINS", "").split(",") if o.strip()]
     origins = args.allow_websocket_origin or env_origins or [f"localhost:{args.port}", f"127.0.0.1:{args.port}"]
     cmd = [
@@ -751,7 +764,7 @@ def cmd_failures(args: argparse.Namespace) -> int:
 
 
 def cmd_warmup(args: argparse.Namespace) -> int:
-    from explorer_core.solve.integrators import warmup_all as warmup
+    from explorer_core.warm import warm_all as warmup
 
     start = time.perf_counter()
     warmup()
@@ -964,7 +977,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(_glue_negative_lists(list(sys.argv[1:] if argv is None else argv)))
     try:
         return args.func(args)
-    except (UsageError, ParameterError, ValueError, SchedulerError) as exc:
+    # ParameterError is a ValueError; SchedulerError (an unusable Dask cluster) a ConnectionError.
+    except (UsageError, ValueError, ConnectionError) as exc:
         sys.stderr.write(f"bilimovich {args.command}: error: {exc}\n")
         return 2
     except OSError as exc:

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
-from explorer_core.solve.section import Numerics, check_box, random_ics
-from explorer_core.system.model import ParameterError, Params
+from explorer_core.solve.numerics import Numerics, check_box, random_ics
+from explorer_core.system.params import ParameterError, Params
 
 #: Pixels across a plot: the resolution the "plot" accuracy is tied to.
 PLOT_PIXELS = 800

@@ -11,7 +11,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from explorer_core.system.model import Params
+from explorer_core.system.params import Params
 
 
 class NaiveField:

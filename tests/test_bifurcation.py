@@ -10,19 +10,12 @@ import numpy as np
 import pytest
 from clirun import run_cli
 
-from explorer_core.analyses.bifurcation import (
-    INVALID_PARAMS,
-    bifurcation_diagram,
-    bilimovich_orbits,
-    check_param,
-    detect_period,
-    sweep_orbits,
-    sweep_values,
-)
+from explorer_core.analyses.bifurcation import bifurcation_diagram, bilimovich_orbits, sweep_orbits
+from explorer_core.analyses.sweeps import INVALID_PARAMS, check_param, detect_period, sweep_values
 from explorer_core.scenes import get_scene
 from explorer_core.solve.integrators import Status
-from explorer_core.solve.section import Numerics
-from explorer_core.system.model import ParameterError
+from explorer_core.solve.numerics import Numerics
+from explorer_core.system.params import ParameterError
 
 FIG10 = get_scene("fig10").params
 

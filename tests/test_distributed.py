@@ -18,11 +18,12 @@ import numpy as np
 import pytest
 from clirun import run_cli
 
-from explorer_core.analyses.bifurcation import NOT_RUN, bifurcation_diagram
+from explorer_core.analyses.bifurcation import bifurcation_diagram
 from explorer_core.analyses.regimes import chart_spec, iter_chart, plan_tiles, regime_chart
+from explorer_core.analyses.sweeps import NOT_RUN
 from explorer_core.parallel import cluster as dd
 from explorer_core.scenes import get_scene
-from explorer_core.system.model import ParameterError
+from explorer_core.system.params import ParameterError
 
 # One xdist worker runs the whole module (./dev test uses --dist loadgroup): one cluster, not two.
 pytestmark = pytest.mark.xdist_group("dask")
@@ -62,8 +63,12 @@ def assert_same_chart(a, b) -> None:
 
 def test_chart_equals_the_local_one_and_fills_in_tile_by_tile(cluster, local_chart) -> None:
     updates, computed = [], []
-    chart = regime_chart(SPEC, scheduler=cluster, progress=lambda u: (updates.append(u), computed.append(
-        int(u.chart.computed.sum()))), **TILING)  # fmt: skip
+
+    def progress(u) -> None:
+        updates.append(u)
+        computed.append(int(u.chart.computed.sum()))
+
+    chart = regime_chart(SPEC, executor=dd.DaskExecutor(cluster), progress=progress, **TILING)
     assert chart.completed and chart.computed.all()
     assert_same_chart(chart, local_chart)
     assert local_chart.errors and (0, 0) in chart.errors  # the invalid row came back with its reason
@@ -89,8 +94,8 @@ def test_bifurcation_sweeps_equal_the_local_ones(cluster) -> None:
         two = bifurcation_diagram(FIG11, param, values, seeding=seeding, workers=2, **kw)  # nor on local threads
         assert all(np.array_equal(getattr(local, name), getattr(two, name)) for name in DIAGRAM)
         calls = []
-        remote = bifurcation_diagram(FIG11, param, values, seeding=seeding, scheduler=cluster, progress=calls.append,
-                                     **kw)  # fmt: skip
+        remote = bifurcation_diagram(FIG11, param, values, seeding=seeding, executor=dd.DaskExecutor(cluster),
+                                     progress=calls.append, **kw)  # fmt: skip
         for name in DIAGRAM:
             assert np.array_equal(getattr(local, name), getattr(remote, name)), (param, seeding, name)
         assert remote.completed
@@ -103,7 +108,7 @@ def test_a_worker_killed_mid_run_changes_nothing(cluster, local_chart) -> None:
     pids = client.run(os.getpid)
     killed = []
     updates = []
-    for upd in iter_chart(SPEC, scheduler=cluster, **TILING):
+    for upd in iter_chart(SPEC, executor=dd.DaskExecutor(cluster), **TILING):
         updates.append(upd)
         if not killed:  # the first tile is back, the others are queued or running on both workers
             busy = [w for w, keys in client.processing().items() if keys]
@@ -119,7 +124,7 @@ def test_a_worker_killed_mid_run_changes_nothing(cluster, local_chart) -> None:
 def test_cancel_drops_the_outstanding_tasks(cluster) -> None:
     client = dd.get_client(cluster)
     seen = []
-    for upd in iter_chart(SPEC, scheduler=cluster, cancel=lambda: bool(seen), **TILING):
+    for upd in iter_chart(SPEC, executor=dd.DaskExecutor(cluster), cancel=lambda: bool(seen), **TILING):
         seen.append(upd)
     # Cancel is polled between batches of finished tiles: the first batch comes back, nothing after it.
     assert 1 <= len(seen) < len(plan_tiles(SPEC.shape, **TILING)) and not seen[-1].chart.completed
@@ -129,7 +134,8 @@ def test_cancel_drops_the_outstanding_tasks(cluster) -> None:
     assert client.run_on_scheduler(lambda dask_scheduler: len(dask_scheduler.tasks)) == 0
     calls = []
     d = bifurcation_diagram(FIG11, "alpha", np.linspace(-0.42, -0.36, 18), points=8, transient=20, seeding="fixed",
-                            scheduler=cluster, progress=calls.append, cancel=lambda: bool(calls))  # fmt: skip
+                            executor=dd.DaskExecutor(cluster), progress=calls.append,
+                            cancel=lambda: bool(calls))  # fmt: skip
     assert not d.completed and np.any(d.status == NOT_RUN) and 0 < len(calls) < 18
 
 
@@ -139,7 +145,7 @@ def test_losing_the_scheduler_ends_the_run_with_a_clear_error() -> None:
     client = distributed.Client(lc, set_as_default=False, timeout=2)  # how long it tries to reconnect
     try:
         with pytest.raises(dd.SchedulerError, match="lost the Dask scheduler at"):
-            for _ in iter_chart(SPEC, scheduler=client, **TILING):
+            for _ in iter_chart(SPEC, executor=dd.DaskExecutor(client), **TILING):
                 lc.sync(lc.scheduler.close)
     finally:
         client.close()
@@ -157,7 +163,7 @@ def test_unreachable_or_silent_scheduler_is_a_quick_clear_error() -> None:
     port = _free_port()  # nobody listens there: refused at once
     t = time.perf_counter()
     with pytest.raises(dd.SchedulerError, match=f"tcp://127.0.0.1:{port}.*refused"):
-        regime_chart(SPEC, scheduler=f"tcp://127.0.0.1:{port}", **TILING)
+        regime_chart(SPEC, executor=dd.DaskExecutor(f"tcp://127.0.0.1:{port}"), **TILING)
     assert time.perf_counter() - t < 5
     # Something listens but never speaks the Dask protocol: a timeout, not a hang.
     with socket.socket() as srv:
@@ -275,4 +281,4 @@ def test_local_n_starts_a_cluster_once_and_reuses_it() -> None:
     for t in threads:
         t.join()
     assert clients[0] is clients[1]
-    assert_same_chart(regime_chart(spec, scheduler="local:1"), regime_chart(spec, workers=1))
+    assert_same_chart(regime_chart(spec, executor=dd.DaskExecutor("local:1")), regime_chart(spec, workers=1))

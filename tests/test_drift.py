@@ -20,8 +20,8 @@ from explorer_core.analyses.drift import (
     to_time,
 )
 from explorer_core.scenes import get_scene
-from explorer_core.solve.section import Numerics
-from explorer_core.system.model import ParameterError
+from explorer_core.solve.numerics import Numerics
+from explorer_core.system.params import ParameterError
 
 
 @pytest.mark.parametrize("degree", [0, 1, 2, 6])

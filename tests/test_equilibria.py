@@ -19,7 +19,8 @@ from explorer_core.analyses.equilibria import (
     equilibrium_tracks,
     solve_conics,
 )
-from explorer_core.system.model import Model, ParameterError, Params, inertia_entries
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params, inertia_entries
 
 PAPER_3 = (1.0, 2.0, 4.0, 0.0, 0.1, 0.0)  # [[1,0,0.1],[0,2,0],[0.1,0,4]]
 PAPER_4 = (1.0, 2.0, 4.0, 0.0, 0.5, 0.3)  # [[1,0,0.5],[0,2,0.3],[0.5,0.3,4]]

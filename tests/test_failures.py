@@ -20,7 +20,8 @@ from explorer_core.analyses.reliability import (
 )
 from explorer_core.scenes import get_scene
 from explorer_core.solve.integrators import Status
-from explorer_core.solve.section import Numerics, section
+from explorer_core.solve.numerics import Numerics
+from explorer_core.solve.section import section
 from explorer_core.studies import failures as F
 
 FIG1A = get_scene("fig1A")

@@ -20,8 +20,8 @@ from explorer_core.analyses.lyapunov import (
 )
 from explorer_core.scenes import get_scene
 from explorer_core.solve.integrators import Status
-from explorer_core.solve.section import Numerics
-from explorer_core.system.model import ParameterError, Params
+from explorer_core.solve.numerics import Numerics
+from explorer_core.system.params import ParameterError, Params
 
 TIGHT = Numerics(rtol=1e-11, atol=1e-11)
 FIG8B = get_scene("fig8B").params

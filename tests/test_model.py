@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from explorer_core.system.model import Model, ParameterError, Params, inertia_entries
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params, inertia_entries
 
 
 def _random_spd(rng: np.random.Generator) -> tuple[float, ...]:

@@ -31,7 +31,7 @@ from explorer_core.analyses.regimes import (
 )
 from explorer_core.scenes import get_scene
 from explorer_core.solve.integrators import Status
-from explorer_core.system.model import ParameterError
+from explorer_core.system.params import ParameterError
 
 FIG11 = get_scene("fig11").params
 IC = (-0.09, -2.0)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from explorer_core.studies.reproduce import SIZES, reproduce
-from explorer_core.system.model import ParameterError
+from explorer_core.system.params import ParameterError
 
 
 def test_bad_size_and_stage_named() -> None:

@@ -8,7 +8,7 @@ from naive import solve_ivp_section
 
 from explorer_core.scenes import PLOT_ERROR_PER_PERIOD, get_scene, list_scenes, plot_tolerance
 from explorer_core.solve.section import section
-from explorer_core.system.model import ParameterError
+from explorer_core.system.params import ParameterError
 
 PAPER_IDS = [
     "fig1A", "fig1B", "fig1C", "fig1D", "fig2C", "fig2D", "fig3", "fig4A", "fig4B", "fig5A", "fig5B",

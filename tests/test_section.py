@@ -9,8 +9,9 @@ import pytest
 from naive import solve_ivp_section
 
 from explorer_core.solve.integrators import Status
-from explorer_core.solve.section import Numerics, iter_section, random_ics, section
-from explorer_core.system.model import ParameterError, Params
+from explorer_core.solve.numerics import Numerics, random_ics
+from explorer_core.solve.section import iter_section, section
+from explorer_core.system.params import ParameterError, Params
 
 # Regular orbits (perturbations of 1e-9 stay below 1e-7 over 200 periods), so a
 # pointwise comparison after 200 periods is meaningful.

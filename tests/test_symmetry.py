@@ -10,7 +10,7 @@ import pytest
 from naive import solve_ivp_section
 
 from explorer_core.analyses.symmetry import check_symmetry, field_residual, g_is_even_about, symmetry_centres
-from explorer_core.system.model import ParameterError, Params
+from explorer_core.system.params import ParameterError, Params
 
 BASE = Params(inertia=(1, 4, 2, 0, 0, 0), alpha=0.1, g0=0.3, g1=0.9)
 ICS = [(0.4, 0.7), (0.1, -0.3)]
@@ -54,7 +54,7 @@ def test_odd_forcing_is_even_about_its_phase_and_the_involution_holds_there() ->
 
 
 def test_failed_runs_are_reported() -> None:
-    from explorer_core.solve.section import Numerics
+    from explorer_core.solve.numerics import Numerics
 
     p = Params(inertia=(1, 2, 4, 0, 0, 0), alpha=0.1)
     c = check_symmetry(p, [(0.0, 8.0)], 300, numerics=Numerics(rtol=1e-10, atol=1e-10, bound=30.0))

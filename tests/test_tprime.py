@@ -8,8 +8,9 @@ from naive import NaiveField
 from scipy.integrate import solve_ivp
 
 from explorer_core.analyses.tprime import energy_change_map, tprime_map
-from explorer_core.solve.section import Numerics
-from explorer_core.system.model import Model, ParameterError, Params
+from explorer_core.solve.numerics import Numerics
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
 
 GENERAL = Params(inertia=(1, 2, 4, 0, 0.5, 0.3), alpha=-0.45, g0=0.1, g2=0.3, omega=1.2, t0=0.4)
 

@@ -29,79 +29,32 @@ from __future__ import annotations
 import csv
 import math
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import closing
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from explorer_core import config
+from explorer_core.analyses.sweeps import (
+    INVALID_PARAMS,
+    NOT_RUN,
+    check_param,
+    detect_period,
+    params_at,
+    status_label,
+)
+from explorer_core.parallel.executor import Executor
 from explorer_core.solve.integrators import Batch, Status, advance
-from explorer_core.solve.section import Numerics, check_ics
-from explorer_core.system.model import INERTIA_NAMES, Model, ParameterError, Params
+from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
 
-#: Parameters a diagram (or a chart of regimes) can sweep.
-SWEEP_PARAMS = ("alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega")
-#: Status code of a parameter value that does not define a system (beyond :class:`Status`).
-INVALID_PARAMS = 9
-#: Status code of work that was cancelled before it ran.
-NOT_RUN = 10
 SEEDINGS = ("continuation", "fixed")
 SWEEPS = ("forward", "backward")
-
-
-def status_label(code: int) -> str:
-    """Label of a status code: :class:`Status` labels plus ``invalid_params`` and ``not_run``."""
-    if code == INVALID_PARAMS:
-        return "invalid_params"
-    if code == NOT_RUN:
-        return "not_run"
-    return Status(int(code)).label
-
-
-def check_param(name: str) -> str:
-    """Canonical name of a sweepable parameter (case-insensitive: ``Omega`` is ``omega``)."""
-    for p in SWEEP_PARAMS:
-        if str(name).strip().lower() == p.lower():
-            return p
-    raise ParameterError(f"cannot sweep {name!r}; choose one of {', '.join(SWEEP_PARAMS)}")
-
-
-def sweep_values(rng: Sequence[float], n: int) -> np.ndarray:
-    """``n`` equally spaced values over ``rng = (lo, hi)`` (both ends included)."""
-    try:
-        lo, hi = (float(v) for v in rng)
-    except (TypeError, ValueError):
-        raise ParameterError(f"range must be two numbers lo,hi, got {rng!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise ParameterError(f"range must be finite with lo < hi, got {rng!r}")
-    if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 1 <= n <= config.MAX_GRID * 16:
-        raise ParameterError(f"n_values must be an integer in [1, {config.MAX_GRID * 16}], got {n!r}")
-    return np.linspace(lo, hi, int(n)) if n > 1 else np.array([lo])
-
-
-def params_at(base: Params, name: str, value: float) -> Params | str:
-    """``base`` with ``name = value``, or the reason the result is not a valid system."""
-    try:
-        return base.with_(**{name: float(value)})
-    except ParameterError as exc:
-        return str(exc)
-
-
-def detect_period(points: np.ndarray, p_max: int, tol: float) -> int:
-    """Smallest ``p <= p_max`` with ``|x_{k+p} - x_k| <= tol`` for every ``k`` of ``points``; 0 if none.
-
-    ``points`` are consecutive section points after a transient, shape (m, 2),
-    ``m > p_max``; ``tol`` is absolute (in units of ``q``, ``r``).
-    """
-    pts = np.asarray(points, dtype=float)
-    m = pts.shape[0]
-    for p in range(1, min(p_max, m - 1) + 1):
-        d = np.abs(pts[p:] - pts[:-p]).max()
-        if d <= tol:
-            return p
-    return 0
 
 
 # ---------------------------------------------------------------------------
@@ -445,7 +398,7 @@ def bifurcation_diagram(
     progress: Callable[[SweepProgress], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
-    scheduler: Any = None,
+    executor: Executor | None = None,
 ) -> OrbitDiagram:
     """Orbit diagram of the Poincare map over ``param`` (paper, Fig. 10).
 
@@ -464,9 +417,9 @@ def bifurcation_diagram(
     numerics : integration settings (escape bound included).
     progress, cancel : called / polled after each value.
     workers : threads (default: both cores).
-    scheduler : ``None`` (local threads), or a Dask scheduler (``"tcp://HOST:PORT"``, ``"local:N"``
-        or a ``distributed.Client``): chunks of values run as tasks there, with identical results
-        (:mod:`explorer_core.parallel.cluster`).
+    executor : ``None`` (this process: values one by one, both sweeps at once), or an executor
+        (:mod:`explorer_core.parallel.executor`, e.g. a Dask cluster's) that runs chunks of values as
+        tasks, with identical results.
     """
     start = time.perf_counter()
     param = check_param(param)
@@ -485,10 +438,8 @@ def bifurcation_diagram(
     spec = SweepSpec(params, param, vals, ics, int(transient), int(points), numerics)
     errors = tuple("" if isinstance(p, Params) else p for p in (spec.params_at(v) for v in range(vals.size)))
     valid = np.array([not e for e in errors])
-    if scheduler is not None:
-        from explorer_core.parallel.cluster import run_sweeps
-
-        out = run_sweeps(spec, valid, seeding, sweeps, scheduler, progress=progress, cancel=cancel)
+    if executor is not None:
+        out = sweep_tasks(spec, valid, seeding, sweeps, executor, progress=progress, cancel=cancel)
     else:
         out = sweep_orbits(
             spec.orbits,
@@ -520,3 +471,55 @@ def bifurcation_diagram(
         elapsed_s=time.perf_counter() - start,
         completed=not np.any(out["status"] == NOT_RUN),
     )
+
+
+def sweep_tasks(
+    spec: SweepSpec,
+    valid: np.ndarray,
+    seeding: str,
+    sweeps: Sequence[str],
+    executor: Executor,
+    *,
+    progress: Callable[[SweepProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    chunk: int | None = None,
+) -> dict[str, np.ndarray]:
+    """:func:`sweep_orbits` of ``spec`` as tasks of ``executor``: the same result dict, bit for bit.
+
+    One task per chunk of values (:func:`sweep_chunk`); a continuation sweep submits its next chunk
+    from the previous chunk's final state, so forward and backward sweeps run side by side, one chunk
+    at a time each. ``progress`` is called once per value, in bursts of a chunk. ``chunk`` values per
+    task (default: about four tasks per executor thread with fixed seeding, 16 chunks per sweep).
+    """
+    start = time.perf_counter()
+    names = check_sweeps(seeding, sweeps)
+    valid = np.asarray(valid, bool)
+    out = empty_sweep_arrays(len(names), valid, spec.ics.shape[0], spec.n_points)
+    orders = [sweep_order(s, valid.size, valid) for s in names]
+    total = sum(len(o) for o in orders)
+    continuation = seeding != "fixed"
+    if chunk is None:
+        n = max(len(o) for o in orders) if orders else 0
+        chunk = math.ceil(n / 16) if continuation else math.ceil(n / (4 * executor.threads()))
+    chunk = max(1, min(64, int(chunk)))
+    pieces = [[o[i : i + chunk] for i in range(0, len(o), chunk)] for o in orders]
+    todo: deque = deque()
+    if continuation:  # each sweep's next chunk needs the previous one's final state
+        todo.extend(
+            ((s, 0), sweep_chunk, (spec, s, pieces[s][0], spec.ics, True)) for s in range(len(names)) if pieces[s]
+        )
+    else:
+        todo.extend(((0, k), sweep_chunk, (spec, 0, p, spec.ics, False)) for k, p in enumerate(pieces[0]))
+    done = 0
+    with closing(executor.stream(todo, cancel)) as stream:
+        for batch in stream:
+            for (s, k), res in batch:
+                for j, v in enumerate(res.indices):
+                    for name in ("points", "npts", "status", "final"):
+                        out[name][s, v] = getattr(res, name)[j]
+                    done += 1
+                    if progress is not None:
+                        progress(SweepProgress(done, total, time.perf_counter() - start))
+                if continuation and k + 1 < len(pieces[s]):
+                    todo.append(((s, k + 1), sweep_chunk, (spec, s, pieces[s][k + 1], res.seed, True)))
+    return {"sweeps": np.array(names), **out}

@@ -35,9 +35,11 @@ import numpy as np
 from numpy.polynomial import polynomial as P
 
 from explorer_core import config
-from explorer_core.solve.integrators import Batch, Status, advance
-from explorer_core.solve.section import Numerics, check_box, check_ics
-from explorer_core.system.model import Model, ParameterError, Params
+from explorer_core.solve.integrators import Batch, run, tables
+from explorer_core.solve.numerics import Numerics, check_box, check_ics
+from explorer_core.solve.rk import FIELD, Status
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
 
 #: Criteria for a member to count (see :func:`on_drift`).
 CRITERIA = ("on_curve", "leaves")
@@ -270,7 +272,8 @@ class Tables:
 def _series(field: Tables, ics: np.ndarray, k1: int, numerics: Numerics) -> tuple[np.ndarray, np.ndarray]:
     """``x_k`` for ``k = 0..k1`` (k = 0 is the IC) and the status of each trajectory."""
     batch = Batch.start(ics, field.t0, field.period)
-    pts, npts = advance(field, batch, k1, **numerics.kernel_kwargs())  # type: ignore[arg-type]
+    coefs = tables(field.num, field.gpc, field.den, field.forcing, np.zeros(batch.n, dtype=np.int64))
+    pts, npts = run(FIELD, coefs, batch, k1, **numerics.kernel_kwargs())
     out = np.concatenate([ics[:, None, :], pts], axis=1)
     ok = (batch.status == Status.OK) & (npts == k1)
     return out, np.where(ok, Status.OK, np.where(batch.status == Status.OK, Status.TOO_MANY_STEPS, batch.status))

@@ -46,7 +46,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from explorer_core.system.model import ROW_Q, ROW_R, Model, ParameterError, Params, coefficients_at
+from explorer_core.system.model import ROW_Q, ROW_R, Model, coefficients_at
+from explorer_core.system.params import ParameterError, Params
 
 #: Equilibrium types, as used in :attr:`Equilibria.types` and the CSV/JSON output.
 TYPES = ("saddle", "stable node", "unstable node", "stable focus", "unstable focus", "centre", "degenerate")

@@ -35,339 +35,24 @@ has dimension ``D + 1`` (the time direction adds one).
 from __future__ import annotations
 
 import math
-import threading
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
-import numba as nb
 import numpy as np
 
 from explorer_core import config
-from explorer_core.solve.integrators import Batch, Status, advance, get_method
-from explorer_core.solve.section import Numerics, check_ics
-from explorer_core.system.model import Model, ParameterError, Params, coefficients_at, eval_quadratic, forcing_g
+from explorer_core.solve import rk, tangent
+from explorer_core.solve.integrators import Batch, advance, tables
+from explorer_core.solve.numerics import Numerics, check_ics, check_int
+from explorer_core.solve.rk import Status
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
 
-#: Components of the integrated state: q, r, the 2x2 tangent matrix by columns
-#: (v1 = (y2, y3), v2 = (y4, y5)) and the divergence integral over the period.
-NSTATE = 7
-_OK, _ESCAPED, _COLLAPSED, _TOO_MANY, _NONFINITE = (int(s) for s in Status)
-_SAFETY, _MIN_FACTOR, _MAX_FACTOR = config.SAFETY, config.MIN_FACTOR, config.MAX_FACTOR
-_EPS = float(np.finfo(float).eps)
-#: Inside a period the basis is re-orthonormalised as well when the sine of the
-#: angle between the tangent vectors drops below this (see ``_ill_conditioned``).
-REORTHONORMALISE = 1e-2
+_OK = int(Status.OK)
 #: Default size of the random offsets of ensemble members (relative to 1 + |ic|).
 ENSEMBLE_OFFSET = 1e-3
-
-_jit = nb.njit(nogil=True, cache=True, error_model="numpy")
-
-
-@_jit
-def variational_rhs(num, gpc, den, forcing, t, y, out, work) -> None:
-    """Right-hand side of the state, the tangent matrix and the divergence integral.
-
-    ``y = (q, r, Phi[:, 0], Phi[:, 1], s)``; ``out`` receives ``(Q, R, J Phi, div)``
-    with the exact Jacobian ``J`` of the quadratic field (affine in ``(q, r)``).
-    ``work`` is a (>= 2, 6) scratch array for the coefficients at ``t``.
-    """
-    g, gp = forcing_g(forcing, t)
-    coefficients_at(num[:2], gpc[:2], den, g, gp, work)
-    q = y[0]
-    r = y[1]
-    out[0] = eval_quadratic(work, 0, q, r)
-    out[1] = eval_quadratic(work, 1, q, r)
-    j00 = work[0, 1] + 2.0 * work[0, 3] * q + work[0, 4] * r
-    j01 = work[0, 2] + work[0, 4] * q + 2.0 * work[0, 5] * r
-    j10 = work[1, 1] + 2.0 * work[1, 3] * q + work[1, 4] * r
-    j11 = work[1, 2] + work[1, 4] * q + 2.0 * work[1, 5] * r
-    out[2] = j00 * y[2] + j01 * y[3]
-    out[3] = j10 * y[2] + j11 * y[3]
-    out[4] = j00 * y[4] + j01 * y[5]
-    out[5] = j10 * y[4] + j11 * y[5]
-    out[6] = j00 + j11
-
-
-@_jit
-def gram_schmidt(phi: np.ndarray) -> tuple[float, float]:
-    """Orthonormalise the columns of the 2x2 tangent matrix in place (``Phi = Q R``).
-
-    ``phi`` is ``(v1x, v1y, v2x, v2y)``; on return it holds ``Q`` and the
-    function returns ``(R_11, R_22)`` (both >= 0; 0 signals a degenerate basis).
-    """
-    r11 = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1])
-    if not (r11 > 0.0) or not math.isfinite(r11):
-        return 0.0, 0.0
-    e1x = phi[0] / r11
-    e1y = phi[1] / r11
-    r12 = e1x * phi[2] + e1y * phi[3]
-    wx = phi[2] - r12 * e1x
-    wy = phi[3] - r12 * e1y
-    r22 = math.sqrt(wx * wx + wy * wy)
-    if not (r22 > 0.0) or not math.isfinite(r22):
-        return r11, 0.0
-    phi[0] = e1x
-    phi[1] = e1y
-    phi[2] = wx / r22
-    phi[3] = wy / r22
-    return r11, r22
-
-
-@_jit
-def _ill_conditioned(y) -> bool:
-    """True if the tangent basis ``y[2:6]`` is nearly degenerate or badly scaled.
-
-    The perpendicular part of ``v2`` carries ``Lambda_2``; once it is below
-    ``REORTHONORMALISE`` of ``|v2|`` its relative accuracy is about
-    ``rtol / REORTHONORMALISE`` and falling.
-    """
-    n1 = math.sqrt(y[2] * y[2] + y[3] * y[3])
-    n2 = math.sqrt(y[4] * y[4] + y[5] * y[5])
-    det = y[2] * y[5] - y[3] * y[4]
-    return abs(det) < REORTHONORMALISE * n1 * n2 or n1 > 1e100 or n2 > 1e100 or n1 < 1e-100 or n2 < 1e-100
-
-
-@_jit
-def _error_norm2(kst, e_vec, m_last, y, yn, rtol, atol, nc) -> float:
-    """Sum over components of ``(sum_m e_m k_m / scale)^2`` (squared, not averaged)."""
-    acc = 0.0
-    for c in range(nc):
-        e = 0.0
-        for m in range(m_last):
-            e += e_vec[m] * kst[m, c]
-        sc = atol + rtol * max(abs(y[c]), abs(yn[c]))
-        acc += (e / sc) ** 2
-    return acc
-
-
-@_jit
-def _initial_step(num, gpc, den, forcing, t, y, f0, span, order, rtol, atol, work, tmp, f1) -> float:
-    """Hairer's starting step (Solving ODEs I, II.4) on the whole variational state."""
-    d0 = 0.0
-    d1 = 0.0
-    for c in range(NSTATE):
-        sc = atol + abs(y[c]) * rtol
-        d0 += (y[c] / sc) ** 2
-        d1 += (f0[c] / sc) ** 2
-    d0 = math.sqrt(d0 / NSTATE)
-    d1 = math.sqrt(d1 / NSTATE)
-    h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
-    h0 = min(h0, span)
-    for c in range(NSTATE):
-        tmp[c] = y[c] + h0 * f0[c]
-    variational_rhs(num, gpc, den, forcing, t + h0, tmp, f1, work)
-    d2 = 0.0
-    for c in range(NSTATE):
-        sc = atol + abs(y[c]) * rtol
-        d2 += ((f1[c] - f0[c]) / sc) ** 2
-    d2 = math.sqrt(d2 / NSTATE) / h0
-    if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
-    else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1.0))
-    return min(100.0 * h0, h1, span)
-
-
-@_jit
-def lyapunov_kernel(
-    a_mat,
-    b_vec,
-    c_vec,
-    e_vec,
-    e3_vec,
-    e5_vec,
-    dop853_error,
-    order,
-    error_order,
-    num,
-    gpc,
-    den,
-    forcing,
-    t_base,
-    period,
-    k_first,
-    n_periods,
-    y,
-    h,
-    status,
-    nsteps,
-    logs,
-    divs,
-    pts,
-    npts,
-    rtol,
-    atol,
-    max_steps,
-    bound,
-    fixed_steps,
-    idx,
-):
-    """Advance trajectories ``idx`` and their tangent matrices by ``n_periods`` periods.
-
-    Parameters
-    ----------
-    a_mat, b_vec, c_vec, e_vec, e3_vec, e5_vec, dop853_error, order, error_order
-        The embedded pair, exactly as :func:`explorer_core.solve.integrators.advance_adaptive`.
-    num, gpc, den, forcing
-        Coefficient tables of the quadratic field (any quadratic field in this
-        format works, e.g. a linear test field).
-    t_base, period, k_first
-        Section times are ``t_base + k * period``; the state is at ``k_first``.
-    y : (n, 6) array
-        ``q, r`` and the orthonormal tangent basis; updated in place.
-    h, status, nsteps : (n,) arrays
-        Step memory, :class:`~explorer_core.solve.integrators.Status` codes, step counts.
-    logs : (n, n_periods, 2) array
-        ``log R_11, log R_22`` of the QR factorisation at each section time.
-    divs : (n, n_periods) array
-        Integral of the divergence over each period.
-    pts : (n, n_periods, 2) array
-        Section points; ``npts[i]`` periods of trajectory ``i`` completed in this call.
-    fixed_steps
-        ``> 0``: that many equal steps per period, no error control.
-    """
-    s = b_vec.shape[0]
-    kst = np.empty((s + 1, NSTATE))
-    work = np.empty((2, 6))
-    yc = np.empty(NSTATE)
-    yn = np.empty(NSTATE)
-    tmp = np.empty(NSTATE)
-    f1 = np.empty(NSTATE)
-    span = abs(period)
-    expo = -1.0 / (error_order + 1.0)
-    for ii in range(idx.shape[0]):
-        i = idx[ii]
-        npts[i] = 0
-        if status[i] != _OK:
-            continue
-        for c in range(6):
-            yc[c] = y[i, c]
-        habs = h[i]
-        for j in range(n_periods):
-            ta = t_base + (k_first + j) * period
-            tb = t_base + (k_first + j + 1) * period
-            t = ta
-            yc[6] = 0.0  # the divergence integral restarts every period
-            log1 = 0.0
-            log2 = 0.0
-            variational_rhs(num, gpc, den, forcing, t, yc, tmp, work)
-            for c in range(NSTATE):
-                kst[0, c] = tmp[c]
-            if not math.isfinite(tmp[0]) or not math.isfinite(tmp[1]):
-                status[i] = _NONFINITE
-                break
-            if habs <= 0.0 and fixed_steps <= 0:
-                habs = _initial_step(num, gpc, den, forcing, t, yc, tmp, span, order, rtol, atol, work, yn, f1)
-            steps = 0
-            saw_nonfinite = False
-            while True:
-                remaining = tb - t
-                if remaining <= 0.0:
-                    break
-                hmin = 10.0 * _EPS * max(abs(t), span)
-                if fixed_steps > 0:
-                    hstep = span / fixed_steps
-                    t = ta + steps * hstep  # step times from ta, not accumulated
-                    last = steps + 1 == fixed_steps
-                else:
-                    hstep = habs
-                    last = False
-                    if hstep >= remaining - hmin:  # land exactly on the section time
-                        hstep = remaining
-                        last = True
-                for st in range(1, s):
-                    for c in range(NSTATE):
-                        acc = 0.0
-                        for m in range(st):
-                            am = a_mat[st, m]
-                            if am != 0.0:
-                                acc += am * kst[m, c]
-                        tmp[c] = yc[c] + hstep * acc
-                    variational_rhs(num, gpc, den, forcing, t + c_vec[st] * hstep, tmp, f1, work)
-                    for c in range(NSTATE):
-                        kst[st, c] = f1[c]
-                for c in range(NSTATE):
-                    acc = 0.0
-                    for m in range(s):
-                        acc += b_vec[m] * kst[m, c]
-                    yn[c] = yc[c] + hstep * acc
-                tn = tb if last else t + hstep
-                variational_rhs(num, gpc, den, forcing, tn, yn, f1, work)
-                for c in range(NSTATE):
-                    kst[s, c] = f1[c]
-                if dop853_error:
-                    n5 = _error_norm2(kst, e5_vec, s + 1, yc, yn, rtol, atol, NSTATE)
-                    n3 = _error_norm2(kst, e3_vec, s + 1, yc, yn, rtol, atol, NSTATE)
-                    if n5 == 0.0 and n3 == 0.0:
-                        err = 0.0
-                    else:
-                        err = hstep * n5 / math.sqrt((n5 + 0.01 * n3) * NSTATE)
-                else:
-                    err = hstep * math.sqrt(_error_norm2(kst, e_vec, s + 1, yc, yn, rtol, atol, NSTATE) / NSTATE)
-                steps += 1
-                finite = math.isfinite(err)
-                for c in range(NSTATE):
-                    finite = finite and math.isfinite(f1[c]) and math.isfinite(yn[c])
-                if fixed_steps > 0:
-                    if not finite:
-                        status[i] = _NONFINITE
-                        break
-                    err = 0.0
-                if finite and err <= 1.0:
-                    t = tn
-                    for c in range(NSTATE):
-                        yc[c] = yn[c]
-                        kst[0, c] = f1[c]
-                    factor = _MAX_FACTOR if err == 0.0 else min(_MAX_FACTOR, _SAFETY * err**expo)
-                    # A clipped last step says little about the step size: keep the larger proposal.
-                    habs = max(habs, hstep * factor) if last else hstep * factor
-                    if abs(yc[0]) > bound or abs(yc[1]) > bound:
-                        status[i] = _ESCAPED
-                        break
-                    if not last and _ill_conditioned(yc):
-                        # Strong contraction within one period: the second vector would be
-                        # lost to rounding before the section time. QR now (the product of
-                        # the R factors is unchanged), restart the FSAL stage from the new basis.
-                        r11, r22 = gram_schmidt(yc[2:6])
-                        if r11 <= 0.0 or r22 <= 0.0:
-                            status[i] = _NONFINITE
-                            break
-                        log1 += math.log(r11)
-                        log2 += math.log(r22)
-                        variational_rhs(num, gpc, den, forcing, t, yc, f1, work)
-                        for c in range(NSTATE):
-                            kst[0, c] = f1[c]
-                else:
-                    if not finite:
-                        saw_nonfinite = True
-                        habs = hstep * _MIN_FACTOR
-                    else:
-                        habs = hstep * max(_MIN_FACTOR, _SAFETY * err**expo)
-                    if habs < hmin:
-                        status[i] = _NONFINITE if saw_nonfinite else _COLLAPSED
-                        break
-                if steps >= max_steps:
-                    status[i] = _TOO_MANY
-                    break
-            nsteps[i] += steps
-            if status[i] != _OK:
-                break
-            r11, r22 = gram_schmidt(yc[2:6])
-            if r11 <= 0.0 or r22 <= 0.0:
-                # The tangent basis collapsed (under/overflow within one period).
-                status[i] = _NONFINITE
-                break
-            logs[i, j, 0] = log1 + math.log(r11)
-            logs[i, j, 1] = log2 + math.log(r22)
-            divs[i, j] = yc[6]
-            pts[i, j, 0] = yc[0]
-            pts[i, j, 1] = yc[1]
-            for c in range(6):
-                y[i, c] = yc[c]
-            npts[i] = j + 1
-        h[i] = habs
 
 
 def qr_exponents(matrices: Any) -> np.ndarray:
@@ -387,15 +72,14 @@ def qr_exponents(matrices: Any) -> np.ndarray:
     mats = np.asarray(matrices, dtype=float)
     if mats.ndim != 3 or mats.shape[1:] != (2, 2) or mats.shape[0] == 0:
         raise ParameterError(f"matrices must have shape (n, 2, 2), got {mats.shape}")
-    phi = np.array([1.0, 0.0, 0.0, 1.0])
+    basis = np.eye(2)
     acc = np.zeros(2)
     for m in mats:
-        basis = np.array([[phi[0], phi[2]], [phi[1], phi[3]]])
         new = m @ basis
-        phi = np.array([new[0, 0], new[1, 0], new[0, 1], new[1, 1]])
-        r11, r22 = gram_schmidt(phi)
+        e1x, e1y, e2x, e2y, r11, r22 = rk.gram_schmidt(new[0, 0], new[1, 0], new[0, 1], new[1, 1])
         if r11 <= 0.0 or r22 <= 0.0:
             raise ParameterError("a matrix of the product is singular: exponents are -inf")
+        basis = np.array([[e1x, e2x], [e1y, e2y]])
         acc += (math.log(r11), math.log(r22))
     return acc / mats.shape[0]
 
@@ -413,137 +97,6 @@ def kaplan_yorke(l1: float, l2: float) -> float:
     if l1 + l2 >= 0.0:
         return 2.0
     return 1.0 + l1 / abs(l2)
-
-
-# ---------------------------------------------------------------------------
-# Driver: batches, threads, chunks.
-
-
-@dataclass
-class TangentBatch:
-    """State of a batch of trajectories with their tangent bases, between section times."""
-
-    y: np.ndarray  # (n, 6): q, r, orthonormal tangent basis
-    h: np.ndarray
-    status: np.ndarray
-    nsteps: np.ndarray
-    k: int
-    t0: float
-    period: float
-
-    @classmethod
-    def start(cls, ics: np.ndarray, t0: float, period: float) -> TangentBatch:
-        ics = np.asarray(ics, dtype=float).reshape(-1, 2)
-        n = ics.shape[0]
-        y = np.zeros((n, 6))
-        y[:, :2] = ics
-        y[:, 2] = 1.0  # identity: v1 = e_q, v2 = e_r
-        y[:, 5] = 1.0
-        status = np.zeros(n, dtype=np.int64)
-        status[~np.all(np.isfinite(ics), axis=1)] = _NONFINITE
-        return cls(y, np.zeros(n), status, np.zeros(n, dtype=np.int64), 0, float(t0), float(period))
-
-    @property
-    def n(self) -> int:
-        return self.y.shape[0]
-
-
-_pool_lock = threading.Lock()
-_pool: ThreadPoolExecutor | None = None
-
-
-def run_threads(fn: Callable[[np.ndarray], None], n: int, workers: int | None = None) -> None:
-    """Call ``fn(idx)`` on interleaved index subsets of ``range(n)`` in worker threads.
-
-    The kernels release the GIL, so the threads share both cores. Callers that
-    are themselves running in a worker (chart tiles) pass ``workers=1``.
-    """
-    global _pool
-    parts = min(workers or config.N_WORKERS, n)
-    if parts <= 1:
-        fn(np.arange(n, dtype=np.int64))
-        return
-    with _pool_lock:
-        if _pool is None:
-            _pool = ThreadPoolExecutor(max_workers=config.N_WORKERS, thread_name_prefix="bilimovich-lyapunov")
-    futures = [_pool.submit(fn, np.arange(w, n, parts, dtype=np.int64)) for w in range(parts)]
-    for f in futures:
-        f.result()
-
-
-def advance_tangent(
-    num: np.ndarray,
-    gpc: np.ndarray,
-    den: np.ndarray,
-    forcing: np.ndarray,
-    batch: TangentBatch,
-    n_periods: int,
-    numerics: Numerics,
-    workers: int | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Advance a :class:`TangentBatch` by ``n_periods`` periods (low-level call).
-
-    Takes raw coefficient tables so any quadratic field in the model's format
-    (including a linear test field) can be used.
-
-    Returns
-    -------
-    logs : (n, n_periods, 2) ``log R_ii`` per period
-    divs : (n, n_periods) divergence integral per period
-    pts : (n, n_periods, 2) section points
-    npts : (n,) periods completed by each trajectory in this call
-    """
-    meth = get_method(numerics.method)
-    if meth.name == "rk4":
-        meth = get_method("rk4-tableau")
-    fixed = 0 if (numerics.adaptive and meth.adaptive) else int(numerics.steps_per_period)
-    n = batch.n
-    logs = np.zeros((n, n_periods, 2))
-    divs = np.zeros((n, n_periods))
-    pts = np.zeros((n, n_periods, 2))
-    npts = np.zeros(n, dtype=np.int64)
-    if n == 0 or n_periods <= 0:
-        return logs, divs, pts, npts
-    forcing = np.ascontiguousarray(forcing, dtype=float)
-
-    def run(idx: np.ndarray) -> None:
-        lyapunov_kernel(
-            meth.a,
-            meth.b,
-            meth.c,
-            meth.e,
-            meth.e3,
-            meth.e5,
-            meth.name == "dop853",
-            float(meth.order),
-            float(meth.error_order),
-            num,
-            gpc,
-            den,
-            forcing,
-            batch.t0,
-            batch.period,
-            batch.k,
-            n_periods,
-            batch.y,
-            batch.h,
-            batch.status,
-            batch.nsteps,
-            logs,
-            divs,
-            pts,
-            npts,
-            numerics.rtol,
-            numerics.atol,
-            numerics.max_steps,
-            numerics.bound,
-            fixed,
-            idx,
-        )
-
-    run_threads(run, n, workers)
-    batch.k += n_periods
-    return logs, divs, pts, npts
 
 
 # ---------------------------------------------------------------------------
@@ -696,12 +249,6 @@ class LyapunovResult:
         }
 
 
-def _check_count(name: str, v: Any, lo: int, hi: int) -> int:
-    if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
-        raise ParameterError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
-    return int(v)
-
-
 def ensemble_ics(ic: Sequence[float], m: int, offset: float = ENSEMBLE_OFFSET, seed: int | None = 0) -> np.ndarray:
     """``m`` initial conditions: ``ic`` itself and ``m - 1`` seeded random offsets around it.
 
@@ -712,7 +259,7 @@ def ensemble_ics(ic: Sequence[float], m: int, offset: float = ENSEMBLE_OFFSET, s
     ic = check_ics(ic)
     if ic.shape[0] != 1:
         raise ParameterError(f"ensemble_ics takes one initial condition, got {ic.shape[0]}")
-    m = _check_count("ensemble", m, 1, config.MAX_TRAJECTORIES)
+    m = check_int("ensemble", m, 1, config.MAX_TRAJECTORIES)
     if not (math.isfinite(offset) and offset > 0):
         raise ParameterError(f"offset must be a positive number, got {offset!r}")
     rng = np.random.default_rng(seed)
@@ -742,7 +289,7 @@ def attractor_ensemble(
     """
     numerics = numerics or Numerics()
     start = check_ics(ic)
-    transient = _check_count("transient", transient, 0, config.MAX_PERIODS)
+    transient = check_int("transient", transient, 0, config.MAX_PERIODS)
     if transient:
         batch = Batch.start(start, params.t0, params.period)
         advance(Model(params), batch, transient, store=False, workers=1, **numerics.kernel_kwargs())
@@ -773,14 +320,16 @@ def lyapunov_tables(
     """
     numerics = numerics or Numerics()
     ics = check_ics(ics)
-    periods = _check_count("periods", periods, 1, config.MAX_PERIODS)
-    transient = _check_count("transient", transient, 0, config.MAX_PERIODS)
+    periods = check_int("periods", periods, 1, config.MAX_PERIODS)
+    transient = check_int("transient", transient, 0, config.MAX_PERIODS)
     n = ics.shape[0]
     if n * periods > config.MAX_POINTS:
         raise ParameterError(f"{n} members x {periods} periods exceeds the limit {config.MAX_POINTS}")
     if not (math.isfinite(period) and period > 0):
         raise ParameterError(f"period must be positive, got {period!r}")
-    batch = TangentBatch.start(ics, t0, period)
+    # A raw quadratic field in the model's table format (any, e.g. a linear test field).
+    coefs = tables(num, gpc, den, forcing, np.zeros(n, dtype=np.int64))
+    batch = tangent.start(ics, t0, period)
     logs = np.zeros((n, periods, 2))
     divs = np.zeros((n, periods))
     pts = np.zeros((n, periods, 2))
@@ -808,7 +357,7 @@ def lyapunov_tables(
         if cancel is not None and cancel():
             completed = False
             break
-        advance_tangent(num, gpc, den, forcing, batch, size, numerics, workers)
+        tangent.advance_lyapunov(coefs, batch, size, numerics, workers, store=False)
         done += size
         report("transient", done, transient)
     done = 0
@@ -817,7 +366,7 @@ def lyapunov_tables(
             if cancel is not None and cancel():
                 completed = False
                 break
-            lg, dv, pt, m = advance_tangent(num, gpc, den, forcing, batch, size, numerics, workers)
+            lg, dv, pt, m = tangent.advance_lyapunov(coefs, batch, size, numerics, workers)
             for i in np.flatnonzero(m):
                 # Trajectory i's periods stay contiguous: it contributes only while alive.
                 a, b = npts[i], npts[i] + m[i]
@@ -897,8 +446,3 @@ def lyapunov_spectrum(
         workers=workers,
     )
     return LyapunovResult(params=params, numerics=numerics, **out)
-
-
-def warmup() -> None:
-    """Compile (or load from the on-disk cache) the variational kernel."""
-    lyapunov_spectrum(Params(), [(0.1, 0.2)], 1, workers=1)

@@ -28,19 +28,22 @@ from __future__ import annotations
 import csv
 import json
 import time
+from collections import deque
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from contextlib import closing
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from explorer_core import config
-from explorer_core.analyses.bifurcation import check_param, detect_period, params_at
-from explorer_core.analyses.lyapunov import TangentBatch, advance_tangent
-from explorer_core.solve.integrators import Status
-from explorer_core.solve.section import Numerics, check_ics
-from explorer_core.system.model import Model, ParameterError, Params
+from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
+from explorer_core.parallel.executor import Executor, local_executor
+from explorer_core.solve import tangent
+from explorer_core.solve.integrators import Status, coefficients
+from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
 
 #: Regime codes of :attr:`Chart.regime`.
 NOT_COMPUTED, PERIODIC, QUASI_PERIODIC, CHAOTIC, ESCAPED, FAILED, INVALID = range(7)
@@ -147,7 +150,6 @@ def chart_spec(
     Pixel centres include both ends of each range. ``ics`` are used at every pixel
     (several: multistability is seen per pixel).
     """
-    from explorer_core.analyses.bifurcation import sweep_values
 
     xp, yp = check_param(x_param), check_param(y_param)
     if xp == yp:
@@ -276,13 +278,11 @@ def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
             errors.append(p)
             continue
         errors.append("")
-        model = Model(p)
-        batch = TangentBatch.start(spec.ics, p.t0, p.period)
+        coefs = coefficients(Model(p), n=n_ic)
+        batch = tangent.start(spec.ics, p.t0, p.period)
         if spec.transient:
-            advance_tangent(model.num, model.gpc, model.den, model.forcing, batch, spec.transient, spec.numerics, 1)
-        logs, _, pts, npts = advance_tangent(
-            model.num, model.gpc, model.den, model.forcing, batch, spec.periods, spec.numerics, 1
-        )
+            tangent.advance_lyapunov(coefs, batch, spec.transient, spec.numerics, 1, store=False)
+        logs, _, pts, npts = tangent.advance_lyapunov(coefs, batch, spec.periods, spec.numerics, 1)
         for k in range(n_ic):
             m = int(npts[k])
             lyap[n, k] = logs[k, :m, 0].sum() / (max(m, 1) * p.period)
@@ -453,53 +453,28 @@ def iter_chart(
     tile_pixels: int = 64,
     workers: int | None = None,
     cancel: Callable[[], bool] | None = None,
-    scheduler: Any = None,
+    executor: Executor | None = None,
 ) -> Iterator[ChartUpdate]:
     """Compute the chart tile by tile, coarse levels first, yielding after every tile.
 
-    Tiles run in ``workers`` threads (default: both cores); ``cancel`` is polled
-    whenever a tile finishes, and no new tile starts once it returns True.
-    With a ``scheduler`` (``"tcp://HOST:PORT"``, ``"local:N"`` or a ``distributed.Client``)
-    the tiles are Dask tasks instead (:mod:`explorer_core.parallel.cluster`): same
-    updates, same chart, and ``cancel`` also drops the tiles already queued there.
+    Tiles are tasks of ``executor`` (:mod:`explorer_core.parallel.executor`; default: ``workers`` threads
+    of this process, both cores) -- a Dask executor runs them on a cluster with the same updates and
+    the same chart. ``cancel`` is polled whenever a tile finishes; no new tile starts once it returns True.
     """
     start = time.perf_counter()
     tiles = plan_tiles(spec.shape, coarse, tile_pixels)
     chart = Chart.empty(spec)
     done = 0
-    if scheduler is not None:
-        from explorer_core.parallel.cluster import run_tiles
-
-        for res in run_tiles(spec, tiles, scheduler, cancel=cancel):
-            chart.add(res)
-            done += 1
-            chart.elapsed_s = time.perf_counter() - start
-            chart.completed = done == len(tiles)
-            yield ChartUpdate(res, done, len(tiles), chart)
-        return
-    workers = max(1, workers or config.N_WORKERS)
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        queue = iter(tiles)
-        running: set[Future] = set()
-        stop = False
-        while True:
-            while not stop and len(running) < workers:
-                t = next(queue, None)
-                if t is None:
-                    break
-                running.add(pool.submit(compute_tile, spec, t))
-            if not running:
-                break
-            finished, running = wait(running, return_when=FIRST_COMPLETED)
-            for f in sorted(finished, key=lambda f: f.result().tile.stride, reverse=True):
-                res = f.result()
+    todo = deque((n, compute_tile, (spec, tile)) for n, tile in enumerate(tiles))
+    with closing(local_executor(executor, workers).stream(todo, cancel)) as stream:
+        for batch in stream:
+            # Tiles that finish together: coarser first, so the picture refines in order.
+            for _, res in sorted(batch, key=lambda tr: tr[1].tile.stride, reverse=True):
                 chart.add(res)
                 done += 1
                 chart.elapsed_s = time.perf_counter() - start
                 chart.completed = done == len(tiles)
                 yield ChartUpdate(res, done, len(tiles), chart)
-            if cancel is not None and cancel():
-                stop = True
 
 
 def regime_chart(
@@ -510,11 +485,11 @@ def regime_chart(
     workers: int | None = None,
     progress: Callable[[ChartUpdate], None] | None = None,
     cancel: Callable[[], bool] | None = None,
-    scheduler: Any = None,
+    executor: Executor | None = None,
 ) -> Chart:
     """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``."""
     chart = Chart.empty(spec)
-    kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "scheduler": scheduler}
+    kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "executor": executor}
     for upd in iter_chart(spec, **kw):
         chart = upd.chart
         if progress is not None:

@@ -33,9 +33,11 @@ import numpy as np
 
 from explorer_core.scenes import list_scenes
 from explorer_core.solve.integrators import Batch, Status, advance
-from explorer_core.solve.section import Numerics, Section
-from explorer_core.studies.failures import relative_error, spectral_rate, stability_interval
-from explorer_core.system.model import Model, Params
+from explorer_core.solve.numerics import Numerics
+from explorer_core.solve.section import Section
+from explorer_core.solve.stability import relative_error, spectral_rate, stability_interval
+from explorer_core.system.model import Model
+from explorer_core.system.params import Params
 
 LEVELS = ("warning", "error")
 

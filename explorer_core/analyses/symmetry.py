@@ -31,8 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core.solve.section import Numerics, check_ics, section
-from explorer_core.system.model import Model, ParameterError, Params
+from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.section import section
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
 
 #: A residual of the field identities below this (relative to the field's size) is rounding.
 FIELD_TOL = 1e-12

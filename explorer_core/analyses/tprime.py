@@ -23,8 +23,9 @@ import numpy as np
 
 from explorer_core import config
 from explorer_core.solve.integrators import Batch, Status, advance
-from explorer_core.solve.section import Numerics
-from explorer_core.system.model import Model, ParameterError, Params
+from explorer_core.solve.numerics import Numerics
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
 
 
 @dataclass(frozen=True)

@@ -1,27 +1,19 @@
-"""Charts of regimes and bifurcation sweeps on a Dask cluster (``dask.distributed``).
+"""The Dask executor: an analysis's tasks on a Dask cluster (``dask.distributed``).
 
-A *scheduler* is ``"tcp://HOST:PORT"`` (a running ``dask scheduler``), ``"local:N"``
-(a :class:`distributed.LocalCluster` of ``N`` single-threaded worker processes,
-started on first use and kept for the life of this process) or a
-``distributed.Client``. The work is split as on one machine, and every task is a
-pure function of plain data:
+A *scheduler* is ``"tcp://HOST:PORT"`` (a running ``dask scheduler``), ``"local:N"`` (a
+:class:`distributed.LocalCluster` of ``N`` single-threaded worker processes, started on first use and
+kept for the life of this process) or a ``distributed.Client``. :class:`DaskExecutor` implements the
+executor protocol of :mod:`explorer_core.parallel.executor`: the analysis hands it its tasks (a chart's
+tiles, the chunks of a sweep), pure functions of plain data, and gets their results back as they
+complete (``as_completed``), so charts fill in and progress is reported exactly as locally. Tasks run
+single-threaded with the same kernels, so the results are identical to a local run whatever the number
+of workers. A lost worker's tasks are rescheduled by the scheduler; ``retries`` re-runs a task that
+raised; ``cancel`` is polled while waiting and cancels every outstanding task.
 
-* a chart: one task per tile, :func:`~explorer_core.analyses.regimes.compute_tile`;
-* a bifurcation diagram: one task per chunk of values,
-  :func:`~explorer_core.analyses.bifurcation.sweep_chunk`; a continuation sweep submits its
-  next chunk from the previous chunk's final state, so forward and backward
-  sweeps run side by side, one chunk at a time each.
-
-Tasks run single-threaded with the same kernels and the same seeding, so the
-results are identical to the local run whatever the number of workers or threads.
-Results are gathered as they complete (``as_completed``) and handed back one by
-one, so charts fill in and progress is reported exactly as locally. A lost
-worker's tasks are rescheduled by the scheduler (``distributed.scheduler.allowed-failures``
-worker deaths per task); ``retries`` additionally re-runs a task that raised.
-``cancel`` is polled while waiting and cancels every outstanding task.
-
-``dask`` is imported only when a scheduler is used: the CLI and the app start
-as fast as before.
+Connecting checks that the scheduler answers, that it has a worker and that the workers run the same
+numeric code (:func:`fingerprint`); every failure is a :class:`SchedulerError` naming the address.
+Nothing here imports an analysis: the command line and the app make the executor and pass it in.
+``dask`` is imported only when a scheduler is used.
 """
 
 from __future__ import annotations
@@ -29,7 +21,6 @@ from __future__ import annotations
 import asyncio
 import atexit
 import hashlib
-import math
 import os
 import re
 import socket
@@ -38,16 +29,16 @@ import time
 import warnings
 import weakref
 from collections import deque
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import closing, suppress
+from contextlib import suppress
 from functools import cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from explorer_core.system.model import ParameterError
+from explorer_core.system.params import ParameterError
 
 #: Environment variable the app reads its scheduler from (unset or empty: local).
 ENV_VAR = "BILIMOVICH_SCHEDULER"
@@ -60,8 +51,7 @@ POLL_S = 0.05
 #: Tasks queued per worker thread: enough to keep workers busy, few enough that cancel is cheap.
 TASKS_PER_THREAD = 2
 MAX_LOCAL_WORKERS = 256
-#: Modules whose code decides the numbers; workers must run the same (see :func:`fingerprint`).
-#: The code that decides the numbers: every module of these floors of the core (see docs/architecture.md).
+#: The code that decides the numbers, every module of these floors of the core: workers must run the same.
 NUMERIC_PACKAGES = ("system", "solve", "analyses")
 
 
@@ -141,21 +131,6 @@ def _worker_info() -> tuple[dict[str, str], str]:
     return fingerprint(), host_cpu()
 
 
-_warm_lock = threading.Lock()
-_warmed = False
-
-
-def warm() -> None:
-    """Load every numba kernel once per process (from the on-disk cache when it is there)."""
-    global _warmed
-    with _warm_lock:
-        if not _warmed:
-            from explorer_core.solve.integrators import warmup_all
-
-            warmup_all()
-            _warmed = True
-
-
 # ---------------------------------------------------------------------------
 # Clients.
 
@@ -165,20 +140,21 @@ _checked: weakref.WeakSet = weakref.WeakSet()
 _clients_lock = threading.Lock()
 
 
-def get_client(scheduler: Any, *, timeout: float = DEFAULT_TIMEOUT) -> Any:
+def get_client(scheduler: Any, *, timeout: float = DEFAULT_TIMEOUT, warm: Callable[[], None] | None = None) -> Any:
     """A ready ``distributed.Client`` for ``scheduler``, cached per address for the life of the process.
 
     Connecting checks that the scheduler answers within ``timeout`` seconds, that
     it has at least one worker and that the workers run the same numeric code and
     libraries (:func:`fingerprint`); every failure is a :class:`SchedulerError`
-    naming the address. The workers' kernels are warmed before the first task.
+    naming the address. ``warm`` (e.g. :func:`explorer_core.warm.warm_all`) runs once on every
+    worker before the first task.
     """
     from distributed import Client
 
     if isinstance(scheduler, Client):
         with _clients_lock:
             if scheduler not in _checked:
-                _prepare(scheduler, str(scheduler.scheduler.address), timeout)
+                _prepare(scheduler, str(scheduler.scheduler.address), timeout, warm)
                 _checked.add(scheduler)
         return scheduler
     address = parse_scheduler(scheduler)
@@ -188,7 +164,7 @@ def get_client(scheduler: Any, *, timeout: float = DEFAULT_TIMEOUT) -> Any:
             return client
         client = _connect(address, timeout)
         try:
-            _prepare(client, address, timeout)
+            _prepare(client, address, timeout, warm)
         except BaseException:
             client.close()
             raise
@@ -275,7 +251,7 @@ async def _identity(address: str, timeout: float) -> Any:
         comm.abort()
 
 
-def _prepare(client: Any, address: str, timeout: float) -> None:
+def _prepare(client: Any, address: str, timeout: float, warm: Callable[[], None] | None) -> None:
     try:
         client.wait_for_workers(1, timeout=timeout)
     except Exception:
@@ -298,9 +274,10 @@ def _prepare(client: Any, address: str, timeout: float) -> None:
                 f"worker {worker} of {address} runs different code than this process ({diff}); results would "
                 "not be identical: install the same version of bilimovich-explorer and its libraries there"
             )
-    # Compile or load the kernels on every worker now (in a task thread, not the worker's event loop),
-    # so the first tiles do not pay for it; a worker that joins later warms up in its first task.
-    client.gather([client.submit(warm, workers=[w], pure=False) for w in info])
+    if warm is not None:
+        # Compile or load the kernels on every worker now (in a task thread, not the worker's event loop),
+        # so the first tasks do not pay for it; a worker that joins later compiles in its first task.
+        client.gather([client.submit(warm, workers=[w], pure=False) for w in info])
     cpus = {cpu for _, cpu in info.values()}
     if cpus != {host_cpu()}:
         warnings.warn(
@@ -312,10 +289,6 @@ def _prepare(client: Any, address: str, timeout: float) -> None:
 
 # ---------------------------------------------------------------------------
 # The task stream.
-
-
-def _label(scheduler: Any, client: Any) -> str:
-    return parse_scheduler(scheduler) if isinstance(scheduler, str) else str(client.scheduler.address)
 
 
 def _threads(client: Any) -> int:
@@ -393,92 +366,35 @@ class _LostScheduler:
             raise SchedulerError(f"lost the Dask scheduler at {self.address} ({type(exc).__name__}: {exc})") from None
 
 
-def run_tiles(
-    spec: Any,
-    tiles: Sequence[Any],
-    scheduler: Any,
-    *,
-    cancel: Callable[[], bool] | None = None,
-    timeout: float = DEFAULT_TIMEOUT,
-) -> Iterator[Any]:
-    """:func:`~explorer_core.analyses.regimes.compute_tile` of every tile on the cluster, yielding results as done.
+class DaskExecutor:
+    """Tasks on the Dask cluster of ``scheduler`` (see the module docstring); connects on first use.
 
-    Tiles are queued in plan order (coarse levels first); within a batch that
-    completes together, coarser tiles come first, as in the local run.
+    ``warm`` runs once on every worker before its first task (the kernels compiled or loaded there).
     """
-    client = get_client(scheduler, timeout=timeout)
-    address = _label(scheduler, client)
-    todo = deque((n, _tile_task, (spec, tile)) for n, tile in enumerate(tiles))
-    with closing(_stream(client, todo, cancel, address)) as stream:  # closing: cancel tasks if our caller stops
-        for batch in stream:
-            yield from sorted((res for _, res in batch), key=lambda r: r.tile.stride, reverse=True)
+
+    def __init__(self, scheduler: Any, *, timeout: float = DEFAULT_TIMEOUT, warm: Callable[[], None] | None = None):
+        # An address is checked now (a clear error before any work); a distributed.Client is used as it is.
+        self.scheduler = parse_scheduler(scheduler) if isinstance(scheduler, str) else scheduler
+        self.timeout = timeout
+        self.warm = warm
+        self._client: Any = None
+
+    @property
+    def label(self) -> str:
+        return self.scheduler if isinstance(self.scheduler, str) else str(self.scheduler.scheduler.address)
+
+    def client(self) -> Any:
+        if self._client is None or self._client.status != "running":
+            self._client = get_client(self.scheduler, timeout=self.timeout, warm=self.warm)
+        return self._client
+
+    def threads(self) -> int:
+        return _threads(self.client())
+
+    def stream(self, todo: deque, cancel: Callable[[], bool] | None = None) -> Iterator[list[tuple[Any, Any]]]:
+        yield from _stream(self.client(), todo, cancel, self.label)
 
 
-def _tile_task(spec: Any, tile: Any) -> Any:
-    from explorer_core.analyses.regimes import compute_tile
-
-    warm()
-    return compute_tile(spec, tile)
-
-
-def _chunk_task(spec: Any, sweep: int, indices: Sequence[int], seed: np.ndarray, continuation: bool) -> Any:
-    from explorer_core.analyses.bifurcation import sweep_chunk
-
-    warm()
-    return sweep_chunk(spec, sweep, indices, seed, continuation, 1)
-
-
-def run_sweeps(
-    spec: Any,
-    valid: np.ndarray,
-    seeding: str,
-    sweeps: Sequence[str],
-    scheduler: Any,
-    *,
-    progress: Callable[[Any], None] | None = None,
-    cancel: Callable[[], bool] | None = None,
-    chunk: int | None = None,
-    timeout: float = DEFAULT_TIMEOUT,
-) -> dict[str, np.ndarray]:
-    """:func:`~explorer_core.analyses.bifurcation.sweep_orbits` for a ``SweepSpec`` on a cluster.
-
-    Same arguments and the same result dict (bit for bit); ``progress`` is called
-    once per value, in bursts of a chunk. ``chunk`` values per task (default: about
-    four tasks per worker thread with fixed seeding, 16 chunks per continuation sweep).
-    """
-    from explorer_core.analyses.bifurcation import SweepProgress, check_sweeps, empty_sweep_arrays, sweep_order
-
-    start = time.perf_counter()
-    names = check_sweeps(seeding, sweeps)
-    valid = np.asarray(valid, bool)
-    out = empty_sweep_arrays(len(names), valid, spec.ics.shape[0], spec.n_points)
-    orders = [sweep_order(s, valid.size, valid) for s in names]
-    total = sum(len(o) for o in orders)
-    continuation = seeding != "fixed"
-    client = get_client(scheduler, timeout=timeout)
-    address = _label(scheduler, client)
-    if chunk is None:
-        n = max(len(o) for o in orders) if orders else 0
-        chunk = math.ceil(n / 16) if continuation else math.ceil(n / (4 * _threads(client)))
-    chunk = max(1, min(64, int(chunk)))
-    pieces = [[o[i : i + chunk] for i in range(0, len(o), chunk)] for o in orders]
-    todo: deque = deque()
-    if continuation:  # each sweep's next chunk needs the previous one's final state
-        todo.extend(
-            ((s, 0), _chunk_task, (spec, s, pieces[s][0], spec.ics, True)) for s in range(len(names)) if pieces[s]
-        )
-    else:
-        todo.extend(((0, k), _chunk_task, (spec, 0, p, spec.ics, False)) for k, p in enumerate(pieces[0]))
-    done = 0
-    with closing(_stream(client, todo, cancel, address)) as stream:
-        for batch in stream:
-            for (s, k), res in batch:
-                for j, v in enumerate(res.indices):
-                    for name in ("points", "npts", "status", "final"):
-                        out[name][s, v] = getattr(res, name)[j]
-                    done += 1
-                    if progress is not None:
-                        progress(SweepProgress(done, total, time.perf_counter() - start))
-                if continuation and k + 1 < len(pieces[s]):
-                    todo.append(((s, k + 1), _chunk_task, (spec, s, pieces[s][k + 1], res.seed, True)))
-    return {"sweeps": np.array(names), **out}
+def executor_for(scheduler: Any, warm: Callable[[], None] | None = None) -> DaskExecutor | None:
+    """A :class:`DaskExecutor` for ``scheduler``, or ``None`` (run in this process) when it is ``None``."""
+    return None if scheduler is None else DaskExecutor(scheduler, warm=warm)

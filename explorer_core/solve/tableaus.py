@@ -5,7 +5,14 @@ embedded Runge-Kutta formulae", J. Comp. Appl. Math. 6, the 5(4) pair with FSAL.
 Hairer, Norsett & Wanner, Solving ODEs I (2nd ed.), II.10, the 8(5,3) pair; only the 12
 stages of the step (not the dense-output stages) are kept. Values as published (and as
 used by scipy.integrate, which the tests compare against).
+
+:data:`METHODS` holds each as a validated :class:`Method`; the engine
+(:mod:`explorer_core.solve.rk`) does the arithmetic for all of them.
 """
+
+from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -200,3 +207,84 @@ DOP853_E5 = np.array(
 )
 DOP853_ORDER = 8
 DOP853_ERROR_ORDER = 7
+
+
+# ---------------------------------------------------------------------------
+# Methods: the tableaus above, checked on construction.
+
+#: Tolerance of the checks of a tableau's consistency conditions (the published values are rounded).
+_CHECK_TOL = 1e-14
+
+
+@dataclass(frozen=True)
+class Method:
+    """An explicit Runge-Kutta method: tableau, order and (for an embedded pair) error weights.
+
+    ``a`` (s, s) strictly lower triangular, ``b`` and ``c`` (s,); ``e``, ``e3``, ``e5`` (s + 1,) weights of
+    the error estimate on the stages and the FSAL stage ``f(t + h, y_new)``: ``e`` for a standard pair
+    (DP5), ``e5`` and ``e3`` for DOP853's combined estimate (``e`` zero). Checked on construction:
+    ``sum(b) = 1``, the rows of ``a`` sum to ``c``, each set of error weights sums to 0.
+    """
+
+    name: str
+    order: int
+    adaptive: bool
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    error_order: int = 0
+    e: np.ndarray | None = None
+    e3: np.ndarray | None = None
+    e5: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        s = self.b.shape[0]
+        a = np.zeros((s, s))
+        a[: self.a.shape[0], : self.a.shape[1]] = self.a[:s, :s]
+        object.__setattr__(self, "a", a)
+        zero = np.zeros(s + 1)
+        for name in ("e", "e3", "e5"):
+            v = getattr(self, name)
+            object.__setattr__(self, name, zero.copy() if v is None else np.asarray(v, float)[: s + 1].copy())
+        problems = []
+        if self.c.shape != (s,):
+            problems.append(f"c has shape {self.c.shape}, b has {s} stages")
+        if np.any(np.triu(a) != 0.0):
+            problems.append("a is not strictly lower triangular (explicit methods only)")
+        if abs(self.b.sum() - 1.0) > _CHECK_TOL:
+            problems.append(f"sum(b) = {self.b.sum()!r}, not 1")
+        if self.c.shape == (s,) and np.abs(a.sum(axis=1) - self.c).max() > _CHECK_TOL:
+            problems.append("the rows of a do not sum to c")
+        for name in ("e", "e3", "e5"):
+            if abs(getattr(self, name).sum()) > _CHECK_TOL:
+                problems.append(f"the error weights {name} do not sum to 0")
+        if self.adaptive and not (np.any(self.e) or (np.any(self.e3) and np.any(self.e5))):
+            problems.append("an adaptive method needs error weights")
+        if problems:
+            raise ValueError(f"tableau {self.name!r}: " + "; ".join(problems))
+
+    @property
+    def stages(self) -> int:
+        return self.b.shape[0]
+
+    @property
+    def dop853_error(self) -> bool:
+        """True for DOP853's combined 5th/3rd-order error estimate."""
+        return bool(np.any(self.e5))
+
+
+METHODS: dict[str, Method] = {
+    "rk4": Method("rk4", 4, False, RK4_A, RK4_B, RK4_C),
+    "dp5": Method("dp5", DP5_ORDER, True, DP5_A, DP5_B, DP5_C, DP5_ERROR_ORDER, e=DP5_E),
+    "dop853": Method(
+        "dop853", DOP853_ORDER, True, DOP853_A, DOP853_B, DOP853_C, DOP853_ERROR_ORDER, e3=DOP853_E3, e5=DOP853_E5
+    ),
+}
+
+
+def get_method(name: str) -> Method:
+    """The method called ``name``; a ValueError names the bad value and the choices."""
+    try:
+        return METHODS[str(name).lower()]
+    except KeyError:
+        raise ValueError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}") from None

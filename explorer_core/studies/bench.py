@@ -81,10 +81,10 @@ from scipy.integrate import solve_ivp
 
 from explorer_core import config
 from explorer_core.scenes import get_scene
-from explorer_core.solve import tableaus
 from explorer_core.solve.integrators import Batch, Status, advance
-from explorer_core.solve.section import random_ics
-from explorer_core.system.model import Model, ParameterError, Params, coefficients_at, forcing_g
+from explorer_core.solve.numerics import random_ics
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
 
 #: Bumped whenever the reference computation changes (invalidates the disk cache).
 REFERENCE_VERSION = 1
@@ -382,97 +382,24 @@ def numbalsoda_status() -> tuple[Any, str]:
 
 
 # ---------------------------------------------------------------------------
-# The ceiling: a minimal lock-step kernel of the same arithmetic.
-
-
-@nb.njit(nogil=True, cache=True, error_model="numpy")
-def lockstep_ceiling(a_mat, b_vec, c_vec, num, gpc, den, forcing, t0, period, n_periods, steps_per_period, y, block):
-    """Fixed-step explicit RK (the tableau ``a, b, c``) on blocks of trajectories in lock-step.
-
-    The stage arithmetic of :func:`explorer_core.solve.integrators.advance_adaptive_block` without error
-    control, step rejection, escape checks or bookkeeping, laid out for speed: per stage the
-    coefficients are computed once for the block, then every loop runs over the block's members on
-    contiguous arrays (vectorisable), with the step folded into the tableau. ``y``
-    (n, 2) is advanced in place; returns the trajectory-steps taken (``n * n_periods * steps``).
-    """
-    n = y.shape[0]
-    s = b_vec.shape[0]
-    kq = np.empty((s, block))
-    kr = np.empty((s, block))
-    yq = np.empty(block)
-    yr = np.empty(block)
-    sq = np.empty(block)
-    sr = np.empty(block)
-    c = np.empty((2, 6))
-    h = period / steps_per_period
-    ah = a_mat * h  # the step folded into the tableau once: one multiply less per member and stage
-    bh = b_vec * h
-    for start in range(0, n, block):
-        m = min(block, n - start)
-        for p in range(m):
-            yq[p] = y[start + p, 0]
-            yr[p] = y[start + p, 1]
-        for j in range(n_periods):
-            ta = t0 + j * period
-            for i in range(steps_per_period):
-                t = ta + i * h
-                for st in range(s):
-                    g, gp = forcing_g(forcing, t + c_vec[st] * h)
-                    coefficients_at(num, gpc, den, g, gp, c)
-                    c00, c01, c02, c03, c04, c05 = c[0, 0], c[0, 1], c[0, 2], c[0, 3], c[0, 4], c[0, 5]
-                    c10, c11, c12, c13, c14, c15 = c[1, 0], c[1, 1], c[1, 2], c[1, 3], c[1, 4], c[1, 5]
-                    for p in range(m):
-                        sq[p] = 0.0
-                        sr[p] = 0.0
-                    for mm in range(st):
-                        am = ah[st, mm]
-                        if am != 0.0:
-                            for p in range(m):
-                                sq[p] += am * kq[mm, p]
-                                sr[p] += am * kr[mm, p]
-                    for p in range(m):
-                        q = yq[p] + sq[p]
-                        r = yr[p] + sr[p]
-                        kq[st, p] = c00 + q * (c01 + c03 * q + c04 * r) + r * (c02 + c05 * r)
-                        kr[st, p] = c10 + q * (c11 + c13 * q + c14 * r) + r * (c12 + c15 * r)
-                for p in range(m):
-                    sq[p] = 0.0
-                    sr[p] = 0.0
-                for mm in range(s):
-                    bm = bh[mm]
-                    if bm != 0.0:
-                        for p in range(m):
-                            sq[p] += bm * kq[mm, p]
-                            sr[p] += bm * kr[mm, p]
-                for p in range(m):
-                    yq[p] += sq[p]
-                    yr[p] += sr[p]
-        for p in range(m):
-            y[start + p, 0] = yq[p]
-            y[start + p, 1] = yr[p]
-    return n * n_periods * steps_per_period
-
-
-def _dop853_tableau() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    s = tableaus.DOP853_B.shape[0]
-    a = np.zeros((s, s))
-    a[:, : tableaus.DOP853_A.shape[1]] = tableaus.DOP853_A[:s]
-    return np.ascontiguousarray(a), np.ascontiguousarray(tableaus.DOP853_B), np.ascontiguousarray(tableaus.DOP853_C)
+# The ceiling: the engine's lock-step arithmetic with nothing else.
 
 
 def run_ceiling(model: Model, ics: np.ndarray, periods: int, steps_per_period: int, block: int = 0) -> np.ndarray:
-    """The ceiling kernel (DOP853 stages, fixed steps) on ``ics``; returns the end states."""
-    a, b, c = _dop853_tableau()
-    y = np.ascontiguousarray(np.array(ics, dtype=float).reshape(-1, 2))
-    p = model.params
-    tables = (model.num[:2], model.gpc[:2], model.den, np.ascontiguousarray(model.forcing))
-    lockstep_ceiling(a, b, c, *tables, p.t0, p.period, int(periods), int(steps_per_period), y,
-                     int(block or config.BLOCK_SIZE))  # fmt: skip
-    return y
+    """DOP853's stages at fixed steps on blocks of ``block`` trajectories in lock-step; returns the end states.
+
+    The engine (:mod:`explorer_core.solve.rk`) with no error control, step rejection or stored points and an
+    infinite escape bound: the arithmetic of the lock-step block and its bookkeeping of live members only,
+    on one thread -- the speed the adaptive sections could reach if they needed no error control.
+    """
+    batch = Batch.start(np.asarray(ics, dtype=float), model.params.t0, model.params.period)
+    advance(model, batch, int(periods), method="dop853", adaptive=False, steps_per_period=int(steps_per_period),
+            bound=math.inf, store=False, workers=1, block=int(block or config.BLOCK_SIZE))  # fmt: skip
+    return batch.y
 
 
 def warmup() -> None:
-    """Compile (or load from the cache) the ceiling kernel and, if numbalsoda is there, the cfunc rhs."""
+    """Compile (or load from the cache) the engine and, if numbalsoda is there, the cfunc rhs."""
     model = Model(Params())
     run_ceiling(model, np.array([[0.1, 0.2], [0.2, 0.1]]), 1, 4)
     mod, _ = numbalsoda_status()

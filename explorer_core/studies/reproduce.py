@@ -30,19 +30,15 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
-from explorer_core.analyses.bifurcation import (
-    OrbitDiagram,
-    bifurcation_diagram,
-    bilimovich_orbits,
-    detect_period,
-    sweep_values,
-)
+from explorer_core.analyses.bifurcation import OrbitDiagram, bifurcation_diagram, bilimovich_orbits
 from explorer_core.analyses.drift import DriftFit, drift_fit, fit_polynomial
 from explorer_core.analyses.lyapunov import LyapunovResult, attractor_ensemble, kaplan_yorke, lyapunov_spectrum
 from explorer_core.analyses.regimes import CHAOTIC, PERIODIC, Chart, chart_spec, regime_chart
+from explorer_core.analyses.sweeps import detect_period, sweep_values
 from explorer_core.scenes import Scene, get_scene
-from explorer_core.solve.section import Numerics, Section, section
-from explorer_core.system.model import ParameterError, Params
+from explorer_core.solve.numerics import Numerics
+from explorer_core.solve.section import Section, section
+from explorer_core.system.params import ParameterError, Params
 
 
 @dataclass(frozen=True)

@@ -31,147 +31,20 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numba as nb
 import numpy as np
 from numpy.polynomial import polynomial as P
 
+from explorer_core.system.params import Params
+
 #: Monomial order of the coefficient tables.
 MONOMIALS = ("1", "q", "r", "q^2", "q r", "r^2")
 #: Rows of the coefficient tables.
 ROW_Q, ROW_R, ROW_LAMBDA = 0, 1, 2
-#: Names of the six independent inertia entries, in the order used everywhere.
-INERTIA_NAMES = ("I11", "I22", "I33", "I12", "I13", "I23")
 _DEG = 5  # polynomial coefficients kept per table entry (degree <= 4 in g)
-
-
-class ParameterError(ValueError):
-    """A parameter set that does not define a valid Bilimovich system."""
-
-
-def _check_finite(name: str, value: Any) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError, OverflowError):
-        shown = repr(value) if len(repr(value)) <= 60 else repr(value)[:57] + "..."
-        raise ParameterError(f"{name} must be a finite number, got {shown}") from None
-    if not math.isfinite(v):
-        raise ParameterError(f"{name} must be finite, got {value!r}")
-    return v
-
-
-@dataclass(frozen=True)
-class Params:
-    """One parameter set of the system.
-
-    Parameters
-    ----------
-    inertia : (I11, I22, I33, I12, I13, I23)
-        Entries of the symmetric positive-definite inertia tensor.
-    alpha : float
-        Inhomogeneity of the constraint ``p - g q = alpha``.
-    g0, g1, g2, omega : float
-        Forcing ``g(t) = g0 + g1 cos(omega t) + g2 sin(omega t)``, ``omega > 0``.
-    t0 : float
-        Section phase: Poincare points are taken at ``t0 + k T``.
-    """
-
-    inertia: tuple[float, float, float, float, float, float] = (1.0, 2.0, 4.0, 0.0, 0.0, 0.0)
-    alpha: float = 0.1
-    g0: float = 0.0
-    g1: float = 1.0
-    g2: float = 0.0
-    omega: float = 1.0
-    t0: float = 0.0
-
-    def __post_init__(self) -> None:
-        ent = self.inertia
-        if isinstance(ent, str | bytes):
-            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got the string {ent[:40]!r}")
-        if isinstance(ent, np.ndarray) and ent.shape == (3, 3):
-            ent = inertia_entries(ent)
-        try:
-            ent = tuple(ent)
-        except TypeError:
-            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {self.inertia!r}") from None
-        if len(ent) != 6:
-            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {len(ent)}: {ent!r}")
-        ent = tuple(_check_finite(n, v) for n, v in zip(INERTIA_NAMES, ent, strict=True))
-        object.__setattr__(self, "inertia", ent)
-        for f in ("alpha", "g0", "g1", "g2", "omega", "t0"):
-            object.__setattr__(self, f, _check_finite(f, getattr(self, f)))
-        if self.omega <= 0.0:
-            raise ParameterError(f"omega must be > 0 (forcing frequency), got {self.omega!r}")
-        _check_positive_definite(self.inertia_matrix, ent)
-
-    @property
-    def inertia_matrix(self) -> np.ndarray:
-        """The 3x3 inertia tensor."""
-        i11, i22, i33, i12, i13, i23 = self.inertia
-        return np.array([[i11, i12, i13], [i12, i22, i23], [i13, i23, i33]], dtype=float)
-
-    @property
-    def period(self) -> float:
-        """Forcing period ``T = 2 pi / omega``."""
-        return 2.0 * math.pi / self.omega
-
-    @property
-    def forcing(self) -> np.ndarray:
-        """``(g0, g1, g2, omega)`` as the array the kernels take."""
-        return np.array([self.g0, self.g1, self.g2, self.omega], dtype=float)
-
-    def with_(self, **changes: Any) -> Params:
-        """A copy with some fields changed; accepts inertia entries by name (``I11=...``)."""
-        new = changes.pop("inertia", self.inertia)
-        if isinstance(new, str | bytes) or not hasattr(new, "__len__"):
-            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {new!r}")
-        ent = list(new)
-        if len(ent) != 6:
-            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {len(ent)}: {ent!r}")
-        for i, n in enumerate(INERTIA_NAMES):
-            if n in changes:
-                ent[i] = changes.pop(n)
-        return replace(self, inertia=tuple(ent), **changes)
-
-    def as_dict(self) -> dict[str, Any]:
-        """Plain-JSON form (inertia as a list)."""
-        d = {f.name: getattr(self, f.name) for f in fields(self)}
-        d["inertia"] = list(self.inertia)
-        return d
-
-
-def inertia_entries(matrix: Any, tol: float = 1e-12) -> tuple[float, ...]:
-    """The six entries of a 3x3 tensor; rejects a non-symmetric one, naming the entry."""
-    m = np.asarray(matrix, dtype=float)
-    if m.shape != (3, 3):
-        raise ParameterError(f"inertia tensor must be 3x3, got shape {m.shape}")
-    if not np.all(np.isfinite(m)):
-        raise ParameterError(f"inertia tensor must be finite, got {m.tolist()}")
-    scale = max(1.0, float(np.max(np.abs(m))))
-    for (i, j), name in (((0, 1), "I12"), ((0, 2), "I13"), ((1, 2), "I23")):
-        if abs(m[i, j] - m[j, i]) > tol * scale:
-            raise ParameterError(
-                f"inertia tensor is not symmetric: {name}={float(m[i, j])!r} but I{j + 1}{i + 1}={float(m[j, i])!r}"
-            )
-    return (m[0, 0], m[1, 1], m[2, 2], m[0, 1], m[0, 2], m[1, 2])
-
-
-def _check_positive_definite(m: np.ndarray, ent: tuple[float, ...]) -> None:
-    eig = np.linalg.eigvalsh(m)
-    # Relative threshold: a tensor this close to singular makes lambda's
-    # denominator vanish and the reduced field meaningless.
-    if eig[0] <= 1e-12 * max(1.0, float(np.max(np.abs(eig)))):
-        txt = ", ".join(f"{n}={v:g}" for n, v in zip(INERTIA_NAMES, ent, strict=True))
-        raise ParameterError(
-            f"inertia tensor is not positive definite ({txt}; smallest eigenvalue {eig[0]:.6g}); "
-            "off-diagonal entries are too large for the diagonal ones"
-        )
-
-
-# ---------------------------------------------------------------------------
-# Exact construction of the coefficient tables (polynomials in g).
 
 
 def _pvec_const(v: np.ndarray) -> list[np.ndarray]:
@@ -272,35 +145,61 @@ def _tables(params: Params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 # numba primitives shared by every kernel.
 
 _jit = nb.njit(nogil=True, cache=True, fastmath=False, error_model="numpy")
+#: The pieces of the engine's inner loops: no reference counting (``_nrt=False``: they allocate nothing,
+#: and a reference-count update is an atomic instruction), small enough for LLVM to inline them.
+_leaf = nb.njit(nogil=True, cache=True, fastmath=False, error_model="numpy", _nrt=False)
+
+
+@_leaf
+def forcing_of(forcing: np.ndarray, s: int, t: float) -> tuple[float, float]:
+    """``g(t)`` and ``g'(t)`` for row ``s`` of stacked forcings ``(P, 4)``, each ``(g0, g1, g2, omega)``."""
+    w = forcing[s, 3]
+    c = math.cos(w * t)
+    sn = math.sin(w * t)
+    return forcing[s, 0] + forcing[s, 1] * c + forcing[s, 2] * sn, w * (forcing[s, 2] * c - forcing[s, 1] * sn)
+
+
+@_leaf
+def coefficients_of(num, gpc, den, s: int, g: float, gp: float, out, o: int) -> None:
+    """``out[o, row, m]``: the monomial coefficients of row ``row`` (Q, R, lambda) at ``(g, g')`` from set ``s``.
+
+    Stacked tables: ``num`` (P, rows, 6, 5), ``gpc`` (P, rows, 2), ``den`` (P, 3); ``out`` (., rows', 6)
+    with ``rows' <= rows`` (the kernels need only Q and R). ``[N(g) + g' G(g)] / D(g)``, Horner in ``g``.
+    """
+    dinv = 1.0 / (den[s, 0] + g * (den[s, 1] + g * den[s, 2]))
+    for row in range(out.shape[1]):
+        for m in range(6):
+            v = num[s, row, m, 0] + g * (
+                num[s, row, m, 1] + g * (num[s, row, m, 2] + g * (num[s, row, m, 3] + g * num[s, row, m, 4]))
+            )
+            if m == 1:
+                v += gp * (gpc[s, row, 0] + g * gpc[s, row, 1])
+            out[o, row, m] = v * dinv
 
 
 @_jit
 def forcing_g(forcing: np.ndarray, t: float) -> tuple[float, float]:
     """``g(t)`` and ``g'(t)`` for ``forcing = (g0, g1, g2, omega)``."""
-    w = forcing[3]
-    c = math.cos(w * t)
-    s = math.sin(w * t)
-    return forcing[0] + forcing[1] * c + forcing[2] * s, w * (forcing[2] * c - forcing[1] * s)
+    return forcing_of(forcing.reshape((1, 4)), 0, t)
 
 
 @_jit
 def coefficients_at(num: np.ndarray, gpc: np.ndarray, den: np.ndarray, g: float, gp: float, out: np.ndarray) -> None:
-    """Fill ``out[row, m]`` with the monomial coefficients of Q, R, lambda at (g, g')."""
-    dinv = 1.0 / (den[0] + g * (den[1] + g * den[2]))
-    nrow = out.shape[0]
-    for row in range(nrow):
-        for m in range(6):
-            c = num[row, m]
-            v = c[0] + g * (c[1] + g * (c[2] + g * (c[3] + g * c[4])))
-            if m == 1:
-                v += gp * (gpc[row, 0] + g * gpc[row, 1])
-            out[row, m] = v * dinv
+    """Fill ``out[row, m]`` with the monomial coefficients of Q, R, lambda at (g, g') (one model's tables)."""
+    coefficients_of(num.reshape((1, *num.shape)), gpc.reshape((1, *gpc.shape)), den.reshape((1, 3)), 0, g, gp,
+                    out.reshape((1, *out.shape)), 0)  # fmt: skip
+
+
+@_leaf
+def quadratic(c0: float, c1: float, c2: float, c3: float, c4: float, c5: float, q: float, r: float) -> float:
+    """``c0 + c1 q + c2 r + c3 q^2 + c4 q r + c5 r^2`` (:data:`MONOMIALS`): every kernel evaluates the field so."""
+    return c0 + q * (c1 + c3 * q + c4 * r) + r * (c2 + c5 * r)
 
 
 @_jit
 def eval_quadratic(c: np.ndarray, row: int, q: float, r: float) -> float:
-    """``c0 + c1 q + c2 r + c3 q^2 + c4 q r + c5 r^2`` for one row of coefficients."""
-    return c[row, 0] + q * (c[row, 1] + c[row, 3] * q + c[row, 4] * r) + r * (c[row, 2] + c[row, 5] * r)
+    """:func:`quadratic` with one row of a coefficient table."""
+    return quadratic(c[row, 0], c[row, 1], c[row, 2], c[row, 3], c[row, 4], c[row, 5], q, r)
 
 
 @_jit
@@ -314,9 +213,9 @@ def rhs(
     r: float,
     work: np.ndarray,
 ) -> tuple[float, float]:
-    """``(Q, R)`` at ``(q, r, t)``; ``work`` is a (>=2, 6) scratch array."""
+    """``(Q, R)`` at ``(q, r, t)`` from one model's tables; ``work`` is a (2, 6) scratch array."""
     g, gp = forcing_g(forcing, t)
-    coefficients_at(num[:2], gpc[:2], den, g, gp, work)
+    coefficients_at(num, gpc, den, g, gp, work)
     return eval_quadratic(work, 0, q, r), eval_quadratic(work, 1, q, r)
 
 

@@ -1,0 +1,76 @@
+"""Sweeping a parameter: which parameters can be swept, their values, and reading a period off section points.
+
+Shared by the orbit diagrams (:mod:`explorer_core.analyses.bifurcation`), the charts of regimes
+(:mod:`explorer_core.analyses.regimes`) and the continuation of periodic orbits.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from explorer_core import config
+from explorer_core.solve.rk import Status
+from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
+
+#: Parameters a diagram (or a chart of regimes) can sweep.
+SWEEP_PARAMS = ("alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega")
+#: Status code of a parameter value that does not define a system (beyond :class:`Status`).
+INVALID_PARAMS = 9
+#: Status code of work that was cancelled before it ran.
+NOT_RUN = 10
+
+
+def status_label(code: int) -> str:
+    """Label of a status code: :class:`Status` labels plus ``invalid_params`` and ``not_run``."""
+    if code == INVALID_PARAMS:
+        return "invalid_params"
+    if code == NOT_RUN:
+        return "not_run"
+    return Status(int(code)).label
+
+
+def check_param(name: str) -> str:
+    """Canonical name of a sweepable parameter (case-insensitive: ``Omega`` is ``omega``)."""
+    for p in SWEEP_PARAMS:
+        if str(name).strip().lower() == p.lower():
+            return p
+    raise ParameterError(f"cannot sweep {name!r}; choose one of {', '.join(SWEEP_PARAMS)}")
+
+
+def sweep_values(rng: Sequence[float], n: int) -> np.ndarray:
+    """``n`` equally spaced values over ``rng = (lo, hi)`` (both ends included)."""
+    try:
+        lo, hi = (float(v) for v in rng)
+    except (TypeError, ValueError):
+        raise ParameterError(f"range must be two numbers lo,hi, got {rng!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ParameterError(f"range must be finite with lo < hi, got {rng!r}")
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 1 <= n <= config.MAX_GRID * 16:
+        raise ParameterError(f"n_values must be an integer in [1, {config.MAX_GRID * 16}], got {n!r}")
+    return np.linspace(lo, hi, int(n)) if n > 1 else np.array([lo])
+
+
+def params_at(base: Params, name: str, value: float) -> Params | str:
+    """``base`` with ``name = value``, or the reason the result is not a valid system."""
+    try:
+        return base.with_(**{name: float(value)})
+    except ParameterError as exc:
+        return str(exc)
+
+
+def detect_period(points: np.ndarray, p_max: int, tol: float) -> int:
+    """Smallest ``p <= p_max`` with ``|x_{k+p} - x_k| <= tol`` for every ``k`` of ``points``; 0 if none.
+
+    ``points`` are consecutive section points after a transient, shape (m, 2),
+    ``m > p_max``; ``tol`` is absolute (in units of ``q``, ``r``).
+    """
+    pts = np.asarray(points, dtype=float)
+    m = pts.shape[0]
+    for p in range(1, min(p_max, m - 1) + 1):
+        d = np.abs(pts[p:] - pts[:-p]).max()
+        if d <= tol:
+            return p
+    return 0

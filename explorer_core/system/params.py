@@ -1,0 +1,144 @@
+"""The parameters of the inhomogeneous Bilimovich system: inertia tensor, ``alpha`` and the forcing ``g(t)``.
+
+:class:`Params` is validated on construction (finite values, a positive-definite tensor, a positive
+forcing frequency); every boundary (command line, app, URL) builds one and reports its
+:class:`ParameterError`, which names the bad value. Pure numpy: importing it costs no compiler.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+from typing import Any
+
+import numpy as np
+
+#: Names of the six independent inertia entries, in the order used everywhere.
+INERTIA_NAMES = ("I11", "I22", "I33", "I12", "I13", "I23")
+
+
+class ParameterError(ValueError):
+    """A parameter set that does not define a valid Bilimovich system."""
+
+
+def _check_finite(name: str, value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        shown = repr(value) if len(repr(value)) <= 60 else repr(value)[:57] + "..."
+        raise ParameterError(f"{name} must be a finite number, got {shown}") from None
+    if not math.isfinite(v):
+        raise ParameterError(f"{name} must be finite, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Params:
+    """One parameter set of the system.
+
+    Parameters
+    ----------
+    inertia : (I11, I22, I33, I12, I13, I23)
+        Entries of the symmetric positive-definite inertia tensor.
+    alpha : float
+        Inhomogeneity of the constraint ``p - g q = alpha``.
+    g0, g1, g2, omega : float
+        Forcing ``g(t) = g0 + g1 cos(omega t) + g2 sin(omega t)``, ``omega > 0``.
+    t0 : float
+        Section phase: Poincare points are taken at ``t0 + k T``.
+    """
+
+    inertia: tuple[float, float, float, float, float, float] = (1.0, 2.0, 4.0, 0.0, 0.0, 0.0)
+    alpha: float = 0.1
+    g0: float = 0.0
+    g1: float = 1.0
+    g2: float = 0.0
+    omega: float = 1.0
+    t0: float = 0.0
+
+    def __post_init__(self) -> None:
+        ent = self.inertia
+        if isinstance(ent, str | bytes):
+            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got the string {ent[:40]!r}")
+        if isinstance(ent, np.ndarray) and ent.shape == (3, 3):
+            ent = inertia_entries(ent)
+        try:
+            ent = tuple(ent)
+        except TypeError:
+            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {self.inertia!r}") from None
+        if len(ent) != 6:
+            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {len(ent)}: {ent!r}")
+        ent = tuple(_check_finite(n, v) for n, v in zip(INERTIA_NAMES, ent, strict=True))
+        object.__setattr__(self, "inertia", ent)
+        for f in ("alpha", "g0", "g1", "g2", "omega", "t0"):
+            object.__setattr__(self, f, _check_finite(f, getattr(self, f)))
+        if self.omega <= 0.0:
+            raise ParameterError(f"omega must be > 0 (forcing frequency), got {self.omega!r}")
+        _check_positive_definite(self.inertia_matrix, ent)
+
+    @property
+    def inertia_matrix(self) -> np.ndarray:
+        """The 3x3 inertia tensor."""
+        i11, i22, i33, i12, i13, i23 = self.inertia
+        return np.array([[i11, i12, i13], [i12, i22, i23], [i13, i23, i33]], dtype=float)
+
+    @property
+    def period(self) -> float:
+        """Forcing period ``T = 2 pi / omega``."""
+        return 2.0 * math.pi / self.omega
+
+    @property
+    def forcing(self) -> np.ndarray:
+        """``(g0, g1, g2, omega)`` as the array the kernels take."""
+        return np.array([self.g0, self.g1, self.g2, self.omega], dtype=float)
+
+    def with_(self, **changes: Any) -> Params:
+        """A copy with some fields changed; accepts inertia entries by name (``I11=...``)."""
+        new = changes.pop("inertia", self.inertia)
+        if isinstance(new, str | bytes) or not hasattr(new, "__len__"):
+            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {new!r}")
+        ent = list(new)
+        if len(ent) != 6:
+            raise ParameterError(f"inertia must be six numbers I11,I22,I33,I12,I13,I23, got {len(ent)}: {ent!r}")
+        for i, n in enumerate(INERTIA_NAMES):
+            if n in changes:
+                ent[i] = changes.pop(n)
+        return replace(self, inertia=tuple(ent), **changes)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain-JSON form (inertia as a list)."""
+        d = {f.name: getattr(self, f.name) for f in fields(self)}
+        d["inertia"] = list(self.inertia)
+        return d
+
+
+def inertia_entries(matrix: Any, tol: float = 1e-12) -> tuple[float, ...]:
+    """The six entries of a 3x3 tensor; rejects a non-symmetric one, naming the entry."""
+    m = np.asarray(matrix, dtype=float)
+    if m.shape != (3, 3):
+        raise ParameterError(f"inertia tensor must be 3x3, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise ParameterError(f"inertia tensor must be finite, got {m.tolist()}")
+    scale = max(1.0, float(np.max(np.abs(m))))
+    for (i, j), name in (((0, 1), "I12"), ((0, 2), "I13"), ((1, 2), "I23")):
+        if abs(m[i, j] - m[j, i]) > tol * scale:
+            raise ParameterError(
+                f"inertia tensor is not symmetric: {name}={float(m[i, j])!r} but I{j + 1}{i + 1}={float(m[j, i])!r}"
+            )
+    return (m[0, 0], m[1, 1], m[2, 2], m[0, 1], m[0, 2], m[1, 2])
+
+
+def _check_positive_definite(m: np.ndarray, ent: tuple[float, ...]) -> None:
+    eig = np.linalg.eigvalsh(m)
+    # Relative threshold: a tensor this close to singular makes lambda's
+    # denominator vanish and the reduced field meaningless.
+    if eig[0] <= 1e-12 * max(1.0, float(np.max(np.abs(eig)))):
+        txt = ", ".join(f"{n}={v:g}" for n, v in zip(INERTIA_NAMES, ent, strict=True))
+        raise ParameterError(
+            f"inertia tensor is not positive definite ({txt}; smallest eigenvalue {eig[0]:.6g}); "
+            "off-diagonal entries are too large for the diagonal ones"
+        )
+
+
+# ---------------------------------------------------------------------------
+# Exact construction of the coefficient tables (polynomials in g).

@@ -1,0 +1,25 @@
+"""Compile (or load from the on-disk cache) every numba kernel of the package, so no user waits for it.
+
+The engine (:mod:`explorer_core.solve.rk`) is one kernel for every method, system (sections, the
+tangent system, the Lyapunov basis) and mode (adaptive, fixed, lock-step, per-member parameters): one
+call compiles it. Used by ``bilimovich warmup``, the app server at start-up and the Dask workers.
+"""
+
+from __future__ import annotations
+
+import threading
+
+_lock = threading.Lock()
+_warmed = False
+
+
+def warm_all() -> None:
+    """Compile or load every kernel, once per process (later calls return at once)."""
+    global _warmed
+    with _lock:
+        if _warmed:
+            return
+        from explorer_core.solve.integrators import warmup
+
+        warmup()
+        _warmed = True
