@@ -24,7 +24,7 @@ import numpy as np
 from explorer_core import __version__, config
 from explorer_core.scenes import Scene, get_scene, list_scenes
 from explorer_core.solve.numerics import Numerics, check_box, random_ics
-from explorer_core.system.params import INERTIA_NAMES, Params
+from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
 
 class UsageError(Exception):
@@ -117,8 +117,8 @@ def _params(args: argparse.Namespace) -> tuple[Params, Scene | None]:
     return base.with_(**changes), scene
 
 
-def _numerics(args: argparse.Namespace, scene: Scene | None, periods: int) -> Numerics:
-    base = scene.numerics(periods) if scene else Numerics()
+def _numerics(args: argparse.Namespace, scene: Scene | None, periods: int, base: Numerics | None = None) -> Numerics:
+    base = base or (scene.numerics(periods) if scene else Numerics())
     kw = base.as_dict()
     kw.pop("adaptive", None)
     if args.method:
@@ -406,6 +406,158 @@ def cmd_lyapunov(args: argparse.Namespace) -> int:
             )
     if not res.completed:
         sys.stderr.write("bilimovich: interrupted; the estimate covers the periods computed so far\n")
+        return 130
+    return 0
+
+
+def _seed_list(args: argparse.Namespace, numerics: Numerics) -> list[tuple[float, float]]:
+    seeds = [tuple(_floats(v, 2, "--seed")) for v in (args.seed or [])]
+    for q, r in seeds:
+        if abs(q) > numerics.bound or abs(r) > numerics.bound:
+            raise UsageError(f"--seed {q:g},{r:g} is outside the escape bound {numerics.bound:g}")
+    return seeds  # type: ignore[return-value]
+
+
+def cmd_orbits(args: argparse.Namespace) -> int:
+    from explorer_core.analyses.orbits import MAX_PERIOD, ORBIT_NUMERICS, find_orbits, grid_seeds, return_seeds
+
+    params, scene = _params(args)
+    if args.period is not None and args.max_period is not None:
+        raise UsageError("give --period N (that period only) or --max-period N (1..N), not both")
+    cap = args.period if args.period is not None else (args.max_period if args.max_period is not None else 1)
+    if not 1 <= cap <= MAX_PERIOD:
+        raise UsageError(f"the period must be in [1, {MAX_PERIOD}], got {cap}")
+    periods = [cap] if args.period is not None else list(range(1, cap + 1))
+    numerics = _numerics(args, None, 1, base=ORBIT_NUMERICS)
+    seeds = _seed_list(args, numerics)
+    box = check_box(_floats(args.box, 4, "--box")) if args.box else (scene.box if scene else (-2.0, 2.0, -2.0, 2.0))
+    grid = [int(v) for v in _floats(args.seeds, 2, "--seeds")] if args.seeds else None
+    if grid is not None and not all(1 <= v <= config.MAX_GRID for v in grid):
+        raise UsageError(f"--seeds NX,NY must be whole numbers in [1, {config.MAX_GRID}], got {args.seeds}")
+    pairs: list[tuple[tuple[float, float], list[int]]] = [(s_, periods) for s_ in seeds]
+    if grid is not None or not (seeds or args.returns):
+        nx, ny = grid or (10, 10)
+        pairs += [((float(q), float(r)), periods) for q, r in grid_seeds(box, nx, ny)]
+    if args.returns:
+        from explorer_core.solve.section import section
+
+        sec = section(params, random_ics(args.returns, box, seed=0), 200, transient=300, numerics=numerics)
+        tol = 0.02 * max(box[1] - box[0], box[3] - box[2])
+        pairs += [((float(x[0]), float(x[1])), [n]) for x, n in return_seeds(sec.points, sec.npts, cap, tol)
+                  if n in periods]  # fmt: skip
+    write, show = _progress_line(args.quiet)
+    with _Interrupt() as stop:
+        found: list = []
+        failures: list = []
+        by_periods: dict[tuple[int, ...], list] = {}
+        for seed_, per in pairs:
+            by_periods.setdefault(tuple(per), []).append(seed_)
+        elapsed = 0.0
+        for per, group in by_periods.items():
+            write(f"{len(group)} seeds x periods {per[0]}..{per[-1]}")
+            res = find_orbits(params, np.array(group), list(per), numerics=numerics, bound=box if args.in_box else None,
+                              cancel=stop)  # fmt: skip
+            elapsed += res.elapsed_s
+            failures += res.failures
+            for o in res.orbits:
+                if not any(_same(o, f) for f in found):
+                    found.append(o)
+            if not res.completed:
+                break
+    if show:
+        sys.stderr.write("\n")
+    found.sort(key=lambda o: (o.period, float(o.points[0, 0]), float(o.points[0, 1])))
+    summary = {
+        "orbits": [o.as_dict() for o in found],
+        "failures": [f.as_dict() for f in failures],
+        "seeds": len(pairs),
+        "periods": periods,
+        "completed": not stop(),
+        "elapsed_s": round(elapsed, 6),
+        "params": params.as_dict(),
+        "numerics": numerics.as_dict(),
+    }
+    if args.scene:
+        summary["scene"] = args.scene
+    if args.out:
+        _check_out(args.out)
+        from explorer_core.analyses.orbits import OrbitSearch
+
+        summary["csv"] = {"path": args.out, "rows": OrbitSearch(params, numerics, found, failures, len(pairs),
+                                                                elapsed).to_csv(args.out)}  # fmt: skip
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        for o in found:
+            mu = ", ".join(f"{m.real:.6g}{m.imag:+.6g}i" if m.imag else f"{m.real:.6g}" for m in o.multipliers)
+            print(f"period {o.period} {o.kind:15s} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g})  mu = {mu}")
+        print(f"{len(found)} orbits, {len(failures)} seeds without one, {elapsed:.2f} s")
+    if stop():
+        sys.stderr.write("bilimovich: interrupted; the orbits found so far were written\n")
+        return 130
+    return 0
+
+
+def _same(a: Any, b: Any) -> bool:
+    from explorer_core.analyses.orbits import same_orbit
+
+    return same_orbit(a, b)
+
+
+def cmd_continue(args: argparse.Namespace) -> int:
+    from explorer_core.analyses.continuation import continue_orbit
+    from explorer_core.analyses.orbits import ORBIT_NUMERICS
+    from explorer_core.analyses.sweeps import check_param
+
+    params, _ = _params(args)
+    name = check_param(args.param)
+    lo, hi = _floats(args.range, 2, "--range")
+    for v in (lo, hi):  # positive-definite tensors are convex: both ends valid means the whole range is
+        try:
+            params.with_(**{name: v})
+        except ParameterError as exc:
+            raise UsageError(f"--range {args.range}: {name} = {v:g} is not a valid system ({exc})") from None
+    numerics = _numerics(args, None, 1, base=ORBIT_NUMERICS)
+    if args.from_ is None:
+        raise UsageError("give --from Q,R: a point near the period-N orbit at the range's first value")
+    q, r = _floats(args.from_, 2, "--from")
+    if abs(q) > numerics.bound or abs(r) > numerics.bound:
+        raise UsageError(f"--from {q:g},{r:g} is outside the escape bound {numerics.bound:g}")
+    if (args.param2 is None) != (args.range2 is None):
+        raise UsageError("--param2 and --range2 go together")
+    range2 = _floats(args.range2, 2, "--range2") if args.range2 else None
+    write, show = _progress_line(args.quiet)
+    with _Interrupt() as stop:
+        res = continue_orbit(params, name, (lo, hi), (q, r), args.period, switch=args.switch,
+                             max_period=args.max_period, numerics=numerics, param2=args.param2, range2=range2,
+                             max_points=args.max_points, progress=lambda n, v: write(f"{n} points, {name} = {v:.8g}"),
+                             cancel=stop)  # fmt: skip
+    if show:
+        sys.stderr.write("\n")
+    summary = res.summary()
+    if args.out:
+        _check_out(args.out)
+        with open(args.out, "w") as fh:
+            fh.write("branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable\n")
+            rows = 0
+            for i, br in enumerate(res.branches):
+                for v, x, mu, st in zip(br.values, br.states, br.mults, br.stable, strict=True):
+                    fh.write(f"{i},{br.period},{v!r},{x[0]!r},{x[1]!r},{mu[0].real!r},{mu[0].imag!r},"
+                             f"{mu[1].real!r},{mu[1].imag!r},{int(st)}\n")  # fmt: skip
+                    rows += 1
+        summary["csv"] = {"path": args.out, "rows": rows}
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        for i, br in enumerate(res.branches):
+            print(f"branch {i}: period {br.period}, {len(br.values)} points, {name} {br.values[0]:.10g} .. "
+                  f"{br.values[-1]:.10g} ({br.stop})")  # fmt: skip
+        for b in res.bifurcations:
+            print(f"{b.kind} of the period-{b.period} orbit at {name} = {b.value:.12g} +- {b.error:.1g}")
+        for m in res.messages:
+            print(m)
+    if not res.completed:
+        sys.stderr.write("bilimovich: interrupted; the branches computed so far were written\n")
         return 130
     return 0
 
@@ -850,6 +1002,39 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_bifurcation)
+
+    p = sub.add_parser("orbits", help="periodic orbits of the Poincare map: Newton on P^n(x) - x, multipliers, type")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--period", type=_count("period", 1, 1_000_000), help="this period only")
+    p.add_argument("--max-period", type=_count("max-period", 1, 1_000_000), help="periods 1..N (default 1)")
+    p.add_argument("--seed", action="append", metavar="Q,R", help="a starting point (repeatable)")
+    p.add_argument("--box", help="Q0,Q1,R0,R1: the grid of seeds (default: the scene's box)")
+    p.add_argument("--seeds", metavar="NX,NY", help="a grid of NX x NY seeds over --box (default 10,10 without --seed)")
+    p.add_argument("--returns", type=_count("returns", 1, 10_000), metavar="N",
+                   help="also seed from near-returns of a section of N random trajectories in the box")  # fmt: skip
+    p.add_argument("--in-box", action="store_true", help="keep only orbits whose points are all in the box")
+    p.add_argument("--out", metavar="FILE.csv", help="orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im")
+    p.add_argument("--json", action="store_true", help="print the JSON result")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=cmd_orbits)
+
+    p = sub.add_parser("continue", help="follow a periodic orbit in a parameter through folds and period doublings")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
+    p.add_argument("--range", required=True, metavar="A,B", help="from A (where the orbit is seeded) to B")
+    p.add_argument("--from", dest="from_", metavar="Q,R", help="a point near the period-N orbit at A")
+    p.add_argument("--period", type=_count("period", 1, 1024), default=1)
+    p.add_argument("--switch", action="store_true", help="at each period doubling, follow the doubled orbit too")
+    p.add_argument("--max-period", type=_count("max-period", 1, 1024), default=16, help="cap of a cascade")
+    p.add_argument("--max-points", type=_count("max-points", 2, 1_000_000), default=5000, help="per branch")
+    p.add_argument("--param2", help="also follow each fold / period doubling in (PARAM, PARAM2)")
+    p.add_argument("--range2", metavar="C,D", help="the range of PARAM2")
+    p.add_argument("--out", metavar="FILE.csv", help="branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable")
+    p.add_argument("--json", action="store_true", help="print the JSON result")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=cmd_continue)
 
     p = sub.add_parser("chart", help="chart of dynamical regimes on a plane of two parameters")
     _add_system_args(p)

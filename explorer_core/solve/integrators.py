@@ -34,8 +34,20 @@ from explorer_core.solve import rk
 from explorer_core.solve.rk import FIELD, Status
 from explorer_core.solve.tableaus import METHODS, Method, get_method
 from explorer_core.system.model import Model
+from explorer_core.system.params import Params
 
-__all__ = ["FIXED_BLOCK", "METHODS", "Batch", "Method", "Status", "advance", "coefficients", "get_method", "run"]
+__all__ = [
+    "FIXED_BLOCK",
+    "METHODS",
+    "Batch",
+    "Method",
+    "Status",
+    "advance",
+    "coefficients",
+    "get_method",
+    "run",
+    "run_at",
+]
 
 #: Trajectories advanced together at fixed steps (lock-step costs nothing there: every member takes
 #: the same steps; the block only bounds the scratch arrays so they stay in cache).
@@ -256,6 +268,49 @@ def advance(
         Number of valid section points each trajectory produced in this call.
     """
     return run(FIELD, coefficients(model, n=batch.n), batch, n_periods, **kw)
+
+
+def run_at(
+    system: int,
+    params: Sequence[Params],
+    y0: np.ndarray,
+    n_periods: int,
+    *,
+    workers: int | None = None,
+    block: int = config.BLOCK_SIZE,
+    **kw,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`run` of state ``y0[i]`` under ``params[i]`` from ``t0`` (one parameter set each, or one for all).
+
+    Members whose systems share the section times (``t0`` and the forcing period) go in lock-step blocks
+    with per-member coefficients: finite differences in a parameter then see one step sequence and are
+    smooth in the parameter. Systems with other section times (a change of ``omega`` or ``t0``) run as
+    separate batches. Returns the end states (m, dim), the records (m, n_periods, RECORD_SIZE), the
+    statuses and step counts.
+    """
+    y0 = np.asarray(y0, dtype=float)
+    params = list(params)
+    if len(params) == 1 and y0.shape[0] > 1:
+        params = params * y0.shape[0]
+    if len(params) != y0.shape[0]:
+        raise ValueError(f"{len(params)} parameter sets for {y0.shape[0]} states")
+    m = y0.shape[0]
+    end, status, nsteps = np.zeros_like(y0), np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
+    recs = np.zeros((m, int(n_periods), rk.RECORD_SIZE[system]))
+    groups: dict[tuple[float, float], list[int]] = {}
+    for i, p in enumerate(params):
+        groups.setdefault((p.t0, p.period), []).append(i)
+    for (t0, period), idx in groups.items():
+        unique: dict[Params, int] = {}
+        rows = np.array([unique.setdefault(params[i], len(unique)) for i in idx], dtype=np.int64)
+        models = [Model(p) for p in unique]
+        coefs = coefficients(models[0], n=len(idx)) if len(models) == 1 else coefficients(models, rows)
+        batch = Batch(y0[idx].copy(), np.zeros(len(idx)), np.zeros(len(idx), dtype=np.int64),
+                      np.zeros(len(idx), dtype=np.int64), 0, t0, period)  # fmt: skip
+        batch.status[~np.all(np.isfinite(batch.y), axis=1)] = int(Status.NONFINITE)
+        rec, _ = run(system, coefs, batch, n_periods, workers=workers, block=block, **kw)
+        end[idx], recs[idx], status[idx], nsteps[idx] = batch.y, rec, batch.status, batch.nsteps
+    return end, recs, status, nsteps
 
 
 def warmup() -> None:

@@ -21,10 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from explorer_core.solve import rk
-from explorer_core.solve.integrators import Batch, coefficients, run
+from explorer_core.solve.integrators import Batch, run, run_at
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.rk import LYAPUNOV, TANGENT, Status
-from explorer_core.system.model import Model
 from explorer_core.system.params import Params
 
 #: Components of the tangent state: q, r, the 2x2 matrix Phi by columns (v1 = (y2, y3), v2 = (y4, y5)), int div.
@@ -111,8 +110,7 @@ def monodromy(
     batch = start(np.asarray(x, dtype=float).reshape(-1, 2), t0, period)
     rec, npts = run(TANGENT, coefs, batch, int(n_periods), workers=workers, block=block, **numerics.kernel_kwargs())
     y = batch.y
-    matrix = np.stack([np.stack([y[:, 2], y[:, 4]], axis=-1), np.stack([y[:, 3], y[:, 5]], axis=-1)], axis=-2)
-    return Monodromy(y[:, :2].copy(), matrix, y[:, 6].copy(), rec[..., :2].copy(), batch.status.copy(),
+    return Monodromy(y[:, :2].copy(), _matrix(y), y[:, 6].copy(), rec[..., :2].copy(), batch.status.copy(),
                      batch.nsteps.copy())  # fmt: skip
 
 
@@ -127,35 +125,17 @@ def monodromy_at(
 ) -> Monodromy:
     """:func:`monodromy` of point ``x[i]`` under ``params[i]`` (one parameter set each, or one for all).
 
-    Points whose systems share the section times (``t0`` and the forcing period) go in lock-step blocks
-    with per-member coefficients: finite differences in a parameter then see one step sequence, so they
-    are smooth in the parameter. Systems with other section times (a change of ``omega`` or ``t0``) run
-    as separate batches.
+    Grouped and batched as :func:`explorer_core.solve.integrators.run_at`: members that share the section
+    times go in lock-step blocks with per-member coefficients (finite differences in a parameter see one
+    step sequence).
     """
     x = np.asarray(x, dtype=float).reshape(-1, 2)
-    params = list(params)
-    if len(params) == 1 and x.shape[0] > 1:
-        params = params * x.shape[0]
-    if len(params) != x.shape[0]:
-        raise ValueError(f"{len(params)} parameter sets for {x.shape[0]} points")
-    n = x.shape[0]
-    end, div, status, nsteps = np.zeros((n, 2)), np.zeros(n), np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
-    matrix, points = np.zeros((n, 2, 2)), np.zeros((n, int(n_periods), 2))
-    groups: dict[tuple[float, float], list[int]] = {}
-    for i, p in enumerate(params):
-        groups.setdefault((p.t0, p.period), []).append(i)
-    for (t0, period), idx in groups.items():
-        unique: dict[Params, int] = {}
-        rows = np.array([unique.setdefault(params[i], len(unique)) for i in idx], dtype=np.int64)
-        models = [Model(p) for p in unique]
-        coefs = coefficients(models[0], n=len(idx)) if len(models) == 1 else coefficients(models, rows)
-        m = monodromy(coefs, x[idx], n_periods, t0, period, numerics, workers=workers, block=block)
-        end[idx], matrix[idx], div[idx], points[idx], status[idx], nsteps[idx] = (
-            m.end,
-            m.matrix,
-            m.div,
-            m.points,
-            m.status,
-            m.nsteps,
-        )
-    return Monodromy(end, matrix, div, points, status, nsteps)
+    y0 = start(x, 0.0, 1.0).y
+    y, rec, status, nsteps = run_at(TANGENT, params, y0, int(n_periods), workers=workers, block=block,
+                                    **numerics.kernel_kwargs())  # fmt: skip
+    return Monodromy(y[:, :2].copy(), _matrix(y), y[:, 6].copy(), rec[..., :2].copy(), status, nsteps)
+
+
+def _matrix(y: np.ndarray) -> np.ndarray:
+    # Phi with columns v1 = (y2, y3), v2 = (y4, y5), shape (m, 2, 2)
+    return np.stack([np.stack([y[:, 2], y[:, 4]], axis=-1), np.stack([y[:, 3], y[:, 5]], axis=-1)], axis=-2)

@@ -1,0 +1,428 @@
+"""Periodic orbits of the Poincare map: fixed points of ``P^n``, their multipliers and their type.
+
+An orbit of period ``n`` is a solution of ``F(x) = P^n(x) - x = 0``. Newton's method uses the exact
+derivative ``DP^n(x)``: the monodromy matrix of the tangent system (:mod:`explorer_core.solve.tangent`),
+integrated with the state by the one engine and landing exactly on the section times. Many seeds are
+iterated together (one lock-step batch per period and iteration). Globalisation is a trust region on
+the step: a step is at most ``max_step`` long, and an iterate whose residual did not decrease (or whose
+trajectory failed, e.g. escaped) is pulled half way back with the radius halved.
+
+Each orbit reports its ``n`` points (starting with the lexicographically smallest: cyclic shifts are one
+orbit), its multipliers ``mu1, mu2`` (eigenvalues of ``DP^n``, largest modulus first), ``det DP^n``
+checked against Liouville's ``exp(int div dt)`` over the ``n`` periods, the residual, the iterations and
+its type (:func:`classify`). The period is minimal: a fixed point found as a 2-cycle is reported as a
+fixed point. A seed where Newton fails is a :class:`OrbitFailure` with its reason, never an orbit.
+
+Reference: Kuznetsov, *Elements of Applied Bifurcation Theory*, ch. 10 (fixed points of maps);
+MatContM (Govaerts, Kuznetsov, Meijer et al.) for the same objects in MATLAB.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from explorer_core import config
+from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
+from explorer_core.solve.rk import Status
+from explorer_core.solve.tangent import Monodromy, monodromy_at
+from explorer_core.system.params import ParameterError, Params
+
+#: Integration settings for orbits: the residual can only be as small as ``P^n`` is accurate.
+ORBIT_NUMERICS = Numerics(method="dop853", rtol=1e-12, atol=1e-12)
+#: Longest period searched (``P^n`` of a chaotic region has multipliers ~ e^(lambda n T): Newton's basin shrinks).
+MAX_PERIOD = 64
+#: Newton stops when the residual ``|P^n(x) - x|`` is below ``ftol (1 + |x|)``.
+FTOL = 1e-9
+MAX_ITER = 40
+#: ``|mu| = 1`` within this: neutral (real) or elliptic (complex pair).
+UNIT_TOL = 1e-6
+TYPES = ("stable node", "stable focus", "unstable node", "unstable focus", "saddle", "flip saddle", "elliptic",
+         "neutral")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Orbit:
+    """A periodic orbit of the Poincare map (see the module docstring).
+
+    ``points`` (n, 2): ``x, P(x), ..., P^(n-1)(x)``; ``matrix`` (2, 2): ``DP^n`` at ``points[0]``;
+    ``multipliers`` (2,) complex, largest modulus first; ``det`` = ``det DP^n``; ``liouville`` =
+    ``exp(int_0^{nT} div dt)`` (equal to ``det`` up to integration error); ``residual`` =
+    ``|P^n(x) - x|`` at ``points[0]``.
+    """
+
+    period: int
+    points: np.ndarray
+    matrix: np.ndarray
+    multipliers: np.ndarray
+    det: float
+    liouville: float
+    residual: float
+    iterations: int
+    kind: str
+    seed: tuple[float, float] = (math.nan, math.nan)
+
+    @property
+    def stable(self) -> bool:
+        """Asymptotically stable: every multiplier inside the unit circle (beyond :data:`UNIT_TOL`)."""
+        return bool(np.all(np.abs(self.multipliers) < 1.0 - UNIT_TOL))
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "period": self.period,
+            "points": [[float(q), float(r)] for q, r in self.points],
+            "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
+            "type": self.kind,
+            "stable": self.stable,
+            "det": float(self.det),
+            "liouville": float(self.liouville),
+            "residual": float(self.residual),
+            "iterations": int(self.iterations),
+            "seed": [float(self.seed[0]), float(self.seed[1])],
+        }
+
+
+@dataclass(frozen=True)
+class OrbitFailure:
+    """A seed where Newton did not find an orbit of the asked period, and why."""
+
+    seed: tuple[float, float]
+    period: int
+    reason: str
+    iterations: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"seed": [float(self.seed[0]), float(self.seed[1])], "period": self.period, "reason": self.reason,
+                "iterations": self.iterations}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class OrbitSearch:
+    """The distinct orbits found from a set of seeds, and the seeds that found none."""
+
+    params: Params
+    numerics: Numerics
+    orbits: list[Orbit]
+    failures: list[OrbitFailure]
+    seeds: int
+    elapsed_s: float
+    completed: bool = True
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "orbits": [o.as_dict() for o in self.orbits],
+            "failures": [f.as_dict() for f in self.failures],
+            "seeds": self.seeds,
+            "completed": self.completed,
+            "elapsed_s": round(self.elapsed_s, 6),
+            "params": self.params.as_dict(),
+            "numerics": self.numerics.as_dict(),
+            **self.extra,
+        }
+
+    def to_csv(self, path: str) -> int:
+        """One row per orbit point: ``orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im``."""
+        rows = 0
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["orbit", "period", "type", "stable", "j", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im"])
+            for i, o in enumerate(self.orbits):
+                mu = o.multipliers
+                for j, (q, r) in enumerate(o.points):
+                    w.writerow([i, o.period, o.kind, int(o.stable), j, repr(float(q)), repr(float(r)),
+                                repr(mu[0].real), repr(mu[0].imag), repr(mu[1].real), repr(mu[1].imag)])  # fmt: skip
+                    rows += 1
+        return rows
+
+
+# ---------------------------------------------------------------------------
+# Multipliers and types.
+
+
+def multipliers(matrix: np.ndarray) -> np.ndarray:
+    """Eigenvalues of a 2x2 matrix (complex), largest modulus first."""
+    mu = np.linalg.eigvals(np.asarray(matrix, dtype=float)).astype(complex)
+    return mu[np.argsort(-np.abs(mu), kind="stable")]
+
+
+def classify(mu: np.ndarray, unit_tol: float = UNIT_TOL) -> str:
+    """Type of a fixed point of a planar map from its multipliers (one of :data:`TYPES`).
+
+    Complex pair: focus (stable inside the unit circle, unstable outside) or elliptic (on it). Real:
+    a node (both inside, or both outside), a saddle (one each side; a *flip* saddle when the
+    expanding multiplier is negative, so the unstable manifold flips sides each iterate), or neutral
+    when a multiplier is on the unit circle.
+    """
+    mu = np.asarray(mu, dtype=complex)
+    a = np.abs(mu)
+    if abs(mu[0].imag) > unit_tol * max(1.0, a[0]):
+        if abs(a[0] - 1.0) <= unit_tol:
+            return "elliptic"
+        return "stable focus" if a[0] < 1.0 else "unstable focus"
+    if np.any(np.abs(a - 1.0) <= unit_tol):
+        return "neutral"
+    if a[0] < 1.0:
+        return "stable node"
+    if a[1] > 1.0:
+        return "unstable node"
+    return "flip saddle" if mu[0].real < 0.0 else "saddle"
+
+
+# ---------------------------------------------------------------------------
+# Newton on P^n(x) - x, many seeds at once.
+
+
+@dataclass
+class _Work:
+    x: np.ndarray  # (m, 2) current iterates
+    period: np.ndarray  # (m,)
+    seed: np.ndarray  # (m, 2)
+    prev: np.ndarray  # (m, 2) last accepted iterate
+    prev_res: np.ndarray  # (m,) its residual
+    radius: np.ndarray  # (m,) trust radius
+    iters: np.ndarray  # (m,)
+    backtracks: np.ndarray  # (m,) consecutive pull-backs
+    done: np.ndarray  # (m,) bool
+    reason: list[str]
+    found: list[Monodromy | None]
+    found_x: np.ndarray  # (m, 2) the converged points
+
+
+def _canonical(points: np.ndarray) -> np.ndarray:
+    # the cyclic shift that starts with the lexicographically smallest point
+    j = int(np.lexsort((points[:, 1], points[:, 0]))[0])
+    return np.roll(points, -j, axis=0)
+
+
+def newton(
+    params: Params,
+    seeds: np.ndarray,
+    periods: np.ndarray,
+    *,
+    numerics: Numerics = ORBIT_NUMERICS,
+    ftol: float = FTOL,
+    max_iter: int = MAX_ITER,
+    max_step: float = 1.0,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+) -> tuple[list[tuple[int, np.ndarray, Monodromy, int]], list[OrbitFailure]]:
+    """Newton on ``P^n(x) - x`` from every ``(seeds[i], periods[i])``, all at once (low-level call).
+
+    Returns the converged ``(i, x, monodromy at x, iterations)`` and the failures with their reasons. The
+    period of a converged point is not yet checked to be minimal (see :func:`find_orbits`).
+    """
+    m = seeds.shape[0]
+    w = _Work(seeds.astype(float).copy(), periods.astype(np.int64), seeds.copy(), seeds.copy(), np.full(m, np.inf),
+              np.full(m, float(max_step)), np.zeros(m, np.int64), np.zeros(m, np.int64), np.zeros(m, bool),
+              [""] * m, [None] * m, np.zeros((m, 2)))  # fmt: skip
+    failures: list[OrbitFailure] = []
+
+    def fail(i: int, reason: str) -> None:
+        w.done[i] = True
+        failures.append(OrbitFailure((float(w.seed[i, 0]), float(w.seed[i, 1])), int(w.period[i]), reason,
+                                     int(w.iters[i])))  # fmt: skip
+
+    for _ in range(max_iter):
+        active = np.flatnonzero(~w.done)
+        if active.size == 0 or (cancel is not None and cancel()):
+            break
+        for n in np.unique(w.period[active]):
+            idx = active[w.period[active] == n]
+            mono = monodromy_at([params], w.x[idx], int(n), numerics, workers=workers)
+            for j, i in enumerate(idx):
+                w.iters[i] += 1
+                x = w.x[i]
+                bad = mono.status[j] != Status.OK
+                res = math.inf if bad else float(np.linalg.norm(mono.end[j] - x))
+                scale = 1.0 + float(np.linalg.norm(x))
+                if not bad and res <= ftol * scale:
+                    w.done[i] = True
+                    w.found[i] = mono.member(j)
+                    w.found_x[i] = x
+                    continue
+                if not res < w.prev_res[i] and np.isfinite(w.prev_res[i]):
+                    # No progress (or the trajectory failed): pull back half way, shrink the trust radius.
+                    w.backtracks[i] += 1
+                    w.radius[i] *= 0.5
+                    if w.backtracks[i] > 8:
+                        why = Status(int(mono.status[j])).label if bad else f"no decrease of the residual ({res:.3g})"
+                        fail(i, f"Newton stalled: {why}")
+                        continue
+                    w.x[i] = 0.5 * (w.prev[i] + x)
+                    continue
+                if bad:
+                    fail(i, f"the trajectory from the seed failed: {Status(int(mono.status[j])).label}")
+                    continue
+                w.backtracks[i] = 0
+                w.prev[i] = x
+                w.prev_res[i] = res
+                jac = mono.matrix[j] - np.eye(2)
+                det = float(np.linalg.det(jac))
+                if not np.isfinite(det) or abs(det) < 1e-14 * max(1.0, float(np.abs(jac).max()) ** 2):
+                    fail(i, "singular: a multiplier is 1 (det(DP^n - I) = 0)")
+                    continue
+                step = -np.linalg.solve(jac, mono.end[j] - x)
+                length = float(np.linalg.norm(step))
+                if length > w.radius[i]:
+                    step *= w.radius[i] / length
+                w.x[i] = x + step
+                if not np.all(np.isfinite(w.x[i])):
+                    fail(i, "the Newton step overflowed")
+    for i in np.flatnonzero(~w.done):
+        fail(i, f"no convergence in {int(w.iters[i])} iterations (residual {w.prev_res[i]:.3g})")
+    conv = [(int(i), w.found_x[i].copy(), w.found[i], int(w.iters[i])) for i in range(m) if w.found[i] is not None]
+    return conv, failures  # type: ignore[return-value]
+
+
+def orbit_from(
+    params: Params, x: np.ndarray, period: int, mono: Monodromy, iterations: int, seed: Any, unit_tol: float = UNIT_TOL
+) -> Orbit:
+    """An :class:`Orbit` from a converged point ``x`` and the monodromy of ``period`` periods there."""
+    pts = np.vstack([x[None, :], mono.points[0, : period - 1]])
+    shift = int(np.lexsort((pts[:, 1], pts[:, 0]))[0])
+    a = mono.matrix[0]
+    if shift:
+        # DP^n at another point of the orbit is conjugate (same multipliers); recompute it there exactly.
+        x0 = pts[shift]
+        mono = monodromy_at([params], x0[None, :], period, ORBIT_NUMERICS)
+        a = mono.matrix[0]
+        pts = np.roll(pts, -shift, axis=0)
+        res = float(np.linalg.norm(mono.end[0] - x0))
+    else:
+        res = float(np.linalg.norm(mono.end[0] - x))
+    mu = multipliers(a)
+    return Orbit(period, pts, a, mu, float(np.linalg.det(a)), float(math.exp(mono.div[0])), res, int(iterations),
+                 classify(mu, unit_tol), (float(seed[0]), float(seed[1])))  # fmt: skip
+
+
+def minimal_period(points: np.ndarray, end: np.ndarray, period: int, tol: float) -> int:
+    """The least ``d`` dividing ``period`` with ``P^d(x) = x`` within ``tol`` (``points`` are ``x, P(x), ...``)."""
+    x = points[0]
+    for d in range(1, period):
+        if period % d == 0 and np.linalg.norm(points[d] - x) <= tol * (1.0 + np.linalg.norm(x)):
+            return d
+    return period
+
+
+def same_orbit(a: Orbit, b: Orbit, tol: float = 1e-6) -> bool:
+    """True for the same period and a shared point (any cyclic shift)."""
+    if a.period != b.period:
+        return False
+    d = np.linalg.norm(a.points[:, None, :] - b.points[None, 0, :], axis=-1)
+    return bool(d.min() <= tol * (1.0 + np.linalg.norm(b.points[0])))
+
+
+def find_orbits(
+    params: Params,
+    seeds: Any,
+    periods: Sequence[int] | int,
+    *,
+    numerics: Numerics | None = None,
+    ftol: float = FTOL,
+    max_iter: int = MAX_ITER,
+    max_step: float = 1.0,
+    bound: Sequence[float] | None = None,
+    unit_tol: float = UNIT_TOL,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+) -> OrbitSearch:
+    """The distinct periodic orbits Newton finds from every seed for every period in ``periods``.
+
+    Parameters
+    ----------
+    seeds : (m, 2) points of the section at ``t0``.
+    periods : one period or several (each seed is tried with each); at most :data:`MAX_PERIOD`.
+    numerics : integration of ``P^n`` (default :data:`ORBIT_NUMERICS`, DOP853 at 1e-12).
+    ftol : convergence: ``|P^n(x) - x| <= ftol (1 + |x|)``.
+    max_step : the trust radius: a Newton step moves at most this far.
+    bound : ``(q0, q1, r0, r1)``: orbits with a point outside are dropped (counted in ``extra``).
+    cancel : polled between iterations; True stops with ``completed=False``.
+
+    Returns
+    -------
+    OrbitSearch : orbits sorted by period, then position; failures with their reasons.
+    """
+    start = time.perf_counter()
+    numerics = numerics or ORBIT_NUMERICS
+    seeds = check_ics(seeds)
+    per = [periods] if isinstance(periods, int | np.integer) else list(periods)
+    if not per:
+        raise ParameterError("give at least one period")
+    per = [check_int("period", p, 1, MAX_PERIOD) for p in per]
+    if not (math.isfinite(ftol) and 0 < ftol < 1):
+        raise ParameterError(f"ftol must be in (0, 1), got {ftol!r}")
+    check_int("max_iter", max_iter, 1, 10_000)
+    if not (math.isfinite(max_step) and max_step > 0):
+        raise ParameterError(f"max_step must be a positive number, got {max_step!r}")
+    box = check_box(bound, "bound") if bound is not None else None
+    if seeds.shape[0] * len(per) > config.MAX_TRAJECTORIES:
+        raise ParameterError(f"{seeds.shape[0]} seeds x {len(per)} periods exceeds {config.MAX_TRAJECTORIES}")
+    all_seeds = np.repeat(seeds, len(per), axis=0)
+    all_periods = np.tile(np.array(per, dtype=np.int64), seeds.shape[0])
+    conv, failures = newton(params, all_seeds, all_periods, numerics=numerics, ftol=ftol, max_iter=max_iter,
+                            max_step=max_step, cancel=cancel, workers=workers)  # fmt: skip
+    orbits: list[Orbit] = []
+    outside = 0
+    for i, x, mono, iters in conv:
+        n = int(all_periods[i])
+        pts = np.vstack([x[None, :], mono.points[0]])
+        d = minimal_period(pts, mono.end[0], n, max(100.0 * ftol, 1e-7))
+        if d < n:
+            mono = monodromy_at([params], x[None, :], d, numerics)  # the orbit's own period
+            n = d
+        orb = orbit_from(params, x, n, mono, iters, all_seeds[i], unit_tol)
+        if box is not None and not np.all(
+            (orb.points[:, 0] >= box[0])
+            & (orb.points[:, 0] <= box[1])
+            & (orb.points[:, 1] >= box[2])
+            & (orb.points[:, 1] <= box[3])
+        ):
+            outside += 1
+            continue
+        if not any(same_orbit(o, orb) for o in orbits):
+            orbits.append(orb)
+    orbits.sort(key=lambda o: (o.period, float(o.points[0, 0]), float(o.points[0, 1])))
+    return OrbitSearch(params, numerics, orbits, failures, int(seeds.shape[0]), time.perf_counter() - start,
+                       completed=not (cancel is not None and cancel()),
+                       extra={"periods": per, "outside_bound": outside})  # fmt: skip
+
+
+# ---------------------------------------------------------------------------
+# Seeds.
+
+
+def grid_seeds(box: Sequence[float], nx: int, ny: int) -> np.ndarray:
+    """Pixel centres of an ``nx`` x ``ny`` grid over ``box = (q0, q1, r0, r1)``."""
+    q0, q1, r0, r1 = check_box(box)
+    nx = check_int("nx", nx, 1, config.MAX_GRID)
+    ny = check_int("ny", ny, 1, config.MAX_GRID)
+    q = q0 + (np.arange(nx) + 0.5) * (q1 - q0) / nx
+    r = r0 + (np.arange(ny) + 0.5) * (r1 - r0) / ny
+    qq, rr = np.meshgrid(q, r)
+    return np.column_stack([qq.ravel(), rr.ravel()])
+
+
+def return_seeds(points: np.ndarray, npts: np.ndarray, max_period: int, tol: float) -> list[tuple[np.ndarray, int]]:
+    """Near-returns of computed section points: candidates ``(x_k, n)`` with ``|x_(k+n) - x_k| <= tol``.
+
+    ``points`` (traj, k, 2) with ``npts[traj]`` valid; for each trajectory and each ``n`` the closest
+    return (the orbit is near where the trajectory almost repeats itself after ``n`` iterations).
+    """
+    out = []
+    for t in range(points.shape[0]):
+        x = points[t, : int(npts[t])]
+        for n in range(1, max_period + 1):
+            if x.shape[0] <= n:
+                break
+            d = np.linalg.norm(x[n:] - x[:-n], axis=1)
+            k = int(np.argmin(d))
+            if d[k] <= tol:
+                out.append((x[k].copy(), n))
+    return out
