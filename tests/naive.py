@@ -139,3 +139,50 @@ def solve_ivp_lyapunov(params: Params, ic, periods: int, rtol: float = 1e-12, at
         pts.append(yk[:2].copy())
         y = np.concatenate([yk[:2], qm.ravel(), [0.0]])
     return np.array(logs), np.array(divs), np.array(pts)
+
+
+# ---------------------------------------------------------------------------
+# Periodic orbits (reference for explorer_core.analyses.orbits and .continuation).
+
+
+def ivp_map(params: Params, x, n: int, rtol: float = 1e-13, atol: float = 1e-13) -> np.ndarray:
+    """``P^n(x)`` by scipy's DOP853 on the naive field (the time-``n T`` map from ``t0``)."""
+    f = NaiveField(params)
+    sol = solve_ivp(f.rhs, (params.t0, params.t0 + n * params.period), np.asarray(x, float), method="DOP853",
+                    rtol=rtol, atol=atol)  # fmt: skip
+    assert sol.success, sol.message
+    return sol.y[:, -1]
+
+
+def fd_monodromy(params: Params, x, n: int, h: float = 1e-6) -> np.ndarray:
+    """``DP^n(x)`` by central differences of :func:`ivp_map` (independent of the variational equations)."""
+    x = np.asarray(x, float)
+    cols = [(ivp_map(params, x + h * e, n) - ivp_map(params, x - h * e, n)) / (2 * h) for e in np.eye(2)]
+    return np.column_stack(cols)
+
+
+def ivp_monodromy(params: Params, x, n: int, rtol: float = 1e-13, atol: float = 1e-13) -> tuple[np.ndarray, np.ndarray]:
+    """``(P^n(x), DP^n(x))`` by scipy's DOP853 on the naive field with ``Phi' = J Phi``, ``J`` by complex steps.
+
+    Independent of the coefficient tables and of the engine: a reference for the monodromy matrix
+    precise enough (~1e-12) to check the sign of a test function a few 1e-9 away from a bifurcation.
+    """
+    f = NaiveField(params)
+
+    def rhs(t, y):
+        jac = complex_step_jacobian(f, t, y[0], y[1])
+        return np.concatenate([f.rhs(t, y[:2]), (jac @ y[2:].reshape(2, 2)).ravel()])
+
+    y0 = np.concatenate([np.asarray(x, float), np.eye(2).ravel()])
+    sol = solve_ivp(rhs, (params.t0, params.t0 + n * params.period), y0, method="DOP853", rtol=rtol, atol=atol)
+    assert sol.success, sol.message
+    return sol.y[:2, -1], sol.y[2:, -1].reshape(2, 2)
+
+
+def ivp_fixed_point(params: Params, x, n: int, iterations: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """Newton on ``P^n(x) - x`` with :func:`ivp_monodromy`: the orbit point and ``DP^n`` there."""
+    x = np.asarray(x, float)
+    for _ in range(iterations):
+        end, a = ivp_monodromy(params, x, n)
+        x = x - np.linalg.solve(a - np.eye(2), end - x)
+    return x, ivp_monodromy(params, x, n)[1]

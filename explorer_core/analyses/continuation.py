@@ -350,11 +350,11 @@ class _Follower:
         X, a, fs, it = self.correct(n, X_pred, pt.t, None)
         return _Point(X, a, fs, self.tangent(a, fs, pt.t, 1.0)), it
 
-    def end(self, n: int, pt: _Point) -> _Point | None:
-        """The branch point at the range's end (``s = 1``), from ``pt``; None if the branch turns before it."""
-        if pt.t[2] <= 0.0:
+    def end(self, n: int, pt: _Point, s_end: float) -> _Point | None:
+        """The branch point at ``s = s_end`` (an end of the range) from ``pt``; None if the branch turns before it."""
+        if (s_end - pt.X[2]) * pt.t[2] <= 0.0:
             return None
-        X_pred = pt.X + ((1.0 - pt.X[2]) / pt.t[2]) * pt.t
+        X_pred = pt.X + ((s_end - pt.X[2]) / pt.t[2]) * pt.t
         X, a, fs, _ = self.correct(n, X_pred, np.array([0.0, 0.0, 1.0]), None, max_iter=12)
         return _Point(X, a, fs, self.tangent(a, fs, pt.t, 1.0))
 
@@ -541,9 +541,9 @@ def continue_orbit(
                 if float(new.t @ pt.t) < 0.9 and h > ds_min:
                     h *= 0.5
                     continue
-                end = not new.X[2] <= 1.0
-                if end:  # the last point lands on the range's end exactly
-                    new = fol.end(n, pt)
+                end = not 0.0 <= new.X[2] <= 1.0
+                if end:  # the last point lands on the range's end (or, after a fold, its start) exactly
+                    new = fol.end(n, pt, 1.0 if new.X[2] > 1.0 else 0.0)
                     if new is None:
                         br.stop = "range end"
                         break
@@ -566,7 +566,7 @@ def continue_orbit(
                 if progress is not None:
                     progress(res.n_points, fol.p(new.X))
                 if end:
-                    br.stop = "range end"
+                    br.stop = "range end" if new.X[2] >= 0.5 else "back at the range's start (after a fold)"
                     break
                 pt = new
                 h = min(ds_max, h * 1.5) if it <= 3 else (h * 0.6 if it >= 6 else h)
@@ -592,16 +592,57 @@ def continue_orbit(
     return res
 
 
-def _located(fol: _Follower, n: int, kind: str, p0: _Point, p1: _Point, branch: int) -> tuple[Bifurcation, _Point]:
-    """Locate the bifurcation between two points; its error estimate is the bracket plus the shift of the test
-    function's zero when the monodromy is integrated ten times less accurately (``|delta test| / |d test/dp|``).
+def _defining(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bifurcation's defining system at ``Y = (q, r, p_1, ...)``: ``G = (P^n(x) - x, test(A))`` and its Jacobian.
+
+    ``DP^n`` exact; the derivatives of the test function and ``F_p`` by central differences of one
+    lock-step batch (base, ``p_k +- delta``, ``x +- delta e_j``).
     """
-    at, bracket, slope = _locate(fol, n, kind, p0, p1)
+    end, a, fp, _, _, ex = sys.evaluate(Y[:2], list(Y[2:]), n, dx=True)
+    dphi_x = [(test_function(kind, ap) - test_function(kind, am)) / (2 * h) for ap, am, h in ex["A_x"]]
+    dphi_p = [(test_function(kind, ap) - test_function(kind, am)) / (2 * h) for ap, am, h in ex["A_p"]]
+    g = np.concatenate([end - Y[:2], [test_function(kind, a)]])
+    jac = np.vstack([np.column_stack([a - np.eye(2), fp]), np.array([*dphi_x, *dphi_p])[None, :]])
+    return g, jac, a
+
+
+def _refine(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Newton on the defining system from a located point: the bifurcation to the accuracy of ``P^n``."""
+    for _ in range(8):
+        g, jac, a = _defining(sys, kind, n, Y)
+        step = np.linalg.solve(jac, -g)
+        Y = Y + step
+        if not np.all(np.isfinite(Y)):
+            raise _Stop("the refinement of a bifurcation overflowed")
+        if np.abs(step).max() <= 1e-13 * (1.0 + float(np.abs(Y).max())):
+            break
+    _, _, a = _defining(sys, kind, n, Y)
+    return Y, a
+
+
+def _located(fol: _Follower, n: int, kind: str, p0: _Point, p1: _Point, branch: int) -> tuple[Bifurcation, _Point]:
+    """Locate the bifurcation between two points of a branch.
+
+    Bracketed secant steps along the branch find the test function's zero; Newton on the defining system
+    ``(P^n(x) - x, test(DP^n)) = 0`` then refines it to the accuracy of the integration. The error
+    estimate is the shift of the refined value when ``P^n`` is integrated ten times less accurately
+    (plus the secant bracket, if the refinement failed).
+    """
+    at, bracket, _ = _locate(fol, n, kind, p0, p1)
+    Y0 = np.array([at.X[0], at.X[1], fol.p(at.X)])
     loose = Numerics(**{**fol.sys.numerics.as_dict(), "rtol": fol.sys.numerics.rtol * 10,
                         "atol": fol.sys.numerics.atol * 10})  # fmt: skip
-    _, a_loose, _ = _System(fol.sys.base, fol.sys.names, loose, 1).orbit(at.X[:2], [fol.p(at.X)], n)
-    shift = abs(test_function(kind, a_loose) - test_function(kind, at.A)) / abs(slope) if slope else math.inf
-    bif = Bifurcation(kind, fol.p(at.X), float(bracket + shift), n, at.X[:2].copy(), multipliers(at.A), branch)
+    try:
+        Y, a = _refine(fol.sys, kind, n, Y0)
+        Y2, _ = _refine(_System(fol.sys.base, fol.sys.names, loose, 1), kind, n, Y)
+        error = abs(Y2[2] - Y[2])
+        if abs(Y[2] - Y0[2]) > 1e3 * (bracket + 1e-9 * (1 + abs(Y0[2]))):
+            raise _Stop("the refinement went elsewhere")  # keep the bracketed value
+    except (_Stop, np.linalg.LinAlgError):
+        Y, a, error = Y0, at.A, bracket
+    X = np.array([Y[0], Y[1], (Y[2] - fol.a) / (fol.b - fol.a)])
+    at = _Point(X, a, at.fs, at.t)
+    bif = Bifurcation(kind, float(Y[2]), float(error), n, Y[:2].copy(), multipliers(a), branch)
     return bif, at
 
 
@@ -624,13 +665,7 @@ def _follow_curve(base: Params, name1: str, name2: str, bif: Bifurcation, rng2: 
         return curve
 
     def residual_and_jac(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        end, a, fp, _, _, ex = sys.evaluate(Y[:2], [Y[2], Y[3]], n, dx=True)
-        phi = test_function(kind, a)
-        dphi_x = [(test_function(kind, ap) - test_function(kind, am)) / (2 * hx) for ap, am, hx in ex["A_x"]]
-        dphi_p = [(test_function(kind, ap) - test_function(kind, am)) / (2 * hp) for ap, am, hp in ex["A_p"]]
-        g = np.concatenate([end - Y[:2], [phi]])
-        jac = np.vstack([np.column_stack([a - np.eye(2), fp]), np.array([*dphi_x, *dphi_p])[None, :]])
-        return g, jac, a
+        return _defining(sys, kind, n, Y)
 
     def correct(Y_pred: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         Y = Y_pred.copy()
