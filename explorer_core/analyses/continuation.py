@@ -67,13 +67,15 @@ class Branch:
     values: list[float] = field(default_factory=list)
     states: list[np.ndarray] = field(default_factory=list)
     mults: list[np.ndarray] = field(default_factory=list)
+    orbits: list[np.ndarray] = field(default_factory=list)  # (n, 2) each: x, P(x), ..., P^(n-1)(x)
     stop: str = ""
     parent: int | None = None
 
-    def add(self, p: float, x: np.ndarray, mu: np.ndarray) -> None:
+    def add(self, p: float, pt: _Point) -> None:
         self.values.append(float(p))
-        self.states.append(np.array(x, dtype=float))
-        self.mults.append(np.array(mu, dtype=complex))
+        self.states.append(np.array(pt.X[:2], dtype=float))
+        self.mults.append(multipliers(pt.A))
+        self.orbits.append(np.array(pt.pts, dtype=float))
 
     @property
     def stable(self) -> np.ndarray:
@@ -287,6 +289,7 @@ class _Point:
     A: np.ndarray  # DP^n
     fs: np.ndarray  # (2,) dP^n/ds
     t: np.ndarray  # unit tangent (3,)
+    pts: np.ndarray  # (n, 2) the orbit: x, P(x), ..., P^(n-1)(x)
 
 
 class _Follower:
@@ -314,7 +317,7 @@ class _Follower:
         """
         X = X_pred.copy()
         for it in range(1, max_iter + 1):
-            end, a, _ = self.sys.orbit(X[:2], [self.p(X)], n)
+            end, a, pts = self.sys.orbit(X[:2], [self.p(X)], n)
             fs_it = self.sys.fp(X[:2], [self.p(X)], n)[:, 0] * (self.b - self.a) if fs is None else fs
             f = end - X[:2]
             g = float(t @ (X - X_pred))
@@ -322,7 +325,7 @@ class _Follower:
             scale = (1.0 + float(np.abs(X[:2]).max())) * max(1.0, float(np.abs(a).max()))
             if np.linalg.norm(f) <= CORRECTOR_TOL * scale and abs(g) <= CORRECTOR_TOL:
                 fs_new = self.sys.fp(X[:2], [self.p(X)], n)[:, 0] * (self.b - self.a)
-                return X, a, fs_new, it
+                return X, a, fs_new, it, np.vstack([X[None, :2], pts[: n - 1]])
             jac = np.vstack([np.column_stack([a - np.eye(2), fs_it]), t[None, :]])
             try:
                 step = np.linalg.solve(jac, -np.concatenate([f, [g]]))
@@ -340,29 +343,29 @@ class _Follower:
         return t if t[2] * direction >= 0 else -t
 
     def first(self, n: int, x: np.ndarray, p: float, direction: float) -> _Point:
-        _, a, _ = self.sys.orbit(x, [p], n)
+        _, a, pts = self.sys.orbit(x, [p], n)
         fs = self.sys.fp(x, [p], n)[:, 0] * (self.b - self.a)
         X = np.array([x[0], x[1], (p - self.a) / (self.b - self.a)])
-        return _Point(X, a, fs, self.tangent(a, fs, None, direction))
+        return _Point(X, a, fs, self.tangent(a, fs, None, direction), np.vstack([x[None, :], pts[: n - 1]]))
 
     def step(self, n: int, pt: _Point, ds: float) -> tuple[_Point, int]:
         X_pred = pt.X + ds * pt.t
-        X, a, fs, it = self.correct(n, X_pred, pt.t, None)
-        return _Point(X, a, fs, self.tangent(a, fs, pt.t, 1.0)), it
+        X, a, fs, it, pts = self.correct(n, X_pred, pt.t, None)
+        return _Point(X, a, fs, self.tangent(a, fs, pt.t, 1.0), pts), it
 
     def end(self, n: int, pt: _Point, s_end: float) -> _Point | None:
         """The branch point at ``s = s_end`` (an end of the range) from ``pt``; None if the branch turns before it."""
         if (s_end - pt.X[2]) * pt.t[2] <= 0.0:
             return None
         X_pred = pt.X + ((s_end - pt.X[2]) / pt.t[2]) * pt.t
-        X, a, fs, _ = self.correct(n, X_pred, np.array([0.0, 0.0, 1.0]), None, max_iter=12)
-        return _Point(X, a, fs, self.tangent(a, fs, pt.t, 1.0))
+        X, a, fs, _, pts = self.correct(n, X_pred, np.array([0.0, 0.0, 1.0]), None, max_iter=12)
+        return _Point(X, a, fs, self.tangent(a, fs, pt.t, 1.0), pts)
 
     def at(self, n: int, pt: _Point, sigma: float) -> _Point:
         """The branch point at arclength ``sigma`` from ``pt`` along its tangent (predictor-corrector)."""
         X_pred = pt.X + sigma * pt.t
-        X, a, fs, _ = self.correct(n, X_pred, pt.t, pt.fs, max_iter=12)
-        return _Point(X, a, fs, pt.t)
+        X, a, fs, _, pts = self.correct(n, X_pred, pt.t, pt.fs, max_iter=12)
+        return _Point(X, a, fs, pt.t, pts)
 
 
 def _crossed(p0: _Point, p1: _Point) -> list[str]:
@@ -424,7 +427,7 @@ def _switch(fol: _Follower, n: int, at: _Point) -> tuple[np.ndarray, float]:
         try:
             # Full Newton: at the pitchfork of P^2n the bordered Jacobian is singular, so F_s must be
             # taken at each iterate (off the doubling point), not frozen at it.
-            X, _, _, _ = fol.correct(2 * n, X_pred, t, None, max_iter=15)
+            X, _, _, _, _ = fol.correct(2 * n, X_pred, t, None, max_iter=15)
         except _Stop:
             continue
         end, _, pts = fol.sys.orbit(X[:2], [fol.p(X)], 2 * n)
@@ -521,7 +524,7 @@ def continue_orbit(
             # A doubled branch leaves its doubling point on the side where it exists.
             away = p - res.bifurcations[parent].value if parent is not None else 0.0
             pt = fol.first(n, x, p, math.copysign(1.0, away / (b - a)) if abs(away) > 1e-14 * (1 + abs(p)) else 1.0)
-            br.add(fol.p(pt.X), pt.X[:2], multipliers(pt.A))
+            br.add(fol.p(pt.X), pt)
             h = ds
             while True:
                 if cancel is not None and cancel():
@@ -554,15 +557,18 @@ def continue_orbit(
                         h *= 0.5
                         continue
                     raise
+                # In branch order, each bifurcation is a point of the branch (where its stability changes).
+                found.sort(key=lambda f: float(pt.t @ (f[2].X - pt.X)))
                 for kind, bif, at in found:
                     res.bifurcations.append(bif)
+                    br.add(bif.value, at)
                     if kind == "period_doubling" and switch and 2 * n <= max_period:
                         try:
                             xs, ps = _switch(fol, n, at)
                             queue.append((2 * n, xs, ps, len(res.bifurcations) - 1))
                         except _Stop as exc:
                             res.messages.append(f"period doubling at {param} = {bif.value:.12g}: {exc}")
-                br.add(fol.p(new.X), new.X[:2], multipliers(new.A))
+                br.add(fol.p(new.X), new)
                 if progress is not None:
                     progress(res.n_points, fol.p(new.X))
                 if end:
@@ -641,7 +647,7 @@ def _located(fol: _Follower, n: int, kind: str, p0: _Point, p1: _Point, branch: 
     except (_Stop, np.linalg.LinAlgError):
         Y, a, error = Y0, at.A, bracket
     X = np.array([Y[0], Y[1], (Y[2] - fol.a) / (fol.b - fol.a)])
-    at = _Point(X, a, at.fs, at.t)
+    at = _Point(X, a, at.fs, at.t, at.pts)
     bif = Bifurcation(kind, float(Y[2]), float(error), n, Y[:2].copy(), multipliers(a), branch)
     return bif, at
 

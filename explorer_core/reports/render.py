@@ -103,9 +103,18 @@ def render_chart(chart: Any, path: str, ic: int = 0, title: str | None = None, f
 
 
 def render_bifurcation(
-    diagram: Any, path: str, coord: str = "q", title: str | None = None, sweeps: Sequence[str] | None = None
+    diagram: Any,
+    path: str,
+    coord: str = "q",
+    title: str | None = None,
+    sweeps: Sequence[str] | None = None,
+    continuation: Any = None,
 ) -> None:
-    """PNG of an orbit diagram: section coordinate ``coord`` against the parameter; sweeps overlaid."""
+    """PNG of an orbit diagram: section coordinate ``coord`` against the parameter; sweeps overlaid.
+
+    With ``continuation``, its branches over it (every point of each orbit; stable solid, unstable dashed)
+    and the bifurcations marked.
+    """
     col = {"q": 5, "r": 6}[coord]
     cols = diagram.long()
     s, vals, y = cols[0], cols[2], cols[col]
@@ -123,6 +132,8 @@ def render_bifurcation(
     bad = ~diagram.drawn().all(axis=(0, 2))
     for v in np.flatnonzero(bad):
         ax.axvline(diagram.values[v], color="#f3c0c0", lw=0.5, zorder=0)
+    if continuation is not None:
+        _draw_branches(ax, continuation, 0 if coord == "q" else 1)
     ax.set_xlabel(diagram.param)
     ax.set_ylabel(f"{coord}_k")
     ax.set_title(title or f"Bifurcation diagram ({diagram.values.size} values)")
@@ -131,6 +142,26 @@ def render_bifurcation(
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def _draw_branches(ax: Any, cont: Any, col: int) -> None:
+    """Continued branches on an orbit diagram: each of the orbit's n points, stable solid, unstable dashed."""
+    for br in cont.branches:
+        vals = np.array(br.values)
+        stable = br.stable
+        orbit = np.array(br.orbits)  # (m, n, 2)
+        # A segment is stable if either end is: the bifurcation points are on the branch, where stability changes.
+        solid = stable[:-1] | stable[1:]
+        for j in range(br.period):
+            y = orbit[:, j, col]
+            for i in range(len(vals) - 1):
+                ax.plot(vals[i : i + 2], y[i : i + 2], "-" if solid[i] else "--",
+                        color="#2ca02c" if solid[i] else "#7f7f7f", lw=0.9, zorder=3)  # fmt: skip
+    for b in cont.bifurcations:
+        ax.plot([b.value], [b.point[col]], "D", ms=4, color="#9467bd", zorder=4)
+    ax.plot([], [], "-", color="#2ca02c", label="stable orbit (continuation)")
+    ax.plot([], [], "--", color="#7f7f7f", label="unstable orbit")
+    ax.plot([], [], "D", color="#9467bd", label="bifurcation")
 
 
 def _section_panel(ax: Any, sec: Any, scene: Any, title: str) -> None:
@@ -280,7 +311,8 @@ def render_reproduction(rep: Any, outdir: str) -> list[str]:
         render_bifurcation(
             rep.bifurcation,
             path("fig10.png"),
-            title="Fig. 10: bifurcation diagram (blue: forward, red: backward sweep)",
+            title="Fig. 10: bifurcation diagram (blue: forward, red: backward sweep) and continued orbits",
+            continuation=rep.cascade,
         )
     if rep.chart is not None:
         ics = rep.chart.spec.ics
