@@ -419,7 +419,15 @@ def _seed_list(args: argparse.Namespace, numerics: Numerics) -> list[tuple[float
 
 
 def cmd_orbits(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.orbits import MAX_PERIOD, ORBIT_NUMERICS, find_orbits, grid_seeds, return_seeds
+    from explorer_core.analyses.orbits import (
+        MAX_ITER,
+        MAX_PERIOD,
+        ORBIT_NUMERICS,
+        PATIENCE,
+        find_orbits,
+        grid_seeds,
+        return_seeds,
+    )
 
     params, scene = _params(args)
     if args.period is not None and args.max_period is not None:
@@ -456,6 +464,7 @@ def cmd_orbits(args: argparse.Namespace) -> int:
         for per, group in by_periods.items():
             write(f"{len(group)} seeds x periods {per[0]}..{per[-1]}")
             res = find_orbits(params, np.array(group), list(per), numerics=numerics, bound=box if args.in_box else None,
+                              patience=None if args.thorough else PATIENCE, max_iter=80 if args.thorough else MAX_ITER,
                               cancel=stop)  # fmt: skip
             elapsed += res.elapsed_s
             failures += res.failures
@@ -1014,6 +1023,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--returns", type=_count("returns", 1, 10_000), metavar="N",
                    help="also seed from near-returns of a section of N random trajectories in the box")  # fmt: skip
     p.add_argument("--in-box", action="store_true", help="keep only orbits whose points are all in the box")
+    p.add_argument("--thorough", action="store_true", help="no early stop of slow seeds (slower, finds more)")
     p.add_argument("--out", metavar="FILE.csv", help="orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im")
     p.add_argument("--json", action="store_true", help="print the JSON result")
     p.add_argument("--quiet", action="store_true", help="no progress line")

@@ -179,26 +179,23 @@ def classify(mu: np.ndarray, unit_tol: float = UNIT_TOL) -> str:
 # Newton on P^n(x) - x, many seeds at once.
 
 
-@dataclass
-class _Work:
-    x: np.ndarray  # (m, 2) current iterates
-    period: np.ndarray  # (m,)
-    seed: np.ndarray  # (m, 2)
-    prev: np.ndarray  # (m, 2) last accepted iterate
-    prev_res: np.ndarray  # (m,) its residual
-    radius: np.ndarray  # (m,) trust radius
-    iters: np.ndarray  # (m,)
-    backtracks: np.ndarray  # (m,) consecutive pull-backs
-    done: np.ndarray  # (m,) bool
-    reason: list[str]
-    found: list[Monodromy | None]
-    found_x: np.ndarray  # (m, 2) the converged points
+#: Newton gives up on a seed whose best residual has not halved in this many iterations.
+PATIENCE = 6
+#: A seed whose iterate comes this close (relative) to a point of an orbit already found (of a period
+#: dividing its own) would converge to that orbit: it stops as a duplicate.
+DUPLICATE_TOL = 1e-4
+#: Far from an orbit Newton needs no 1e-12 map: iterates integrate 1e4 times less accurately (DOP853 takes
+#: ~3x fewer steps) until the residual is below ``COARSE_UNTIL (1 + |x|)``.
+COARSE_UNTIL = 1e-5
 
 
-def _canonical(points: np.ndarray) -> np.ndarray:
-    # the cyclic shift that starts with the lexicographically smallest point
-    j = int(np.lexsort((points[:, 1], points[:, 0]))[0])
-    return np.roll(points, -j, axis=0)
+def _solve2(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a^-1 b`` for stacks of 2x2 systems (closed form) and the determinants."""
+    det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x0 = (a[:, 1, 1] * b[:, 0] - a[:, 0, 1] * b[:, 1]) / det
+        x1 = (a[:, 0, 0] * b[:, 1] - a[:, 1, 0] * b[:, 0]) / det
+    return np.column_stack([x0, x1]), det
 
 
 def newton(
@@ -210,75 +207,107 @@ def newton(
     ftol: float = FTOL,
     max_iter: int = MAX_ITER,
     max_step: float = 1.0,
+    patience: int | None = PATIENCE,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
 ) -> tuple[list[tuple[int, np.ndarray, Monodromy, int]], list[OrbitFailure]]:
     """Newton on ``P^n(x) - x`` from every ``(seeds[i], periods[i])``, all at once (low-level call).
 
-    Returns the converged ``(i, x, monodromy at x, iterations)`` and the failures with their reasons. The
-    period of a converged point is not yet checked to be minimal (see :func:`find_orbits`).
+    Every iteration integrates the tangent system of all unfinished seeds of one period in one lock-step
+    batch, then updates them together. Returns the converged ``(i, x, monodromy at x, iterations)`` and
+    the failures with their reasons; seeds that ran into an orbit already found stop as duplicates (in
+    neither list). The period of a converged point is not yet checked to be minimal (see :func:`find_orbits`).
     """
     m = seeds.shape[0]
-    w = _Work(seeds.astype(float).copy(), periods.astype(np.int64), seeds.copy(), seeds.copy(), np.full(m, np.inf),
-              np.full(m, float(max_step)), np.zeros(m, np.int64), np.zeros(m, np.int64), np.zeros(m, bool),
-              [""] * m, [None] * m, np.zeros((m, 2)))  # fmt: skip
+    coarse = Numerics(**{**numerics.as_dict(), "rtol": min(1e-6, numerics.rtol * 1e4),
+                         "atol": min(1e-6, numerics.atol * 1e4)})  # fmt: skip
+    fine = np.zeros(m, bool)
+    x = seeds.astype(float).copy()
+    period = periods.astype(np.int64)
+    prev, prev_res = x.copy(), np.full(m, np.inf)
+    best, since = np.full(m, np.inf), np.zeros(m, np.int64)
+    radius = np.full(m, float(max_step))
+    iters, backtracks = np.zeros(m, np.int64), np.zeros(m, np.int64)
+    done = np.zeros(m, bool)
+    conv: list[tuple[int, np.ndarray, Monodromy, int]] = []
+    known: list[tuple[int, np.ndarray]] = []  # (period, its points) of the converged
     failures: list[OrbitFailure] = []
 
-    def fail(i: int, reason: str) -> None:
-        w.done[i] = True
-        failures.append(OrbitFailure((float(w.seed[i, 0]), float(w.seed[i, 1])), int(w.period[i]), reason,
-                                     int(w.iters[i])))  # fmt: skip
+    def fail(idx: np.ndarray, reason: Callable[[int], str]) -> None:
+        for i in idx:
+            done[i] = True
+            failures.append(OrbitFailure((float(seeds[i, 0]), float(seeds[i, 1])), int(period[i]), reason(int(i)),
+                                         int(iters[i])))  # fmt: skip
 
     for _ in range(max_iter):
-        active = np.flatnonzero(~w.done)
+        active = np.flatnonzero(~done)
         if active.size == 0 or (cancel is not None and cancel()):
             break
-        for n in np.unique(w.period[active]):
-            idx = active[w.period[active] == n]
-            mono = monodromy_at([params], w.x[idx], int(n), numerics, workers=workers)
-            for j, i in enumerate(idx):
-                w.iters[i] += 1
-                x = w.x[i]
-                bad = mono.status[j] != Status.OK
-                res = math.inf if bad else float(np.linalg.norm(mono.end[j] - x))
-                scale = 1.0 + float(np.linalg.norm(x))
-                if not bad and res <= ftol * scale:
-                    w.done[i] = True
-                    w.found[i] = mono.member(j)
-                    w.found_x[i] = x
-                    continue
-                if not res < w.prev_res[i] and np.isfinite(w.prev_res[i]):
-                    # No progress (or the trajectory failed): pull back half way, shrink the trust radius.
-                    w.backtracks[i] += 1
-                    w.radius[i] *= 0.5
-                    if w.backtracks[i] > 8:
-                        why = Status(int(mono.status[j])).label if bad else f"no decrease of the residual ({res:.3g})"
-                        fail(i, f"Newton stalled: {why}")
-                        continue
-                    w.x[i] = 0.5 * (w.prev[i] + x)
-                    continue
-                if bad:
-                    fail(i, f"the trajectory from the seed failed: {Status(int(mono.status[j])).label}")
-                    continue
-                w.backtracks[i] = 0
-                w.prev[i] = x
-                w.prev_res[i] = res
-                jac = mono.matrix[j] - np.eye(2)
-                det = float(np.linalg.det(jac))
-                if not np.isfinite(det) or abs(det) < 1e-14 * max(1.0, float(np.abs(jac).max()) ** 2):
-                    fail(i, "singular: a multiplier is 1 (det(DP^n - I) = 0)")
-                    continue
-                step = -np.linalg.solve(jac, mono.end[j] - x)
-                length = float(np.linalg.norm(step))
-                if length > w.radius[i]:
-                    step *= w.radius[i] / length
-                w.x[i] = x + step
-                if not np.all(np.isfinite(w.x[i])):
-                    fail(i, "the Newton step overflowed")
-    for i in np.flatnonzero(~w.done):
-        fail(i, f"no convergence in {int(w.iters[i])} iterations (residual {w.prev_res[i]:.3g})")
-    conv = [(int(i), w.found_x[i].copy(), w.found[i], int(w.iters[i])) for i in range(m) if w.found[i] is not None]
-    return conv, failures  # type: ignore[return-value]
+        for n, accurate in sorted({(int(a), bool(b)) for a, b in zip(period[active], fine[active], strict=True)}):
+            idx = active[(period[active] == n) & (fine[active] == accurate)]
+            # Duplicates: an iterate next to a point of an orbit found already (of a period dividing n).
+            near = np.zeros(idx.size, bool)
+            for kn, pts in known:
+                if n % kn == 0:
+                    d = np.linalg.norm(x[idx, None, :] - pts[None, :, :], axis=-1).min(axis=1)
+                    near |= d <= DUPLICATE_TOL * (1.0 + np.linalg.norm(x[idx], axis=1))
+            done[idx[near]] = True
+            idx = idx[~near]
+            if idx.size == 0:
+                continue
+            mono = monodromy_at([params], x[idx], int(n), numerics if accurate else coarse, workers=workers)
+            iters[idx] += 1
+            xi = x[idx]
+            bad = mono.status != Status.OK
+            res = np.where(bad, np.inf, np.linalg.norm(mono.end - xi, axis=1))
+            scale = 1.0 + np.linalg.norm(xi, axis=1)
+            ok = ~bad & (res <= ftol * scale) & accurate
+            for j in np.flatnonzero(ok):
+                i = idx[j]
+                done[i] = True
+                conv.append((int(i), xi[j].copy(), mono.member(j), int(iters[i])))
+                known.append((int(n), np.vstack([xi[j][None, :], mono.points[j, : n - 1]])))
+            # No progress (or the trajectory failed): pull back half way, shrink the trust radius.
+            back = ~ok & ~(res < prev_res[idx]) & np.isfinite(prev_res[idx])
+            backtracks[idx[back]] += 1
+            radius[idx[back]] *= 0.5
+            stalled = back & (backtracks[idx] > (patience or 8))
+            fail(idx[stalled], lambda i: "Newton stalled: no decrease of the residual")
+            pull = back & ~stalled
+            x[idx[pull]] = 0.5 * (prev[idx[pull]] + xi[pull])
+            first_bad = ~ok & ~back & bad
+            for j in np.flatnonzero(first_bad):
+                fail(idx[j : j + 1], lambda i, c=int(mono.status[j]): f"the trajectory from the seed failed: "
+                                                                         f"{Status(c).label}")  # fmt: skip
+            step_ = ~ok & ~back & ~bad
+            sel = idx[step_]
+            if sel.size == 0:
+                continue
+            backtracks[sel] = 0
+            prev[sel] = xi[step_]
+            prev_res[sel] = res[step_]
+            improved = res[step_] < 0.5 * best[sel]
+            since[sel] = np.where(improved, 0, since[sel] + 1)
+            best[sel] = np.where(improved, res[step_], best[sel])
+            # Close enough for the accurate map (its residual is not comparable: the trust region starts over).
+            switch = (res[step_] <= COARSE_UNTIL * scale[step_]) & (not accurate)
+            fine[sel[switch]] = True
+            prev_res[sel[switch]] = np.inf
+            slow = since[sel] > (patience if patience is not None else max_iter)
+            fail(sel[slow], lambda i: f"no convergence: the residual stalled at {best[i]:.3g}")
+            jac = mono.matrix[step_] - np.eye(2)[None]
+            dx, det = _solve2(jac, -(mono.end[step_] - xi[step_]))
+            singular = ~np.isfinite(det) | (np.abs(det) < 1e-14 * np.maximum(1.0, np.abs(jac).max(axis=(1, 2)) ** 2))
+            fail(sel[~slow & singular], lambda i: "singular: a multiplier is 1 (det(DP^n - I) = 0)")
+            go = ~slow & ~singular
+            length = np.linalg.norm(dx, axis=1)
+            shrink = np.where(length > radius[sel], radius[sel] / np.maximum(length, 1e-300), 1.0)
+            new = xi[step_] + dx * shrink[:, None]
+            x[sel[go]] = new[go]
+            over = go & ~np.all(np.isfinite(new), axis=1)
+            fail(sel[over], lambda i: "the Newton step overflowed")
+    fail(np.flatnonzero(~done), lambda i: f"no convergence in {int(iters[i])} iterations (residual {prev_res[i]:.3g})")
+    return conv, failures
 
 
 def orbit_from(
@@ -328,6 +357,7 @@ def find_orbits(
     ftol: float = FTOL,
     max_iter: int = MAX_ITER,
     max_step: float = 1.0,
+    patience: int | None = PATIENCE,
     bound: Sequence[float] | None = None,
     unit_tol: float = UNIT_TOL,
     cancel: Callable[[], bool] | None = None,
@@ -342,6 +372,8 @@ def find_orbits(
     numerics : integration of ``P^n`` (default :data:`ORBIT_NUMERICS`, DOP853 at 1e-12).
     ftol : convergence: ``|P^n(x) - x| <= ftol (1 + |x|)``.
     max_step : the trust radius: a Newton step moves at most this far.
+    patience : a seed stops after this many iterations without halving its residual (None: only
+        ``max_iter`` stops it; slower, finds slowly converging orbits from more seeds).
     bound : ``(q0, q1, r0, r1)``: orbits with a point outside are dropped (counted in ``extra``).
     cancel : polled between iterations; True stops with ``completed=False``.
 
@@ -367,7 +399,7 @@ def find_orbits(
     all_seeds = np.repeat(seeds, len(per), axis=0)
     all_periods = np.tile(np.array(per, dtype=np.int64), seeds.shape[0])
     conv, failures = newton(params, all_seeds, all_periods, numerics=numerics, ftol=ftol, max_iter=max_iter,
-                            max_step=max_step, cancel=cancel, workers=workers)  # fmt: skip
+                            max_step=max_step, patience=patience, cancel=cancel, workers=workers)  # fmt: skip
     orbits: list[Orbit] = []
     outside = 0
     for i, x, mono, iters in conv:
