@@ -533,9 +533,10 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                     _coefs(num, gpc, den, forcing, row, shared, tn, slot, n, c)
                     c_time = tn
                 _combine(b_row, 0, hs, s, k, dim, n, acc)
-                for p in range(n):
-                    for comp in range(dim):
-                        yn[comp, p] = ys[comp, p] + acc[comp, p]
+                if fixed <= 0:  # the error estimate needs the new state beside the old one
+                    for p in range(n):
+                        for comp in range(dim):
+                            yn[comp, p] = ys[comp, p] + acc[comp, p]
                 _eval(system, shared, c, ys, acc, 0, n, k, s)  # FSAL: f at the new state
                 steps += 1
                 worst = -1
@@ -559,7 +560,8 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                     t = tn
                     for p in range(n):
                         for comp in range(dim):
-                            ys[comp, p] = yn[comp, p]
+                            # ys + acc is yn to the bit (the same addition); fixed steps never formed yn
+                            ys[comp, p] = yn[comp, p] if fixed <= 0 else ys[comp, p] + acc[comp, p]
                             k[0, comp, p] = k[s, comp, p]
                     # Members that left the bound, or (fixed steps: no error control) overflowed, leave: a
                     # branch-free test of the block first, the members one by one only if one did.
