@@ -198,3 +198,46 @@ def test_block_packs_out_members_that_fail_at_different_times() -> None:
     ok = np.flatnonzero(batch.status == Status.OK)
     assert np.all(npts[ok] == 60)
     np.testing.assert_allclose(out[ok], single[ok], atol=1e-6)
+
+
+# --- the one engine: per-member parameters, methods as data ---------------------------------------
+
+
+def test_a_lock_step_block_of_members_with_different_parameters_meets_each_ones_reference() -> None:
+    from explorer_core.solve.integrators import coefficients, run, run_at
+    from explorer_core.solve.rk import FIELD
+
+    systems = [FIG1C, FIG1C.with_(alpha=0.2), FIG1C.with_(inertia=(1.5, 4, 2, 0.1, 0, 0.2), alpha=-0.1)]
+    ics = np.array([REGULAR_IC, (0.2, -0.5), (0.4, 0.3), (-0.3, 0.1)])
+    rows = np.array([0, 1, 2, 1])
+    batch = Batch.start(ics, FIG1C.t0, FIG1C.period)
+    out, npts = run(FIELD, coefficients([Model(p) for p in systems], rows), batch, 12, rtol=1e-11, atol=1e-11,
+                    block=4, workers=1)  # fmt: skip
+    assert npts.tolist() == [12] * 4
+    assert len(set(batch.nsteps.tolist())) == 1  # one block, one step sequence
+    for i, r in enumerate(rows):
+        ref = solve_ivp_section(systems[r], ics[i], 12, rtol=1e-13, atol=1e-13)
+        np.testing.assert_allclose(out[i], ref, atol=1e-8)
+    # run_at groups by section times and gives the same points
+    end, rec, status, _ = run_at(FIELD, [systems[r] for r in rows], ics, 12, rtol=1e-11, atol=1e-11, block=4,
+                                 workers=1)  # fmt: skip
+    assert np.all(status == Status.OK)
+    np.testing.assert_array_equal(rec, out)
+
+
+def test_members_with_other_section_times_cannot_share_a_block() -> None:
+    from explorer_core.solve.integrators import coefficients
+
+    with pytest.raises(ValueError, match="share the section times"):
+        coefficients([Model(FIG1C), Model(FIG1C.with_(omega=2.0))], np.array([0, 1]))
+
+
+def test_a_tableau_that_breaks_the_order_conditions_is_refused() -> None:
+    from explorer_core.solve.tableaus import Method
+
+    with pytest.raises(ValueError, match=r"sum\(b\)"):
+        Method("bad", 4, False, tableaus.RK4_A, tableaus.RK4_B * 1.01, tableaus.RK4_C)
+    with pytest.raises(ValueError, match="rows of a do not sum to c"):
+        Method("bad", 4, False, tableaus.RK4_A, tableaus.RK4_B, tableaus.RK4_C + 0.1)
+    with pytest.raises(ValueError, match="error weights"):
+        Method("bad", 5, True, tableaus.DP5_A, tableaus.DP5_B, tableaus.DP5_C, 4, e=tableaus.DP5_E + 0.1)
