@@ -733,3 +733,56 @@ def _follow_curve(base: Params, name1: str, name2: str, bif: Bifurcation, rng2: 
 def classify_branch(br: Branch) -> list[str]:
     """The type of every point of a branch (see :func:`explorer_core.analyses.orbits.classify`)."""
     return [classify(m) for m in br.mults]
+
+
+def continue_from_seeds(
+    params: Params,
+    param: str,
+    value_range: Sequence[float],
+    seeds: Any,
+    *,
+    periods: Sequence[int] = (1, 2, 3, 4),
+    switch: bool = True,
+    max_period: int = DEFAULT_MAX_PERIOD,
+    max_orbits: int = 6,
+    numerics: Numerics | None = None,
+    progress: Callable[[int, float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+) -> Continuation:
+    """Every distinct orbit of ``periods`` that Newton finds from ``seeds`` at the range's first value, continued.
+
+    For an orbit diagram: its initial conditions (or final states) as seeds; the branches of all the
+    orbits found (stable and unstable, up to ``max_orbits``, lowest periods first) in one result.
+    """
+    from explorer_core.analyses.orbits import find_orbits
+
+    param = check_param(param)
+    a = float(value_range[0])
+    start = params.with_(**{param: a})
+    found = find_orbits(start, seeds, list(periods), numerics=numerics, workers=workers).orbits[:max_orbits]
+    out = Continuation(params, param, (a, float(value_range[1])), numerics or ORBIT_NUMERICS, [], [])
+    if not found:
+        out.messages.append(f"no orbit of period {', '.join(map(str, periods))} near the seeds at {param} = {a:g}")
+    t0 = time.perf_counter()
+    for orb in found:
+        if cancel is not None and cancel():
+            out.completed = False
+            break
+        done = out.n_points
+        step = None if progress is None else (lambda n, v, d=done: progress(d + n, v))
+        res = continue_orbit(params, param, value_range, orb.points[0], orb.period, switch=switch,
+                             max_period=max(max_period, orb.period), numerics=numerics, cancel=cancel, workers=workers,
+                             progress=step)  # fmt: skip
+        shift = len(out.branches)
+        nb = len(out.bifurcations)
+        out.branches += res.branches
+        out.bifurcations += [Bifurcation(b.kind, b.value, b.error, b.period, b.point, b.multipliers, b.branch + shift)
+                             for b in res.bifurcations]  # fmt: skip
+        for br in res.branches:
+            if br.parent is not None:
+                br.parent += nb
+        out.messages += res.messages
+        out.completed = out.completed and res.completed
+    out.elapsed_s = time.perf_counter() - t0
+    return out
