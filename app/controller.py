@@ -4,6 +4,10 @@
 jobs on a :class:`~app.runner.Runner` and applies their results to the figures
 on the document thread. Invalid input shows a message and leaves the last valid
 picture in place. All numerics are calls into :mod:`explorer_core`.
+
+What the page shows as running ("computing", Stop enabled) is derived from the runner's busy
+state (:meth:`~app.runner.Runner.busy`), never set by hand, so it ends with the work however
+the work ends. Values reach the state only through :func:`app.state.commit`.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ import numpy as np
 import param
 
 from app.runner import Runner
-from app.state import SYSTEM_FIELDS, ExplorerState, SectionRequest
+from app.state import CONTROLS, MAX_CLICKED, SYSTEM_FIELDS, TABS, ExplorerState, SectionRequest, commit
 from app.views import SectionFigure, SeriesFigures
 from explorer_core.equilibria import Cancelled, equilibrium_tracks
 from explorer_core.integrators import Status
@@ -36,6 +40,9 @@ TRACE = bool(os.environ.get("BILIMOVICH_TRACE"))
 SECTION_FIELDS = (*SYSTEM_FIELDS, "method", "accuracy", "steps_per_period", "n_random", "seed", "periods", "transient")
 SECTION_FIELDS += ("box",)
 LAYER_FIELDS = ("show_tracks", "show_tprime", "tprime_kind")
+#: What Stop stops in the section view, and what makes it "running".
+SECTION_CHANNELS = ("section", "tracks", "tprime", "reliability")
+ANALYSIS_FIELDS = tuple(c.name for c in CONTROLS if c.area in TABS[1:])
 #: Longest chunk streamed to the browser: bounds how long a cancel waits.
 MAX_CHUNK = 32
 #: Time between point updates sent to the browser: starts here, doubles up to the max (seconds).
@@ -56,11 +63,14 @@ class ExplorerSession(param.Parameterized):
 
     status = param.String(default="")
     error = param.String(default="")
+    #: Something of the section view runs (the section, a clicked trajectory, a layer): Stop applies.
     running = param.Boolean(default=False)
     escaped = param.List(default=[])
     failed = param.List(default=[])
     #: Reliability warnings (explorer_core.reliability) as dicts: level, code, message.
     reliability = param.List(default=[])
+    #: Section points on screen (the CSV download is offered only then).
+    n_points = param.Integer(default=0)
 
     def __init__(
         self,
@@ -80,13 +90,42 @@ class ExplorerSession(param.Parameterized):
         self._chunks: list[tuple[np.ndarray, ...]] = []
         self._n_traj = 0
         self._t_start = 0.0
+        self._elapsed = 0.0
+        self._progress: tuple[int, int] | None = None
+        self._outcome = ""  # "", "stopped" or "failed": how the last run ended short
+        self._status_arr = np.zeros(0, dtype=np.int8)  # status of each trajectory on screen
+        self._run_n = 0  # trajectories of the run in flight (or the last one)
         self._suspend = False
         self._t_req = time.perf_counter()
+        if runner._on_busy is None:
+            runner._on_busy = self.on_busy
         state.param.watch(self._on_section_change, list(SECTION_FIELDS))
         state.param.watch(self._on_layers_change, list(LAYER_FIELDS))
         state.param.watch(self._on_view_change, ["q_range", "r_range"])
         state.param.watch(lambda *e: self.runner.ui(self._update_series), ["selected"])
         state.param.watch(lambda *e: self.recompute(), ["clicked"])
+        state.param.watch(lambda *e: self._publish_query(), ["selected", "tab", "presentation", *ANALYSIS_FIELDS])
+
+    # --- input ------------------------------------------------------------------------------
+
+    def commit(self, name: str, text: Any) -> str | None:
+        """A typed value for control ``name``: applied (None), or refused with the reason (state unchanged)."""
+        if name == "scene":
+            msg = commit(self.state, "scene", text)
+            if msg is None and self.state.scene != "custom":
+                q_range, r_range = self.state.q_range, self.state.r_range
+                self.runner.ui(lambda: self.fig.set_view(q_range, r_range))
+            return msg
+        return commit(self.state, name, text)
+
+    def on_busy(self, channel: str) -> None:
+        """A channel started or stopped (document thread): the section view runs while any of its channels do."""
+        if channel in SECTION_CHANNELS:
+            running = any(self.runner.busy(c) for c in SECTION_CHANNELS)
+            if running != self.running:
+                self.running = running
+            if channel == "section":
+                self._refresh_status()
 
     # --- reacting to the state ------------------------------------------------------------
 
@@ -116,6 +155,7 @@ class ExplorerSession(param.Parameterized):
         q_range, r_range = self.state.q_range, self.state.r_range
         self.runner.ui(lambda: self.fig.set_view(q_range, r_range))
         self.recompute()
+        self._start_layers()
 
     def set_view_from_plot(self, q_range: tuple[float, float], r_range: tuple[float, float]) -> None:
         """The user panned/zoomed: remember the window (URL) and refresh the T' map for it."""
@@ -142,16 +182,17 @@ class ExplorerSession(param.Parameterized):
         except ParameterError as exc:
             self.error = str(exc)
             self.runner.cancel("section")
-            self.running = False
+            self._publish_query()
             return
         self.error = ""
         self._start_section(req, start_layers=self._start_layers)
         self._publish_query()
 
     def _start_section(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
-        self.running = True
         self._t_start = time.perf_counter()
-        self.status = "computing…"
+        self._progress = (0, req.periods)
+        self._outcome = ""
+        self._run_n = req.ics.shape[0]
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
             self._trace("section job starts")
@@ -201,17 +242,28 @@ class ExplorerSession(param.Parameterized):
         self._update_reliability(req)  # a priori: the new numerics against the states on screen
 
     def stop(self) -> None:
-        """Stop the section in flight; what was computed stays (and gets its layers)."""
-        self.runner.cancel("section")
-        self._start_layers()
-        if self.running:
-            self.running = False
-            self.status = self.status.replace("computing", "stopped") + " — stopped"
+        """Stop everything of the section view in flight; what was computed stays on screen."""
+        stopped = self.runner.busy("section")
+        for channel in SECTION_CHANNELS:
+            self.runner.cancel(channel)
+        if stopped:
+            self._outcome = "stopped"
+            self._elapsed = time.perf_counter() - self._t_start
+        self._refresh_status()
+
+    def failed_job(self, channel: str, exc: BaseException) -> None:
+        """A job of the section view raised (document thread): say so; nothing stays "computing"."""
+        msg = _plain(exc)
+        self.error = f"{channel} computation failed: {msg}"
+        if channel == "section":
+            self._outcome = "failed"
+            self._refresh_status()
 
     def _reset(self, req: SectionRequest) -> None:
         self._params = req.params
         self._chunks = []
         self._n_traj = req.ics.shape[0]
+        self._status_arr = np.zeros(self._n_traj, dtype=np.int8)
         self.escaped, self.failed = [], []
         self.fig.set_ics(np.array(self.state.clicked, dtype=float).reshape(-1, 2))
         if self.state.selected >= self._n_traj:
@@ -239,7 +291,9 @@ class ExplorerSession(param.Parameterized):
 
     def _finish(self, done: bool, status: np.ndarray | None) -> None:
         self._trace("last chunk on the document thread")
-        self.running = False
+        self._progress = None
+        if not done:
+            self._outcome = "stopped"
         if status is not None:
             self._set_status(status, None, None, running=False, stopped=not done)
             self._update_reliability(None, status)
@@ -251,20 +305,40 @@ class ExplorerSession(param.Parameterized):
 
     def _set_status(self, status: np.ndarray, done: int | None, total: int | None, *, running: bool,
                     stopped: bool = False) -> None:  # fmt: skip
+        """Statuses of the main run's trajectories (a chunk or the end of the run)."""
+        arr = self._status_arr
+        arr[: status.size] = status
+        self._progress = (done, total) if running and done is not None else None
+        self._elapsed = time.perf_counter() - self._t_start
+        self._refresh_status()
+
+    def _refresh_status(self) -> None:
+        """The status line from the data on screen and whether the section runs (document thread)."""
+        arr = self._status_arr
+        escaped = [int(i) for i in np.flatnonzero(arr == Status.ESCAPED)]
+        failed = [int(i) for i in np.flatnonzero((arr != Status.OK) & (arr != Status.ESCAPED))]
+        if escaped != self.escaped:
+            self.escaped = escaped
+        if failed != self.failed:
+            self.failed = failed
         n_points = sum(c[0].size for c in self._chunks)
-        self.escaped = [int(i) for i in np.flatnonzero(status == Status.ESCAPED)]
-        self.failed = [int(i) for i in np.flatnonzero((status != Status.OK) & (status != Status.ESCAPED))]
-        elapsed = time.perf_counter() - self._t_start
-        parts = [f"{n_points:,} points", f"{self._n_traj} trajectories", f"{elapsed:.2f} s"]
-        if running and done is not None:
-            parts.insert(0, f"computing {done}/{total} periods")
-        if self.escaped:
-            parts.append(f"{len(self.escaped)} escaped")
-        if self.failed:
-            parts.append(f"{len(self.failed)} failed")
-        if stopped:
-            parts.append("stopped")
-        self.status = " · ".join(parts)
+        if n_points != self.n_points:
+            self.n_points = n_points
+        running = self.runner.busy("section")
+        if running:
+            self._elapsed = time.perf_counter() - self._t_start
+        n_traj = self._n_traj if n_points else self._run_n  # nothing on screen yet: the run's count
+        parts = [f"{n_points:,} points", f"{n_traj} trajectories", f"{self._elapsed:.2f} s"]
+        if running:
+            done, total = self._progress or (None, None)
+            parts.insert(0, f"computing {done}/{total} periods" if done is not None else "computing…")
+        if escaped:
+            parts.append(f"{len(escaped)} escaped")
+        if failed:
+            parts.append(f"{len(failed)} failed")
+        if not running and self._outcome:
+            parts.append(self._outcome)
+        self.status = " · ".join(parts) if (n_points or n_traj or running or self._outcome) else ""
 
     def _update_reliability(self, req: SectionRequest | None, status: np.ndarray | None = None) -> None:
         """Warn when the method is unreliable for this scene (explorer_core.reliability.assess).
@@ -301,43 +375,25 @@ class ExplorerSession(param.Parameterized):
     # --- clicks --------------------------------------------------------------------------------
 
     def add_initial_condition(self, q: float, r: float) -> None:
-        """Add a trajectory where the user clicked and compute only it."""
+        """Add a trajectory where the user clicked, select it and recompute the section.
+
+        Clicked points come first among the initial conditions (their indices stay put when the
+        number of random ones changes), so a new one shifts the random trajectories' indices:
+        the whole section is recomputed (the default scene in ~0.1 s of CPU), and every count,
+        colour and index on screen belongs to one consistent run.
+        """
         if not (np.isfinite(q) and np.isfinite(r)):
             return
-        if len(self.state.clicked) >= 200:
-            self.error = "at most 200 clicked initial conditions; clear some first"
+        if len(self.state.clicked) >= MAX_CLICKED:
+            self.error = f"at most {MAX_CLICKED} clicked initial conditions; clear some first"
             return
-        with param.parameterized.discard_events(self.state):
-            self.state.clicked = [*self.state.clicked, (float(q), float(r))]
+        clicked = [*self.state.clicked, (float(q), float(r))]
         try:
-            req = self.state.section_request()
+            self.state.check_work(len(clicked) + self.state.n_random, self.state.periods)
         except ParameterError as exc:
             self.error = str(exc)
             return
-        index = req.ics.shape[0] - 1
-        single = SectionRequest(req.params, req.ics[index:], req.periods, req.transient, req.numerics)
-
-        def job(cancelled, emit) -> None:
-            for chunk in iter_section(
-                single.params, single.ics, single.periods, transient=single.transient, numerics=single.numerics,
-                max_chunk=MAX_CHUNK, cancel=cancelled,
-            ):  # fmt: skip
-                traj, k, qq, rr = chunk.long()
-                emit(lambda c=(traj + index, k, qq, rr), s=chunk.status: self._apply_extra(c, s, index))
-
-        self._n_traj = req.ics.shape[0]
-        clicked = np.array(self.state.clicked, dtype=float).reshape(-1, 2)
-        self.runner.ui(lambda: self.fig.set_ics(clicked))
-        self.state.selected = index
-        self.runner.start("section", job, bump=False)
-        self._publish_query()
-
-    def _apply_extra(self, cols: tuple[np.ndarray, ...], status: np.ndarray, index: int) -> None:
-        self._chunks.append(cols)
-        self.fig.stream_points(*cols)
-        if status[0] == Status.ESCAPED and index not in self.escaped:
-            self.escaped = [*self.escaped, index]
-        self._update_series()
+        self.state.param.update(clicked=clicked, selected=len(clicked) - 1)
 
     def select_nearest(self, q: float, r: float) -> None:
         """Select the trajectory whose section point is nearest the click (in screen-like units)."""
@@ -350,7 +406,8 @@ class ExplorerSession(param.Parameterized):
         self.state.selected = int(traj[i])
 
     def clear_clicked(self) -> None:
-        self.state.clicked = []
+        if self.state.clicked:
+            self.state.param.update(clicked=[], selected=0)
 
     # --- layers: equilibrium tracks and the T' map ---------------------------------------------
 
@@ -404,15 +461,18 @@ class ExplorerSession(param.Parameterized):
         return tuple(np.concatenate([c[i] for c in self._chunks]) for i in range(4))  # type: ignore[return-value]
 
     def _update_series(self) -> None:
+        """The selected trajectory: its k-series below and its points ringed in the section."""
         traj, k, q, r = self.data()
         sel = traj == self.state.selected
         if self._params is None or not sel.any():
             self.series.set(*(np.zeros(0),) * 4)
+            self.fig.set_selected(np.zeros(0), np.zeros(0))
             return
         order = np.argsort(k[sel], kind="stable")
         ks, qs, rs = k[sel][order], q[sel][order], r[sel][order]
         energy = Model(self._params).energy(qs, rs, self._params.t0)
         self.series.set(ks, qs, rs, energy)
+        self.fig.set_selected(qs, rs)
 
     def csv_bytes(self) -> io.BytesIO:
         """The section on screen as CSV ``traj,k,q,r`` with the settings in a comment header."""
@@ -427,6 +487,12 @@ class ExplorerSession(param.Parameterized):
     def _publish_query(self) -> None:
         if self._on_query is not None:
             self._on_query(self.state.to_query())
+
+
+def _plain(exc: BaseException, limit: int = 300) -> str:
+    """An exception as one short line of text (never a multi-line array dump)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def _segments_by_type(branches) -> list[tuple[np.ndarray, np.ndarray, str]]:

@@ -1,9 +1,15 @@
 """Bokeh figures of the explorer: data in, glyphs out, no numerics.
 
-The (q, r) figure stacks the layers the issue asks for, bottom to top: the T'
-map, the equilibrium tracks over one period, the streamed section points, the
-equilibria at the section phase, and the clicked initial conditions. The
-k-series figures share their k axis.
+The (q, r) figure stacks the layers, bottom to top: the T' map, the equilibrium tracks over
+one period, the streamed section points, the selected trajectory (ringed), the equilibria at
+the section phase, and the clicked initial conditions. The k-series figures share their k axis.
+
+Every session builds its own figures (a Bokeh model belongs to one document), and building
+and sending them is most of what a new page costs the server: they are assembled from Bokeh's
+models directly, without the ``figure()`` helper's extra models (a second glyph per renderer
+for the unselected state, a view per renderer, one label policy per axis), ~50 models instead
+of ~80 for the section (docs/load.md). The mouse wheel scrolls the page; the wheel-zoom tool
+zooms only once picked in the toolbar.
 """
 
 from __future__ import annotations
@@ -13,15 +19,34 @@ from typing import Any
 
 import numpy as np
 from bokeh.models import (
+    AllLabels,
+    BasicTicker,
+    BoxZoomTool,
+    CDSView,
     ColorBar,
     ColumnDataSource,
+    DataRange1d,
+    GlyphRenderer,
+    Grid,
     HoverTool,
+    Image,
+    Legend,
+    LegendItem,
+    Line,
+    LinearAxis,
     LinearColorMapper,
+    MultiLine,
+    PanTool,
+    Plot,
     Range1d,
+    ResetTool,
+    SaveTool,
+    Scatter,
+    Toolbar,
+    UnionRenderers,
+    WheelZoomTool,
 )
 from bokeh.palettes import Category10, Category20, RdBu11, interp_palette
-from bokeh.plotting import figure
-from bokeh.transform import linear_cmap
 
 #: One colour per equilibrium type (shared by the tracks and the markers).
 TYPE_COLORS = {
@@ -34,15 +59,42 @@ TYPE_COLORS = {
     "degenerate": "#7f7f7f",
 }
 N_COLORS = 20
-#: Style of the error boxes. They are HTML panes holding escaped text: a Markdown pane
-#: (pn.pane.Alert) would turn values such as ![x](https://...) into images or links.
-ERROR_STYLE = "color:#842029;background:#f8d7da;border:1px solid #f5c2c7;border-radius:4px;padding:8px 12px"
 #: Bokeh output backend of the point plots ("webgl" or "canvas"); see README (performance).
 BACKEND = os.environ.get("BILIMOVICH_BACKEND", "webgl")
+#: Palettes built once per process (every session's figures refer to the same lists).
+TPRIME_PALETTE = interp_palette(RdBu11, 255)  # blue (loss) .. white .. red (gain); odd: 0 is white
+TRAJ_PALETTE = Category20[N_COLORS]
+#: Font sizes (points) of axis labels and ticks: normal and presentation mode.
+FONTS = {False: ("11pt", "9pt"), True: ("16pt", "13pt")}
 
 
 def _empty_points() -> dict[str, list]:
     return {"q": [], "r": [], "traj": [], "k": [], "c": []}
+
+
+def _axes(plot: Plot, x_label: str, y_label: str, *, grid: bool = True) -> list[LinearAxis]:
+    policy = AllLabels()
+    axes = []
+    for place, dim, label in (("below", 0, x_label), ("left", 1, y_label)):
+        ticker = BasicTicker()
+        axis = LinearAxis(ticker=ticker, axis_label=label, major_label_policy=policy)
+        plot.add_layout(axis, place)
+        if grid:
+            plot.add_layout(Grid(dimension=dim, ticker=ticker))
+        axes.append(axis)
+    return axes
+
+
+def _renderer(source: ColumnDataSource, glyph: Any, **kw: Any) -> GlyphRenderer:
+    # Its own CDSView (BokehJS keeps the view's indices for one source) and no glyph of its own
+    # for the unselected state (nothing is ever selected here).
+    return GlyphRenderer(data_source=source, glyph=glyph, view=CDSView(), **kw)
+
+
+def set_fonts(axes: list[LinearAxis], presentation: bool) -> None:
+    label, ticks = FONTS[presentation]
+    for a in axes:
+        a.update(axis_label_text_font_size=label, major_label_text_font_size=ticks)
 
 
 class SectionFigure:
@@ -51,27 +103,20 @@ class SectionFigure:
     def __init__(self, q_range: tuple[float, float], r_range: tuple[float, float]) -> None:
         self.x_range = Range1d(*q_range, name="q_range")
         self.y_range = Range1d(*r_range, name="r_range")
-        fig = figure(
-            x_range=self.x_range,
-            y_range=self.y_range,
-            x_axis_label="q",
-            y_axis_label="r",
-            tools="pan,wheel_zoom,box_zoom,reset,save",
-            active_scroll="wheel_zoom",
-            output_backend=BACKEND,
-            sizing_mode="stretch_width",
-            height=640,
-            name="section_figure",
-        )
-        fig.toolbar.logo = None
-        # Bokeh's RdBu11 runs from blue (#053061) to red: loss (< 0) blue, gain (> 0) red;
-        # interpolated to 255 levels (odd, so 0 is the white middle) for a smooth map.
-        self.tprime_mapper = LinearColorMapper(palette=interp_palette(RdBu11, 255), low=-1, high=1)
-        self.tprime = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []}, name="tprime_source")
-        self.tprime_renderer = fig.image(
-            image="image", x="x", y="y", dw="dw", dh="dh", source=self.tprime, color_mapper=self.tprime_mapper,
-            alpha=0.55, level="image",
+        fig = Plot(
+            x_range=self.x_range, y_range=self.y_range, output_backend=BACKEND, sizing_mode="stretch_both",
+            min_height=300, min_width=300, name="section_figure", title=None, toolbar_location="right",
         )  # fmt: skip
+        self.axes = _axes(fig, "q", "r")
+        policy = UnionRenderers()
+
+        def source(data: dict, name: str) -> ColumnDataSource:
+            return ColumnDataSource(data, name=name, selection_policy=policy)
+
+        self.tprime_mapper = LinearColorMapper(palette=TPRIME_PALETTE, low=-1, high=1)
+        self.tprime = source({"image": [], "x": [], "y": [], "dw": [], "dh": []}, "tprime_source")
+        image = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.tprime_mapper, global_alpha=0.55)
+        tp = _renderer(self.tprime, image, level="image")
         self.colorbar = ColorBar(
             color_mapper=self.tprime_mapper,
             title="T′ — red: energy gain (body spins up), blue: loss",
@@ -80,33 +125,33 @@ class SectionFigure:
             location=(0, 0),
         )
         fig.add_layout(self.colorbar, "right")
-
-        self.tracks = ColumnDataSource({"xs": [], "ys": [], "color": [], "type": []}, name="tracks_source")
-        self.tracks_renderer = fig.multi_line(
-            xs="xs", ys="ys", line_color="color", line_width=1.6, line_alpha=0.7, line_dash="dashed", source=self.tracks
-        )
-        self.points = ColumnDataSource(_empty_points(), name="section_source")
-        cmap = linear_cmap("c", Category20[N_COLORS], 0, N_COLORS - 1)
-        self.points_renderer = fig.scatter(
-            "q", "r", source=self.points, size=2.6, line_color=None, fill_color=cmap, fill_alpha=0.9,
-            name="section_points",
+        self.tracks = source({"xs": [], "ys": [], "color": [], "type": []}, "tracks_source")
+        tracks = _renderer(self.tracks, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6, line_alpha=0.7,
+                                                  line_dash="dashed"))  # fmt: skip
+        self.points = source(_empty_points(), "section_source")
+        self.traj_mapper = LinearColorMapper(palette=TRAJ_PALETTE, low=0, high=N_COLORS - 1)
+        colour = {"field": "c", "transform": self.traj_mapper}
+        dots = Scatter(x="q", y="r", size=2.6, line_color=None, fill_alpha=0.9, fill_color=colour)
+        pts = _renderer(self.points, dots, name="section_points")
+        # The selected trajectory, ringed in black on top of the others.
+        self.selected = source({"q": [], "r": []}, "selected_source")
+        sel = _renderer(self.selected, Scatter(x="q", y="r", size=7, line_color="black", line_width=1.2,
+                                               fill_color=None), name="selected_points")  # fmt: skip
+        self.equilibria = source({"q": [], "r": [], "color": [], "type": []}, "equilibria_source")
+        eq = _renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
+                                                line_color="black"))  # fmt: skip
+        self.ics = source({"q": [], "r": []}, "ics_source")
+        ics = _renderer(self.ics, Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2))
+        fig.renderers.extend([tp, tracks, pts, sel, eq, ics])
+        fig.add_layout(
+            Legend(items=[LegendItem(label={"field": "type"}, renderers=[eq])], location="top_left",
+                   background_fill_alpha=0.7, label_text_font_size="9pt"),
         )  # fmt: skip
-        self.equilibria = ColumnDataSource({"q": [], "r": [], "color": [], "type": []}, name="equilibria_source")
-        self.eq_renderer = fig.scatter(
-            "q", "r", source=self.equilibria, marker="diamond", size=15, fill_color="color", line_color="black",
-            legend_field="type",
-        )  # fmt: skip
-        self.ics = ColumnDataSource({"q": [], "r": []}, name="ics_source")
-        fig.scatter("q", "r", source=self.ics, marker="x", size=11, line_color="black", line_width=2)
-        fig.legend.location = "top_left"
-        fig.legend.background_fill_alpha = 0.7
-        fig.legend.label_text_font_size = "9pt"
-        fig.add_tools(
-            HoverTool(
-                renderers=[self.points_renderer], tooltips=[("trajectory", "@traj"), ("k", "@k"), ("q, r", "@q, @r")]
-            )
-        )
-        fig.add_tools(HoverTool(renderers=[self.eq_renderer], tooltips=[("equilibrium", "@type"), ("q, r", "@q, @r")]))
+        hover = HoverTool(renderers=[pts, eq], tooltips=[("trajectory", "@traj"), ("k", "@k"), ("q, r", "@q, @r"),
+                                                         ("equilibrium", "@type")])  # fmt: skip
+        # No active scroll tool: the wheel scrolls the page until the user picks the zoom tool.
+        fig.toolbar = Toolbar(tools=[PanTool(), WheelZoomTool(), BoxZoomTool(), ResetTool(), SaveTool(), hover],
+                              logo=None, active_scroll=None)  # fmt: skip
         self.fig = fig
 
     # --- updates (always called on the document's thread) ------------------------------
@@ -124,6 +169,9 @@ class SectionFigure:
     def stream_points(self, traj: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray) -> None:
         if traj.size:
             self.points.stream({"q": q, "r": r, "traj": traj, "k": k, "c": traj % N_COLORS})
+
+    def set_selected(self, q: np.ndarray, r: np.ndarray) -> None:
+        self.selected.data = {"q": q, "r": r}
 
     def set_ics(self, ics: np.ndarray) -> None:
         self.ics.data = {"q": ics[:, 0], "r": ics[:, 1]} if ics.size else {"q": [], "r": []}
@@ -162,30 +210,41 @@ class SectionFigure:
             "dh": [r[-1] - r[0] + dr],
         }
 
+    def set_presentation(self, on: bool) -> None:
+        set_fonts(self.axes, on)
+        self.colorbar.title_text_font_size = "13pt" if on else "10pt"
+
 
 class SeriesFigures:
-    """q_k, r_k and T_k of the selected trajectory, sharing the k axis."""
+    """q_k, r_k and T_k of the selected trajectory, sharing the k axis.
+
+    The data source exists from the start (the controller fills it); the figures are built
+    on demand (:meth:`build`), after a new page's first points: they are not needed to see them.
+    """
 
     def __init__(self) -> None:
         self.source = ColumnDataSource({"k": [], "q": [], "r": [], "T": []}, name="series_source")
-        self.figs: list[Any] = []
-        first = None
+        self.figs: list[Plot] = []
+        self.axes: list[LinearAxis] = []
+
+    def build(self) -> list[Plot]:
+        if self.figs:
+            return self.figs
+        x_range = DataRange1d()
         for col, label, color in zip(("q", "r", "T"), ("q_k", "r_k", "T_k (energy)"), Category10[3], strict=True):
-            shared = {"x_range": first.x_range} if first is not None else {}
-            f = figure(
-                height=190,
-                sizing_mode="stretch_width",
-                x_axis_label="k",
-                y_axis_label=label,
-                tools="pan,wheel_zoom,box_zoom,reset,save",
-                output_backend="canvas",  # a few hundred points: WebGL's blit would cost more than it saves
-                **shared,
-            )
-            f.toolbar.logo = None
-            f.line("k", col, source=self.source, line_color=color)
-            f.scatter("k", col, source=self.source, size=3, color=color)
+            f = Plot(x_range=x_range, y_range=DataRange1d(), sizing_mode="stretch_both", min_height=90, title=None,
+                     output_backend="canvas", toolbar_location="right", name=f"series_{col}",
+                     min_border_bottom=4, min_border_top=4)  # fmt: skip
+            self.axes += _axes(f, "k", label)
+            f.renderers.append(_renderer(self.source, Line(x="k", y=col, line_color=color)))
+            f.renderers.append(_renderer(self.source, Scatter(x="k", y=col, size=3, fill_color=color,
+                                                              line_color=color)))  # fmt: skip
+            f.toolbar = Toolbar(tools=[PanTool(), BoxZoomTool(), ResetTool()], logo=None, active_scroll=None)
             self.figs.append(f)
-            first = first or f
+        return self.figs
 
     def set(self, k: np.ndarray, q: np.ndarray, r: np.ndarray, energy: np.ndarray) -> None:
         self.source.data = {"k": k, "q": q, "r": r, "T": energy}
+
+    def set_presentation(self, on: bool) -> None:
+        set_fonts(self.axes, on)
