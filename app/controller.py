@@ -24,7 +24,7 @@ import param
 
 from app.runner import Runner
 from app.state import CONTROLS, MAX_CLICKED, SYSTEM_FIELDS, TABS, ExplorerState, SectionRequest, commit
-from app.views import SectionFigure, SeriesFigures
+from app.views import SectionFigure, SeriesData
 from explorer_core.equilibria import Cancelled, equilibrium_tracks
 from explorer_core.integrators import Status
 from explorer_core.model import Model, ParameterError, Params
@@ -77,14 +77,14 @@ class ExplorerSession(param.Parameterized):
         state: ExplorerState,
         runner: Runner,
         section_fig: SectionFigure | None = None,
-        series: SeriesFigures | None = None,
+        series: SeriesData | None = None,
         on_query: Callable[[dict[str, str]], None] | None = None,
     ) -> None:
         super().__init__()
         self.state = state
         self.runner = runner
         self.fig = section_fig or SectionFigure(state.q_range, state.r_range)
-        self.series = series or SeriesFigures()
+        self.series = series or SeriesData()
         self._on_query = on_query
         self._params: Params | None = None  # system of the data on screen
         self._chunks: list[tuple[np.ndarray, ...]] = []

@@ -5,9 +5,9 @@ tabs to :class:`~app.ui.ExplorerUI` (what the browser draws). It needs no server
 build one with a call-through ``deliver`` and drive it with the same messages a browser sends
 (:meth:`Page.handle`). ``app/main.py`` builds one per browser tab.
 
-What is built for the first view is only what it shows: the section figure and the component.
-The k-series figures follow the first points (:meth:`Page._build_series`), an analysis tab's
-figure is built when the tab is first opened.
+What is built for a new page is only what its first view shows: the section figure and the
+component (which draws the k-series from data); an analysis tab's figure is built when the tab
+is first opened.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from app.controller import SECTION_CHANNELS, ExplorerSession
 from app.runner import FairScheduler, Runner
 from app.state import BY_NAME, CONTROLS, TABS, state_from_query
 from app.ui import ExplorerUI
-from app.views import SectionFigure, SeriesFigures
+from app.views import SectionFigure, SeriesData
 from explorer_core.scenes import get_scene
 
 log = logging.getLogger(__name__)
@@ -61,11 +61,10 @@ class Page:
         self.runner = Runner(deliver, on_error=self._job_failed, executor=executor, scheduler=scheduler, alive=alive,
                              on_busy=self._on_busy)  # fmt: skip
         self.fig = SectionFigure(state.q_range, state.r_range)
-        self.series = SeriesFigures()
+        self.series = SeriesData(on_change=self._on_series)
         self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
         self.tabs: dict[str, AnalysisTab] = {}
         self.messages: dict[str, str] = {}
-        self._series_box = Column(sizing_mode="stretch_both", name="series_box")
         self._analysis_box = Column(sizing_mode="stretch_both", name="analysis_box")
         self.ui = ExplorerUI(
             on_message=self.handle,
@@ -74,7 +73,6 @@ class Page:
             tab=state.tab,
             presentation=state.presentation,
             section_plot=pn.pane.Bokeh(self.fig.fig, sizing_mode="stretch_both"),
-            series_plot=pn.pane.Bokeh(self._series_box, sizing_mode="stretch_both"),
             analysis_plot=pn.pane.Bokeh(self._analysis_box, sizing_mode="stretch_both"),
             sizing_mode="stretch_both",
         )
@@ -209,20 +207,17 @@ class Page:
         if "presentation" in names:
             on = self.state.presentation
             self.ui.presentation = on
-            self.deliver(lambda: (self.fig.set_presentation(on), self.series.set_presentation(on)))
+            self.deliver(lambda: self.fig.set_presentation(on))
         if names & {"scene", "selected", "clicked", "n_random"}:
             self._refresh_views()
 
     def _on_session(self, *events: Any) -> None:
-        if any(e.name == "n_points" and e.new and not self.series.figs for e in events):
-            self.deliver(self._build_series)  # after the first points went out, in a message of its own
         self._refresh_views()
 
-    def _build_series(self) -> None:
-        if not self.series.figs:
-            self._series_box.children = list(self.series.build())
-            if self.state.presentation:
-                self.series.set_presentation(True)
+    def _on_series(self, data: dict[str, list[float]]) -> None:
+        ui = getattr(self, "ui", None)
+        if ui is not None and data != ui.series:
+            ui.series = data
 
     def _section_view(self) -> dict[str, Any]:
         s, st = self.session, self.state

@@ -61,6 +61,11 @@ button.act:disabled { opacity: .45; cursor: not-allowed; }
 .plot-section, .plot-series, .plot-analysis { min-height: 0; min-width: 0; position: relative; display: flex; }
 .plot-series { flex-direction: column; }
 .plot-series .cap { font-size: .92em; color: #3a4554; }
+.series-chart { flex: 1 1 0; min-height: 70px; position: relative; }
+.series-chart svg { position: absolute; inset: 0; width: 100%; height: 100%; overflow: visible; }
+.series-chart text { font-size: 11px; fill: #3a4554; }
+.app.present .series-chart text { font-size: 15px; }
+.series-chart .axis { stroke: #9aa5b4; stroke-width: 1; }
 .plot-analysis { flex: 1 1 auto; min-height: 300px; }
 .legend { font-size: .9em; color: #3a4554; }
 .legend span.sw { display: inline-block; width: 12px; height: 12px; border: 1px solid #999; vertical-align: -2px;
@@ -196,7 +201,9 @@ export function render({model, el}) {
   const status = h("div", {class: "status-line", "aria-live": "polite"})
   const plotSection = h("div", {class: "plot-section"})
   const seriesCap = h("div", {class: "cap series-caption"})
-  const plotSeries = h("div", {class: "plot-series"}, seriesCap)
+  const charts = [["q", "q_k", "#1f77b4"], ["r", "r_k", "#ff7f0e"], ["T", "T_k (energy)", "#2ca02c"]].map(
+    ([key, label, colour]) => ({key, label, colour, box: h("div", {class: `series-chart series-${key}`})}))
+  const plotSeries = h("div", {class: "plot-series"}, seriesCap, ...charts.map((c) => c.box))
   const eqLegend = h("div", {class: "legend"})
   for (const [t, c] of model.spec.eq_colors) {
     eqLegend.append(h("span", {text: "◆", style: `color:${c};margin-left:8px`}), document.createTextNode(" " + t))
@@ -238,8 +245,53 @@ export function render({model, el}) {
     if (child && child.parentElement !== slot) slot.append(child)
   }
   place(plotSection, "section_plot")
-  place(plotSeries, "series_plot")
   place(plotAnalysis, "analysis_plot")
+
+  // --- the k-series of the selected trajectory: three small SVG charts sharing the k axis -------------
+  const SVG = "http://www.w3.org/2000/svg"
+  const sv = (tag, attrs, text) => {
+    const e = document.createElementNS(SVG, tag)
+    for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v)
+    if (text !== undefined) e.textContent = text
+    return e
+  }
+  const fmt = (v) => Math.abs(v) >= 1e4 || (Math.abs(v) < 1e-3 && v !== 0) ? v.toExponential(2) : String(+v.toPrecision(4))
+  function drawSeries() {
+    const d = model.series || {}
+    const ks = d.k || []
+    for (const [i, c] of charts.entries()) {
+      const W = c.box.clientWidth, H = c.box.clientHeight
+      const svg = sv("svg", {viewBox: `0 0 ${Math.max(W, 1)} ${Math.max(H, 1)}`, role: "img",
+                             "aria-label": `${c.label} against k`})
+      c.box.replaceChildren(svg)
+      if (W < 20 || H < 20) continue
+      const left = 64, right = 8, top = 6, bottom = i === charts.length - 1 ? 30 : 14
+      const ys = d[c.key] || []
+      const mid = (top + H - bottom) / 2
+      svg.append(sv("text", {x: 12, y: mid, "text-anchor": "middle", transform: `rotate(-90 12 ${mid})`}, c.label))
+      if (!ks.length) { svg.append(sv("text", {x: left, y: H / 2}, "no points")); continue }
+      const k0 = ks[0], k1 = ks[ks.length - 1] === k0 ? k0 + 1 : ks[ks.length - 1]
+      let y0 = Math.min(...ys), y1 = Math.max(...ys)
+      if (y1 === y0) { y0 -= 0.5; y1 += 0.5 }
+      const X = (k) => left + (k - k0) / (k1 - k0) * (W - left - right)
+      const Y = (y) => top + (1 - (y - y0) / (y1 - y0)) * (H - top - bottom)
+      svg.append(sv("line", {class: "axis", x1: left, y1: top, x2: left, y2: H - bottom}),
+                 sv("line", {class: "axis", x1: left, y1: H - bottom, x2: W - right, y2: H - bottom}),
+                 sv("text", {x: left - 4, y: top + 10, "text-anchor": "end"}, fmt(y1)),
+                 sv("text", {x: left - 4, y: H - bottom, "text-anchor": "end"}, fmt(y0)))
+      if (i === charts.length - 1) {
+        svg.append(sv("text", {x: left, y: H - 8}, fmt(k0)),
+                   sv("text", {x: W - right, y: H - 8, "text-anchor": "end"}, fmt(k1)),
+                   sv("text", {x: (left + W - right) / 2, y: H - 8, "text-anchor": "middle"}, "k"))
+      }
+      const pts = ks.map((k, j) => `${X(k).toFixed(1)},${Y(ys[j]).toFixed(1)}`).join(" ")
+      svg.append(sv("polyline", {points: pts, fill: "none", stroke: c.colour, "stroke-width": 0.8, "stroke-opacity": 0.6}))
+      const dots = sv("path", {d: ks.map((k, j) => `M${X(k).toFixed(1)} ${Y(ys[j]).toFixed(1)}h0`).join(""),
+                               stroke: c.colour, "stroke-width": 3, "stroke-linecap": "round"})
+      svg.append(dots)
+    }
+  }
+  new ResizeObserver(() => drawSeries()).observe(plotSeries)
 
   // --- state -> page ------------------------------------------------------------------------------
   let currentTab = "section"
@@ -325,6 +377,7 @@ export function render({model, el}) {
   model.on("revision", () => { syncValues(model.committed); showMessages() })
   model.on("messages", showMessages)
   model.on("view", showView)
+  model.on("series", drawSeries)
   model.on("tab", () => { if (model.tab !== currentTab) showTab(model.tab) })
   model.on("presentation", () => setPresentation(model.presentation))
   model.on("msg:custom", (msg) => {

@@ -94,8 +94,8 @@ class ExplorerUI(JSComponent):
     view = param.Dict(default={}, doc="per tab: status, errors, running, progress, result, ...")
     tab = param.String(default="section")
     presentation = param.Boolean(default=False)
+    series = param.Dict(default={}, doc="k, q, r, T of the selected trajectory (drawn by the page)")
     section_plot = Child()
-    series_plot = Child()
     analysis_plot = Child()
 
     _esm = ESM

@@ -2,7 +2,8 @@
 
 The (q, r) figure stacks the layers, bottom to top: the T' map, the equilibrium tracks over
 one period, the streamed section points, the selected trajectory (ringed), the equilibria at
-the section phase, and the clicked initial conditions. The k-series figures share their k axis.
+the section phase, and the clicked initial conditions. The k-series of the selected trajectory
+are data here; the page draws them (:class:`SeriesData`).
 
 Every session builds its own figures (a Bokeh model belongs to one document), and building
 and sending them is most of what a new page costs the server: they are assembled from Bokeh's
@@ -25,14 +26,12 @@ from bokeh.models import (
     CDSView,
     ColorBar,
     ColumnDataSource,
-    DataRange1d,
     GlyphRenderer,
     Grid,
     HoverTool,
     Image,
     Legend,
     LegendItem,
-    Line,
     LinearAxis,
     LinearColorMapper,
     MultiLine,
@@ -46,7 +45,7 @@ from bokeh.models import (
     UnionRenderers,
     WheelZoomTool,
 )
-from bokeh.palettes import Category10, Category20, RdBu11, interp_palette
+from bokeh.palettes import Category20, RdBu11, interp_palette
 
 #: One colour per equilibrium type (shared by the tracks and the markers).
 TYPE_COLORS = {
@@ -135,7 +134,7 @@ class SectionFigure:
         pts = _renderer(self.points, dots, name="section_points")
         # The selected trajectory, ringed in black on top of the others.
         self.selected = source({"q": [], "r": []}, "selected_source")
-        sel = _renderer(self.selected, Scatter(x="q", y="r", size=7, line_color="black", line_width=1.2,
+        sel = _renderer(self.selected, Scatter(x="q", y="r", size=6, line_color="black", line_width=0.8, line_alpha=0.7,
                                                fill_color=None), name="selected_points")  # fmt: skip
         self.equilibria = source({"q": [], "r": [], "color": [], "type": []}, "equilibria_source")
         eq = _renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
@@ -215,36 +214,25 @@ class SectionFigure:
         self.colorbar.title_text_font_size = "13pt" if on else "10pt"
 
 
-class SeriesFigures:
-    """q_k, r_k and T_k of the selected trajectory, sharing the k axis.
+class SeriesData:
+    """q_k, r_k and T_k of the selected trajectory. The page draws them itself (app/ui.js, three small
+    SVG charts): three Bokeh figures cost a new session ~90 ms of the server's event loop to build
+    and send (docs/load.md), more than the rest of its first view after the page."""
 
-    The data source exists from the start (the controller fills it); the figures are built
-    on demand (:meth:`build`), after a new page's first points: they are not needed to see them.
-    """
+    #: Points per series sent to the page at most (every n-th beyond: a chart ~400 px wide).
+    MAX_DRAWN = 1500
 
-    def __init__(self) -> None:
-        self.source = ColumnDataSource({"k": [], "q": [], "r": [], "T": []}, name="series_source")
-        self.figs: list[Plot] = []
-        self.axes: list[LinearAxis] = []
-
-    def build(self) -> list[Plot]:
-        if self.figs:
-            return self.figs
-        x_range = DataRange1d()
-        for col, label, color in zip(("q", "r", "T"), ("q_k", "r_k", "T_k (energy)"), Category10[3], strict=True):
-            f = Plot(x_range=x_range, y_range=DataRange1d(), sizing_mode="stretch_both", min_height=90, title=None,
-                     output_backend="canvas", toolbar_location="right", name=f"series_{col}",
-                     min_border_bottom=4, min_border_top=4)  # fmt: skip
-            self.axes += _axes(f, "k", label)
-            f.renderers.append(_renderer(self.source, Line(x="k", y=col, line_color=color)))
-            f.renderers.append(_renderer(self.source, Scatter(x="k", y=col, size=3, fill_color=color,
-                                                              line_color=color)))  # fmt: skip
-            f.toolbar = Toolbar(tools=[PanTool(), BoxZoomTool(), ResetTool()], logo=None, active_scroll=None)
-            self.figs.append(f)
-        return self.figs
+    def __init__(self, on_change: Any = None) -> None:
+        self.data: dict[str, np.ndarray] = {c: np.zeros(0) for c in ("k", "q", "r", "T")}
+        self.on_change = on_change
 
     def set(self, k: np.ndarray, q: np.ndarray, r: np.ndarray, energy: np.ndarray) -> None:
-        self.source.data = {"k": k, "q": q, "r": r, "T": energy}
+        self.data = {"k": np.asarray(k), "q": np.asarray(q), "r": np.asarray(r), "T": np.asarray(energy)}
+        if self.on_change is not None:
+            self.on_change(self.drawn())
 
-    def set_presentation(self, on: bool) -> None:
-        set_fonts(self.axes, on)
+    def drawn(self) -> dict[str, list[float]]:
+        """What the page draws: every point, or every n-th of a long series (the last one kept)."""
+        n = self.data["k"].size
+        idx = np.arange(n) if n <= self.MAX_DRAWN else np.unique(np.r_[np.arange(0, n, -(-n // self.MAX_DRAWN)), n - 1])
+        return {c: [float(v) for v in self.data[c][idx]] for c in ("k", "q", "r", "T")}

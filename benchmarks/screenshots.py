@@ -19,7 +19,7 @@ from harness import CHROMIUM, CHROMIUM_ARGS, served_app, wait_finished
 
 LAYERS_DRAWN = (
     "() => { const d = Bokeh.documents[0]; const n = (m) => d.get_model_by_name(m).get_length();"
-    " return n('tprime_source') === 1 && n('tracks_source') > 0 && n('series_source') > 0; }"
+    " return n('tprime_source') === 1 && n('tracks_source') > 0; }"
 )
 
 

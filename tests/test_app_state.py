@@ -158,7 +158,7 @@ def test_click_adds_one_trajectory_selects_it_and_counts_it() -> None:
     ics = sess.state.initial_conditions()
     assert tuple(ics[0]) == (0.3, 0.4)
     ref = section(sess.state.system(), ics, 15, numerics=sess.state.numerics())
-    np.testing.assert_array_equal(sess.series.source.data["q"], ref.trajectory(0)[1])  # the clicked IC's orbit
+    np.testing.assert_array_equal(sess.series.data["q"], ref.trajectory(0)[1])  # the clicked IC's orbit
     np.testing.assert_array_equal(sess.fig.selected.data["q"], ref.trajectory(0)[1])  # ringed in the section
     assert sess.status.startswith("45 points · 3 trajectories")
     assert "ics=0.3,0.4" in "&".join(f"{a}={b}" for a, b in sess.state.to_query().items())
@@ -168,7 +168,7 @@ def test_series_is_the_selected_trajectory_with_its_energy() -> None:
     sess = make_session(scene="fig1C")
     sess.state.param.update(n_random=3, periods=12)
     sess.state.selected = 1
-    d = sess.series.source.data
+    d = sess.series.data
     ref = section(sess.state.system(), sess.state.initial_conditions(), 12, numerics=sess.state.numerics())
     k, q, r = ref.trajectory(1)
     np.testing.assert_array_equal(d["k"], k)
@@ -226,7 +226,7 @@ def test_selection_moves_to_a_trajectory_with_points() -> None:
     traj = sess.data()[0]
     assert sess.escaped == [0] and 0 not in set(traj.tolist())
     assert sess.state.selected == 1
-    assert len(sess.series.source.data["k"]) == 5
+    assert len(sess.series.data["k"]) == 5
 
 
 def test_stop_ends_the_run_and_nothing_stays_computing() -> None:
