@@ -33,6 +33,7 @@ ENV PATH=/opt/venv/bin:$PATH \
     BILIMOVICH_ADDRESS=0.0.0.0 \
     BILIMOVICH_PORT=5006 \
     BILIMOVICH_SESSION_THREADS=4 \
+    BILIMOVICH_PROCS=auto \
     BILIMOVICH_ALLOWED_ORIGINS=localhost:5006,127.0.0.1:5006
 RUN useradd --no-log-init --create-home --home-dir /home/explorer --uid 10001 --user-group explorer
 COPY --from=build /opt/venv /opt/venv
@@ -45,5 +46,6 @@ RUN mkdir -p "$NUMBA_CACHE_DIR" "$MPLCONFIGDIR" && bilimovich warmup
 EXPOSE 5006
 HEALTHCHECK --interval=30s --timeout=5s --start-period=60s --retries=3 \
     CMD ["python", "-c", "import os, urllib.request as u; u.urlopen('http://127.0.0.1:%s/liveness' % os.environ.get('BILIMOVICH_PORT', '5006'), timeout=4)"]
-# Address, port, origins and threads come from the BILIMOVICH_* variables above (docker run -e ...).
+# Address, port, origins, threads and server processes (auto: one per CPU the container may use)
+# come from the BILIMOVICH_* variables above (docker run -e ...).
 CMD ["bilimovich", "serve"]

@@ -1,186 +1,177 @@
 """Analysis tabs: Lyapunov spectrum, bifurcation diagram, chart of regimes.
 
-Each tab takes the session's current system, runs one analysis from
-:mod:`explorer_core` on the session's :class:`~app.runner.Runner` (so a newer run
-or a closed tab cancels it), shows progress, can be stopped, and draws the
-result. Work per run is bounded (``LIMITS``). No numerics here.
+Each tab takes the session's current system and its settings from the session's state (the
+values in use: typed values went through :func:`app.state.commit`), runs one analysis from
+:mod:`explorer_core` on the session's :class:`~app.runner.Runner` (so a newer run or a closed
+tab cancels it), shows progress, can be stopped, and draws the result. Work per run is bounded
+(:data:`app.state.LIMITS`). No numerics here.
+
+What a tab shows besides its figure is a small dict (:attr:`AnalysisTab.view`: message, error,
+progress, result lines, whether a download exists) that the page renders as text. A result that
+is empty, or whose members all failed, says so and reports no numbers.
 """
 
 from __future__ import annotations
 
-import html
-import io
-import math
 import os
 import tempfile
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-import panel as pn
-from bokeh.models import ColumnDataSource, LinearColorMapper
+from bokeh.models import ColumnDataSource, LinearColorMapper, Plot
 from bokeh.palettes import Category10, Category20
 from bokeh.plotting import figure
 
-from app.controller import ExplorerSession
-from app.views import BACKEND, ERROR_STYLE
+from app.controller import ExplorerSession, _plain
+from app.views import BACKEND
 from explorer_core.analyses.bifurcation import bifurcation_diagram
+from explorer_core.analyses.continuation import chart_boundaries, continue_from_seeds
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.regimes import REGIMES, chart_spec, iter_chart
 from explorer_core.analyses.sweeps import sweep_values
 from explorer_core.parallel.cluster import SchedulerError, executor_for, scheduler_from_env
-from explorer_core.scenes import get_scene
 from explorer_core.solve.numerics import Numerics
-from explorer_core.system.params import INERTIA_NAMES, ParameterError
+from explorer_core.system.params import ParameterError
 from explorer_core.warm import warm_all
 
-SWEEPABLE = ["alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega"]
-LIMITS = {"lyap_periods": 20000, "ensemble": 16, "bif_values": 400, "bif_points": 400, "transient": 5000}
-LIMITS |= {"grid": 120, "chart_periods": 3000}
 BIFURCATION_HELP = (
     "Orbit diagram: for each value a transient, then section points. Continuation carries the state from "
     "value to value, forward (blue) and backward (orange) to expose hysteresis; escaped trajectories are "
-    "counted, not drawn."
+    "counted, not drawn. Over it, the periodic orbits near the diagram's attractors followed by "
+    "pseudo-arclength continuation (green: stable, grey dashed: unstable), switching onto the doubled orbit "
+    "at each period doubling; diamonds mark the bifurcations (listed with their error)."
 )
 CHART_HELP = (
     "Chart of dynamical regimes: each pixel's attractor classified by the return of its section point "
     "(period p), its largest Lyapunov exponent (chaos) or escape. A coarse grid comes first, then "
-    "refinement. **Click a pixel** to set those two parameters and see that section."
+    "refinement. Click a pixel to set those two parameters (the pixel's centre) and see that section; "
+    "the cross marks the current parameters. The lines are the period-doubling (black) and fold (magenta) "
+    "curves of the chart's stable cycles of periods 1-3, followed in both parameters by continuation: the "
+    "boundaries of the chart's regions as curves."
+)
+LYAPUNOV_HELP = (
+    "Exponents of the (q, r) flow from the variational equations with the exact Jacobian, re-orthonormalised "
+    "at each section time; Λ3 = 0 is the time direction. The check Λ1 + Λ2 = ⟨dQ/dq + dR/dr⟩ must hold."
 )
 #: Minimum time between two partial pictures of a running analysis (seconds).
 REFRESH = 0.25
+Publish = Callable[[str, dict[str, Any]], None]
 
 
-def _fig(**kw: Any):
-    f = figure(tools="pan,wheel_zoom,box_zoom,reset,save", output_backend=BACKEND, sizing_mode="stretch_width", **kw)
+def _fig(**kw: Any) -> Plot:
+    f = figure(tools="pan,wheel_zoom,box_zoom,reset,save", output_backend=BACKEND, sizing_mode="stretch_both",
+               min_height=260, **kw)  # fmt: skip
     f.toolbar.logo = None
+    f.toolbar.active_scroll = None  # the wheel scrolls the page until the zoom tool is picked
     return f
 
 
-def _floats(text: str, n: int, name: str) -> list[float]:
-    try:
-        vals = [float(v) for v in str(text).split(",")]
-    except ValueError:
-        raise ParameterError(f"{name} must be {n} comma-separated numbers, got {text[:40]!r}") from None
-    if len(vals) != n or not all(math.isfinite(v) for v in vals):
-        raise ParameterError(f"{name} must be {n} finite comma-separated numbers, got {text[:40]!r}")
-    return vals
-
-
-class _Tab:
-    """Shared plumbing: a message line, a progress bar, Run and Stop."""
+class AnalysisTab:
+    """Shared plumbing: the view dict (message, error, progress, result), Stop, failures."""
 
     channel = "analysis"
+    help = ""
 
-    def __init__(self, session: ExplorerSession) -> None:
+    def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
         self.session = session
-        self.message = pn.pane.Str("", sizing_mode="stretch_width", css_classes=[f"{self.channel}-status"])
-        self.error = pn.pane.HTML("", visible=False, sizing_mode="stretch_width", css_classes=[f"{self.channel}-error"])
-        self.progress = pn.indicators.Progress(value=0, max=100, sizing_mode="stretch_width", visible=False)
-        self.run_button = pn.widgets.Button(label="Run", button_type="primary", css_classes=[f"{self.channel}-run"])
-        self.stop_button = pn.widgets.Button(label="Stop", button_type="warning")
-        self.run_button.on_click(lambda e: self.run())
-        self.stop_button.on_click(lambda e: self.stop())
+        self._publish = publish
+        self.view: dict[str, Any] = {"message": "", "error": "", "progress": None, "result": [], "download": False,
+                                     "help": self.help}  # fmt: skip
+        self._fig: Plot | None = None
+
+    # --- what the page shows ---------------------------------------------------------------
+
+    def set_view(self, **kw: Any) -> None:
+        self.view.update(kw)
+        if self._publish is not None:
+            self._publish(self.channel, dict(self.view))
 
     def fail(self, msg: str) -> None:
-        self.error.object = f'<div style="{ERROR_STYLE}">{html.escape(msg)}</div>'
-        self.error.visible = True
+        self.set_view(error=msg, progress=None)
 
-    def ok(self) -> None:
-        self.error.visible = False
+    def failed(self, exc: BaseException) -> None:
+        """The job raised (document thread): a one-line message; nothing stays "computing"."""
+        self.set_view(error=f"{self.channel} computation failed: {_plain(exc)}", progress=None, message="failed")
 
     def stop(self) -> None:
-        self.session.runner.cancel(self.channel)
-        self.progress.visible = False
-        self.message.object += " — stopped"
+        if self.session.runner.busy(self.channel):
+            self.session.runner.cancel(self.channel)
+            self.set_view(message=(self.view["message"] + " — stopped").strip(" —"), progress=None)
 
     def set_progress(self, done: int, total: int, text: str) -> None:
-        self.progress.visible = done < total
-        self.progress.value = int(100 * done / max(1, total))
-        self.message.object = text
+        self.set_view(progress=int(100 * done / max(1, total)) if done < total else None, message=text)
+
+    def figure(self) -> Plot:
+        """The tab's figure, built when the tab is first opened."""
+        if self._fig is None:
+            self._fig = self._build()
+        return self._fig
+
+    def _build(self) -> Plot:
+        raise NotImplementedError
 
     def run(self) -> None:
         raise NotImplementedError
 
+    def _start(self, job: Callable, text: str = "computing…") -> None:
+        self.set_view(error="", result=[], message=text, progress=0)
+        self.session.runner.start(self.channel, job)
 
-class LyapunovTab(_Tab):
+
+class LyapunovTab(AnalysisTab):
     channel = "lyapunov"
+    help = LYAPUNOV_HELP
 
-    def __init__(self, session: ExplorerSession) -> None:
-        super().__init__(session)
-        self.ic = pn.widgets.TextInput(label="Initial condition q,r (blank: selected trajectory)", value="")
-        self.transient = pn.widgets.IntInput(label="Transient periods", value=200, start=0, end=LIMITS["transient"])
-        self.periods = pn.widgets.IntInput(
-            label="Periods measured", value=1000, start=10, end=LIMITS["lyap_periods"], css_classes=["lyapunov-periods"]
-        )
-        self.ensemble = pn.widgets.IntInput(label="Ensemble members", value=4, start=1, end=LIMITS["ensemble"])
+    def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
+        super().__init__(session, publish)
         self.source = ColumnDataSource({"k": [], "l1": [], "l2": []}, name="lyapunov_source")
-        f = _fig(height=320, x_axis_label="periods measured", y_axis_label="running estimate (per unit time)")
+
+    def _build(self) -> Plot:
+        f = _fig(x_axis_label="periods measured", y_axis_label="running estimate (per unit time)")
         f.line("k", "l1", source=self.source, color=Category10[3][0], legend_label="Λ1")
         f.line("k", "l2", source=self.source, color=Category10[3][1], legend_label="Λ2")
         f.legend.location = "bottom_right"
-        self.fig = f
-        self.result = pn.pane.Markdown("", sizing_mode="stretch_width", css_classes=["lyapunov-result"])
-
-    def panel(self) -> pn.Column:
-        intro = (
-            "Exponents of the `(q, r)` flow from the variational equations with the exact Jacobian, "
-            "re-orthonormalised at each section time; `Λ3 = 0` is the time direction. The check "
-            "`Λ1 + Λ2 = ⟨dQ/dq + dR/dr⟩` must hold."
-        )
-        return pn.Column(
-            pn.pane.Markdown(intro),
-            pn.Row(self.ic, self.transient, self.periods, self.ensemble),
-            pn.Row(self.run_button, self.stop_button),
-            self.error,
-            self.progress,
-            self.message,
-            self.result,
-            self.fig,
-            sizing_mode="stretch_width",
-        )
+        return f
 
     def _ic(self) -> tuple[float, float]:
-        if self.ic.value.strip():
-            q, r = _floats(self.ic.value, 2, "initial condition")
-            return q, r
+        st = self.session.state
+        if st.lyap_ic:
+            return float(st.lyap_ic[0]), float(st.lyap_ic[1])
         traj, k, q, r = self.session.data()
-        sel = traj == self.session.state.selected
+        sel = traj == st.selected
         if sel.any():
             j = np.flatnonzero(sel)[np.argmax(k[sel])]
             return float(q[j]), float(r[j])
-        ics = self.session.state.initial_conditions()
+        ics = st.initial_conditions()
+        if ics.shape[0] == 0:
+            raise ParameterError("no initial condition: type one, or add trajectories in the section tab")
         return float(ics[0, 0]), float(ics[0, 1])
 
     def run(self) -> None:
+        st = self.session.state
         try:
-            params = self.session.state.system()
+            params = st.system()
             q, r = self._ic()
-            m = int(self.ensemble.value)
-            transient, periods = int(self.transient.value), int(self.periods.value)
-            if not (1 <= m <= LIMITS["ensemble"] and 10 <= periods <= LIMITS["lyap_periods"]):
-                raise ParameterError(f"ensemble 1..{LIMITS['ensemble']}, periods 10..{LIMITS['lyap_periods']}")
-            if not 0 <= transient <= LIMITS["transient"]:
-                raise ParameterError(f"transient must be 0..{LIMITS['transient']}")
-        except (ParameterError, TypeError) as exc:
+        except ParameterError as exc:
             self.fail(str(exc))
             return
-        self.ok()
+        m, transient, periods = st.lyap_ensemble, st.lyap_transient, st.lyap_periods
         # Members start within 1e-3 of the IC; the transient brings them onto the attractor.
         rng = np.random.default_rng(0)
         ics = np.array([(q, r)] + [(q + 1e-3 * a, r + 1e-3 * b) for a, b in rng.normal(size=(m - 1, 2))])
         numerics = Numerics(method="dop853", rtol=1e-10, atol=1e-10, bound=1e4)
         history: list[tuple[int, float, float]] = []
         self.session.runner.ui(lambda: setattr(self.source, "data", {"k": [], "l1": [], "l2": []}))
-        self.set_progress(0, 1, "computing…")
 
         def job(cancelled, emit) -> None:
             last = [0.0]
 
             def progress(p) -> None:
-                if p.phase == "measure" and p.done_periods:
-                    ok = p.status == 0
-                    est = p.running[ok].mean(axis=0) if ok.any() else np.zeros(2)
+                ok = p.status == 0
+                if p.phase == "measure" and p.done_periods and ok.any():  # no estimate from failed members
+                    est = p.running[ok].mean(axis=0)
                     history.append((p.done_periods, float(est[0]), float(est[1])))
                 now = time.perf_counter()
                 if now - last[0] > REFRESH:
@@ -192,7 +183,7 @@ class LyapunovTab(_Tab):
                                     progress=progress, cancel=cancelled)  # fmt: skip
             emit(lambda: self._done(res, list(history)))
 
-        self.session.runner.start(self.channel, job)
+        self._start(job)
 
     def _partial(self, rows, phase: str, done: int, total: int) -> None:
         if rows:
@@ -202,91 +193,75 @@ class LyapunovTab(_Tab):
 
     def _done(self, res, rows) -> None:
         self._partial(rows, "measure", res.periods, res.periods)
-        mean, spread = res.mean(), res.spread()
         labels = res.status_labels()
-        status = {lab: labels.count(lab) for lab in sorted(set(labels))}
+        status = ", ".join(f"{lab}: {labels.count(lab)}" for lab in sorted(set(labels)))
+        n_ok = int(res.ok.sum())
+        tail = f"{res.elapsed_s:.2f} s" + ("" if res.completed else " (stopped)")
+        if n_ok == 0:
+            lines = [f"No exponents: none of the {len(labels)} members ran the whole measurement ({status}).", tail]
+            self.set_view(result=lines, progress=None, message="done: no result" if res.completed else "stopped")
+            return
+        mean, spread = res.mean(), res.spread()
         ky = res.kaplan_yorke()
-        div = float(np.mean(res.divergence_mean[res.ok])) if res.ok.any() else float("nan")
+        div = float(np.mean(res.divergence_mean[res.ok]))
         lines = [
-            f"**Λ1 = {mean[0]:.4f} ± {spread[0]:.4f}, Λ2 = {mean[1]:.4f} ± {spread[1]:.4f}, Λ3 = 0** "
+            f"Λ1 = {mean[0]:.4f} ± {spread[0]:.4f}, Λ2 = {mean[1]:.4f} ± {spread[1]:.4f}, Λ3 = 0 "
             f"(per unit time; per iteration ×T = {mean[0] * res.period:.4f}, {mean[1] * res.period:.4f})",
             f"Kaplan–Yorke dimension D = {ky:.4f}" if ky == ky else "Kaplan–Yorke dimension: not applicable",
             f"check: Λ1 + Λ2 = {mean.sum():.6f}, time-averaged divergence = {div:.6f}",
-            f"members: {status}; {res.elapsed_s:.2f} s" + ("" if res.completed else " (stopped)"),
+            f"members used: {n_ok} of {len(labels)} ({status}); {tail}",
         ]
-        self.result.object = "  \n".join(lines)
-        self.progress.visible = False
-        self.message.object = "done" if res.completed else "stopped"
+        self.set_view(result=lines, progress=None, message="done" if res.completed else "stopped")
 
 
-class BifurcationTab(_Tab):
+class BifurcationTab(AnalysisTab):
     channel = "bifurcation"
+    help = BIFURCATION_HELP
 
-    def __init__(self, session: ExplorerSession) -> None:
-        super().__init__(session)
-        self.param = pn.widgets.Select(label="Parameter", options=SWEEPABLE, value="alpha")
-        self.range = pn.widgets.TextInput(label="Range lo,hi", value="")
-        self.n_values = pn.widgets.IntInput(label="Values", value=120, start=2, end=LIMITS["bif_values"])
-        self.points = pn.widgets.IntInput(label="Points per value", value=80, start=1, end=LIMITS["bif_points"])
-        self.transient = pn.widgets.IntInput(label="Transient", value=300, start=0, end=LIMITS["transient"])
-        self.seeding = pn.widgets.RadioButtonGroup(label="Seeding", options=["continuation", "fixed"],
-                                                   value="continuation")  # fmt: skip
-        self.coord = pn.widgets.RadioButtonGroup(label="Plot", options=["q", "r"], value="q")
+    def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
+        super().__init__(session, publish)
         self.source = ColumnDataSource({"x": [], "y": [], "c": []}, name="bifurcation_source")
-        f = _fig(height=420, x_axis_label="parameter", y_axis_label="q_k")
-        f.scatter("x", "y", source=self.source, size=1.6, line_color=None,
-                  fill_color={"field": "c", "transform": LinearColorMapper(palette=[Category10[3][0], Category10[3][1]],
-                                                                          low=0, high=1)})  # fmt: skip
-        self.fig = f
+        self.stable = ColumnDataSource({"xs": [], "ys": []}, name="branches_stable")
+        self.unstable = ColumnDataSource({"xs": [], "ys": []}, name="branches_unstable")
+        self.bifs = ColumnDataSource({"x": [], "y": [], "kind": [], "value": [], "period": []}, name="bif_points")
         self._data = None
-        self.coord.param.watch(lambda e: self.session.runner.ui(self._draw), "value")
-        sid = session.state.scene
-        if sid != "custom" and "sweep" in get_scene(sid).extra:
-            sw = get_scene(sid).extra["sweep"]
-            self.param.value = sw["param"]
-            self.range.value = f"{sw['range'][0]},{sw['range'][1]}"
+        self._cont = None
+        session.state.param.watch(lambda e: session.runner.ui(self._draw), "bif_coord")
 
-    def panel(self) -> pn.Column:
-        return pn.Column(
-            pn.pane.Markdown(BIFURCATION_HELP),
-            pn.Row(self.param, self.range, self.n_values, self.points, self.transient),
-            pn.Row(self.seeding, self.coord, self.run_button, self.stop_button),
-            self.error,
-            self.progress,
-            self.message,
-            self.fig,
-            sizing_mode="stretch_width",
-        )
+    def _build(self) -> Plot:
+        from bokeh.models import HoverTool
+
+        f = _fig(x_axis_label=self.session.state.bif_param, y_axis_label=f"{self.session.state.bif_coord}_k")
+        mapper = LinearColorMapper(palette=[Category10[3][0], Category10[3][1]], low=0, high=1)
+        f.scatter("x", "y", source=self.source, size=1.6, line_color=None,
+                  fill_color={"field": "c", "transform": mapper})  # fmt: skip
+        f.multi_line("xs", "ys", source=self.unstable, line_color="#7f7f7f", line_dash="dashed", line_width=1.4)
+        f.multi_line("xs", "ys", source=self.stable, line_color="#2ca02c", line_width=2.2)
+        marks = f.scatter("x", "y", source=self.bifs, marker="diamond", size=11, fill_color="#9467bd",
+                          line_color="black", name="bifurcation_marks")  # fmt: skip
+        f.add_tools(HoverTool(renderers=[marks], tooltips=[("", "@kind of the period-@period orbit"),
+                                                           ("value", "@value")]))  # fmt: skip
+        return f
 
     def run(self) -> None:
         st = self.session.state
         try:
             params = st.system()
-            name = self.param.value
-            current = getattr(st, name)
-            if self.range.value.strip():
-                lo, hi = _floats(self.range.value, 2, "range")
-            else:
-                lo, hi = current - 0.05, current + 0.05
-            if not lo < hi:
-                raise ParameterError(f"range needs lo < hi, got {lo}, {hi}")
-            n, pts, tr = int(self.n_values.value), int(self.points.value), int(self.transient.value)
-            ok = 2 <= n <= LIMITS["bif_values"] and 1 <= pts <= LIMITS["bif_points"]
-            if not (ok and 0 <= tr <= LIMITS["transient"]):
-                raise ParameterError(
-                    f"values 2..{LIMITS['bif_values']}, points 1..{LIMITS['bif_points']}, "
-                    f"transient 0..{LIMITS['transient']}"
-                )
+            name = st.bif_param
+            lo, hi = st.bif_range or (getattr(st, name) - 0.05, getattr(st, name) + 0.05)
+            for end in (lo, hi):
+                st.system(**{name: end})  # blank range: current ± 0.05 must be valid too
             ics = st.initial_conditions()[:4]
+            if ics.shape[0] == 0:
+                raise ParameterError("no initial conditions: set random ICs above 0 or click in the section")
             scheduler = scheduler_from_env()  # BILIMOVICH_SCHEDULER: a Dask cluster runs the sweep
-        except (ParameterError, TypeError) as exc:
+        except (ParameterError, SchedulerError) as exc:
             self.fail(str(exc))
             return
-        self.ok()
+        n, pts, tr, seeding = st.bif_values, st.bif_points, st.bif_transient, st.bif_seeding
         values = sweep_values((lo, hi), n)
-        self.set_progress(0, n, f"computing on {scheduler}…" if scheduler else "computing…")
-        seeding = self.seeding.value
         numerics = Numerics(method="dop853", rtol=1e-9, atol=1e-9, bound=1e3)
+        follow = st.bif_orbits
 
         def job(cancelled, emit) -> None:
             last = [0.0]
@@ -302,31 +277,68 @@ class BifurcationTab(_Tab):
                                         numerics=numerics, progress=progress, cancel=cancelled,
                                         executor=executor_for(scheduler, warm_all))  # fmt: skip
             except SchedulerError as exc:  # unreachable or unusable cluster: say so in the tab
-                emit(lambda msg=str(exc): self.set_progress(1, 1, "not computed") or self.fail(msg))
+                emit(lambda msg=str(exc): self.set_view(message="not computed", progress=None, error=msg))
                 return
             emit(lambda: self._done(d))
+            if not follow or cancelled():
+                return
+            emit(lambda: self.set_view(message=self.view["message"] + "; continuing the orbits…"))
+            # Seeds: where the sweep's trajectories settled at the first value, and its initial conditions.
+            seeds = np.concatenate([d.final[0, 0][np.asarray(d.status[0, 0]) == 0], ics])
+            cont = continue_from_seeds(params, name, (lo, hi), seeds, max_orbits=4, cancel=cancelled)
+            if not cancelled():
+                emit(lambda: self._continued(cont))
 
-        self.session.runner.start(self.channel, job)
+        self._start(job, f"computing on {scheduler}…" if scheduler else "computing…")
 
     def _done(self, d) -> None:
         self._data = d
+        self._cont = None
         self._draw()
         counts = d.status_counts()
-        self.progress.visible = False
         summary = ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in counts.items())
-        self.message.object = f"{len(d.values)} values, {d.elapsed_s:.1f} s, trajectories: {summary}" + (
-            "" if d.completed else " (stopped)"
-        )
+        n_points = int(d.long()[0].size)
+        head = f"{len(d.values)} values, {d.elapsed_s:.1f} s" + ("" if d.completed else " (stopped)")
+        if n_points == 0:
+            lines = [f"No points: every trajectory escaped or failed before its section points ({summary})."]
+        else:
+            lines = [f"{n_points:,} points; trajectories: {summary}"]
+        self.set_view(message=head, progress=None, result=lines)
+
+    def _continued(self, cont) -> None:
+        self._cont = cont
+        self._draw()
+        lines = list(self.view["result"])
+        bifs = cont.bifurcations
+        lines.append(f"continuation: {len(cont.branches)} branches, {cont.n_points} points, {cont.elapsed_s:.1f} s"
+                     + ("" if bifs else "; no bifurcation in the range"))  # fmt: skip
+        lines += [f"{b.kind.replace('_', ' ')} of the period-{b.period} orbit at {cont.param} = {b.value:.12g} "
+                  f"(± {b.error:.1g})" for b in bifs[:12]]  # fmt: skip
+        lines += cont.messages[:3]
+        head = self.view["message"].replace("; continuing the orbits…", "")
+        self.set_view(result=lines, message=head)
 
     def _draw(self) -> None:
         d = self._data
         if d is None:
             return
         s, v, x, i, k, q, r = d.long()
-        y = q if self.coord.value == "q" else r
-        self.source.data = {"x": x, "y": y, "c": s.astype(float)}
-        self.fig.xaxis.axis_label = d.param
-        self.fig.yaxis.axis_label = f"{self.coord.value}_k"
+        coord = self.session.state.bif_coord
+        self.source.data = {"x": x, "y": q if coord == "q" else r, "c": s.astype(float)}
+        stable, unstable = branch_lines(self._cont, 0 if coord == "q" else 1)
+        self.stable.data, self.unstable.data = stable, unstable
+        cont = self._cont
+        col = 0 if coord == "q" else 1
+        self.bifs.data = {
+            "x": [b.value for b in cont.bifurcations] if cont else [],
+            "y": [float(b.point[col]) for b in cont.bifurcations] if cont else [],
+            "kind": [b.kind.replace("_", " ") for b in cont.bifurcations] if cont else [],
+            "value": [f"{b.value:.12g} ± {b.error:.1g}" for b in cont.bifurcations] if cont else [],
+            "period": [b.period for b in cont.bifurcations] if cont else [],
+        }
+        if self._fig is not None:
+            self._fig.xaxis.axis_label = d.param
+            self._fig.yaxis.axis_label = f"{coord}_k"
 
 
 # Colours of the chart: period p (1..16), then the other regimes.
@@ -334,84 +346,61 @@ _PERIOD_COLORS = list(Category20[20][:16])
 _OTHER = {"quasi_periodic": "#bdbdbd", "chaotic": "#000000", "escaped": "#ffffff", "failed": "#ff00ff",
           "invalid": "#f4cccc"}  # fmt: skip
 _NOT_DONE = "#eeeeee"
+#: The chart's legend as (label, colour): the page draws the swatches.
+CHART_LEGEND = [*((str(p), c) for p, c in zip(range(1, 17), _PERIOD_COLORS, strict=True)),
+                *((k.replace("_", "-"), c) for k, c in _OTHER.items())]  # fmt: skip
+#: Regimes that classify a pixel (failed and invalid pixels do not).
+_CLASSIFIED = ("periodic", "quasi_periodic", "chaotic", "escaped")
 
 
-class ChartTab(_Tab):
+class ChartTab(AnalysisTab):
     channel = "chart"
+    help = CHART_HELP
 
-    def __init__(self, session: ExplorerSession) -> None:
-        super().__init__(session)
-        self.x_param = pn.widgets.Select(label="x parameter", options=SWEEPABLE, value="alpha")
-        self.x_range = pn.widgets.TextInput(label="x range", value="-0.6,-0.4")
-        self.y_param = pn.widgets.Select(label="y parameter", options=SWEEPABLE, value="I11")
-        self.y_range = pn.widgets.TextInput(label="y range", value="1,2")
-        self.grid = pn.widgets.TextInput(label="grid NX,NY", value="40,30", css_classes=["chart-grid"])
-        self.periods = pn.widgets.IntInput(
-            label="Periods", value=300, start=10, end=LIMITS["chart_periods"], css_classes=["chart-periods"]
-        )
-        self.transient = pn.widgets.IntInput(
-            label="Transient", value=300, start=0, end=LIMITS["transient"], css_classes=["chart-transient"]
-        )
-        self.mapper = LinearColorMapper(palette=[_NOT_DONE, *_PERIOD_COLORS, *_OTHER.values()], low=-0.5,
-                                        high=len(_PERIOD_COLORS) + len(_OTHER) + 0.5)  # fmt: skip
+    def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
+        super().__init__(session, publish)
+        self.view["legend"] = CHART_LEGEND
         self.source = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []}, name="chart_source")
-        f = _fig(height=460, x_axis_label="alpha", y_axis_label="I11")
-        f.image(image="image", x="x", y="y", dw="dw", dh="dh", source=self.source, color_mapper=self.mapper)
-        self.fig = f
+        self.current = ColumnDataSource({"x": [], "y": []}, name="chart_current")
+        self.curves = ColumnDataSource({"xs": [], "ys": [], "color": [], "kind": []}, name="chart_curves")
         self.chart = None
-        legend = " ".join(f'<span style="background:{c}">&nbsp;&nbsp;&nbsp;</span> {p}' for p, c in
-                          zip(range(1, 17), _PERIOD_COLORS, strict=True))  # fmt: skip
-        legend += " &nbsp; " + " ".join(
-            f'<span style="background:{c};border:1px solid #999">&nbsp;&nbsp;&nbsp;</span> {k.replace("_", "-")}'
-            for k, c in _OTHER.items()
-        )
-        self.legend = pn.pane.HTML(f"<small>period of the cycle: {legend}</small>", sizing_mode="stretch_width")
-        self.download = pn.widgets.FileDownload(callback=self._npz, filename="chart.npz", label="Download chart NPZ")
+        session.state.param.watch(lambda *e: session.runner.ui(self._mark), list(_SWEPT))
+
+    def _build(self) -> Plot:
         from bokeh.events import Tap
 
+        st = self.session.state
+        self.mapper = LinearColorMapper(palette=[_NOT_DONE, *_PERIOD_COLORS, *_OTHER.values()], low=-0.5,
+                                        high=len(_PERIOD_COLORS) + len(_OTHER) + 0.5)  # fmt: skip
+        f = _fig(x_axis_label=st.chart_x, y_axis_label=st.chart_y)
+        f.image(image="image", x="x", y="y", dw="dw", dh="dh", source=self.source, color_mapper=self.mapper)
+        # Bifurcation curves from two-parameter continuation, with a white halo to show on any colour.
+        f.multi_line("xs", "ys", source=self.curves, line_color="white", line_width=5, line_alpha=0.8)
+        f.multi_line("xs", "ys", source=self.curves, line_color="color", line_width=2.2, name="chart_curve_lines")
+        # The current parameters: a cross with a white halo, visible on every colour.
+        f.scatter("x", "y", source=self.current, marker="cross", size=18, line_color="white", line_width=5)
+        f.scatter("x", "y", source=self.current, marker="cross", size=18, line_color="black", line_width=2,
+                  name="chart_current_marker")  # fmt: skip
         f.on_event(Tap, self._on_tap)
-        sid = session.state.scene
-        if sid != "custom" and "chart" in get_scene(sid).extra:
-            c = get_scene(sid).extra["chart"]
-            self.x_param.value, self.y_param.value = c["x_param"], c["y_param"]
-            self.x_range.value = ",".join(str(v) for v in c["x_range"])
-            self.y_range.value = ",".join(str(v) for v in c["y_range"])
-
-    def panel(self) -> pn.Column:
-        return pn.Column(
-            pn.pane.Markdown(CHART_HELP),
-            # Wraps instead of running off the right edge on a narrow window (or a projector).
-            pn.FlexBox(self.x_param, self.x_range, self.y_param, self.y_range, self.grid, self.periods, self.transient),
-            pn.Row(self.run_button, self.stop_button, self.download),
-            self.error,
-            self.progress,
-            self.message,
-            self.fig,
-            self.legend,
-            sizing_mode="stretch_width",
-        )
+        return f
 
     def run(self) -> None:
         st = self.session.state
         try:
             params = st.system()
-            xr = _floats(self.x_range.value, 2, "x range")
-            yr = _floats(self.y_range.value, 2, "y range")
-            nx, ny = (int(v) for v in _floats(self.grid.value, 2, "grid"))
-            if not (2 <= nx <= LIMITS["grid"] and 2 <= ny <= LIMITS["grid"]):
-                raise ParameterError(f"grid must be between 2 and {LIMITS['grid']} per axis, got {nx},{ny}")
-            periods = int(self.periods.value)
-            spec = chart_spec(params, self.x_param.value, xr, self.y_param.value, yr, (nx, ny),
-                              ics=st.initial_conditions()[:1], transient=int(self.transient.value),
+            nx, ny = st.chart_grid
+            periods = st.chart_periods
+            spec = chart_spec(params, st.chart_x, st.chart_xrange, st.chart_y, st.chart_yrange, (nx, ny),
+                              ics=st.initial_conditions()[:1], transient=st.chart_transient,
                               periods=periods, p_max=max(1, min(16, (periods - 1) // 2)))  # fmt: skip
             scheduler = scheduler_from_env()  # BILIMOVICH_SCHEDULER: tiles run on a Dask cluster
-        except (ParameterError, TypeError, ValueError) as exc:
+        except (ParameterError, SchedulerError, ValueError) as exc:
             self.fail(str(exc))
             return
-        self.ok()
-        labels = (self.x_param.value, self.y_param.value)
+        labels = (st.chart_x, st.chart_y)
         self.session.runner.ui(lambda: self._label(*labels))
-        self.set_progress(0, 1, f"computing on {scheduler}…" if scheduler else "computing…")
+        self.curves.data = {"xs": [], "ys": [], "color": [], "kind": []}
+        curves = st.chart_curves
 
         def job(cancelled, emit) -> None:
             last = [0.0]
@@ -424,16 +413,23 @@ class ChartTab(_Tab):
                         snap = upd.chart.filled()
                         emit(lambda c=snap, u=upd: self._show(c, u.done_tiles, u.total_tiles))
             except SchedulerError as exc:  # unreachable or unusable cluster: say so in the tab
-                emit(lambda msg=str(exc): self.set_progress(1, 1, "not computed") or self.fail(msg))
+                emit(lambda msg=str(exc): self.set_view(message="not computed", progress=None, error=msg))
                 return
             if upd is not None:
                 final = upd.chart
                 emit(lambda: self._show(final, upd.done_tiles, upd.total_tiles, final=True))
+            if upd is None or not curves or cancelled():
+                return
+            emit(lambda: self.set_view(message=self.view["message"] + "; following the boundaries…"))
+            parts = chart_boundaries(final, cancel=cancelled)
+            if not cancelled():
+                emit(lambda: self._curves(parts))
 
-        self.session.runner.start(self.channel, job)
+        self._start(job, f"computing on {scheduler}…" if scheduler else "computing…")
 
     def _label(self, x: str, y: str) -> None:
-        self.fig.xaxis.axis_label, self.fig.yaxis.axis_label = x, y
+        if self._fig is not None:
+            self._fig.xaxis.axis_label, self._fig.yaxis.axis_label = x, y
 
     def _show(self, chart, done: int, total: int, final: bool = False) -> None:
         self.chart = chart
@@ -455,26 +451,110 @@ class ChartTab(_Tab):
             "dw": [xs[-1] - xs[0] + dx],
             "dh": [ys[-1] - ys[0] + dy],
         }
-        counts = chart.counts() if final else {}
-        summary = ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in counts.items())
-        self.set_progress(done, total, f"{done}/{total} tiles" + (f" — pixels: {summary}" if summary else ""))
+        self._mark()
+        result: list[str] = []
+        if final:
+            counts = chart.counts()
+            classified = sum(v for k, v in counts.items() if k.startswith("period_") or k in _CLASSIFIED)
+            summary = ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in counts.items())
+            result = [f"pixels: {summary}"] if classified else [
+                f"No pixel could be classified: every one failed or was invalid ({summary})."]  # fmt: skip
+        self.set_view(download=True, result=result)
+        self.set_progress(done, total, f"{done}/{total} tiles" + ("" if not final or chart.completed else " (stopped)"))
+
+    def _curves(self, parts) -> None:
+        xs, ys, colours, kinds = [], [], [], []
+        for c in [c for cont in parts for c in cont.curves]:
+            if len(c.rows) < 2:
+                continue
+            rows = np.array(c.rows)
+            xs.append(rows[:, 0].tolist())
+            ys.append(rows[:, 1].tolist())
+            colours.append("#000000" if c.kind == "period_doubling" else "#e377c2")
+            kinds.append(c.kind)
+        self.curves.data = {"xs": xs, "ys": ys, "color": colours, "kind": kinds}
+        lines = list(self.view["result"])
+        n_bif = sum(len(cont.bifurcations) for cont in parts)
+        lines.append(f"boundaries: {len(xs)} curves (period doubling: black, fold: magenta) from {n_bif} "
+                     "bifurcations of the stable cycles of periods 1-3 of the chart")  # fmt: skip
+        lines += [m for cont in parts for m in cont.messages][:2]
+        self.set_view(result=lines, message=self.view["message"].replace("; following the boundaries…", ""))
+
+    def _mark(self) -> None:
+        """Mark the current values of the chart's two parameters (document thread)."""
+        if self.chart is None:
+            self.current.data = {"x": [], "y": []}
+            return
+        st, spec = self.session.state, self.chart.spec
+        self.current.data = {"x": [float(getattr(st, spec.x_param))], "y": [float(getattr(st, spec.y_param))]}
+
+    def pixel_centre(self, x: float, y: float) -> tuple[float, float] | None:
+        """The centre of the chart's pixel under (x, y); None outside the chart."""
+        if self.chart is None:
+            return None
+        spec = self.chart.spec
+        xs, ys = np.asarray(spec.x_values), np.asarray(spec.y_values)
+        dx = (xs[-1] - xs[0]) / max(1, xs.size - 1)
+        dy = (ys[-1] - ys[0]) / max(1, ys.size - 1)
+        i, j = round((x - xs[0]) / dx), round((y - ys[0]) / dy)
+        if not (0 <= i < xs.size and 0 <= j < ys.size):
+            return None
+        return float(xs[i]), float(ys[j])
 
     def _on_tap(self, event) -> None:
-        """A click on a pixel sets those two parameters; the section tab recomputes."""
-        if self.chart is None or event.x is None:
+        """A click on a pixel sets those two parameters to the pixel's centre; the section recomputes."""
+        if event.x is None or event.y is None:
             return
-        spec = self.chart.spec
-        st = self.session.state
+        centre = self.pixel_centre(float(event.x), float(event.y))
+        if centre is None:
+            return
+        spec, st = self.chart.spec, self.session.state
+        values = {spec.x_param: centre[0], spec.y_param: centre[1]}
         try:
-            st.param.update(**{spec.x_param: float(event.x), spec.y_param: float(event.y), "scene": "custom"})
-        except Exception as exc:  # a click outside the valid region: keep the state, say why
-            self.fail(str(exc))
+            st.system(**values)  # the same check a typed value gets
+        except ParameterError as exc:  # a pixel whose system is invalid: keep the state, say why
+            self.fail(f"{spec.x_param} = {centre[0]:g}, {spec.y_param} = {centre[1]:g}: {exc}")
+            return
+        self.set_view(error="")
+        st.param.update(**values, scene="custom")
 
-    def _npz(self) -> io.BytesIO:
+    def npz_bytes(self) -> bytes | None:
+        """The chart on screen as NPZ; None before there is one (the download is disabled then)."""
         if self.chart is None:
-            return io.BytesIO(b"")
+            return None
         with tempfile.TemporaryDirectory() as d:
             path = os.path.join(d, "chart.npz")
             self.chart.to_npz(path)
             with open(path, "rb") as fh:
-                return io.BytesIO(fh.read())
+                return fh.read()
+
+
+_SWEPT = ("alpha", "I11", "I22", "I33", "I12", "I13", "I23", "g0", "g1", "g2", "omega")
+
+
+def branch_lines(cont, col: int) -> tuple[dict[str, list], dict[str, list]]:
+    """Continued branches as polylines (every point of each orbit): stable and unstable pieces.
+
+    A segment is stable if either end is (the bifurcation points are on the branch, where the
+    stability changes), so the pieces meet there.
+    """
+    out = ({"xs": [], "ys": []}, {"xs": [], "ys": []})
+    if cont is None:
+        return out
+    for br in cont.branches:
+        vals = np.array(br.values)
+        if vals.size < 2:
+            continue
+        st = br.stable
+        solid = st[:-1] | st[1:]
+        orbit = np.array(br.orbits)  # (m, n, 2)
+        for j in range(br.period):
+            y = orbit[:, j, col]
+            start = 0
+            for i in range(1, solid.size + 1):
+                if i == solid.size or solid[i] != solid[start]:
+                    d = out[0 if solid[start] else 1]
+                    d["xs"].append(vals[start : i + 1].tolist())
+                    d["ys"].append(y[start : i + 1].tolist())
+                    start = i
+    return out

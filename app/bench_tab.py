@@ -1,46 +1,45 @@
 """Speed vs accuracy tab: work-precision diagrams (error against time per trajectory, log-log).
 
-Two sources of data, both produced by :mod:`explorer_core.studies.bench` (no numerics here):
+Two sources of data, both produced by :mod:`explorer_core.bench` (no numerics here):
 
 * **Measure** runs a small benchmark on the session's current system and initial condition (a few
   methods and tolerances, a short horizon; a reference from ``solve_ivp`` at 3e-14, cached) on the
   session's :class:`~app.runner.Runner`, with progress and Stop.
 * The latest full ``bilimovich bench`` run, read from ``$BILIMOVICH_BENCH_RESULTS`` or the file
-  the command leaves in the cache (:func:`explorer_core.studies.bench.latest_path`): one diagram per case.
+  the command leaves in the cache (:func:`explorer_core.bench.latest_path`): one diagram per case.
 
 Timings measured in a shared server are indicative; the command line's are the measured ones.
 """
 
 from __future__ import annotations
 
-import html
-import math
 import os
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
-import panel as pn
-from bokeh.models import ColumnDataSource, HoverTool, Span
+from bokeh.models import ColumnDataSource, HoverTool, Plot, Span
 from bokeh.plotting import figure
 
+from app.analyses import REFRESH, AnalysisTab, Publish
 from app.controller import ExplorerSession
-from app.views import ERROR_STYLE
 from explorer_core.studies import bench
 from explorer_core.system.params import ParameterError
 
 #: Label of the dataset measured in this session.
 MEASURED = "this system (Measure)"
 LATEST = "latest bench run"
-#: Longest horizon the Measure button accepts (periods).
-MAX_PERIODS = 500
-REFRESH = 0.25
 COLOURS = bench.LINE_COLOURS
 HELP = (
     "Error against an independent reference (`solve_ivp` DOP853 at 3e-14, cross-checked) over the wall "
     "time per trajectory, for this project's RK4, DP5 and DOP853 and for `solve_ivp`. Lower left is better. "
     "On chaotic orbits the error is measured only up to the horizon where perturbations have grown 1000-fold. "
-    "**Measure** runs a small benchmark on the current system; full results come from `bilimovich bench`."
+    "Measure runs a small benchmark on the current system; full results come from `bilimovich bench`."
+)
+FOOTNOTE = (
+    "Solid: one trajectory at a time (one core); dashed: this project's batch kernel, time per trajectory of a "
+    "batch on every core; dotted: the reference's error bound."
 )
 
 
@@ -71,17 +70,17 @@ def _lines(data: dict[str, Any], case: str) -> tuple[dict[str, list], dict[str, 
     return solid, dashed, pts
 
 
-def summary_text(data: dict[str, Any], case: str, target: float = 1e-6) -> str:
-    """Markdown: the horizon, the reference's bound and the time each line needs for ``target`` error."""
+def summary_text(data: dict[str, Any], case: str, target: float = 1e-6) -> list[str]:
+    """Plain lines: the horizon, the reference's bound and the time each line needs for ``target`` error."""
     info = data["cases"].get(case)
     if info is None:
-        return ""
+        return []
     lines = [
-        f"**{html.escape(case)}** ({html.escape(str(info.get('scene') or 'custom'))}), IC "
-        f"({info['ic'][0]:.6g}, {info['ic'][1]:.6g}): error over **K = {info['horizon']}** of {info['k_max']} "
-        f"periods" + (" (chaos horizon: perturbations grow 1000-fold by K)" if info["horizon"] < info["k_max"] else "")
+        f"{case} ({info.get('scene') or 'custom'}), IC ({info['ic'][0]:.6g}, {info['ic'][1]:.6g}): error over "
+        f"K = {info['horizon']} of {info['k_max']} periods"
+        + (" (chaos horizon: perturbations grow 1000-fold by K)" if info["horizon"] < info["k_max"] else "")
         + f"; reference bound {info['reference_bound']:.1e}.",
-    ]  # fmt: skip
+    ]
     rows: dict[str, list[tuple[float | None, float]]] = {}
     failed: list[str] = []
     for row in data["rows"]:
@@ -96,53 +95,51 @@ def summary_text(data: dict[str, Any], case: str, target: float = 1e-6) -> str:
             best.append((t, name, how))
     if best:
         best.sort()
-        txt = ", ".join(f"{html.escape(n)} {t * 1e3:.3g} ms{' (at most)' if how == 'at most' else ''}"
-                        for t, n, how in best)  # fmt: skip
+        txt = ", ".join(f"{n} {t * 1e3:.3g} ms{' (at most)' if how == 'at most' else ''}" for t, n, how in best)
         lines.append(f"Time per trajectory for error {target:g}: {txt}.")
+    elif rows:
+        lines.append(f"No line reaches error {target:g} on this case.")
     if failed:
-        lines.append("Not ok: " + html.escape("; ".join(failed[:6])) + (" …" if len(failed) > 6 else ""))
+        lines.append("Not ok: " + "; ".join(failed[:6]) + (" …" if len(failed) > 6 else ""))
     for key, value in (data.get("ratios") or {}).items():
         if " / " in key and value is not None and case == "regular":
-            lines.append(f"{html.escape(key)} at error {target:g}: **{value:g}x**")
-    return "  \n".join(lines)
+            lines.append(f"{key} at error {target:g}: {value:g}x")
+    return lines
 
 
-class BenchTab:
+class BenchTab(AnalysisTab):
     """The speed-vs-accuracy tab of one session."""
 
     channel = "bench"
+    help = HELP
+    footnote = FOOTNOTE
 
     def __init__(
         self,
         session: ExplorerSession,
+        publish: Publish | None = None,
         results_path: str | None = None,
         cache_dir: str | None = None,
     ) -> None:
-        self.session = session
+        super().__init__(session, publish)
         self.cache_dir = cache_dir
         self.results_path = results_path or os.environ.get("BILIMOVICH_BENCH_RESULTS") or bench.latest_path()
         self.datasets: dict[str, tuple[dict[str, Any], str]] = {}  # label -> (bench.json dict, case)
-        self.message = pn.pane.Str("", sizing_mode="stretch_width", css_classes=["bench-status"])
-        self.error = pn.pane.HTML("", visible=False, sizing_mode="stretch_width", css_classes=["bench-error"])
-        self.progress = pn.indicators.Progress(value=0, max=100, sizing_mode="stretch_width", visible=False)
-        self.ic = pn.widgets.TextInput(label="Initial condition q,r (blank: the selected trajectory's)", value="")
-        self.periods = pn.widgets.IntInput(label="Periods (longest horizon)", value=50, start=2, end=MAX_PERIODS)
-        self.measure_button = pn.widgets.Button(label="Measure", color="primary", css_classes=["bench-run"])
-        self.stop_button = pn.widgets.Button(label="Stop", color="warning")
-        self.load_button = pn.widgets.Button(label="Load latest bench run")
-        self.view = pn.widgets.Select(label="Diagram", options=[], css_classes=["bench-view"])
-        self.measure_button.on_click(lambda e: self.run())
-        self.stop_button.on_click(lambda e: self.stop())
-        self.load_button.on_click(lambda e: self.load_results())
-        self.view.param.watch(lambda e: self.session.runner.ui(self._draw), "value")
+        self.view.update(options=[], choice=None, footnote=FOOTNOTE)
         self.solid = ColumnDataSource({"xs": [], "ys": [], "color": [], "label": []}, name="bench_solid")
         self.dashed = ColumnDataSource({"xs": [], "ys": [], "color": [], "label": []}, name="bench_dashed")
         self.points = ColumnDataSource({"x": [], "y": [], "color": [], "label": [], "setting": [], "status": []},
                                        name="bench_points")  # fmt: skip
-        f = figure(x_axis_type="log", y_axis_type="log", height=460, sizing_mode="stretch_width",
+        self.floor = Span(location=1e-16, dimension="width", line_dash="dotted", line_color="#777777", visible=False)
+        if os.path.exists(self.results_path):
+            self.load_results(quiet=True)
+
+    def _build(self) -> Plot:
+        f = figure(x_axis_type="log", y_axis_type="log", sizing_mode="stretch_both", min_height=260,
                    tools="pan,wheel_zoom,box_zoom,reset,save", x_axis_label="wall time per trajectory (s)",
                    y_axis_label="max error over k = 1..K")  # fmt: skip
         f.toolbar.logo = None
+        f.toolbar.active_scroll = None
         f.multi_line("xs", "ys", color="color", legend_field="label", line_width=2, source=self.solid)
         f.multi_line("xs", "ys", color="color", legend_field="label", line_width=2, line_dash="dashed",
                      source=self.dashed)  # fmt: skip
@@ -152,46 +149,8 @@ class BenchTab:
                                                           ("status", "@status")]))  # fmt: skip
         f.legend.location = "top_right"
         f.legend.label_text_font_size = "8pt"
-        self.floor = Span(location=1e-16, dimension="width", line_dash="dotted", line_color="#777777", visible=False)
         f.add_layout(self.floor)
-        self.fig = f
-        self.summary = pn.pane.Markdown("", sizing_mode="stretch_width", css_classes=["bench-summary"])
-        if os.path.exists(self.results_path):
-            self.load_results(quiet=True)
-
-    def panel(self) -> pn.Column:
-        return pn.Column(
-            pn.pane.Markdown(HELP),
-            pn.Row(self.ic, self.periods),
-            pn.Row(self.measure_button, self.stop_button, self.load_button, self.view),
-            self.error,
-            self.progress,
-            self.message,
-            self.summary,
-            self.fig,
-            pn.pane.HTML("<small>Solid: one trajectory at a time (one core); dashed: this project's batch kernel, "
-                         "time per trajectory of a batch on every core; dotted: the reference's error bound.</small>"),
-            sizing_mode="stretch_width",
-        )  # fmt: skip
-
-    # --- messages -----------------------------------------------------------------------
-
-    def fail(self, msg: str) -> None:
-        self.error.object = f'<div style="{ERROR_STYLE}">{html.escape(msg)}</div>'
-        self.error.visible = True
-
-    def ok(self) -> None:
-        self.error.visible = False
-
-    def set_progress(self, done: int, total: int, text: str) -> None:
-        self.progress.visible = done < total
-        self.progress.value = int(100 * done / max(1, total))
-        self.message.object = text
-
-    def stop(self) -> None:
-        self.session.runner.cancel(self.channel)
-        self.progress.visible = False
-        self.message.object += " — stopped"
+        return f
 
     # --- data -----------------------------------------------------------------------------
 
@@ -204,8 +163,16 @@ class BenchTab:
             label = source if source == MEASURED else f"{source}: {case}"
             self.datasets[label] = (data, case)
             labels.append(label)
-        self.view.options = list(self.datasets)
+        self.set_view(options=list(self.datasets))
         return labels
+
+    def choose(self, label: Any) -> str | None:
+        """Show another diagram; a label that is not offered is refused (message), the shown one stays."""
+        if label not in self.datasets:
+            return f"no diagram {str(label)[:60]!r}; still showing {self.view['choice']!r}"
+        self.set_view(choice=label)
+        self.session.runner.ui(self._draw)
+        return None
 
     def load_results(self, quiet: bool = False) -> None:
         """Read the latest full run (``results_path``) and offer its cases in the diagram selector."""
@@ -216,49 +183,37 @@ class BenchTab:
                 reason = "no file" if isinstance(exc, FileNotFoundError) else str(exc)
                 self.fail(f"no bench results at {self.results_path} ({reason}): run `bilimovich bench --out DIR`")
             return
-        self.ok()
+        self.set_view(error="")
         label = f"{LATEST} ({data.get('config', {}).get('label', '?')})"
         labels = self.add_dataset(data, label)
-        if labels and (self.view.value not in self.datasets or not quiet):
-            self.view.value = labels[0]
+        if labels and (self.view["choice"] not in self.datasets or not quiet):
+            self.set_view(choice=labels[0])
         self.session.runner.ui(self._draw)
 
     def _ic(self) -> tuple[float, float]:
-        if self.ic.value.strip():
-            parts = self.ic.value.split(",")
-            try:
-                q, r = (float(v) for v in parts)
-            except ValueError:
-                raise ParameterError(f"initial condition must be two numbers q,r, got {self.ic.value[:40]!r}") from None
-            if not (math.isfinite(q) and math.isfinite(r)):
-                raise ParameterError(f"initial condition must be finite, got {self.ic.value[:40]!r}")
-            return q, r
-        ics = self.session.state.initial_conditions()
+        st = self.session.state
+        if st.bench_ic:
+            return float(st.bench_ic[0]), float(st.bench_ic[1])
+        ics = st.initial_conditions()
         if ics.shape[0] == 0:
             raise ParameterError("no initial condition: type one, or add trajectories in the section tab")
-        i = min(int(self.session.state.selected), ics.shape[0] - 1)
+        i = min(int(st.selected), ics.shape[0] - 1)
         return float(ics[i, 0]), float(ics[i, 1])
 
     def run(self) -> None:
         """Measure the current system (a small bench) on the session's runner."""
+        st = self.session.state
         try:
-            params = self.session.state.system()
+            params = st.system()
             q, r = self._ic()
-            periods = int(self.periods.value)
-            if not 2 <= periods <= MAX_PERIODS:
-                raise ParameterError(f"periods must be between 2 and {MAX_PERIODS}, got {periods}")
-        except (ParameterError, TypeError) as exc:
+        except ParameterError as exc:
             self.fail(str(exc))
             return
-        self.ok()
-        cfg = bench.app_config()
-        from dataclasses import replace
-
-        cfg = replace(cfg, k_max=periods)
-        case = bench.Case(MEASURED, params, (q, r), k_max=periods, cloud=0.01, scene=self.session.state.scene,
+        periods = st.bench_periods
+        cfg = replace(bench.app_config(), k_max=periods)
+        case = bench.Case(MEASURED, params, (q, r), k_max=periods, cloud=0.01, scene=st.scene,
                           why="the current system of this session")  # fmt: skip
         cache_dir = self.cache_dir
-        self.set_progress(0, 1, "measuring…")
 
         def job(cancelled, emit) -> None:
             last = [0.0]
@@ -272,24 +227,29 @@ class BenchTab:
             try:
                 res = bench.run_bench(cfg, cases=[case], cache_dir_=cache_dir, progress=progress, cancel=cancelled)
             except ParameterError as exc:  # e.g. the reference escapes in the first period
-                emit(lambda msg=str(exc): self.set_progress(1, 1, "not measured") or self.fail(msg))
+                emit(lambda msg=str(exc): self.set_view(message="not measured", progress=None, error=msg))
                 return
             data = res.as_dict()
             emit(lambda: self._measured(data, res.completed))
 
-        self.session.runner.start(self.channel, job)
+        self._start(job, "measuring…")
 
     def _measured(self, data: dict[str, Any], completed: bool) -> None:
         self.add_dataset(data, MEASURED)
-        self.view.value = MEASURED
+        self.set_view(choice=MEASURED)
         self._draw()
-        rows = len(data["rows"])
-        self.set_progress(1, 1, f"{rows} measurements, {data['elapsed_s']:.1f} s" + ("" if completed else " (stopped)"))
+        rows = data["rows"]
+        ok = sum(1 for r in rows if r["status"] == "ok" and r["error"] is not None)
+        tail = "" if completed else " (stopped)"
+        if not ok:
+            self.set_view(progress=None, message=f"{len(rows)} measurements{tail}: none ok, no timings to compare")
+        else:
+            self.set_view(progress=None, message=f"{len(rows)} measurements ({ok} ok), {data['elapsed_s']:.1f} s{tail}")
 
     def _draw(self) -> None:
-        if self.view.value not in self.datasets:
+        if self.view["choice"] not in self.datasets:
             return
-        data, case = self.datasets[self.view.value]
+        data, case = self.datasets[self.view["choice"]]
         solid, dashed, pts = _lines(data, case)
         self.solid.data = solid
         self.dashed.data = dashed
@@ -298,4 +258,4 @@ class BenchTab:
         self.floor.visible = bool(bound) and bool(np.isfinite(bound))
         if self.floor.visible:
             self.floor.location = float(bound)
-        self.summary.object = summary_text(data, case)
+        self.set_view(result=summary_text(data, case))

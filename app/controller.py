@@ -4,6 +4,10 @@
 jobs on a :class:`~app.runner.Runner` and applies their results to the figures
 on the document thread. Invalid input shows a message and leaves the last valid
 picture in place. All numerics are calls into :mod:`explorer_core`.
+
+What the page shows as running ("computing", Stop enabled) is derived from the runner's busy
+state (:meth:`~app.runner.Runner.busy`), never set by hand, so it ends with the work however
+the work ends. Values reach the state only through :func:`app.state.commit`.
 """
 
 from __future__ import annotations
@@ -19,9 +23,20 @@ import numpy as np
 import param
 
 from app.runner import Runner
-from app.state import SYSTEM_FIELDS, ExplorerState, SectionRequest
-from app.views import SectionFigure, SeriesFigures
+from app.state import (
+    CONTROLS,
+    MAX_CLICKED,
+    MAX_MAGNITUDE,
+    MAX_ORBIT_SEEDS,
+    SYSTEM_FIELDS,
+    TABS,
+    ExplorerState,
+    SectionRequest,
+    commit,
+)
+from app.views import SectionFigure, SeriesData
 from explorer_core.analyses.equilibria import Cancelled, equilibrium_tracks
+from explorer_core.analyses.orbits import Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
 from explorer_core.analyses.reliability import assess
 from explorer_core.analyses.tprime import energy_change_map, tprime_map
 from explorer_core.solve.integrators import Status
@@ -37,6 +52,14 @@ TRACE = bool(os.environ.get("BILIMOVICH_TRACE"))
 SECTION_FIELDS = (*SYSTEM_FIELDS, "method", "accuracy", "steps_per_period", "n_random", "seed", "periods", "transient")
 SECTION_FIELDS += ("box",)
 LAYER_FIELDS = ("show_tracks", "show_tprime", "tprime_kind")
+ORBIT_FIELDS = ("show_orbits", "orbit_period")
+#: What Stop stops in the section view, and what makes it "running".
+SECTION_CHANNELS = ("section", "tracks", "tprime", "reliability", "orbit", "orbits")
+#: Seeds of the "every orbit in view" search: a grid over the plot window.
+ORBIT_GRID = (10, 10)
+#: Orbits listed in the table (all of them are drawn and in the CSV).
+ORBIT_ROWS = 40
+ANALYSIS_FIELDS = tuple(c.name for c in CONTROLS if c.area in TABS[1:])
 #: Longest chunk streamed to the browser: bounds how long a cancel waits.
 MAX_CHUNK = 32
 #: Time between point updates sent to the browser: starts here, doubles up to the max (seconds).
@@ -57,37 +80,74 @@ class ExplorerSession(param.Parameterized):
 
     status = param.String(default="")
     error = param.String(default="")
+    #: Something of the section view runs (the section, a clicked trajectory, a layer): Stop applies.
     running = param.Boolean(default=False)
     escaped = param.List(default=[])
     failed = param.List(default=[])
-    #: Reliability warnings (explorer_core.analyses.reliability) as dicts: level, code, message.
+    #: Reliability warnings (explorer_core.reliability) as dicts: level, code, message.
     reliability = param.List(default=[])
+    #: Section points on screen (the CSV download is offered only then).
+    n_points = param.Integer(default=0)
+    #: Periodic orbits on screen, as table rows (:func:`orbit_row`), and what the last search said.
+    orbits = param.List(default=[])
+    orbit_status = param.String(default="")
 
     def __init__(
         self,
         state: ExplorerState,
         runner: Runner,
         section_fig: SectionFigure | None = None,
-        series: SeriesFigures | None = None,
+        series: SeriesData | None = None,
         on_query: Callable[[dict[str, str]], None] | None = None,
     ) -> None:
         super().__init__()
         self.state = state
         self.runner = runner
         self.fig = section_fig or SectionFigure(state.q_range, state.r_range)
-        self.series = series or SeriesFigures()
+        self.series = series or SeriesData()
         self._on_query = on_query
         self._params: Params | None = None  # system of the data on screen
         self._chunks: list[tuple[np.ndarray, ...]] = []
         self._n_traj = 0
         self._t_start = 0.0
+        self._elapsed = 0.0
+        self._progress: tuple[int, int] | None = None
+        self._outcome = ""  # "", "stopped" or "failed": how the last run ended short
+        self._status_arr = np.zeros(0, dtype=np.int8)  # status of each trajectory on screen
+        self._run_n = 0  # trajectories of the run in flight (or the last one)
         self._suspend = False
         self._t_req = time.perf_counter()
+        if runner._on_busy is None:
+            runner._on_busy = self.on_busy
         state.param.watch(self._on_section_change, list(SECTION_FIELDS))
         state.param.watch(self._on_layers_change, list(LAYER_FIELDS))
         state.param.watch(self._on_view_change, ["q_range", "r_range"])
         state.param.watch(lambda *e: self.runner.ui(self._update_series), ["selected"])
         state.param.watch(lambda *e: self.recompute(), ["clicked"])
+        state.param.watch(self._on_orbit_settings, list(ORBIT_FIELDS))
+        self._orbits: list[Orbit] = []
+        state.param.watch(lambda *e: self._publish_query(), ["selected", "tab", "presentation", *ANALYSIS_FIELDS])
+
+    # --- input ------------------------------------------------------------------------------
+
+    def commit(self, name: str, text: Any) -> str | None:
+        """A typed value for control ``name``: applied (None), or refused with the reason (state unchanged)."""
+        if name == "scene":
+            msg = commit(self.state, "scene", text)
+            if msg is None and self.state.scene != "custom":
+                q_range, r_range = self.state.q_range, self.state.r_range
+                self.runner.ui(lambda: self.fig.set_view(q_range, r_range))
+            return msg
+        return commit(self.state, name, text)
+
+    def on_busy(self, channel: str) -> None:
+        """A channel started or stopped (document thread): the section view runs while any of its channels do."""
+        if channel in SECTION_CHANNELS:
+            running = any(self.runner.busy(c) for c in SECTION_CHANNELS)
+            if running != self.running:
+                self.running = running
+            if channel == "section":
+                self._refresh_status()
 
     # --- reacting to the state ------------------------------------------------------------
 
@@ -117,15 +177,18 @@ class ExplorerSession(param.Parameterized):
         q_range, r_range = self.state.q_range, self.state.r_range
         self.runner.ui(lambda: self.fig.set_view(q_range, r_range))
         self.recompute()
+        self._start_layers()
 
     def set_view_from_plot(self, q_range: tuple[float, float], r_range: tuple[float, float]) -> None:
-        """The user panned/zoomed: remember the window (URL) and refresh the T' map for it."""
+        """The user panned/zoomed: remember the window (URL) and refresh the T' map (and the view's orbits)."""
         self._suspend = True
         try:
             self.state.param.update(q_range=tuple(q_range), r_range=tuple(r_range))
         finally:
             self._suspend = False
         self._start_layers(tracks=False)
+        if self.state.orbit_view:
+            self.recompute_orbits()
         self._publish_query()
 
     # --- the section ------------------------------------------------------------------------
@@ -143,16 +206,18 @@ class ExplorerSession(param.Parameterized):
         except ParameterError as exc:
             self.error = str(exc)
             self.runner.cancel("section")
-            self.running = False
+            self._publish_query()
             return
         self.error = ""
         self._start_section(req, start_layers=self._start_layers)
+        self.recompute_orbits()
         self._publish_query()
 
     def _start_section(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
-        self.running = True
         self._t_start = time.perf_counter()
-        self.status = "computing…"
+        self._progress = (0, req.periods)
+        self._outcome = ""
+        self._run_n = req.ics.shape[0]
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
             self._trace("section job starts")
@@ -202,17 +267,28 @@ class ExplorerSession(param.Parameterized):
         self._update_reliability(req)  # a priori: the new numerics against the states on screen
 
     def stop(self) -> None:
-        """Stop the section in flight; what was computed stays (and gets its layers)."""
-        self.runner.cancel("section")
-        self._start_layers()
-        if self.running:
-            self.running = False
-            self.status = self.status.replace("computing", "stopped") + " — stopped"
+        """Stop everything of the section view in flight; what was computed stays on screen."""
+        stopped = self.runner.busy("section")
+        for channel in SECTION_CHANNELS:
+            self.runner.cancel(channel)
+        if stopped:
+            self._outcome = "stopped"
+            self._elapsed = time.perf_counter() - self._t_start
+        self._refresh_status()
+
+    def failed_job(self, channel: str, exc: BaseException) -> None:
+        """A job of the section view raised (document thread): say so; nothing stays "computing"."""
+        msg = _plain(exc)
+        self.error = f"{channel} computation failed: {msg}"
+        if channel == "section":
+            self._outcome = "failed"
+            self._refresh_status()
 
     def _reset(self, req: SectionRequest) -> None:
         self._params = req.params
         self._chunks = []
         self._n_traj = req.ics.shape[0]
+        self._status_arr = np.zeros(self._n_traj, dtype=np.int8)
         self.escaped, self.failed = [], []
         self.fig.set_ics(np.array(self.state.clicked, dtype=float).reshape(-1, 2))
         if self.state.selected >= self._n_traj:
@@ -240,7 +316,9 @@ class ExplorerSession(param.Parameterized):
 
     def _finish(self, done: bool, status: np.ndarray | None) -> None:
         self._trace("last chunk on the document thread")
-        self.running = False
+        self._progress = None
+        if not done:
+            self._outcome = "stopped"
         if status is not None:
             self._set_status(status, None, None, running=False, stopped=not done)
             self._update_reliability(None, status)
@@ -252,23 +330,43 @@ class ExplorerSession(param.Parameterized):
 
     def _set_status(self, status: np.ndarray, done: int | None, total: int | None, *, running: bool,
                     stopped: bool = False) -> None:  # fmt: skip
+        """Statuses of the main run's trajectories (a chunk or the end of the run)."""
+        arr = self._status_arr
+        arr[: status.size] = status
+        self._progress = (done, total) if running and done is not None else None
+        self._elapsed = time.perf_counter() - self._t_start
+        self._refresh_status()
+
+    def _refresh_status(self) -> None:
+        """The status line from the data on screen and whether the section runs (document thread)."""
+        arr = self._status_arr
+        escaped = [int(i) for i in np.flatnonzero(arr == Status.ESCAPED)]
+        failed = [int(i) for i in np.flatnonzero((arr != Status.OK) & (arr != Status.ESCAPED))]
+        if escaped != self.escaped:
+            self.escaped = escaped
+        if failed != self.failed:
+            self.failed = failed
         n_points = sum(c[0].size for c in self._chunks)
-        self.escaped = [int(i) for i in np.flatnonzero(status == Status.ESCAPED)]
-        self.failed = [int(i) for i in np.flatnonzero((status != Status.OK) & (status != Status.ESCAPED))]
-        elapsed = time.perf_counter() - self._t_start
-        parts = [f"{n_points:,} points", f"{self._n_traj} trajectories", f"{elapsed:.2f} s"]
-        if running and done is not None:
-            parts.insert(0, f"computing {done}/{total} periods")
-        if self.escaped:
-            parts.append(f"{len(self.escaped)} escaped")
-        if self.failed:
-            parts.append(f"{len(self.failed)} failed")
-        if stopped:
-            parts.append("stopped")
-        self.status = " · ".join(parts)
+        if n_points != self.n_points:
+            self.n_points = n_points
+        running = self.runner.busy("section")
+        if running:
+            self._elapsed = time.perf_counter() - self._t_start
+        n_traj = self._n_traj if n_points else self._run_n  # nothing on screen yet: the run's count
+        parts = [f"{n_points:,} points", f"{n_traj} trajectories", f"{self._elapsed:.2f} s"]
+        if running:
+            done, total = self._progress or (None, None)
+            parts.insert(0, f"computing {done}/{total} periods" if done is not None else "computing…")
+        if escaped:
+            parts.append(f"{len(escaped)} escaped")
+        if failed:
+            parts.append(f"{len(failed)} failed")
+        if not running and self._outcome:
+            parts.append(self._outcome)
+        self.status = " · ".join(parts) if (n_points or n_traj or running or self._outcome) else ""
 
     def _update_reliability(self, req: SectionRequest | None, status: np.ndarray | None = None) -> None:
-        """Warn when the method is unreliable for this scene (explorer_core.analyses.reliability.assess).
+        """Warn when the method is unreliable for this scene (explorer_core.reliability.assess).
 
         The check integrates a few probe states (RK4's error estimate), so it runs as a job
         of its own, after the section's job has started: it never delays the first points.
@@ -302,43 +400,25 @@ class ExplorerSession(param.Parameterized):
     # --- clicks --------------------------------------------------------------------------------
 
     def add_initial_condition(self, q: float, r: float) -> None:
-        """Add a trajectory where the user clicked and compute only it."""
+        """Add a trajectory where the user clicked, select it and recompute the section.
+
+        Clicked points come first among the initial conditions (their indices stay put when the
+        number of random ones changes), so a new one shifts the random trajectories' indices:
+        the whole section is recomputed (the default scene in ~0.1 s of CPU), and every count,
+        colour and index on screen belongs to one consistent run.
+        """
         if not (np.isfinite(q) and np.isfinite(r)):
             return
-        if len(self.state.clicked) >= 200:
-            self.error = "at most 200 clicked initial conditions; clear some first"
+        if len(self.state.clicked) >= MAX_CLICKED:
+            self.error = f"at most {MAX_CLICKED} clicked initial conditions; clear some first"
             return
-        with param.parameterized.discard_events(self.state):
-            self.state.clicked = [*self.state.clicked, (float(q), float(r))]
+        clicked = [*self.state.clicked, (float(q), float(r))]
         try:
-            req = self.state.section_request()
+            self.state.check_work(len(clicked) + self.state.n_random, self.state.periods)
         except ParameterError as exc:
             self.error = str(exc)
             return
-        index = req.ics.shape[0] - 1
-        single = SectionRequest(req.params, req.ics[index:], req.periods, req.transient, req.numerics)
-
-        def job(cancelled, emit) -> None:
-            for chunk in iter_section(
-                single.params, single.ics, single.periods, transient=single.transient, numerics=single.numerics,
-                max_chunk=MAX_CHUNK, cancel=cancelled,
-            ):  # fmt: skip
-                traj, k, qq, rr = chunk.long()
-                emit(lambda c=(traj + index, k, qq, rr), s=chunk.status: self._apply_extra(c, s, index))
-
-        self._n_traj = req.ics.shape[0]
-        clicked = np.array(self.state.clicked, dtype=float).reshape(-1, 2)
-        self.runner.ui(lambda: self.fig.set_ics(clicked))
-        self.state.selected = index
-        self.runner.start("section", job, bump=False)
-        self._publish_query()
-
-    def _apply_extra(self, cols: tuple[np.ndarray, ...], status: np.ndarray, index: int) -> None:
-        self._chunks.append(cols)
-        self.fig.stream_points(*cols)
-        if status[0] == Status.ESCAPED and index not in self.escaped:
-            self.escaped = [*self.escaped, index]
-        self._update_series()
+        self.state.param.update(clicked=clicked, selected=len(clicked) - 1)
 
     def select_nearest(self, q: float, r: float) -> None:
         """Select the trajectory whose section point is nearest the click (in screen-like units)."""
@@ -351,7 +431,137 @@ class ExplorerSession(param.Parameterized):
         self.state.selected = int(traj[i])
 
     def clear_clicked(self) -> None:
-        self.state.clicked = []
+        if self.state.clicked:
+            self.state.param.update(clicked=[], selected=0)
+
+    # --- periodic orbits of the map ------------------------------------------------------------
+
+    def _on_orbit_settings(self, *events: Any) -> None:
+        if not self._suspend:
+            self.recompute_orbits()
+            self._publish_query()
+
+    def find_orbit_at(self, q: float, r: float) -> None:
+        """Newton from a click, for every period up to the setting; drawn as soon as found (one job)."""
+        if not (np.isfinite(q) and np.isfinite(r)) or max(abs(q), abs(r)) > MAX_MAGNITUDE:
+            return
+        st = self.state
+        if len(st.orbit_seeds) >= MAX_ORBIT_SEEDS:
+            self.orbit_status = f"at most {MAX_ORBIT_SEEDS} orbit seeds; clear the orbits first"
+            return
+        try:
+            params = st.system()
+        except ParameterError:
+            return
+        seed = (float(q), float(r))
+        st.orbit_seeds = [*st.orbit_seeds, seed]
+        if not st.show_orbits:
+            st.show_orbits = True  # recomputes every seed, this one included
+            return
+        periods = list(range(1, st.orbit_period + 1))
+
+        def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
+            res = find_orbits(params, [seed], periods, cancel=cancelled)
+            if not cancelled():
+                emit(lambda: self._merge_orbits(params, res, f"from ({q:.4g}, {r:.4g})"))
+
+        # One job per click, all kept: a second click does not cancel the first.
+        self.runner.start("orbit", job, bump=False)
+        self._publish_query()
+
+    def find_orbits_in_view(self) -> None:
+        """Also search from a grid of seeds over the plot window (kept in the URL; redone on a new view)."""
+        if self.state.orbit_view and self.state.show_orbits:
+            return
+        self._suspend = True
+        try:
+            self.state.param.update(orbit_view=True, show_orbits=True)
+        finally:
+            self._suspend = False
+        self.recompute_orbits()
+        self._publish_query()
+
+    def clear_orbits(self) -> None:
+        self.runner.cancel("orbit")
+        self.runner.cancel("orbits")
+        self.state.param.update(orbit_seeds=[], orbit_view=False)
+        self._orbits = []
+        self.orbit_status = ""
+        self._show_orbits()
+        self._publish_query()
+
+    def recompute_orbits(self) -> None:
+        """All orbits from the seeds (and the view's grid) for the system on screen: a layer job."""
+        self.runner.cancel("orbit")
+        st = self.state
+        seeds = list(st.orbit_seeds)
+        if st.orbit_view:
+            seeds += [tuple(x) for x in grid_seeds((*st.q_range, *st.r_range), *ORBIT_GRID)]
+        if not st.show_orbits or not seeds:
+            self.runner.cancel("orbits")
+            self._orbits = []
+            self.orbit_status = ""
+            self._show_orbits()
+            return
+        try:
+            params = st.system()
+        except ParameterError:
+            return
+        periods = list(range(1, st.orbit_period + 1))
+        box = (*st.q_range, *st.r_range)
+        self.orbit_status = f"finding periodic orbits (periods 1..{st.orbit_period}) from {len(seeds)} seeds…"
+
+        def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
+            res = find_orbits(params, seeds, periods, cancel=cancelled)
+            if cancelled():
+                return
+            emit(lambda: self._set_orbits(params, res, box))
+
+        self.runner.start("orbits", job)
+
+    def _set_orbits(self, params: Params, res: OrbitSearch, box: tuple[float, ...]) -> None:
+        self._orbits = []
+        self._merge_orbits(params, res, "")
+
+    def _merge_orbits(self, params: Params, res: OrbitSearch, where: str) -> None:
+        try:
+            if params != self.state.system():
+                return  # found for a system no longer on screen
+        except ParameterError:
+            return
+        new = [o for o in res.orbits if not any(same_orbit(o, k) for k in self._orbits)]
+        self._orbits = sorted([*self._orbits, *new], key=lambda o: (o.period, float(o.points[0, 0])))
+        self._show_orbits()
+        if where:
+            if new:
+                what = ", ".join(f"period {o.period} ({o.kind})" for o in new)
+                self.orbit_status = f"{where}: {what}"
+            elif res.orbits:
+                self.orbit_status = f"{where}: an orbit already shown (period {res.orbits[0].period})"
+            else:
+                reason = res.failures[0].reason if res.failures else "nothing found"
+                self.orbit_status = f"{where}: no orbit of period ≤ {max(res.extra.get('periods', [0]))} ({reason})"
+        else:
+            self.orbit_status = (f"{len(self._orbits)} periodic orbits; {len(res.failures)} seed-period pairs found "
+                                 f"none ({res.elapsed_s:.2f} s)")  # fmt: skip
+
+    def _show_orbits(self) -> None:
+        rows = [orbit_row(o) for o in self._orbits]
+        self.fig.set_orbits(rows)
+        self.orbits = rows[:ORBIT_ROWS]
+
+    def orbits_csv(self) -> io.BytesIO:
+        """The orbits on screen as CSV (one row per orbit point), the settings in a comment header."""
+        buf = io.StringIO()
+        settings = "&".join(f"{a}={b}" for a, b in self.state.to_query().items())
+        buf.write("# Bilimovich Explorer periodic orbits; " + settings)
+        buf.write("\norbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im,det,liouville,residual\n")
+        for i, o in enumerate(self._orbits):
+            m = o.multipliers
+            for j, (q, r) in enumerate(o.points):
+                buf.write(f"{i},{o.period},{o.kind},{int(o.stable)},{j},{q!r},{r!r},{m[0].real!r},{m[0].imag!r},"
+                          f"{m[1].real!r},{m[1].imag!r},{o.det!r},{o.liouville!r},{o.residual!r}\n")  # fmt: skip
+        return io.BytesIO(buf.getvalue().encode())
 
     # --- layers: equilibrium tracks and the T' map ---------------------------------------------
 
@@ -405,15 +615,18 @@ class ExplorerSession(param.Parameterized):
         return tuple(np.concatenate([c[i] for c in self._chunks]) for i in range(4))  # type: ignore[return-value]
 
     def _update_series(self) -> None:
+        """The selected trajectory: its k-series below and its points ringed in the section."""
         traj, k, q, r = self.data()
         sel = traj == self.state.selected
         if self._params is None or not sel.any():
             self.series.set(*(np.zeros(0),) * 4)
+            self.fig.set_selected(np.zeros(0), np.zeros(0))
             return
         order = np.argsort(k[sel], kind="stable")
         ks, qs, rs = k[sel][order], q[sel][order], r[sel][order]
         energy = Model(self._params).energy(qs, rs, self._params.t0)
         self.series.set(ks, qs, rs, energy)
+        self.fig.set_selected(qs, rs)
 
     def csv_bytes(self) -> io.BytesIO:
         """The section on screen as CSV ``traj,k,q,r`` with the settings in a comment header."""
@@ -430,6 +643,12 @@ class ExplorerSession(param.Parameterized):
             self._on_query(self.state.to_query())
 
 
+def _plain(exc: BaseException, limit: int = 300) -> str:
+    """An exception as one short line of text (never a multi-line array dump)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
 def _segments_by_type(branches) -> list[tuple[np.ndarray, np.ndarray, str]]:
     """Split each track where the equilibrium's type changes, so each piece has one colour."""
     out: list[tuple[np.ndarray, np.ndarray, str]] = []
@@ -444,3 +663,24 @@ def _segments_by_type(branches) -> list[tuple[np.ndarray, np.ndarray, str]]:
                     out.append((q[start:end], r[start:end], types[start]))
                 start = i
     return out
+
+
+def _mu_text(mu: np.ndarray) -> str:
+    parts = []
+    for m in mu:
+        parts.append(f"{m.real:.5g}{m.imag:+.5g}i" if abs(m.imag) > 1e-12 else f"{m.real:.6g}")
+    return ", ".join(parts) + f"  (|μ| {abs(mu[0]):.4g}, {abs(mu[1]):.4g})"
+
+
+def orbit_row(o: Orbit) -> dict[str, Any]:
+    """An orbit as plain data for the page (table) and the figure (markers, hover)."""
+    return {
+        "period": int(o.period),
+        "type": o.kind,
+        "stable": bool(o.stable),
+        "q": float(o.points[0, 0]),
+        "r": float(o.points[0, 1]),
+        "points": [[float(a), float(b)] for a, b in o.points],
+        "mu": _mu_text(o.multipliers),
+        "det": float(o.det),
+    }

@@ -55,8 +55,8 @@ Job = Callable[[Callable[[], bool], Emit], None]
 #: Kinds of job, by channel: the points a user waits for after each move, the layers drawn with
 #: them; every other channel (chart, bifurcation, lyapunov, bench, ...) is heavy.
 POINTS, LAYER, HEAVY = "points", "layer", "heavy"
-POINT_CHANNELS = frozenset({"section"})
-LAYER_CHANNELS = frozenset({"tracks", "tprime", "reliability"})
+POINT_CHANNELS = frozenset({"section", "orbit"})  # an orbit found from a click: waited for like points
+LAYER_CHANNELS = frozenset({"tracks", "tprime", "reliability", "orbits"})
 
 
 def job_kind(channel: str) -> str:
@@ -306,6 +306,10 @@ class Runner:
         unless ``scheduler`` is given too.
     alive : polled with ``cancelled()``; False (the browser disconnected) stops the jobs
         long before the server discards the session.
+    on_busy : called on the document thread with a channel's name whenever that channel may have
+        started or stopped running (:meth:`busy` says which). What a page shows as "computing"
+        is derived from it, so it cannot outlive the work: a job that ends, fails or is
+        cancelled (a newer job, Stop, a closed tab) always ends its channel's busy state.
     """
 
     def __init__(
@@ -316,8 +320,11 @@ class Runner:
         *,
         scheduler: FairScheduler | None = None,
         alive: Callable[[], bool] | None = None,
+        on_busy: Callable[[str], None] | None = None,
     ) -> None:
         self._deliver = deliver
+        self._on_busy = on_busy
+        self._live: dict[str, dict[int, int]] = defaultdict(dict)  # channel -> generation -> unfinished jobs
         self._on_error = on_error
         self._executor = executor or _POOL
         self._scheduler = scheduler if scheduler is not None or executor is not None else SCHEDULER
@@ -334,12 +341,36 @@ class Runner:
     def generation(self, channel: str) -> int:
         return self._gen[channel]
 
+    def busy(self, channel: str) -> bool:
+        """Whether a job of the channel's current generation has not finished yet."""
+        with self._lock:
+            return not self.closed and self._live[channel].get(self._gen[channel], 0) > 0
+
+    def _notify(self, channel: str) -> None:
+        if self._on_busy is not None and not self.closed:
+            self._deliver(lambda: self._on_busy(channel))
+
+    def _ended(self, channel: str, gen: int) -> None:
+        """A job is over (document thread): delivered after everything it emitted, so a channel is
+        busy until its results are on the page, not only until its thread is done."""
+        with self._lock:
+            left = self._live[channel].get(gen, 0) - 1
+            if left > 0:
+                self._live[channel][gen] = left
+            else:
+                self._live[channel].pop(gen, None)
+            notify = left <= 0 and gen == self._gen[channel]
+        if notify and self._on_busy is not None and not self.closed:
+            self._on_busy(channel)
+
     def start(self, channel: str, job: Job, *, bump: bool = True) -> int:
         """Run ``job(cancelled, emit)``; ``bump=False`` joins the current generation (no cancel)."""
         with self._lock:
             if bump:
                 self._gen[channel] += 1
             gen = self._gen[channel]
+            self._live[channel][gen] = self._live[channel].get(gen, 0) + 1
+        self._notify(channel)
         alive = self._alive
 
         def stale() -> bool:
@@ -386,6 +417,8 @@ class Runner:
             finally:
                 if ticket is not None:
                     sched.release(ticket)
+                if not self.closed:  # a closed session's document is gone; nothing to tell it
+                    self._deliver(lambda: self._ended(channel, gen))
 
         if bump and sched is not None:
             sched.poke()  # the job this one replaces may be waiting: let it go now
@@ -409,7 +442,10 @@ class Runner:
 
     def cancel(self, channel: str) -> None:
         with self._lock:
+            was = self._live[channel].get(self._gen[channel], 0) > 0
             self._gen[channel] += 1
+        if was:
+            self._notify(channel)
         if self._scheduler is not None:
             self._scheduler.poke()
 

@@ -1,16 +1,22 @@
-"""The explorer's state: every control's value, validation, and the URL form.
+"""The explorer's state: every control's value in use, validation, and the URL form.
 
-One :class:`ExplorerState` per browser session. It holds no numerics: it turns
-control values into validated requests for :mod:`explorer_core` and back, and
-encodes itself as URL query parameters so a link reproduces the view. Nothing
-here imports Panel widgets; the views bind to these parameters.
+One :class:`ExplorerState` per browser session. It holds no numerics: it turns control
+values into validated requests for :mod:`explorer_core` and back, and encodes itself as
+URL query parameters so a link reproduces the view (open tab, selected trajectory and
+analysis settings included).
+
+Every value reaches the state through one gate, :func:`commit` (a typed value, a slider
+release, a URL parameter): it is parsed (:func:`parse_control`), checked against the rest
+of the state (a positive-definite tensor, the work bound) and either applied or refused
+with a message that names the value and says which value stays in use. So the state only
+ever holds values that are used, and a control can always show exactly that.
 """
 
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -27,10 +33,22 @@ MAX_PERIODS = 5000
 MAX_TRANSIENT = 5000
 MAX_POINTS = 400_000
 MAX_CLICKED = 200
+#: Points clicked to find periodic orbits from (each a Newton search), per session.
+MAX_ORBIT_SEEDS = 60
+#: Longest period the orbit search tries (P^n of a chaotic region: Newton's basin shrinks like e^(-lambda n T)).
+MAX_ORBIT_PERIOD = 16
 TPRIME_GRID = 160
 DEFAULT_SCENE = "fig1C"
+#: Longest text a control accepts (longer is refused, never parsed).
+MAX_TEXT = 200
+#: Analysis limits (work per run).
+LIMITS = {"lyap_periods": 20000, "ensemble": 16, "bif_values": 400, "bif_points": 400, "transient": 5000,
+          "grid": 120, "chart_periods": 3000, "bench_periods": 500}  # fmt: skip
+#: Largest magnitude of a swept parameter or a typed initial condition (beyond, nothing is meaningful).
+MAX_MAGNITUDE = 1e6
 
 SYSTEM_FIELDS = (*INERTIA_NAMES, "alpha", "g0", "g1", "g2", "omega", "t0")
+SWEEPABLE = ("alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega")
 #: Slider ranges; typed values outside them are accepted if the system is valid.
 SLIDER_RANGES: dict[str, tuple[float, float, float]] = {
     "I11": (0.1, 6.0, 0.01),
@@ -46,6 +64,7 @@ SLIDER_RANGES: dict[str, tuple[float, float, float]] = {
     "omega": (0.1, 4.0, 0.01),
     "t0": (0.0, 2 * math.pi, 0.01),
 }
+TABS = ("section", "lyapunov", "bifurcation", "chart", "bench")
 
 
 @dataclass(frozen=True)
@@ -63,8 +82,250 @@ def _fmt(v: float) -> str:
     return repr(float(v)) if v != int(v) or abs(v) >= 1e15 else str(int(v))
 
 
+def _finite(name: str, text: str) -> float:
+    try:
+        v = float(text)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"{name} must be a number, got {str(text)[:40]!r}") from None
+    if not math.isfinite(v):
+        raise ParameterError(f"{name} must be finite, got {str(text)[:40]!r}")
+    return v
+
+
+def _whole(name: str, text: str, lo: int, hi: int) -> int:
+    t = str(text).strip()
+    try:
+        v = int(t)
+    except ValueError:
+        try:  # "12.0" and "1e3" are whole numbers too; "1.5" is not
+            f = float(t)
+        except (ValueError, OverflowError):
+            f = math.nan
+        if not (math.isfinite(f) and f == int(f)):
+            raise ParameterError(f"{name} must be a whole number, got {t[:40]!r}") from None
+        v = int(f)
+    if not lo <= v <= hi:
+        raise ParameterError(f"{name} must be between {lo} and {hi}, got {t if len(t) <= 40 else t[:40] + '…'}")
+    return v
+
+
+def _numbers(name: str, text: str, n: int, what: str) -> tuple[float, ...]:
+    parts = str(text).split(",")
+    if len(parts) != n:
+        raise ParameterError(f"{name} needs {n} comma-separated numbers ({what}), got {str(text)[:60]!r}")
+    return tuple(_finite(name, p.strip()) for p in parts)
+
+
+def _range(name: str, text: str) -> tuple[float, float]:
+    lo, hi = _numbers(name, text, 2, "lo,hi")
+    if not lo < hi:
+        raise ParameterError(f"{name} needs lo < hi, got {str(text)[:40]!r}")
+    if max(abs(lo), abs(hi)) > MAX_MAGNITUDE:
+        raise ParameterError(f"{name} must lie within ±{MAX_MAGNITUDE:g}, got {str(text)[:40]!r}")
+    return lo, hi
+
+
+def _optional_point(name: str, text: str) -> tuple[float, ...]:
+    if not str(text).strip():
+        return ()
+    q, r = _numbers(name, text, 2, "q,r")
+    if max(abs(q), abs(r)) > MAX_MAGNITUDE:
+        raise ParameterError(f"{name} must lie within ±{MAX_MAGNITUDE:g}, got {str(text)[:40]!r}")
+    return q, r
+
+
+def _optional_range(name: str, text: str) -> tuple[float, ...]:
+    return _range(name, text) if str(text).strip() else ()
+
+
+def _grid(name: str, text: str) -> tuple[int, int]:
+    parts = str(text).split(",")
+    if len(parts) != 2:
+        raise ParameterError(f"{name} needs two whole numbers NX,NY, got {str(text)[:40]!r}")
+    nx, ny = (_whole(name, p, 2, LIMITS["grid"]) for p in parts)
+    return nx, ny
+
+
+@dataclass(frozen=True)
+class Control:
+    """One input of the page: how it is drawn, parsed, shown and carried in the URL.
+
+    ``kind``: ``float`` (a slider with a number box), ``int``, ``select``, ``radio``,
+    ``check`` or ``text`` (parsed by ``parse``). ``area`` says where it is drawn: a
+    sidebar group, the section tab's bar, or an analysis tab.
+    """
+
+    name: str
+    label: str
+    kind: str
+    area: str
+    url: str | None = None
+    bounds: tuple[float, float] | None = None  # int: inclusive bounds; float: the slider's range
+    step: float | None = None
+    options: tuple[tuple[str, str], ...] = ()  # (value, label) for select/radio
+    parse: Callable[[str, str], Any] | None = None  # text kinds: (name, text) -> value
+    placeholder: str = ""
+    help: str = ""
+
+
+def _ints(name: str, label: str, area: str, url: str, lo: int, hi: int, help: str = "") -> Control:
+    return Control(name, label, "int", area, url, (lo, hi), help=help)
+
+
+_SCENES = tuple((s.id, f"{s.figure}: {s.title}") for s in list_scenes())
+_PARAM_OPTIONS = tuple((p, p) for p in SWEEPABLE)
+LABELS = {
+    "alpha": "α (constraint p − g q = α)",
+    "g0": "g0  (g = g0 + g1 cos Ωt + g2 sin Ωt)",
+    "omega": "Ω (forcing frequency)",
+    "t0": "t0 (section phase)",
+}
+
+CONTROLS: tuple[Control, ...] = (
+    Control(
+        "scene", "Scene (the paper's figures)", "select", "scene", "scene", options=(("custom", "custom"), *_SCENES)
+    ),
+    *(
+        Control(
+            f,
+            LABELS.get(f, f),
+            "float",
+            "inertia" if f in INERTIA_NAMES else "forcing",
+            f,
+            SLIDER_RANGES[f][:2],
+            SLIDER_RANGES[f][2],
+        )
+        for f in SYSTEM_FIELDS
+    ),
+    Control(
+        "method",
+        "Method",
+        "select",
+        "numerics",
+        "method",
+        options=(("dop853", "DOP853 (8th order)"), ("dp5", "Dormand–Prince 5(4)"), ("rk4", "RK4, fixed steps")),
+    ),
+    Control(
+        "accuracy",
+        "Accuracy",
+        "radio",
+        "numerics",
+        "accuracy",
+        options=(("plot", "plot"), ("high", "high")),
+        help="plot: tolerance tied to the pixel size (error under a quarter pixel on regular orbits); "
+        "high: tolerance 1e-12.",
+    ),
+    _ints("steps_per_period", "RK4 steps per period", "numerics", "steps", 8, 20000),
+    _ints("n_random", "Random initial conditions", "numerics", "n", 0, MAX_RANDOM),
+    _ints("seed", "Random seed", "numerics", "seed", 0, 2**31 - 1),
+    _ints("periods", "Periods (section points each)", "numerics", "periods", 1, MAX_PERIODS),
+    _ints("transient", "Transient periods (dropped)", "numerics", "transient", 0, MAX_TRANSIENT),
+    Control(
+        "show_orbits",
+        "Periodic orbits of the map P (fixed points of P^n)",
+        "check",
+        "layers",
+        "orbits",
+        help="● stable, ○ unstable, ✕ saddle (hover: period and multipliers). Click in the plot with "
+        "'finds a periodic orbit', or find every orbit in view.",
+    ),
+    _ints("orbit_period", "Orbits: longest period searched", "layers", "orb_n", 1, MAX_ORBIT_PERIOD),
+    Control(
+        "show_tracks",
+        "Frozen-field equilibria (tracks over one period)",
+        "check",
+        "layers",
+        "tracks",
+        help="Equilibria of the field with t frozen: a heuristic for slow forcing, not orbits of P.",
+    ),
+    Control("show_tprime", "T′ map under the points", "check", "layers"),
+    Control(
+        "tprime_kind",
+        "T′ map",
+        "radio",
+        "layers",
+        None,
+        options=(("instantaneous", "at t0"), ("per-period", "over a period")),
+    ),
+    Control(
+        "click_mode",
+        "Click in the plot",
+        "radio",
+        "section",
+        None,
+        options=(
+            ("add", "adds a trajectory"),
+            ("select", "selects a trajectory"),
+            ("orbit", "finds a periodic orbit"),
+        ),
+    ),
+    _ints("selected", "Trajectory shown in the k-series", "section", "sel", 0, MAX_RANDOM + MAX_CLICKED),
+    Control(
+        "lyap_ic",
+        "Initial condition q,r (blank: the selected trajectory's last point)",
+        "text",
+        "lyapunov",
+        "ly_ic",
+        parse=_optional_point,
+        placeholder="selected trajectory",
+    ),
+    _ints("lyap_transient", "Transient periods", "lyapunov", "ly_tr", 0, LIMITS["transient"]),
+    _ints("lyap_periods", "Periods measured", "lyapunov", "ly_n", 10, LIMITS["lyap_periods"]),
+    _ints("lyap_ensemble", "Ensemble members", "lyapunov", "ly_m", 1, LIMITS["ensemble"]),
+    Control("bif_param", "Parameter", "select", "bifurcation", "bif_p", options=_PARAM_OPTIONS),
+    Control(
+        "bif_range",
+        "Range lo,hi (blank: current ± 0.05)",
+        "text",
+        "bifurcation",
+        "bif_r",
+        parse=_optional_range,
+        placeholder="current ± 0.05",
+    ),
+    _ints("bif_values", "Values", "bifurcation", "bif_n", 2, LIMITS["bif_values"]),
+    _ints("bif_points", "Points per value", "bifurcation", "bif_pts", 1, LIMITS["bif_points"]),
+    _ints("bif_transient", "Transient", "bifurcation", "bif_tr", 0, LIMITS["transient"]),
+    Control(
+        "bif_seeding",
+        "Seeding",
+        "radio",
+        "bifurcation",
+        "bif_seed",
+        options=(("continuation", "continuation"), ("fixed", "fixed")),
+    ),
+    Control("bif_coord", "Plot", "radio", "bifurcation", "bif_xy", options=(("q", "q"), ("r", "r"))),
+    Control(
+        "bif_orbits",
+        "Continued orbits over the diagram (stable solid, unstable dashed)",
+        "check",
+        "bifurcation",
+        "bif_orb",
+    ),
+    Control("chart_x", "x parameter", "select", "chart", "ch_x", options=_PARAM_OPTIONS),
+    Control("chart_xrange", "x range", "text", "chart", "ch_xr", parse=_range),
+    Control("chart_y", "y parameter", "select", "chart", "ch_y", options=_PARAM_OPTIONS),
+    Control("chart_yrange", "y range", "text", "chart", "ch_yr", parse=_range),
+    Control("chart_grid", "grid NX,NY", "text", "chart", "ch_grid", parse=_grid),
+    _ints("chart_periods", "Periods", "chart", "ch_n", 10, LIMITS["chart_periods"]),
+    _ints("chart_transient", "Transient", "chart", "ch_tr", 0, LIMITS["transient"]),
+    Control("chart_curves", "Fold and period-doubling curves (continuation)", "check", "chart", "ch_curves"),
+    Control(
+        "bench_ic",
+        "Initial condition q,r (blank: the selected trajectory's)",
+        "text",
+        "bench",
+        "be_ic",
+        parse=_optional_point,
+        placeholder="selected trajectory",
+    ),
+    _ints("bench_periods", "Periods (longest horizon)", "bench", "be_n", 2, LIMITS["bench_periods"]),
+)
+BY_NAME: dict[str, Control] = {c.name: c for c in CONTROLS}
+BY_URL: dict[str, Control] = {c.url: c for c in CONTROLS if c.url}
+
+
 class ExplorerState(param.Parameterized):
-    """Control values of one session (the URL carries all of them)."""
+    """Control values in use of one session (the URL carries all of them)."""
 
     scene = param.String(default=DEFAULT_SCENE, doc="paper scene the view started from ('custom' once edited)")
     I11 = param.Number(default=1.0)
@@ -92,10 +353,40 @@ class ExplorerState(param.Parameterized):
     q_range = param.NumericTuple(default=(-3.5, 3.5), length=2)
     r_range = param.NumericTuple(default=(-5.5, 5.5), length=2)
 
+    show_orbits = param.Boolean(default=True)
+    orbit_period = param.Integer(default=4, bounds=(1, MAX_ORBIT_PERIOD))
+    orbit_seeds = param.List(default=[], item_type=tuple, doc="points clicked to find periodic orbits from")
+    orbit_view = param.Boolean(default=False, doc="also every orbit Newton finds from a grid over the view")
     show_tracks = param.Boolean(default=True)
     show_tprime = param.Boolean(default=True)
     tprime_kind = param.Selector(default="instantaneous", objects=["instantaneous", "per-period"])
     selected = param.Integer(default=0, bounds=(0, None), doc="trajectory shown in the k-series plots")
+    click_mode = param.Selector(default="add", objects=["add", "select", "orbit"])
+    tab = param.Selector(default="section", objects=list(TABS))
+    presentation = param.Boolean(default=False, doc="larger fonts, sidebar collapsed (for a projector)")
+
+    lyap_ic = param.Parameter(default=(), doc="() or (q, r)")
+    lyap_transient = param.Integer(default=200)
+    lyap_periods = param.Integer(default=1000)
+    lyap_ensemble = param.Integer(default=4)
+    bif_param = param.Selector(default="alpha", objects=list(SWEEPABLE))
+    bif_range = param.Parameter(default=(), doc="() (current ± 0.05) or (lo, hi)")
+    bif_values = param.Integer(default=120)
+    bif_points = param.Integer(default=80)
+    bif_transient = param.Integer(default=300)
+    bif_seeding = param.Selector(default="continuation", objects=["continuation", "fixed"])
+    bif_coord = param.Selector(default="q", objects=["q", "r"])
+    bif_orbits = param.Boolean(default=True, doc="continue the orbits near the diagram's attractors and draw them")
+    chart_x = param.Selector(default="alpha", objects=list(SWEEPABLE))
+    chart_xrange = param.Tuple(default=(-0.6, -0.4))
+    chart_y = param.Selector(default="I11", objects=list(SWEEPABLE))
+    chart_yrange = param.Tuple(default=(1.0, 2.0))
+    chart_grid = param.Tuple(default=(40, 30))
+    chart_periods = param.Integer(default=300)
+    chart_transient = param.Integer(default=300)
+    chart_curves = param.Boolean(default=True, doc="follow folds and period doublings in both chart parameters")
+    bench_ic = param.Parameter(default=(), doc="() or (q, r)")
+    bench_periods = param.Integer(default=50)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -112,6 +403,12 @@ class ExplorerState(param.Parameterized):
         values.update(alpha=p.alpha, g0=p.g0, g1=p.g1, g2=p.g2, omega=p.omega, t0=p.t0)
         n = min(MAX_RANDOM, s.n_random)
         periods = min(MAX_PERIODS, s.periods, max(1, MAX_POINTS // max(1, n + len(s.points))))
+        if "sweep" in s.extra:
+            values.update(bif_param=s.extra["sweep"]["param"], bif_range=tuple(s.extra["sweep"]["range"]))
+        if "chart" in s.extra:
+            c = s.extra["chart"]
+            values.update(chart_x=c["x_param"], chart_y=c["y_param"], chart_xrange=tuple(c["x_range"]),
+                          chart_yrange=tuple(c["y_range"]))  # fmt: skip
         self.param.update(
             scene=s.id,
             n_random=n,
@@ -132,17 +429,13 @@ class ExplorerState(param.Parameterized):
 
     # --- requests ---------------------------------------------------------------------
 
-    def system(self) -> Params:
-        """The validated system; raises ParameterError naming the bad value."""
+    def system(self, **changes: float) -> Params:
+        """The validated system (with ``changes``); raises ParameterError naming the bad value."""
+        v = {f: changes.get(f, getattr(self, f)) for f in SYSTEM_FIELDS}
         return Params(
-            inertia=tuple(getattr(self, n) for n in INERTIA_NAMES),
-            alpha=self.alpha,
-            g0=self.g0,
-            g1=self.g1,
-            g2=self.g2,
-            omega=self.omega,
-            t0=self.t0,
-        )
+            inertia=tuple(v[n] for n in INERTIA_NAMES), alpha=v["alpha"], g0=v["g0"], g1=v["g1"], g2=v["g2"],
+            omega=v["omega"], t0=v["t0"],
+        )  # fmt: skip
 
     def pixel_size(self) -> float:
         return min(self.q_range[1] - self.q_range[0], self.r_range[1] - self.r_range[0]) / 800
@@ -169,20 +462,43 @@ class ExplorerState(param.Parameterized):
             parts.append(random_ics(self.n_random, self.box, seed=self.seed))
         return np.concatenate(parts)
 
+    def n_trajectories(self) -> int:
+        return len(self.clicked) + self.n_random
+
     def section_request(self) -> SectionRequest:
         params = self.system()
         ics = self.initial_conditions()
         if ics.shape[0] == 0:
             raise ParameterError("no initial conditions: set 'random ICs' above 0 or click in the plot")
-        n = ics.shape[0]
-        if n * self.periods > MAX_POINTS:
-            raise ParameterError(
-                f"{n} trajectories x {self.periods} periods = {n * self.periods} points; "
-                f"this server allows {MAX_POINTS} per view: lower one of them"
-            )
+        self.check_work(ics.shape[0], self.periods)
         return SectionRequest(params, ics, self.periods, self.transient, self.numerics())
 
-    # --- URL --------------------------------------------------------------------------
+    @staticmethod
+    def check_work(n: int, periods: int) -> None:
+        if n * periods > MAX_POINTS:
+            raise ParameterError(
+                f"{n} trajectories x {periods} periods = {n * periods} points; "
+                f"this server allows {MAX_POINTS} per view: lower one of them"
+            )
+
+    # --- one gate for every value -----------------------------------------------------
+
+    def check(self, name: str, value: Any) -> None:
+        """Refuse (ParameterError) a parsed value that the rest of the state makes unusable."""
+        if name in SYSTEM_FIELDS:
+            self.system(**{name: value})
+        elif name in ("n_random", "periods"):
+            n = len(self.clicked) + (value if name == "n_random" else self.n_random)
+            self.check_work(max(1, n), value if name == "periods" else self.periods)
+        elif name == "selected" and value >= max(1, self.n_trajectories()):
+            raise ParameterError(f"selected must be a trajectory 0..{self.n_trajectories() - 1}, got {value}")
+        elif name in ("bif_range", "chart_xrange", "chart_yrange") and value:
+            p = {"bif_range": self.bif_param, "chart_xrange": self.chart_x, "chart_yrange": self.chart_y}[name]
+            for end in value:  # the set of valid values of one parameter is an interval: its ends suffice
+                try:
+                    self.system(**{p: end})
+                except ParameterError as exc:
+                    raise ParameterError(f"{p} = {end:g} at an end of the range is not a valid system: {exc}") from None
 
     def to_query(self) -> dict[str, str]:
         """The full state as URL query parameters (short, human-readable)."""
@@ -201,42 +517,112 @@ class ExplorerState(param.Parameterized):
             qr=",".join(_fmt(v) for v in self.q_range),
             rr=",".join(_fmt(v) for v in self.r_range),
             ics=";".join(f"{_fmt(a)},{_fmt(b)}" for a, b in self.clicked),
+            orbits=str(int(self.show_orbits)),
+            orb_n=str(self.orbit_period),
             tracks=str(int(self.show_tracks)),
             tprime={"instantaneous": "inst", "per-period": "period"}[self.tprime_kind] if self.show_tprime else "off",
+            sel=str(self.selected),
         )
+        if self.orbit_seeds:
+            q["orb"] = ";".join(f"{_fmt(a)},{_fmt(b)}" for a, b in self.orbit_seeds)
+        if self.orbit_view:
+            q["orb_all"] = "1"
+        if self.click_mode == "orbit":
+            q["click"] = "orbit"
+        if self.tab != "section":
+            q["tab"] = self.tab
+        if self.presentation:
+            q["present"] = "1"
+        for c in CONTROLS:  # analysis settings that differ from the defaults
+            if c.area in TABS[1:] and c.url and getattr(self, c.name) != self.param[c.name].default:
+                q[c.url] = self.display(c.name)
         return q
 
+    def display(self, name: str) -> Any:
+        """The value in use of a control as the page shows it (text; bool for a checkbox)."""
+        v = getattr(self, name)
+        kind = BY_NAME[name].kind
+        if kind == "check":
+            return bool(v)
+        if kind == "float":
+            return _fmt(v)
+        if kind == "text":
+            return ",".join(str(x) if isinstance(x, int) else _fmt(x) for x in v)
+        return str(v)
 
-# --- parsing URL query parameters ---------------------------------------------------------
+
+# --- parsing --------------------------------------------------------------------------------------
 
 _ID = re.compile(r"^[A-Za-z0-9_.-]{1,40}$")
 
 
-def _qfloat(name: str, text: str) -> float:
+def parse_control(name: str, text: Any, label: str | None = None) -> Any:
+    """A control's text as its value; ParameterError naming the value when it is malformed or out of range.
+
+    ``label`` names the value in messages (the URL key for URL values; the control's name otherwise).
+    """
+    c = BY_NAME[name]
+    label = label or name
+    if isinstance(text, bool):
+        text = "true" if text else "false"
+    text = "" if text is None else str(text)
+    if len(text) > MAX_TEXT:
+        raise ParameterError(f"{label}: at most {MAX_TEXT} characters, got {len(text)}")
+    t = text.strip()
+    if c.kind in ("float", "int") and not t:
+        raise ParameterError(f"{label} is empty: type a number")
+    if c.kind == "float":
+        return _finite(label, t)
+    if c.kind == "int":
+        lo, hi = c.bounds  # type: ignore[misc]
+        return _whole(label, t, int(lo), int(hi))
+    if c.kind == "check":
+        if t.lower() not in ("true", "false", "1", "0"):
+            raise ParameterError(f"{label} must be true or false, got {t[:40]!r}")
+        return t.lower() in ("true", "1")
+    if c.kind in ("select", "radio"):
+        if name == "scene":
+            if t == "custom":
+                return t
+            if not _ID.match(t):
+                raise ParameterError("unknown scene")
+            return get_scene(t).id
+        values = [v for v, _ in c.options]
+        if t not in values:
+            raise ParameterError(f"{label} must be one of {', '.join(values)}, got {t[:40]!r}")
+        return t
+    return c.parse(label, t)  # type: ignore[misc]
+
+
+def commit(state: ExplorerState, name: str, text: Any) -> str | None:
+    """Apply a typed value if it can be used; otherwise leave the state as it is and say why.
+
+    Returns None when applied, else a message naming the refused value and the value that stays in use.
+    """
+    if name not in BY_NAME:
+        return f"unknown control {str(name)[:40]!r}"
     try:
-        v = float(text)
-    except ValueError:
-        raise ParameterError(f"{name} must be a number, got {text[:40]!r}") from None
-    if not math.isfinite(v):
-        raise ParameterError(f"{name} must be finite, got {text[:40]!r}")
-    return v
+        value = parse_control(name, text)
+        if name == "scene":
+            if value != "custom" and value != state.scene:
+                state.apply_scene(value)
+            return None
+        state.check(name, value)
+    except ParameterError as exc:
+        return f"{exc} — still using {name} = {_shown(state.display(name))}"
+    if getattr(state, name) != value:
+        if name in SYSTEM_FIELDS:
+            state.param.update(**{name: value, "scene": "custom"})
+        else:
+            setattr(state, name, value)
+    return None
 
 
-def _qint(name: str, text: str, lo: int, hi: int) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise ParameterError(f"{name} must be an integer, got {text[:40]!r}") from None
-    if not lo <= v <= hi:
-        raise ParameterError(f"{name} must be between {lo} and {hi}, got {v}")
-    return v
+def _shown(v: Any) -> str:
+    return (v or "(blank)") if isinstance(v, str) else str(v)
 
 
-def _qlist(name: str, text: str, n: int) -> tuple[float, ...]:
-    parts = text.split(",")
-    if len(parts) != n:
-        raise ParameterError(f"{name} needs {n} comma-separated numbers, got {text[:60]!r}")
-    return tuple(_qfloat(name, p) for p in parts)
+# --- URL query parameters -------------------------------------------------------------------------
 
 
 def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
@@ -244,6 +630,8 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
 
     Unknown keys are ignored; a bad value is reported and left out (the rest
     still applies). Values are never echoed unescaped: callers show messages as text.
+    Only the syntax and ranges are checked here; :func:`state_from_query` checks the values
+    against each other (a positive-definite tensor, the work bound).
     """
     updates: dict[str, Any] = {}
     errors: list[str] = []
@@ -258,7 +646,7 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
             v = v.decode("utf-8", "replace")
         return str(v)
 
-    def attempt(key: str, fn) -> None:
+    def attempt(key: str, fn: Callable[[str], None]) -> None:
         text = get(key)
         if text is None:
             return
@@ -267,79 +655,98 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
         except ParameterError as exc:
             errors.append(f"URL parameter {key}: {exc}")
 
-    def scene(text: str) -> None:
-        if not _ID.match(text) or text == "custom":
-            if text != "custom":
-                raise ParameterError("unknown scene")
-            updates["scene"] = "custom"
-            return
-        updates["scene"] = get_scene(text).id
+    for key, c in BY_URL.items():
+        if key in ("tracks", "orbits"):
+            continue
+        attempt(key, lambda t, c=c: updates.__setitem__(c.name, parse_control(c.name, t, c.url)))
 
-    attempt("scene", scene)
-    for f in SYSTEM_FIELDS:
-        attempt(f, lambda t, f=f: updates.__setitem__(f, _qfloat(f, t)))
+    def box(t: str) -> None:
+        if len(t) > MAX_TEXT:
+            raise ParameterError(f"at most {MAX_TEXT} characters")
+        updates["box"] = check_box(_numbers("box", t, 4, "qmin,qmax,rmin,rmax"))
 
-    def choice(key: str, field: str, options: Mapping[str, str]) -> None:
-        def fn(t: str) -> None:
-            if t not in options:
-                raise ParameterError(f"must be one of {', '.join(options)}, got {t[:40]!r}")
-            updates[field] = options[t]
-
-        attempt(key, fn)
-
-    choice("method", "method", {m: m for m in ("dop853", "dp5", "rk4")})
-    choice("accuracy", "accuracy", {"plot": "plot", "high": "high"})
-    attempt("steps", lambda t: updates.__setitem__("steps_per_period", _qint("steps", t, 8, 20000)))
-    attempt("n", lambda t: updates.__setitem__("n_random", _qint("n", t, 0, MAX_RANDOM)))
-    attempt("seed", lambda t: updates.__setitem__("seed", _qint("seed", t, 0, 2**31 - 1)))
-    attempt("periods", lambda t: updates.__setitem__("periods", _qint("periods", t, 1, MAX_PERIODS)))
-    attempt("transient", lambda t: updates.__setitem__("transient", _qint("transient", t, 0, MAX_TRANSIENT)))
-    attempt("box", lambda t: updates.__setitem__("box", check_box(_qlist("box", t, 4))))
-
-    def rng(key: str, field: str) -> None:
-        def fn(t: str) -> None:
-            lo, hi = _qlist(key, t, 2)
-            if not lo < hi:
-                raise ParameterError(f"needs lo < hi, got {t[:40]!r}")
-            updates[field] = (lo, hi)
-
-        attempt(key, fn)
-
-    rng("qr", "q_range")
-    rng("rr", "r_range")
+    attempt("box", box)
+    attempt("qr", lambda t: updates.__setitem__("q_range", _range("qr", t)))
+    attempt("rr", lambda t: updates.__setitem__("r_range", _range("rr", t)))
 
     def ics(text: str) -> None:
         pts = [p for p in text.split(";") if p.strip()]
         if len(pts) > MAX_CLICKED:
             raise ParameterError(f"at most {MAX_CLICKED} initial conditions, got {len(pts)}")
-        updates["clicked"] = [_qlist("ics", p, 2) for p in pts]
+        updates["clicked"] = [_numbers("ics", p, 2, "q,r") for p in pts]
 
     attempt("ics", ics)
-    choice("tracks", "show_tracks", {"1": True, "0": False})
 
-    def tprime(text: str) -> None:
-        opts = {"inst": ("instantaneous", True), "period": ("per-period", True), "off": (None, False)}
-        if text not in opts:
-            raise ParameterError(f"must be one of inst, period, off, got {text[:40]!r}")
-        kind, show = opts[text]
-        updates["show_tprime"] = show
-        if kind:
-            updates["tprime_kind"] = kind
+    def orbit_seeds(text: str) -> None:
+        pts = [p for p in text.split(";") if p.strip()]
+        if len(pts) > MAX_ORBIT_SEEDS:
+            raise ParameterError(f"at most {MAX_ORBIT_SEEDS} orbit seeds, got {len(pts)}")
+        seeds = [_numbers("orb", p, 2, "q,r") for p in pts]
+        if any(max(abs(a), abs(b)) > MAX_MAGNITUDE for a, b in seeds):
+            raise ParameterError(f"orbit seeds must lie within ±{MAX_MAGNITUDE:g}")
+        updates["orbit_seeds"] = seeds
 
-    attempt("tprime", tprime)
+    attempt("orb", orbit_seeds)
+
+    def choice(key: str, options: Mapping[str, Any], apply: Callable[[Any], None]) -> None:
+        def fn(t: str) -> None:
+            if t not in options:
+                raise ParameterError(f"must be one of {', '.join(options)}, got {t[:40]!r}")
+            apply(options[t])
+
+        attempt(key, fn)
+
+    choice("tracks", {"1": True, "0": False}, lambda v: updates.__setitem__("show_tracks", v))
+    choice("orb_all", {"1": True, "0": False}, lambda v: updates.__setitem__("orbit_view", v))
+    modes = {v: v for v, _ in BY_NAME["click_mode"].options}
+    choice("click", modes, lambda v: updates.__setitem__("click_mode", v))
+
+    def tprime(v: tuple[str | None, bool]) -> None:
+        updates["show_tprime"] = v[1]
+        if v[0]:
+            updates["tprime_kind"] = v[0]
+
+    choice("tprime", {"inst": ("instantaneous", True), "period": ("per-period", True), "off": (None, False)}, tprime)
+    choice("orbits", {"1": True, "0": False}, lambda v: updates.__setitem__("show_orbits", v))
+    choice("tab", {t: t for t in TABS}, lambda v: updates.__setitem__("tab", v))
+    choice("present", {"1": True, "0": False}, lambda v: updates.__setitem__("presentation", v))
     return updates, errors
 
 
+#: Order in which URL values meet the state's checks: what others are checked against comes first.
+_ORDER = ("clicked", "n_random", "periods", "bif_param", "chart_x", "chart_y")
+
+
 def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]]:
-    """A state for a new session: the scene named in the URL (or the default), then the URL's values."""
+    """A state for a new session: the scene named in the URL (or the default), then the URL's values.
+
+    Every value goes through the same checks as a typed one: a value that makes the system invalid
+    or the work too large is refused with a message and the scene's value stays in use.
+    """
     updates, errors = parse_query(query)
     sid = updates.pop("scene", DEFAULT_SCENE)
     state = ExplorerState(scene=sid if sid != "custom" else DEFAULT_SCENE)
-    if sid == "custom" or any(k in updates for k in SYSTEM_FIELDS):
-        updates["scene"] = "custom" if sid == "custom" or _differs(state, updates) else state.scene
-    state.param.update(**updates)
-    return state, errors  # an invalid system is reported by the session when it validates
-
-
-def _differs(state: ExplorerState, updates: Mapping[str, Any]) -> bool:
-    return any(f in updates and float(updates[f]) != float(getattr(state, f)) for f in SYSTEM_FIELDS)
+    key_of = {c.name: c.url for c in CONTROLS if c.url}
+    key_of.update(box="box", q_range="qr", r_range="rr", clicked="ics", show_tprime="tprime", tprime_kind="tprime",
+                  tab="tab", presentation="present", orbit_seeds="orb", orbit_view="orb_all",
+                  click_mode="click")  # fmt: skip
+    names = sorted(updates, key=lambda n: _ORDER.index(n) if n in _ORDER else len(_ORDER))
+    changed_system = False
+    for name in names:
+        value = updates[name]
+        try:
+            if name == "clicked":
+                state.check_work(len(value) + state.n_random, state.periods)
+            elif name in BY_NAME:
+                state.check(name, value)
+        except ParameterError as exc:
+            kept = _shown(state.display(name)) if name in BY_NAME else "the scene's"
+            errors.append(f"URL parameter {key_of.get(name, name)}: {exc}; using {name} = {kept}")
+            continue
+        changed_system |= name in SYSTEM_FIELDS and float(value) != float(getattr(state, name))
+        setattr(state, name, value)
+    if sid == "custom" or changed_system:
+        state.scene = "custom"
+    if state.selected >= max(1, state.n_trajectories()):
+        state.selected = 0
+    return state, errors

@@ -1,9 +1,16 @@
 """Bokeh figures of the explorer: data in, glyphs out, no numerics.
 
-The (q, r) figure stacks the layers the issue asks for, bottom to top: the T'
-map, the equilibrium tracks over one period, the streamed section points, the
-equilibria at the section phase, and the clicked initial conditions. The
-k-series figures share their k axis.
+The (q, r) figure stacks the layers, bottom to top: the T' map, the equilibrium tracks over
+one period, the streamed section points, the selected trajectory (ringed), the equilibria at
+the section phase, and the clicked initial conditions. The k-series of the selected trajectory
+are data here; the page draws them (:class:`SeriesData`).
+
+Every session builds its own figures (a Bokeh model belongs to one document), and building
+and sending them is most of what a new page costs the server: they are assembled from Bokeh's
+models directly, without the ``figure()`` helper's extra models (a second glyph per renderer
+for the unselected state, a view per renderer, one label policy per axis), ~50 models instead
+of ~80 for the section (docs/load.md). The mouse wheel scrolls the page; the wheel-zoom tool
+zooms only once picked in the toolbar.
 """
 
 from __future__ import annotations
@@ -13,15 +20,32 @@ from typing import Any
 
 import numpy as np
 from bokeh.models import (
+    AllLabels,
+    BasicTicker,
+    BoxZoomTool,
+    CDSView,
     ColorBar,
     ColumnDataSource,
+    GlyphRenderer,
+    Grid,
     HoverTool,
+    Image,
+    Legend,
+    LegendItem,
+    LinearAxis,
     LinearColorMapper,
+    MultiLine,
+    PanTool,
+    Plot,
     Range1d,
+    ResetTool,
+    SaveTool,
+    Scatter,
+    Toolbar,
+    UnionRenderers,
+    WheelZoomTool,
 )
-from bokeh.palettes import Category10, Category20, RdBu11, interp_palette
-from bokeh.plotting import figure
-from bokeh.transform import linear_cmap
+from bokeh.palettes import Category20, RdBu11, interp_palette
 
 #: One colour per equilibrium type (shared by the tracks and the markers).
 TYPE_COLORS = {
@@ -33,16 +57,60 @@ TYPE_COLORS = {
     "centre": "#17becf",
     "degenerate": "#7f7f7f",
 }
+#: Periodic orbits of the map, one layer per marker (filled: stable, open: unstable, a cross: saddles;
+#: a constant marker per renderer: WebGL draws a per-point marker column wrongly).
+ORBIT_KIND = {
+    "stable node": "stable",
+    "stable focus": "stable",
+    "unstable node": "unstable",
+    "unstable focus": "unstable",
+    "elliptic": "unstable",
+    "neutral": "unstable",
+    "saddle": "saddle",
+    "flip saddle": "saddle",
+}
+ORBIT_COLOUR = "#c2006b"
 N_COLORS = 20
-#: Style of the error boxes. They are HTML panes holding escaped text: a Markdown pane
-#: (pn.pane.Alert) would turn values such as ![x](https://...) into images or links.
-ERROR_STYLE = "color:#842029;background:#f8d7da;border:1px solid #f5c2c7;border-radius:4px;padding:8px 12px"
 #: Bokeh output backend of the point plots ("webgl" or "canvas"); see README (performance).
 BACKEND = os.environ.get("BILIMOVICH_BACKEND", "webgl")
+#: Palettes built once per process (every session's figures refer to the same lists).
+TPRIME_PALETTE = interp_palette(RdBu11, 255)  # blue (loss) .. white .. red (gain); odd: 0 is white
+TRAJ_PALETTE = Category20[N_COLORS]
+#: Font sizes (points) of axis labels and ticks: normal and presentation mode.
+FONTS = {False: ("11pt", "9pt"), True: ("16pt", "13pt")}
 
 
 def _empty_points() -> dict[str, list]:
     return {"q": [], "r": [], "traj": [], "k": [], "c": []}
+
+
+def _empty_orbits() -> dict[str, list]:
+    return {"q": [], "r": [], "period": [], "type": [], "mu": []}
+
+
+def _axes(plot: Plot, x_label: str, y_label: str, *, grid: bool = True) -> list[LinearAxis]:
+    policy = AllLabels()
+    axes = []
+    for place, dim, label in (("below", 0, x_label), ("left", 1, y_label)):
+        ticker = BasicTicker()
+        axis = LinearAxis(ticker=ticker, axis_label=label, major_label_policy=policy)
+        plot.add_layout(axis, place)
+        if grid:
+            plot.add_layout(Grid(dimension=dim, ticker=ticker))
+        axes.append(axis)
+    return axes
+
+
+def _renderer(source: ColumnDataSource, glyph: Any, **kw: Any) -> GlyphRenderer:
+    # Its own CDSView (BokehJS keeps the view's indices for one source) and no glyph of its own
+    # for the unselected state (nothing is ever selected here).
+    return GlyphRenderer(data_source=source, glyph=glyph, view=CDSView(), **kw)
+
+
+def set_fonts(axes: list[LinearAxis], presentation: bool) -> None:
+    label, ticks = FONTS[presentation]
+    for a in axes:
+        a.update(axis_label_text_font_size=label, major_label_text_font_size=ticks)
 
 
 class SectionFigure:
@@ -51,27 +119,20 @@ class SectionFigure:
     def __init__(self, q_range: tuple[float, float], r_range: tuple[float, float]) -> None:
         self.x_range = Range1d(*q_range, name="q_range")
         self.y_range = Range1d(*r_range, name="r_range")
-        fig = figure(
-            x_range=self.x_range,
-            y_range=self.y_range,
-            x_axis_label="q",
-            y_axis_label="r",
-            tools="pan,wheel_zoom,box_zoom,reset,save",
-            active_scroll="wheel_zoom",
-            output_backend=BACKEND,
-            sizing_mode="stretch_width",
-            height=640,
-            name="section_figure",
-        )
-        fig.toolbar.logo = None
-        # Bokeh's RdBu11 runs from blue (#053061) to red: loss (< 0) blue, gain (> 0) red;
-        # interpolated to 255 levels (odd, so 0 is the white middle) for a smooth map.
-        self.tprime_mapper = LinearColorMapper(palette=interp_palette(RdBu11, 255), low=-1, high=1)
-        self.tprime = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []}, name="tprime_source")
-        self.tprime_renderer = fig.image(
-            image="image", x="x", y="y", dw="dw", dh="dh", source=self.tprime, color_mapper=self.tprime_mapper,
-            alpha=0.55, level="image",
+        fig = Plot(
+            x_range=self.x_range, y_range=self.y_range, output_backend=BACKEND, sizing_mode="stretch_both",
+            min_height=300, min_width=300, name="section_figure", title=None, toolbar_location="right",
         )  # fmt: skip
+        self.axes = _axes(fig, "q", "r")
+        policy = UnionRenderers()
+
+        def source(data: dict, name: str) -> ColumnDataSource:
+            return ColumnDataSource(data, name=name, selection_policy=policy)
+
+        self.tprime_mapper = LinearColorMapper(palette=TPRIME_PALETTE, low=-1, high=1)
+        self.tprime = source({"image": [], "x": [], "y": [], "dw": [], "dh": []}, "tprime_source")
+        image = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.tprime_mapper, global_alpha=0.55)
+        tp = _renderer(self.tprime, image, level="image")
         self.colorbar = ColorBar(
             color_mapper=self.tprime_mapper,
             title="T′ — red: energy gain (body spins up), blue: loss",
@@ -80,33 +141,46 @@ class SectionFigure:
             location=(0, 0),
         )
         fig.add_layout(self.colorbar, "right")
-
-        self.tracks = ColumnDataSource({"xs": [], "ys": [], "color": [], "type": []}, name="tracks_source")
-        self.tracks_renderer = fig.multi_line(
-            xs="xs", ys="ys", line_color="color", line_width=1.6, line_alpha=0.7, line_dash="dashed", source=self.tracks
-        )
-        self.points = ColumnDataSource(_empty_points(), name="section_source")
-        cmap = linear_cmap("c", Category20[N_COLORS], 0, N_COLORS - 1)
-        self.points_renderer = fig.scatter(
-            "q", "r", source=self.points, size=2.6, line_color=None, fill_color=cmap, fill_alpha=0.9,
-            name="section_points",
+        self.tracks = source({"xs": [], "ys": [], "color": [], "type": []}, "tracks_source")
+        tracks = _renderer(self.tracks, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6, line_alpha=0.7,
+                                                  line_dash="dashed"))  # fmt: skip
+        self.points = source(_empty_points(), "section_source")
+        self.traj_mapper = LinearColorMapper(palette=TRAJ_PALETTE, low=0, high=N_COLORS - 1)
+        colour = {"field": "c", "transform": self.traj_mapper}
+        dots = Scatter(x="q", y="r", size=2.6, line_color=None, fill_alpha=0.9, fill_color=colour)
+        pts = _renderer(self.points, dots, name="section_points")
+        # The selected trajectory, ringed in black on top of the others.
+        self.selected = source({"q": [], "r": []}, "selected_source")
+        sel = _renderer(self.selected, Scatter(x="q", y="r", size=6, line_color="black", line_width=0.8, line_alpha=0.7,
+                                               fill_color=None), name="selected_points")  # fmt: skip
+        self.equilibria = source({"q": [], "r": [], "color": [], "type": []}, "equilibria_source")
+        eq = _renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
+                                                line_color="black"))  # fmt: skip
+        self.ics = source({"q": [], "r": []}, "ics_source")
+        ics = _renderer(self.ics, Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2))
+        # Periodic orbits of the map, on top of everything (a white halo under each marker).
+        self.orbit_sources = {k: source(_empty_orbits(), f"orbits_{k}") for k in ("stable", "unstable", "saddle")}
+        orb = []
+        for kind, marker, fill, alpha in (("saddle", "x", "white", 0.0), ("unstable", "circle", "white", 0.85),
+                                          ("stable", "circle", "#ffd21f", 1.0)):  # fmt: skip
+            src = self.orbit_sources[kind]
+            orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color="white", line_width=6,
+                                              fill_alpha=0.0)))  # fmt: skip
+            orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
+                                              line_width=2.5, fill_color=fill, fill_alpha=alpha),
+                                 name=f"orbit_points_{kind}"))  # fmt: skip
+        fig.renderers.extend([tp, tracks, pts, sel, eq, ics, *orb])
+        fig.add_layout(
+            Legend(items=[LegendItem(label={"field": "type"}, renderers=[eq])], location="top_left",
+                   background_fill_alpha=0.7, label_text_font_size="9pt"),
         )  # fmt: skip
-        self.equilibria = ColumnDataSource({"q": [], "r": [], "color": [], "type": []}, name="equilibria_source")
-        self.eq_renderer = fig.scatter(
-            "q", "r", source=self.equilibria, marker="diamond", size=15, fill_color="color", line_color="black",
-            legend_field="type",
-        )  # fmt: skip
-        self.ics = ColumnDataSource({"q": [], "r": []}, name="ics_source")
-        fig.scatter("q", "r", source=self.ics, marker="x", size=11, line_color="black", line_width=2)
-        fig.legend.location = "top_left"
-        fig.legend.background_fill_alpha = 0.7
-        fig.legend.label_text_font_size = "9pt"
-        fig.add_tools(
-            HoverTool(
-                renderers=[self.points_renderer], tooltips=[("trajectory", "@traj"), ("k", "@k"), ("q, r", "@q, @r")]
-            )
-        )
-        fig.add_tools(HoverTool(renderers=[self.eq_renderer], tooltips=[("equilibrium", "@type"), ("q, r", "@q, @r")]))
+        hover = HoverTool(renderers=[pts, eq], tooltips=[("trajectory", "@traj"), ("k", "@k"), ("q, r", "@q, @r"),
+                                                         ("frozen-field equilibrium", "@type")])  # fmt: skip
+        orbit_hover = HoverTool(renderers=orb[1::2], tooltips=[("periodic orbit", "period @period, @type"),
+                                                               ("multipliers", "@mu"), ("q, r", "@q, @r")])  # fmt: skip
+        # No active scroll tool: the wheel scrolls the page until the user picks the zoom tool.
+        fig.toolbar = Toolbar(tools=[PanTool(), WheelZoomTool(), BoxZoomTool(), ResetTool(), SaveTool(), hover,
+                                     orbit_hover], logo=None, active_scroll=None)  # fmt: skip
         self.fig = fig
 
     # --- updates (always called on the document's thread) ------------------------------
@@ -125,8 +199,33 @@ class SectionFigure:
         if traj.size:
             self.points.stream({"q": q, "r": r, "traj": traj, "k": k, "c": traj % N_COLORS})
 
+    def set_selected(self, q: np.ndarray, r: np.ndarray) -> None:
+        self.selected.data = {"q": q, "r": r}
+
     def set_ics(self, ics: np.ndarray) -> None:
         self.ics.data = {"q": ics[:, 0], "r": ics[:, 1]} if ics.size else {"q": [], "r": []}
+
+    def set_orbits(self, rows: list[dict[str, Any]]) -> None:
+        """Every point of every orbit (rows of :func:`app.controller.orbit_row`), in its kind's layer."""
+        data = {k: _empty_orbits() for k in self.orbit_sources}
+        for o in rows:
+            d = data[ORBIT_KIND.get(o["type"], "unstable")]
+            for q, r in o["points"]:
+                d["q"].append(q)
+                d["r"].append(r)
+                d["period"].append(o["period"])
+                d["type"].append(o["type"])
+                d["mu"].append(o["mu"])
+        for k, src in self.orbit_sources.items():
+            src.data = data[k]
+
+    def orbit_data(self) -> dict[str, list]:
+        """All orbit points drawn, every layer together (tests and probes)."""
+        out = _empty_orbits()
+        for src in self.orbit_sources.values():
+            for key in out:
+                out[key] += list(src.data[key])
+        return out
 
     def set_tracks(self, segments: list[tuple[np.ndarray, np.ndarray, str]]) -> None:
         self.tracks.data = {
@@ -162,30 +261,30 @@ class SectionFigure:
             "dh": [r[-1] - r[0] + dr],
         }
 
+    def set_presentation(self, on: bool) -> None:
+        set_fonts(self.axes, on)
+        self.colorbar.title_text_font_size = "13pt" if on else "10pt"
 
-class SeriesFigures:
-    """q_k, r_k and T_k of the selected trajectory, sharing the k axis."""
 
-    def __init__(self) -> None:
-        self.source = ColumnDataSource({"k": [], "q": [], "r": [], "T": []}, name="series_source")
-        self.figs: list[Any] = []
-        first = None
-        for col, label, color in zip(("q", "r", "T"), ("q_k", "r_k", "T_k (energy)"), Category10[3], strict=True):
-            shared = {"x_range": first.x_range} if first is not None else {}
-            f = figure(
-                height=190,
-                sizing_mode="stretch_width",
-                x_axis_label="k",
-                y_axis_label=label,
-                tools="pan,wheel_zoom,box_zoom,reset,save",
-                output_backend="canvas",  # a few hundred points: WebGL's blit would cost more than it saves
-                **shared,
-            )
-            f.toolbar.logo = None
-            f.line("k", col, source=self.source, line_color=color)
-            f.scatter("k", col, source=self.source, size=3, color=color)
-            self.figs.append(f)
-            first = first or f
+class SeriesData:
+    """q_k, r_k and T_k of the selected trajectory. The page draws them itself (app/ui.js, three small
+    SVG charts): three Bokeh figures cost a new session ~90 ms of the server's event loop to build
+    and send (docs/load.md), more than the rest of its first view after the page."""
+
+    #: Points per series sent to the page at most (every n-th beyond: a chart ~400 px wide).
+    MAX_DRAWN = 1500
+
+    def __init__(self, on_change: Any = None) -> None:
+        self.data: dict[str, np.ndarray] = {c: np.zeros(0) for c in ("k", "q", "r", "T")}
+        self.on_change = on_change
 
     def set(self, k: np.ndarray, q: np.ndarray, r: np.ndarray, energy: np.ndarray) -> None:
-        self.source.data = {"k": k, "q": q, "r": r, "T": energy}
+        self.data = {"k": np.asarray(k), "q": np.asarray(q), "r": np.asarray(r), "T": np.asarray(energy)}
+        if self.on_change is not None:
+            self.on_change(self.drawn())
+
+    def drawn(self) -> dict[str, list[float]]:
+        """What the page draws: every point, or every n-th of a long series (the last one kept)."""
+        n = self.data["k"].size
+        idx = np.arange(n) if n <= self.MAX_DRAWN else np.unique(np.r_[np.arange(0, n, -(-n // self.MAX_DRAWN)), n - 1])
+        return {c: [float(v) for v in self.data[c][idx]] for c in ("k", "q", "r", "T")}

@@ -1,12 +1,15 @@
 """Warm the numba kernels in the background, once per server process.
 
-Used as ``panel serve --setup app/warm.py`` (so warming starts before the first
-visitor) and called again by the app (idempotent). While it runs, the page says
-the server is warming and jobs wait for :data:`app.runner.WARM`.
+Used as ``panel serve --setup app/warm.py`` (so warming starts before the first visitor; with
+``--num-procs`` in each worker) and called again by the app (idempotent). While it runs, the
+page says the server is warming and jobs wait for :data:`app.runner.WARM`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import signal
 import threading
 
 from app.runner import WARM
@@ -33,4 +36,14 @@ def start() -> None:
             _thread.start()
 
 
+def _die_with_parent() -> None:
+    """A worker of ``--num-procs`` ends when its parent does (even a parent killed without warning)."""
+    import tornado.process
+
+    if tornado.process.task_id() is not None:
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+
+
+_die_with_parent()
 start()

@@ -1,25 +1,31 @@
 """A classroom under load: N concurrent sessions on one server, driven through Bokeh's websocket protocol.
 
-    .venv/bin/python benchmarks/load_test.py --sessions 30 --changes 5 --cycles 100 --chart [--json out.json]
+    .venv/bin/python benchmarks/load_test.py --sessions 30 --changes 5 --cycles 100 --chart [--procs 2] [--json F]
 
 Serves the app warm (``python -m explorer_core.cli serve``, as the browser tests do) and opens
-``--sessions`` tabs without a browser: each :class:`Tab` speaks Bokeh's protocol over a websocket
-(ACK, PULL-DOC, then PATCH-DOC both ways), finds the models by the names and css classes the app
-gives them (``section_source``, ``ctl-alpha``, ``status-line``, ``chart-run``, ...), sends the
-``document_ready`` event a page sends, and then moves the ``alpha`` slider (a ``value`` and
-``value_throttled`` change of the Bokeh slider, as a release in a browser does) ``--changes``
-times, pausing ``--think`` seconds between a finished scene and the next move. Per move it
-times, on the client, from sending the change to the first points of the new run (the section
-source's data replaced and its generation tag bumped) and to the full scene (the status line
-reports a finished run). With ``--chart`` tab 0 first starts a chart of regimes (the Chart tab's
-Run button). Then every tab closes and the server's CPU use is sampled (work must stop), and
-``--cycles`` open/close cycles follow, with the server's RSS read (``/proc/<pid>/status``) at
-the start, every ``--every`` cycles and at the end, each time after waiting for the server to
-discard the closed sessions (``--session-lifetime`` of ``bilimovich serve``, 15 s by default).
+``--sessions`` tabs without a browser, **all at once** by default (``--stagger 0``). Each
+:class:`Tab` does what a browser does: GET the page (``/main``), read the session token from
+it, open the websocket with it (ACK, PULL-DOC, then PATCH-DOC both ways), send the
+``document_ready`` event, and wait for the first section points and the full scene. It finds
+the models by the names the app gives them (``section_source``; the page component, whose data
+model carries ``values`` and ``view``). Per tab it times, from the GET: the page (the document
+received), the first section points, the full scene. Meanwhile ``/liveness`` is asked every
+0.1 s and its answer time recorded.
 
-What this does not measure: the browser's own rendering (see ``benchmarks/app_latency.py``).
-The client runs on the same machine as the server and takes some CPU from it.
-Prints a Markdown table; ``--json`` writes every figure. :func:`run` is what the tests call.
+Then each tab moves ``alpha`` ``--changes`` times (the message a slider's release sends: a
+``commit`` to the page component), pausing ``--think`` seconds between a finished scene and the
+next move; per move it times, on the client, the first points of the new run (the section
+source's data replaced and its generation tag bumped) and the full scene (the status reports a
+finished run). With ``--chart`` tab 0 first starts a chart of regimes (the Chart tab's Run).
+Then every tab closes and the server's CPU use is sampled (work must stop), and ``--cycles``
+open/close cycles follow, with the server's RSS (summed over its worker processes, from
+``/proc``) read at the start, every ``--every`` cycles and at the end, each time after waiting
+for the server to discard the closed sessions (``--session-lifetime``, 15 s by default).
+
+What this does not measure: the browser's own rendering (``benchmarks/app_latency.py`` and
+``benchmarks/browser_class.py`` do). The client runs on the same machine as the server and takes
+some CPU from it. Prints a Markdown table; ``--json`` writes every figure. :func:`run` is what the
+tests call.
 """
 
 from __future__ import annotations
@@ -28,7 +34,6 @@ import argparse
 import asyncio
 import concurrent.futures
 import contextlib
-import html
 import itertools
 import json
 import os
@@ -55,21 +60,25 @@ def discard_wait(lifetime_ms: int) -> float:
 # --- the server ------------------------------------------------------------------------------------
 
 sys.path.insert(0, str(ROOT / "tests" / "browser"))
-from harness import Server, serve  # noqa: E402  (one way to start the app for tests and benchmarks)
+from harness import Server, serve, tree_pids  # noqa: E402  (one way to start the app for tests and benchmarks)
+
+from explorer_core.config import resolve_procs  # noqa: E402
 
 
 def proc_status(pid: int) -> dict[str, float]:
-    """RSS (MB), threads and CPU seconds (user + system) of a process, from /proc."""
-    out: dict[str, float] = {}
-    with open(f"/proc/{pid}/status") as fh:
-        for line in fh:
-            if line.startswith("VmRSS:"):
-                out["rss_mb"] = int(line.split()[1]) / 1024
-            elif line.startswith("Threads:"):
-                out["threads"] = int(line.split()[1])
-    with open(f"/proc/{pid}/stat") as fh:
-        fields = fh.read().rsplit(")", 1)[1].split()
-    out["cpu_s"] = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    """RSS (MB), threads and CPU seconds (user + system) of a process and its workers, from /proc."""
+    out = {"rss_mb": 0.0, "threads": 0, "cpu_s": 0.0}
+    for p in tree_pids(pid):
+        with contextlib.suppress(OSError):
+            with open(f"/proc/{p}/status") as fh:
+                for line in fh:
+                    if line.startswith("VmRSS:"):
+                        out["rss_mb"] += int(line.split()[1]) / 1024
+                    elif line.startswith("Threads:"):
+                        out["threads"] += int(line.split()[1])
+            with open(f"/proc/{p}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+            out["cpu_s"] += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
     return out
 
 
@@ -104,9 +113,20 @@ def _column_length(data: Any, name: str) -> int:
 
 
 def _ui_event(name: str, values: dict) -> dict:
-    """A UI event (document ready, button click) as a page sends it, inside a PATCH-DOC."""
+    """A UI event (document ready, a page message) as a page sends it, inside a PATCH-DOC."""
     event = {"type": "event", "name": name, "values": values}
     return {"kind": "MessageSent", "msg_type": "bokeh_event", "msg_data": event}
+
+
+def _plain(obj: Any) -> Any:
+    """Bokeh's serialized maps ({"type": "map", "entries": ...}) as plain dicts, recursively."""
+    if isinstance(obj, dict):
+        if obj.get("type") == "map":
+            return {k: _plain(v) for k, v in obj.get("entries", [])}
+        return {k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_plain(v) for v in obj]
+    return obj
 
 
 @dataclass
@@ -124,9 +144,7 @@ class Change:
 
 
 class Tab:
-    """One simulated browser tab: a Bokeh session over a websocket; it renders nothing."""
-
-    _ids = itertools.count()
+    """One simulated browser tab: the page over HTTP, then a Bokeh session over a websocket; it renders nothing."""
 
     def __init__(self, server: Server, name: str) -> None:
         self.server = server
@@ -135,18 +153,21 @@ class Tab:
         self.ids: dict[str, str] = {}
         self.gen = 0  # generation tag of the section source (bumped by each new run's first points)
         self.points = 0  # points of the current generation
-        self.status = ""
+        self.view: dict[str, Any] = {}
         self.status_seq = 0
-        self.chart_status = ""
         self.errors: list[str] = []
         self.probe: Change | None = None
-        self.tab_names: list[str | None] = []
         self.closed = False
+        self.times: dict[str, float] = {}  # seconds from the GET: page (document in hand), first points, full scene
         self._changed = asyncio.Event()
         self._replies: dict[str, asyncio.Future] = {}
         self._reader: asyncio.Task | None = None
         self._receiver: Any = None
         self._msgid = itertools.count()
+
+    @property
+    def status(self) -> str:
+        return str((self.view.get("section") or {}).get("status", ""))
 
     # --- protocol ---
 
@@ -183,11 +204,6 @@ class Tab:
 
     def _on_events(self, events: list[dict], t: float) -> None:
         ids = self.ids
-        if "tabs" in ids and any(ev.get("kind") == "ModelChanged" and isinstance(ev.get("new"), dict | list)
-                                 for ev in events):  # fmt: skip
-            # A tab was opened: its models come whole (the app builds a tab when first opened and
-            # sends only the open one), so read the state of the ones watched from them.
-            self._on_models(_models(events))
         for ev in events:
             mid = ev.get("model", {}).get("id") if isinstance(ev.get("model"), dict) else None
             kind, attr = ev.get("kind"), ev.get("attr")
@@ -200,11 +216,9 @@ class Tab:
                     self.points += _column_length(ev.get("data"), "q")
                 elif kind == "ModelChanged" and attr == "tags":
                     self.gen = int(ev["new"][0]) if ev["new"] else 0
-            elif mid == ids.get("status") and attr == "text":
-                self.status = html.unescape(str(ev["new"]))
+            elif mid == ids.get("data") and kind == "ModelChanged" and attr == "view":
+                self.view = _plain(ev["new"])
                 self.status_seq += 1
-            elif mid == ids.get("chart_status") and attr == "text":
-                self.chart_status = html.unescape(str(ev["new"]))
         p = self.probe
         if p is not None:
             if p.first_s is None and self.gen != p.gen0 and self.points > 0:
@@ -232,133 +246,83 @@ class Tab:
 
     # --- what a user does ---
 
-    async def open(self, timeout: float = 180.0) -> float:
-        """Connect, load the page's document, say it is ready, wait for the first full scene; seconds taken."""
+    async def open(self, timeout: float = 180.0, query: str = "") -> float:
+        """GET the page, connect with its token, load the document, say it is ready, wait for the first full
+        scene; seconds taken. ``times`` gets the page, first points and full scene times from the GET."""
         from bokeh.protocol import Protocol
         from bokeh.protocol.receiver import Receiver
-        from bokeh.util.token import generate_jwt_token, generate_session_id
-        from tornado.httpclient import HTTPRequest
+        from tornado.httpclient import AsyncHTTPClient, HTTPRequest
         from tornado.websocket import websocket_connect
 
         t0 = time.perf_counter()
+        page = await AsyncHTTPClient().fetch(self.server.url + query, request_timeout=timeout)
+        token = re.search(r'"token":"([^"]+)"', page.body.decode("utf-8", "replace"))
+        if token is None:
+            raise RuntimeError(f"{self.name}: no session token in the page")
         ws_url = self.server.url.replace("http://", "ws://") + "/ws"
-        token = generate_jwt_token(generate_session_id())
         request = HTTPRequest(ws_url, connect_timeout=timeout, request_timeout=timeout)
         self._receiver = Receiver(Protocol())
         ack = self._expect("ACK")
-        self.ws = await websocket_connect(request, subprotocols=["bokeh", token], max_message_size=64 * 2**20)
+        self.ws = await websocket_connect(request, subprotocols=["bokeh", token[1]], max_message_size=64 * 2**20)
         self._reader = asyncio.create_task(self._read_loop())
         await asyncio.wait_for(ack, timeout)  # the server builds the session's page first
         reply = self._expect("PULL-DOC-REPLY")
         await self._send("PULL-DOC-REQ", {})
         doc = (await asyncio.wait_for(reply, timeout))["doc"]
+        self.times["page"] = time.perf_counter() - t0
         self._index(doc)
         self.probe = Change(self.name, DEFAULT_ALPHA, t0=t0, gen0=self.gen)
         await self._send("PATCH-DOC", {"events": [_ui_event("document_ready", {})]})
         if not await self._until(lambda: self.probe.full_s is not None, timeout):
             raise TimeoutError(f"{self.name}: no first scene after {timeout} s (status {self.status!r})")
+        self.times["first_points"], self.times["full_scene"] = self.probe.first_s, self.probe.full_s
         return time.perf_counter() - t0
 
     def _index(self, doc: dict) -> None:
         models = _models(doc)
-        by_css: dict[str, dict] = {}
         for m in models.values():
             attrs = m.get("attributes", {})
             if attrs.get("name") == "section_source":
                 self.ids["section"] = m["id"]
-            for c in attrs.get("css_classes") or []:
-                by_css.setdefault(c, m)
-        self.ids["status"] = by_css["status-line"]["id"]
-        tabs = next(m for m in models.values() if m.get("name") in ("Tabs", "panel.models.tabs.Tabs"))
-        self.ids["tabs"] = tabs["id"]
-        self.tab_names = [
-            models.get(p["id"], p).get("attributes", {}).get("title") for p in tabs["attributes"]["tabs"]
-        ]  # fmt: skip
-        self._index_chart(models)
-        # A slider control is a Column (css class ctl-<field>) holding Bokeh's Slider.
-        for css, m in by_css.items():
-            if css.startswith("ctl-"):
-                slider = self._find(models, m, "Slider")
-                if slider is not None:
-                    self.ids[f"slider:{css[4:]}"] = slider["id"]
+            if attrs.get("class_name") == "ExplorerUI":
+                self.ids["ui"] = m["id"]
+                self.ids["data"] = attrs["data"]["id"]
+        data = models[self.ids["data"]]["attributes"]
+        self.view = _plain(data.get("view", {}))
 
-    def _on_models(self, models: dict[str, dict]) -> None:
-        if "chart_run" not in self.ids:
-            self._index_chart(models)
-        for key in ("status", "chart_status"):
-            text = models.get(self.ids.get(key, ""), {}).get("attributes", {}).get("text")
-            if text is not None:
-                if key == "status":
-                    self.status, self.status_seq = html.unescape(str(text)), self.status_seq + 1
-                else:
-                    self.chart_status = html.unescape(str(text))
+    async def message(self, data: dict) -> None:
+        """What the page sends (model.send_msg): a typed value or an action."""
+        event = _ui_event("data_event", {"model": {"id": self.ids["ui"]}, "data": data})
+        await self._send("PATCH-DOC", {"events": [event]})
 
-    async def show_tab(self, title: str) -> None:
+    async def show_tab(self, tab: str) -> None:
         """Open a tab of the page (as a click on it does)."""
-        await self._send("PATCH-DOC", {"events": [self._set("tabs", "active", self.tab_names.index(title))]})
-
-    def _index_chart(self, models: dict[str, dict]) -> None:
-        by_css = {c: m for m in models.values() for c in m.get("attributes", {}).get("css_classes") or []}
-        for key in ("chart-grid", "chart-periods", "chart-transient", "chart-run", "chart-status"):
-            if key in by_css:
-                self.ids[key.replace("-", "_")] = by_css[key]["id"]
-
-    @staticmethod
-    def _find(models: dict[str, dict], root: dict, type_name: str) -> dict | None:
-        seen, stack = set(), [root]
-        while stack:
-            o = stack.pop()
-            if isinstance(o, dict):
-                if "id" in o and o.get("type") != "object":
-                    o = models.get(o["id"], {})  # a reference
-                if o.get("type") == "object":
-                    if o["id"] in seen:
-                        continue
-                    seen.add(o["id"])
-                    if o.get("name") == type_name:
-                        return o
-                    stack.extend(o.get("attributes", {}).values())
-                else:
-                    stack.extend(o.values())
-            elif isinstance(o, list):
-                stack.extend(o)
-        return None
-
-    def _set(self, key: str, attr: str, value: Any) -> dict:
-        return {"kind": "ModelChanged", "model": {"id": self.ids[key]}, "attr": attr, "new": value}
+        await self.message({"action": "tab", "tab": tab})
 
     async def change(self, name: str, value: float, timeout: float = 120.0) -> Change:
-        """Release a slider at ``value``; wait for the new run's full scene (or the timeout)."""
-        key = f"slider:{name}"
+        """Commit a value (a slider's release); time the first new points and the full scene."""
         self.probe = p = Change(self.name, value, t0=time.perf_counter(), gen0=self.gen)
-        events = [self._set(key, "value", value), self._set(key, "value_throttled", value)]
-        await self._send("PATCH-DOC", {"events": events})
+        await self.message({"commit": name, "text": repr(value)})
         await self._until(lambda: p.full_s is not None, timeout)
         return p
 
     async def start_chart(self, grid: tuple[int, int], periods: int, transient: int) -> None:
         """Open the Chart tab, fill it in and press Run."""
-        if "chart_run" not in self.ids:
-            await self.show_tab("Chart of regimes")
-            if not await self._until(lambda: "chart_run" in self.ids, 60.0):
-                raise TimeoutError(f"{self.name}: the Chart tab did not open")
-        events = [
-            self._set("chart_grid", "value", f"{grid[0]},{grid[1]}"),
-            self._set("chart_periods", "value", periods),
-            self._set("chart_transient", "value", transient),
-        ]
-        await self._send("PATCH-DOC", {"events": events})
-        await asyncio.sleep(1.0)  # the widgets' values reach the app before the click does
-        click = _ui_event("button_click", {"model": {"id": self.ids["chart_run"]}})
-        await self._send("PATCH-DOC", {"events": [click]})
+        await self.show_tab("chart")
+        for name, text in (("chart_grid", f"{grid[0]},{grid[1]}"), ("chart_periods", str(periods)),
+                           ("chart_transient", str(transient))):  # fmt: skip
+            await self.message({"commit": name, "text": text})
+        await self.message({"action": "run", "tab": "chart"})
         await asyncio.sleep(0.5)
-        await self.show_tab("Poincaré section")  # and back to the section, to move sliders meanwhile
+        await self.show_tab("section")  # and back to the section, to move sliders meanwhile
 
     def chart_progress(self) -> tuple[int, int, bool]:
-        """(tiles done, tiles, finished) from the Chart tab's message line."""
-        m = re.search(r"(\d+)/(\d+) tiles", self.chart_status)
+        """(tiles done, tiles, finished) from the Chart tab's view."""
+        chart = self.view.get("chart") or {}
+        m = re.search(r"(\d+)/(\d+) tiles", str(chart.get("message", "")))
         done, total = (int(m[1]), int(m[2])) if m else (0, 0)
-        return done, total, "pixels:" in self.chart_status
+        result = " ".join(chart.get("result") or [])
+        return done, total, not chart.get("running") and ("pixels:" in result or "No pixel" in result)
 
     async def close(self) -> None:
         if self.ws is not None:
@@ -390,6 +354,46 @@ def _summary(xs: list[float], scale: float = 1e3, digits: int = 0) -> dict[str, 
     return r
 
 
+class Liveness:
+    """Asks ``/liveness`` every ``period`` seconds (one request at a time) and records how long each answer took."""
+
+    def __init__(self, server: Server, period: float = 0.1) -> None:
+        self.url = server.url.rsplit("/", 1)[0] + "/liveness"
+        self.period = period
+        self.times: list[float] = []
+        self.failures = 0
+        self._task: asyncio.Task | None = None
+
+    def start(self) -> None:
+        self._task = asyncio.create_task(self._loop())
+
+    async def _loop(self) -> None:
+        from tornado.httpclient import AsyncHTTPClient
+
+        client = AsyncHTTPClient(force_instance=True)  # its own connections: never queued behind the tabs'
+        while True:
+            t0 = time.perf_counter()
+            try:
+                await client.fetch(self.url, request_timeout=30)
+            except Exception:
+                self.failures += 1
+            dt = time.perf_counter() - t0
+            self.times.append(dt)
+            await asyncio.sleep(max(0.0, self.period - dt))
+
+    def take(self) -> dict[str, Any]:
+        """Answer times (ms) since the last call: p50 / p95 / max, and how many."""
+        out = {**_summary(self.times), "failures": self.failures}
+        self.times, self.failures = [], 0
+        return out
+
+    async def stop(self) -> None:
+        if self._task is not None:
+            self._task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._task
+
+
 async def _idle_cpu(pid: int, seconds: float) -> float:
     """Server CPU seconds used over ``seconds`` of wall time (after the tabs closed: should be ~0)."""
     before = proc_status(pid)["cpu_s"]
@@ -412,15 +416,18 @@ async def classroom(
     chart_transient: int = 300,
     chart_timeout: float = 600.0,
     think: float = 3.0,
-    stagger: float = 0.25,
+    stagger: float = 0.0,
     timeout: float = 180.0,
     seed: int = 0,
+    settle: float = 3.0,
 ) -> dict[str, Any]:
-    """Open ``sessions`` tabs, move alpha ``changes`` times in each, close them; what every user saw."""
+    """Open ``sessions`` tabs (together), move alpha ``changes`` times in each, close them; what every user saw."""
     rng = random.Random(seed)
     pid = server.pid
     base = proc_status(pid)
     tabs = [Tab(server, f"s{i:02d}") for i in range(sessions)]
+    probe = Liveness(server)
+    probe.start()
 
     async def opener(i: int) -> float:
         await asyncio.sleep(i * stagger)
@@ -429,6 +436,9 @@ async def classroom(
     t_open = time.perf_counter()
     open_s = await asyncio.gather(*(opener(i) for i in range(sessions)))
     all_open_s = time.perf_counter() - t_open
+    liveness_open = probe.take()
+    # Idle sessions: every first scene and its layers done, nothing moving.
+    await asyncio.sleep(settle)
     opened = proc_status(pid)
     peak = [opened["rss_mb"]]
     stop = asyncio.Event()
@@ -454,9 +464,10 @@ async def classroom(
     t_changes = time.perf_counter()
     await asyncio.gather(*(student(i) for i in range(sessions)))
     changes_s = time.perf_counter() - t_changes
+    liveness_changes = probe.take()
+    await probe.stop()
     chart_report = None
     if chart is not None:
-        await tabs[0].show_tab("Chart of regimes")  # the chart's progress is on its own tab
         await asyncio.sleep(1.0)
         done_during, total, _ = tabs[0].chart_progress()
         finished = await tabs[0]._until(lambda: tabs[0].chart_progress()[2], chart_timeout)
@@ -486,6 +497,11 @@ async def classroom(
         "sessions": sessions,
         "changes_per_session": changes,
         "open_s": _summary(open_s, 1.0, 2),
+        "open_stagger_s": stagger,
+        "open_page_s": _summary([t.times["page"] for t in tabs], 1.0, 2),
+        "open_first_points_s": _summary([t.times["first_points"] for t in tabs], 1.0, 2),
+        "open_full_scene_s": _summary([t.times["full_scene"] for t in tabs], 1.0, 2),
+        "liveness_ms": {"while_opening": liveness_open, "while_moving": liveness_changes},
         "all_open_s": round(all_open_s, 1),
         "changes_phase_s": round(changes_s, 1),
         "first_points_ms": _summary(first),
@@ -508,6 +524,7 @@ async def classroom(
             "rss_before_mb": round(base["rss_mb"], 1),
             "rss_all_open_mb": round(opened["rss_mb"], 1),
             "per_session_mb": round((opened["rss_mb"] - base["rss_mb"]) / sessions, 2),
+            "procs": len(tree_pids(pid)) - (1 if len(tree_pids(pid)) > 1 else 0),
             "rss_peak_mb": round(peak[0], 1),
             "threads_before": base["threads"],
             "threads_all_open": opened["threads"],
@@ -558,12 +575,16 @@ async def open_close_cycles(
     }
 
 
-async def _warm_up(server: Server) -> None:
-    # The first session pays for the kernels' warm-up and lazy imports: keep it out of the figures.
-    tab = Tab(server, "warm-up")
-    await tab.open(300)
-    await tab.change("alpha", 0.101)
-    await tab.close()
+async def _warm_up(server: Server, procs: int) -> None:
+    # The first page of each worker builds its template session, and the first session pays for the
+    # kernels and lazy imports: keep them out of the figures. Which worker answers is the kernel's
+    # choice, so ask a few times per worker.
+    for _ in range(2):
+        tabs = [Tab(server, f"warm-up-{i}") for i in range(3 * procs)]
+        await asyncio.gather(*(t.open(300) for t in tabs))
+        await tabs[0].change("alpha", 0.101)
+        for t in tabs:
+            await t.close()
 
 
 def run(
@@ -575,16 +596,17 @@ def run(
     env: dict[str, str] | None = None,
     log_path: str | None = None,
     session_lifetime: int = SESSION_LIFETIME_MS,
+    procs: int = 1,
     **kw: Any,
 ) -> dict[str, Any]:
     """Serve the app, run the classroom then the open/close cycles; the report as a dict."""
     cycle_kw = {k: kw.pop(k) for k in ("per_cycle", "every") if k in kw}
     cycle_kw["discard_wait"] = discard_wait(session_lifetime)
     load0 = os.getloadavg()
-    with serve(log_path, env=env, session_lifetime=session_lifetime) as server:
+    with serve(log_path, env=env, session_lifetime=session_lifetime, procs=procs) as server:
 
         async def main() -> dict[str, Any]:
-            await _warm_up(server)
+            await _warm_up(server, procs)
             report: dict[str, Any] = {"classroom": await classroom(server, sessions, changes, chart=chart, **kw)}
             if cycles:
                 report["cycles"] = await open_close_cycles(server, cycles, **cycle_kw)
@@ -597,6 +619,7 @@ def run(
     report["machine"] = {"cpus": os.cpu_count(), "loadavg_before": load0, "loadavg_after": os.getloadavg()}
     report["env"] = env or {}
     report["session_lifetime_ms"] = session_lifetime
+    report["procs"] = procs
     return report
 
 
@@ -604,18 +627,26 @@ def markdown(report: dict[str, Any]) -> str:
     """The headline figures as a Markdown table."""
     c = report["classroom"]
     s, m = c["starvation"], c["memory"]
+    when = "together" if not c["open_stagger_s"] else f"{c['open_stagger_s']} s apart"
     rows = [
-        ("sessions x slider moves", f"{c['sessions']} x {c['changes_per_session']}"),
+        (
+            "sessions x slider moves (server processes)",
+            f"{c['sessions']} x {c['changes_per_session']} ({report.get('procs', 1)})",
+        ),
+        (f"opened {when}: GET -> page (document), p50 / p95 / max", _s(c["open_page_s"])),
+        ("GET -> first section points, p50 / p95 / max", _s(c["open_first_points_s"])),
+        ("GET -> full first scene, p50 / p95 / max", _s(c["open_full_scene_s"])),
+        ("/liveness answer while opening, p50 / p95 / max", _ms(c["liveness_ms"]["while_opening"])),
+        ("/liveness answer while moving, p50 / p95 / max", _ms(c["liveness_ms"]["while_moving"])),
         ("move -> first new points, p50 / p95 / max", _ms(c["first_points_ms"])),
         ("move -> full scene (30,000 points), p50 / p95 / max", _ms(c["full_scene_ms"])),
         ("moves without new points / without full scene", f"{s['without_new_points']} / {s['without_full_scene']}"),
         ("worst session's slowest first points", f"{max(v or 0 for v in s['max_first_ms_per_session'].values())} ms"),
-        ("page open (connect -> first scene), p50 / p95", f"{c['open_s']['p50']} s / {c['open_s']['p95']} s"),
         (
             "server RSS (MB): before / all open / peak",
             " / ".join(str(m[k]) for k in ("rss_before_mb", "rss_all_open_mb", "rss_peak_mb")),
         ),
-        ("server RSS per session", f"{m['per_session_mb']} MB"),
+        ("server RSS per idle session", f"{m['per_session_mb']} MB"),
         ("server CPU in the 3 s after every tab closed", f"{c['server_cpu_s_in_3s_after_close']} s"),
     ]
     if c.get("chart"):
@@ -636,12 +667,17 @@ def _ms(d: dict[str, Any]) -> str:
     return " / ".join("–" if d[k] is None else f"{d[k]:.0f} ms" for k in ("p50", "p95", "max"))
 
 
+def _s(d: dict[str, Any]) -> str:
+    return " / ".join("–" if d[k] is None else f"{d[k]:.2f} s" for k in ("p50", "p95", "max"))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sessions", type=int, default=30)
     ap.add_argument("--changes", type=int, default=5, help="slider moves per session")
     ap.add_argument("--think", type=float, default=3.0, help="mean pause between a full scene and the next move (s)")
-    ap.add_argument("--stagger", type=float, default=0.25, help="seconds between two tabs opening")
+    ap.add_argument("--stagger", type=float, default=0.0, help="seconds between two tabs opening (0: together)")
+    ap.add_argument("--procs", default="1", help="server processes (bilimovich serve --procs; 'auto': one per CPU)")
     ap.add_argument("--chart", action="store_true", help="session 0 runs a chart of regimes meanwhile")
     ap.add_argument("--chart-grid", default="60,40", help="NX,NY of that chart")
     ap.add_argument("--chart-periods", type=int, default=300)
@@ -658,7 +694,7 @@ def main() -> None:
     report = run(
         args.sessions, args.changes, args.cycles, chart=grid if args.chart else None, env=env, log_path=args.log,
         think=args.think, stagger=args.stagger, chart_periods=args.chart_periods, per_cycle=args.per_cycle,
-        every=args.every, session_lifetime=args.session_lifetime,
+        every=args.every, session_lifetime=args.session_lifetime, procs=resolve_procs(args.procs),
     )  # fmt: skip
     report["command"] = " ".join(sys.argv)
     if args.json:

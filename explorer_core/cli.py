@@ -768,37 +768,29 @@ def cmd_symmetry(args: argparse.Namespace) -> int:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    """Run the web app: ``panel serve app/main.py`` with the project's flags."""
-    from importlib.util import find_spec
-    from pathlib import Path
+    """Run the web app: ``python -m app.serve`` (panel serve app/main.py with the project's flags, app/serve.py).
 
-    # The web app's folder, found without importing it: the core never imports the app (panel runs it).
-    spec = find_spec("app")
-    if spec is None or not spec.submodule_search_locations:
+    The settings are checked here; the app's own module builds the server command, in the process this one
+    becomes (the core never imports the app).
+    """
+    from importlib.util import find_spec
+
+    if find_spec("app") is None:
         raise UsageError("the web app (package 'app') is not installed beside explorer_core")
-    here = Path(next(iter(spec.submodule_search_locations))).resolve()
     env_origins = [o.strip() for o in os.environ.get("BILIMOVICH_ALLOWED_ORIGINS", "").split(",") if o.strip()]
     origins = args.allow_websocket_origin or env_origins or [f"localhost:{args.port}", f"127.0.0.1:{args.port}"]
-    cmd = [
-        sys.executable, "-m", "panel", "serve", str(here / "main.py"),
-        "--port", str(args.port), "--address", args.address,
-        "--setup", str(here / "warm.py"),  # compile/load the kernels before the first visitor
-        "--num-threads", str(args.threads),
-        "--liveness",
-        # A closed tab's session (its document, figures, data) is freed this long after it closed;
-        # its jobs stop at once (app/main.py). A page must connect its websocket within it.
-        "--check-unused-sessions", str(min(5000, max(200, args.session_lifetime // 3))),
-        "--unused-session-lifetime", str(args.session_lifetime),
-    ]  # fmt: skip
     for origin in origins:
         if not re.fullmatch(r"[A-Za-z0-9.\-\[\]:]+", origin) or origin == "*":
             raise UsageError(f"--allow-websocket-origin must be HOST[:PORT] (never '*'), got {origin!r}")
-        cmd += ["--allow-websocket-origin", origin]
-    if args.show:
-        cmd.append("--show")
-    sys.stderr.write(f"Bilimovich Explorer on http://{args.address}:{args.port}/main\n")
+    try:
+        procs = config.resolve_procs(args.procs)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    spec = {"port": args.port, "address": args.address, "threads": args.threads, "origins": origins,
+            "session_lifetime": args.session_lifetime, "procs": procs, "show": bool(args.show)}  # fmt: skip
+    sys.stderr.write(f"Bilimovich Explorer on http://{args.address}:{args.port}/main ({procs} process(es))\n")
     sys.stderr.flush()
-    os.execv(sys.executable, cmd)
+    os.execv(sys.executable, [sys.executable, "-m", "app.serve", "--launch", json.dumps(spec)])
     return 0  # not reached
 
 
@@ -1108,6 +1100,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "env BILIMOVICH_ALLOWED_ORIGINS, comma-separated")  # fmt: skip
     p.add_argument("--session-lifetime", type=_count("session-lifetime", 1000, 3_600_000), default=15000,
                    metavar="MS", help="discard a closed tab's session after this many ms (default 15000)")  # fmt: skip
+    p.add_argument("--procs", default=env.get("BILIMOVICH_PROCS", "1"), metavar="N|auto",
+                   help="server processes on one port ('auto': one per usable CPU); env BILIMOVICH_PROCS")  # fmt: skip
     p.add_argument("--show", action="store_true", help="open a browser")
     p.set_defaults(func=cmd_serve)
 

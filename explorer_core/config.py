@@ -6,7 +6,9 @@ these are only their defaults, kept here so the CLI, the app and the tests agree
 
 from __future__ import annotations
 
+import contextlib
 import os
+from pathlib import Path
 
 #: Default integration method for sections ("rk4", "dp5" or "dop853").
 DEFAULT_METHOD = "dop853"
@@ -37,5 +39,44 @@ MAX_POINTS = 50_000_000
 #: sequence each). Measured trade-off in the README (performance).
 BLOCK_SIZE = 32
 
+
+def usable_cpus() -> int:
+    """CPUs this process may use: its affinity mask, capped by a cgroup CPU quota (``docker run --cpus``)."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        n = os.cpu_count() or 1
+    quota = _cgroup_quota()
+    if quota is not None:
+        n = min(n, max(1, int(quota + 0.5)))
+    return max(1, n)
+
+
+def _cgroup_quota() -> float | None:
+    """CPUs allowed by the cgroup (v2 ``cpu.max``, v1 ``cpu.cfs_quota_us``), None if unlimited or unknown."""
+    with contextlib.suppress(OSError, ValueError):
+        quota, period = Path("/sys/fs/cgroup/cpu.max").read_text().split()[:2]
+        return None if quota == "max" else int(quota) / int(period)
+    with contextlib.suppress(OSError, ValueError):
+        q = int(Path("/sys/fs/cgroup/cpu/cpu.cfs_quota_us").read_text())
+        p = int(Path("/sys/fs/cgroup/cpu/cpu.cfs_period_us").read_text())
+        return None if q <= 0 else q / p
+    return None
+
+
+def resolve_procs(text: str | int) -> int:
+    """Server processes: ``auto`` (one per usable CPU) or a whole number 1..64; ValueError names a bad value."""
+    t = str(text).strip().lower()
+    if t == "auto":
+        return usable_cpus()
+    try:
+        n = int(t)
+    except ValueError:
+        raise ValueError(f"--procs must be a whole number or 'auto', got {str(text)[:40]!r}") from None
+    if not 1 <= n <= 64:
+        raise ValueError(f"--procs must be between 1 and 64, got {n}")
+    return n
+
+
 #: Worker threads for batch kernels (the kernels release the GIL).
-N_WORKERS = max(1, min(os.cpu_count() or 1, int(os.environ.get("BILIMOVICH_THREADS", "0")) or (os.cpu_count() or 1)))
+N_WORKERS = max(1, min(usable_cpus(), int(os.environ.get("BILIMOVICH_THREADS", "0")) or usable_cpus()))

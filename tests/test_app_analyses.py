@@ -1,4 +1,4 @@
-"""Analysis tabs without a browser: widgets -> core analyses -> figures and messages."""
+"""Analysis tabs without a browser: settings in the state -> core analyses -> figures and messages."""
 
 from __future__ import annotations
 
@@ -25,50 +25,92 @@ def session(scene: str) -> ExplorerSession:
 
 
 def test_lyapunov_tab_reports_exponents_and_the_divergence_check() -> None:
-    tab = LyapunovTab(session("fig8B"))
-    tab.ic.value = "-0.5,-1"
-    tab.transient.value, tab.periods.value, tab.ensemble.value = 50, 60, 2
+    sess = session("fig8B")
+    tab = LyapunovTab(sess)
+    sess.state.param.update(lyap_ic=(-0.5, -1.0), lyap_transient=50, lyap_periods=60, lyap_ensemble=2)
+    tab.figure()
     tab.run()
-    text = tab.result.object
-    assert "Λ1 =" in text and "Λ3 = 0" in text and "divergence" in text
+    text = "\n".join(tab.view["result"])
+    assert "Λ1 =" in text and "Λ3 = 0" in text and "divergence" in text and "members used: 2 of 2" in text
     assert len(tab.source.data["k"]) > 0
     l1, l2 = tab.source.data["l1"][-1], tab.source.data["l2"][-1]
     assert l1 > l2
 
 
-def test_lyapunov_tab_rejects_bad_input_with_a_message() -> None:
-    tab = LyapunovTab(session("fig8B"))
-    tab.ic.value = "a,b"
+def test_lyapunov_tab_with_every_member_failed_reports_no_numbers() -> None:
+    sess = session("fig3")
+    tab = LyapunovTab(sess)
+    # Beyond the tab's bound (1e4): every member is "escaped" at once.
+    sess.state.param.update(lyap_ic=(0.0, 5e4), lyap_transient=10, lyap_periods=20, lyap_ensemble=2)
     tab.run()
-    assert tab.error.visible and "initial condition" in tab.error.object
+    text = "\n".join(tab.view["result"])
+    assert text.startswith("No exponents: none of the 2 members") and "escaped" in text
+    assert "Λ1" not in text and "=" not in text.split(":", 1)[0]
+    assert not any(ch.isdigit() for ch in text.split("(")[0].replace("2 members", ""))
+    assert len(tab.source.data["k"]) == 0  # no running estimate from failed members either
+
+
+def test_lyapunov_tab_without_initial_conditions_says_why() -> None:
+    sess = session("fig1C")
+    sess.state.param.update(n_random=0, clicked=[])
+    tab = LyapunovTab(sess)
+    tab.run()
+    assert "no initial condition" in tab.view["error"]
 
 
 def test_bifurcation_tab_draws_points_of_the_scene_sweep() -> None:
-    tab = BifurcationTab(session("fig10"))
-    assert tab.param.value == "alpha" and tab.range.value == "-0.42,-0.35"
-    tab.n_values.value, tab.points.value, tab.transient.value = 6, 5, 20
+    sess = session("fig10")
+    tab = BifurcationTab(sess)
+    assert sess.state.bif_param == "alpha" and sess.state.bif_range == (-0.42, -0.35)
+    sess.state.param.update(bif_values=6, bif_points=5, bif_transient=20)
     tab.run()
     xs = np.asarray(tab.source.data["x"])
     assert xs.size > 0 and xs.min() >= -0.42 and xs.max() <= -0.35
-    assert "6 values" in tab.message.object
+    assert "6 values" in tab.view["message"] and "points; trajectories" in tab.view["result"][0]
 
 
-def test_chart_tab_fills_the_image_and_a_click_sets_the_parameters() -> None:
+def test_bifurcation_tab_says_when_no_point_survives() -> None:
+    sess = session("fig3")
+    # Beyond the sweep's bound (1e3): every trajectory escapes before its first point.
+    sess.state.param.update(clicked=[(0.0, 5e3)], n_random=0, bif_values=3, bif_points=5, bif_transient=10,
+                            bif_range=(0.09, 0.11))  # fmt: skip
+    tab = BifurcationTab(sess)
+    tab.run()
+    assert tab.view["result"][0].startswith("No points: every trajectory escaped or failed")
+    assert len(tab.source.data["x"]) == 0
+
+
+def test_chart_tab_fills_the_image_and_a_click_lands_on_the_pixel_centre() -> None:
     sess = session("fig11")
     tab = ChartTab(sess)
-    assert (tab.x_param.value, tab.y_param.value) == ("alpha", "I11")
-    tab.grid.value, tab.periods.value, tab.transient.value = "4,3", 30, 30
+    st = sess.state
+    assert (st.chart_x, st.chart_y) == ("alpha", "I11")
+    st.param.update(chart_grid=(4, 3), chart_periods=30, chart_transient=30)
+    assert tab.npz_bytes() is None and not tab.view["download"]  # nothing to download yet
+    tab.figure()
     tab.run()
     img = tab.source.data["image"][0]
     assert img.shape == (3, 4) and np.all(img > 0)  # every pixel classified
-    assert "tiles" in tab.message.object
-    tab._on_tap(SimpleNamespace(x=-0.55, y=1.4))
-    assert sess.state.alpha == -0.55 and sess.state.I11 == 1.4 and sess.state.scene == "custom"
-    assert len(tab._npz().getvalue()) > 100
+    assert "tiles" in tab.view["message"] and tab.view["result"][0].startswith("pixels:")
+    xs, ys = tab.chart.spec.x_values, tab.chart.spec.y_values
+    # A click off-centre inside pixel (1, 2) sets the pixel's centre values.
+    tab._on_tap(SimpleNamespace(x=xs[1] + 0.3 * (xs[1] - xs[0]), y=ys[2] - 0.4 * (ys[1] - ys[0])))
+    assert st.alpha == pytest.approx(xs[1]) and st.I11 == pytest.approx(ys[2]) and st.scene == "custom"
+    # The cross marks the current parameters.
+    assert tab.current.data == {"x": [pytest.approx(xs[1])], "y": [pytest.approx(ys[2])]}
+    st.alpha = -0.5
+    assert tab.current.data["x"] == [-0.5]
+    assert len(tab.npz_bytes()) > 100 and tab.view["download"]
 
 
-def test_chart_tab_bounds_the_work() -> None:
-    tab = ChartTab(session("fig11"))
-    tab.grid.value = "500,500"
+def test_chart_tab_click_on_an_invalid_system_keeps_the_state() -> None:
+    sess = session("fig11")
+    st = sess.state
+    st.param.update(chart_y="I12", chart_yrange=(-0.5, 0.5), chart_grid=(2, 2), chart_periods=10, chart_transient=10)
+    tab = ChartTab(sess)
     tab.run()
-    assert tab.error.visible and "grid must be between 2 and 120" in tab.error.object
+    before = (st.alpha, st.I12)
+    tab.chart.spec = SimpleNamespace(x_param="alpha", y_param="I12", x_values=np.array([-0.6, -0.4]),
+                                     y_values=np.array([5.0, 6.0]))  # fmt: skip
+    tab._on_tap(SimpleNamespace(x=-0.6, y=5.0))
+    assert (st.alpha, st.I12) == before and "not positive definite" in tab.view["error"]

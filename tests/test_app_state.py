@@ -62,12 +62,47 @@ def test_bad_query_values_are_reported_and_skipped(query, needle) -> None:
     assert not any(k in updates for k in ("alpha", "I11", "periods", "n_random", "method", "box"))
 
 
-def test_invalid_tensor_in_url_gives_a_message_and_no_computation() -> None:
-    state, errors = state_from_query({"scene": "fig1C", "I12": "5"})
-    assert errors == [] and state.I12 == 5.0
+def test_invalid_tensor_in_url_is_refused_with_a_message_and_the_scene_value_kept() -> None:
+    state, errors = state_from_query({"scene": "fig1C", "I12": "5", "alpha": "0.2"})
+    assert len(errors) == 1 and "URL parameter I12" in errors[0] and "not positive definite" in errors[0]
+    assert "I12=5" in errors[0] and "using I12 = 0" in errors[0]
+    assert state.I12 == 0.0 and state.alpha == 0.2 and state.scene == "custom"
     sess = ExplorerSession(state, Runner(lambda fn: fn(), executor=InlineExecutor()))
     sess.recompute()
-    assert "not positive definite" in sess.error and len(sess.fig.points.data["q"]) == 0
+    assert sess.error == "" and len(sess.fig.points.data["q"]) == 60 * 500
+
+
+def test_typed_values_are_applied_or_refused_with_the_value_in_use_named() -> None:
+    sess = make_session(scene="fig1C")
+    sess.state.param.update(n_random=2, periods=5)
+    for name, text, needle in [
+        ("I11", "0", "not positive definite"),
+        ("I11", "", "I11 is empty"),
+        ("alpha", "nan", "alpha must be finite"),
+        ("omega", "-1", "omega must be > 0"),
+        ("periods", "0", "periods must be between 1 and 5000"),
+        ("periods", "2.5", "periods must be a whole number"),
+        ("n_random", "600", "n_random must be between 0 and 500"),
+        ("method", "euler", "method must be one of dop853"),
+        ("chart_grid", "500,3", "chart_grid must be between 2 and 120"),
+        ("bif_range", "1e300,1e301", "within ±1e+06"),
+        ("lyap_ic", "a,b", "lyap_ic must be a number"),
+    ]:
+        before = getattr(sess.state, name)
+        msg = sess.commit(name, text)
+        assert msg is not None and needle in msg and "still using" in msg, (name, text, msg)
+        assert getattr(sess.state, name) == before, name
+    assert sess.commit("alpha", "0.25") is None and sess.state.alpha == 0.25 and sess.state.scene == "custom"
+    assert sess.commit("periods", " 7 ") is None and sess.state.periods == 7
+    assert sess.commit("lyap_ic", "") is None and sess.state.lyap_ic == ()
+    assert sess.commit("bif_range", "-0.2, -0.1") is None and sess.state.bif_range == (-0.2, -0.1)
+
+
+def test_a_value_that_makes_the_work_too_large_is_refused() -> None:
+    sess = make_session(scene="fig1C")
+    sess.state.param.update(n_random=100, periods=10)
+    msg = sess.commit("periods", "5000")  # 100 trajectories x 5000 periods > 400,000 points
+    assert msg is not None and str(MAX_POINTS) in msg and sess.state.periods == 10
 
 
 def test_recompute_streams_the_section_the_core_computes() -> None:
@@ -78,7 +113,7 @@ def test_recompute_streams_the_section_the_core_computes() -> None:
     ref = section(sess.state.system(), sess.state.initial_conditions(), 20, numerics=sess.state.numerics())
     traj, k, q, r = ref.long()
     np.testing.assert_array_equal(np.sort(np.asarray(sess.fig.points.data["q"])), np.sort(q))
-    assert "100 points" in sess.status and not sess.running
+    assert "100 points" in sess.status and not sess.running and "computing" not in sess.status
 
 
 def test_moving_alpha_changes_the_points_and_layers() -> None:
@@ -93,32 +128,39 @@ def test_moving_alpha_changes_the_points_and_layers() -> None:
     assert len(sess.fig.tprime.data["image"]) == 1
 
 
-def test_invalid_tensor_shows_message_and_keeps_last_picture() -> None:
+def test_invalid_tensor_is_refused_and_the_picture_kept() -> None:
     sess = make_session(scene="fig1C")
     sess.state.param.update(n_random=3, periods=10)
     before = np.asarray(sess.fig.points.data["q"]).copy()
-    sess.state.I12 = 3.0
-    assert "not positive definite" in sess.error and "I12=3" in sess.error
+    msg = sess.commit("I12", "3")
+    assert "not positive definite" in msg and "I12=3" in msg and sess.state.I12 == 0.0
     np.testing.assert_array_equal(np.asarray(sess.fig.points.data["q"]), before)
-    sess.state.I12 = 0.0
-    assert sess.error == ""
+    assert not sess.running and "computing" not in sess.status
 
 
-def test_too_much_work_is_refused_with_a_message() -> None:
+def test_no_initial_conditions_is_reported_and_nothing_runs() -> None:
     sess = make_session(scene="fig1C")
-    sess.state.param.update(n_random=500, periods=5000)
-    assert str(MAX_POINTS) in sess.error
+    sess.state.param.update(n_random=3, periods=10)
+    sess.state.n_random = 0
+    assert "no initial conditions" in sess.error and not sess.running and "computing" not in sess.status
+    sess.state.n_random = 2
+    assert sess.error == "" and "20 points" in sess.status
 
 
-def test_click_adds_one_trajectory_and_selects_it() -> None:
+def test_click_adds_one_trajectory_selects_it_and_counts_it() -> None:
     sess = make_session(scene="fig1C")
     sess.state.param.update(n_random=2, periods=15)
     sess.add_initial_condition(0.3, 0.4)
     traj, k, q, r = sess.data()
     assert sorted(set(traj.tolist())) == [0, 1, 2]
-    assert np.count_nonzero(traj == 2) == 15
-    assert sess.state.selected == 2 and sess.state.clicked == [(0.3, 0.4)]
-    assert len(sess.series.source.data["k"]) == 15
+    assert np.count_nonzero(traj == 0) == 15  # clicked points come first
+    assert sess.state.selected == 0 and sess.state.clicked == [(0.3, 0.4)]
+    ics = sess.state.initial_conditions()
+    assert tuple(ics[0]) == (0.3, 0.4)
+    ref = section(sess.state.system(), ics, 15, numerics=sess.state.numerics())
+    np.testing.assert_array_equal(sess.series.data["q"], ref.trajectory(0)[1])  # the clicked IC's orbit
+    np.testing.assert_array_equal(sess.fig.selected.data["q"], ref.trajectory(0)[1])  # ringed in the section
+    assert sess.status.startswith("45 points · 3 trajectories")
     assert "ics=0.3,0.4" in "&".join(f"{a}={b}" for a, b in sess.state.to_query().items())
 
 
@@ -126,7 +168,7 @@ def test_series_is_the_selected_trajectory_with_its_energy() -> None:
     sess = make_session(scene="fig1C")
     sess.state.param.update(n_random=3, periods=12)
     sess.state.selected = 1
-    d = sess.series.source.data
+    d = sess.series.data
     ref = section(sess.state.system(), sess.state.initial_conditions(), 12, numerics=sess.state.numerics())
     k, q, r = ref.trajectory(1)
     np.testing.assert_array_equal(d["k"], k)
@@ -184,4 +226,24 @@ def test_selection_moves_to_a_trajectory_with_points() -> None:
     traj = sess.data()[0]
     assert sess.escaped == [0] and 0 not in set(traj.tolist())
     assert sess.state.selected == 1
-    assert len(sess.series.source.data["k"]) == 5
+    assert len(sess.series.data["k"]) == 5
+
+
+def test_stop_ends_the_run_and_nothing_stays_computing() -> None:
+    """Jobs queued, not run: Stop cancels them; the status says stopped, Stop is disabled."""
+    queue: list = []
+    state = ExplorerState(scene="fig1C")
+    state.param.update(n_random=2, periods=5)
+
+    class Held:  # an executor that holds jobs until told
+        def submit(self, fn):
+            queue.append(fn)
+
+    sess = ExplorerSession(state, Runner(lambda fn: fn(), executor=Held()))
+    sess.recompute()
+    assert sess.running and "computing" in sess.status
+    sess.stop()
+    assert not sess.running and "computing" not in sess.status
+    for fn in queue:  # the cancelled jobs start late: they must end without a trace
+        fn()
+    assert not sess.running and "computing" not in sess.status and len(sess.fig.points.data["q"]) == 0

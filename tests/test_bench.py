@@ -201,38 +201,39 @@ def _session(scene: str = "fig1C") -> ExplorerSession:
 
 
 def test_bench_tab_measures_the_current_system(_warm, tmp_path) -> None:
-    tab = BenchTab(_session(), results_path=str(tmp_path / "none.json"), cache_dir=str(tmp_path))
-    assert tab.view.options == []  # no full run yet
-    tab.periods.value = 4
+    sess = _session()
+    tab = BenchTab(sess, results_path=str(tmp_path / "none.json"), cache_dir=str(tmp_path))
+    assert tab.view["options"] == []  # no full run yet
+    sess.state.bench_periods = 4
+    tab.figure()
     tab.run()
-    assert not tab.error.visible, tab.error.object
-    assert tab.view.value == MEASURED
+    assert not tab.view["error"], tab.view["error"]
+    assert tab.view["choice"] == MEASURED
     labels = set(tab.solid.data["label"]) | set(tab.dashed.data["label"])
     assert {"ours rk4", "ours dp5", "ours dop853", "ours dop853 batch", "scipy.solve_ivp DOP853"} <= labels
     ys = np.asarray(tab.points.data["y"])
     assert ys.size > 10 and np.all(np.isfinite(ys)) and np.all(ys > 0)
-    assert "K = 4" in tab.summary.object and tab.floor.visible
-    assert "measurements" in tab.message.object
+    assert "K = 4" in tab.view["result"][0] and tab.floor.visible
+    assert "measurements" in tab.view["message"]
 
 
 def test_bench_tab_shows_the_latest_full_run(_warm, tmp_path, quick: bench.BenchResult) -> None:
     path = tmp_path / "bench.json"
     path.write_text(json.dumps(quick.as_dict()))
     tab = BenchTab(_session(), results_path=str(path), cache_dir=str(tmp_path))
-    assert len(tab.view.options) == len(quick.cases)
-    chaotic = next(o for o in tab.view.options if o.endswith("chaotic"))
-    tab.view.value = chaotic
-    tab._draw()
-    assert "chaos horizon" in tab.summary.object
+    assert len(tab.view["options"]) == len(quick.cases)
+    chaotic = next(o for o in tab.view["options"] if o.endswith("chaotic"))
+    assert tab.choose(chaotic) is None
+    assert "chaos horizon" in tab.view["result"][0]
     assert len(tab.solid.data["xs"]) == len([s for s in quick.series("chaotic") if not s.endswith("batch")])
+    assert "no diagram" in tab.choose("nonsense") and tab.view["choice"] == chaotic
 
 
 def test_bench_tab_rejects_bad_input(_warm, tmp_path) -> None:
-    tab = BenchTab(_session(), results_path=str(tmp_path / "none.json"), cache_dir=str(tmp_path))
-    tab.ic.value = "a,b"
+    sess = _session()
+    sess.state.param.update(n_random=0, clicked=[])
+    tab = BenchTab(sess, results_path=str(tmp_path / "none.json"), cache_dir=str(tmp_path))
     tab.run()
-    assert tab.error.visible and "initial condition" in tab.error.object
-    tab.ic.value = ""
-    tab.periods.value = 2
+    assert "no initial condition" in tab.view["error"]
     tab.load_results()
-    assert tab.error.visible and "bilimovich bench" in tab.error.object
+    assert "bilimovich bench" in tab.view["error"]

@@ -239,23 +239,24 @@ def test_app_tabs_use_the_configured_scheduler(cluster, monkeypatch) -> None:
     WARM.set()
 
     def tab() -> ChartTab:
-        t = ChartTab(ExplorerSession(ExplorerState(scene="fig11"), Runner(lambda fn: fn(), executor=InlineExecutor())))
-        t.grid.value, t.periods.value, t.transient.value = "3,2", 30, 30
-        return t
+        st = ExplorerState(scene="fig11")
+        st.param.update(chart_grid=(3, 2), chart_periods=30, chart_transient=30)
+        return ChartTab(ExplorerSession(st, Runner(lambda fn: fn(), executor=InlineExecutor())))
 
     local = tab()
     local.run()
     monkeypatch.setenv(dd.ENV_VAR, cluster)
     remote = tab()
     remote.run()
-    assert not remote.error.visible and remote.chart.completed
+    assert not remote.view["error"] and remote.chart.completed
     assert_same_chart(remote.chart, local.chart)
     sweeps = []
     for env in ("", cluster):
         monkeypatch.setenv(dd.ENV_VAR, env)
         runner = Runner(lambda fn: fn(), executor=InlineExecutor())
-        b = BifurcationTab(ExplorerSession(ExplorerState(scene="fig10"), runner))
-        b.n_values.value, b.points.value, b.transient.value = 4, 5, 20
+        st = ExplorerState(scene="fig10")
+        st.param.update(bif_values=4, bif_points=5, bif_transient=20)
+        b = BifurcationTab(ExplorerSession(st, runner))
         b.run()
         sweeps.append(b._data)
     for name in DIAGRAM:
@@ -263,11 +264,11 @@ def test_app_tabs_use_the_configured_scheduler(cluster, monkeypatch) -> None:
     monkeypatch.setenv(dd.ENV_VAR, "my-cluster")
     bad = tab()
     bad.run()
-    assert bad.error.visible and "BILIMOVICH_SCHEDULER" in bad.error.object and "my-cluster" in bad.error.object
+    assert "BILIMOVICH_SCHEDULER" in bad.view["error"] and "my-cluster" in bad.view["error"]
     monkeypatch.setenv(dd.ENV_VAR, f"tcp://127.0.0.1:{_free_port()}")
     down = tab()
     down.run()
-    assert down.error.visible and "cannot reach the Dask scheduler" in down.error.object
+    assert "cannot reach the Dask scheduler" in down.view["error"]
 
 
 def test_local_n_starts_a_cluster_once_and_reuses_it() -> None:

@@ -411,16 +411,22 @@ def _load_test():
 
 @pytest.mark.load
 def test_classroom_under_load(tmp_path) -> None:
-    """6 tabs x 3 slider moves while one runs a small chart, then 10 open/close cycles."""
+    """6 tabs opened together on 2 server processes, 3 slider moves each while one runs a small chart,
+    then 10 open/close cycles."""
     lt = _load_test()
     report = lt.run(
-        sessions=6, changes=3, cycles=10, chart=(12, 8), chart_periods=100, think=1.0, stagger=0.2,
-        log_path=str(tmp_path / "panel.log"), every=10, session_lifetime=3000, chart_timeout=120,
+        sessions=6, changes=3, cycles=10, chart=(12, 8), chart_periods=100, think=1.0, stagger=0.0,
+        log_path=str(tmp_path / "panel.log"), every=10, session_lifetime=3000, chart_timeout=120, procs=2,
     )  # fmt: skip
     c = report["classroom"]
     print(lt.markdown(report))
     s = c["starvation"]
     assert c["protocol_errors"] == []
+    # Every tab got its page, then its first points, then its full scene.
+    assert c["open_page_s"]["n"] == c["open_first_points_s"]["n"] == c["open_full_scene_s"]["n"] == 6
+    # The server kept answering /liveness while the class opened and moved (how fast: benchmarks, docs/load.md).
+    for phase in ("while_opening", "while_moving"):
+        assert c["liveness_ms"][phase]["n"] > 0 and c["liveness_ms"][phase]["failures"] == 0, phase
     # No starvation: every move of every tab got new points, then its full scene.
     assert s["changes"] == 18 and s["without_new_points"] == 0 and s["without_full_scene"] == 0
     assert s["sessions_with_every_change_answered"] == 6
@@ -431,5 +437,5 @@ def test_classroom_under_load(tmp_path) -> None:
     assert c["server_cpu_s_in_3s_after_close"] < 1.0
     assert all(cpu < 0.7 for cpu in report["cycles"]["server_cpu_s_in_2s_after_close"])
     # Memory: each session costs something, and closing them gives it back (no growth per cycle).
-    assert 0 < c["memory"]["per_session_mb"] < 60
+    assert 0 < c["memory"]["per_session_mb"] < 60 and c["memory"]["procs"] == 2
     assert report["cycles"]["max_growth_mb"] < 150

@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import html
 import math
-import re
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +22,7 @@ from clirun import run_cli
 from hypothesis import HealthCheck, assume, event, example, given, settings
 from hypothesis import strategies as st
 
-from app.state import SYSTEM_FIELDS, parse_query, state_from_query
+from app.state import CONTROLS, SYSTEM_FIELDS, TABS, parse_query, state_from_query
 from explorer_core.analyses.equilibria import TYPES, equilibria
 from explorer_core.analyses.tprime import tprime_map
 from explorer_core.scenes import get_scene, list_scenes
@@ -139,7 +138,7 @@ def test_numerics_are_valid_or_the_error_names_the_value(method, rtol, atol, ste
     except ParameterError as exc:
         assert _names(exc, "method", "rtol", "atol", "steps_per_period", "bound", "max_steps"), exc
         return
-    assert n.method in ("rk4", "dp5", "dop853")
+    assert n.method in ("rk4", "rk4-tableau", "dp5", "dop853")
     assert 0 < n.rtol <= 1 and 0 < n.atol and n.bound > 0 and n.steps_per_period >= 1 and n.max_steps >= 10
 
 
@@ -334,7 +333,8 @@ def test_cli_bad_values_exit_2_with_one_line(option, value, glued) -> None:
 # --- URL query parameters ---------------------------------------------------------------------
 
 QUERY_KEYS = [*SYSTEM_FIELDS, "scene", "method", "accuracy", "steps", "n", "seed", "periods", "transient", "box",
-              "qr", "rr", "ics", "tracks", "tprime"]  # fmt: skip
+              "qr", "rr", "ics", "tracks", "tprime", "sel", "tab", "present",
+              *(c.url for c in CONTROLS if c.area in TABS[1:])]  # fmt: skip
 #: What Panel's query parsing hands the app: numbers, booleans, JSON lists and dicts, strings.
 json_like = st.recursive(
     st.one_of(st.none(), st.booleans(), st.integers(), any_float, st.text(max_size=20), st.sampled_from(MARKUP)),
@@ -362,7 +362,8 @@ def test_parse_query_never_raises_and_reports_plain_lines(query) -> None:
     updates, errors = parse_query(query)
     assert set(updates) <= {"scene", *SYSTEM_FIELDS, "method", "accuracy", "steps_per_period", "n_random", "seed",
                             "periods", "transient", "box", "q_range", "r_range", "clicked", "show_tracks",
-                            "show_tprime", "tprime_kind"}  # fmt: skip
+                            "show_tprime", "tprime_kind", "selected", "tab", "presentation",
+                            *(c.name for c in CONTROLS if c.area in TABS[1:])}  # fmt: skip
     assert len(errors) <= len(query)
     for m in errors:
         assert isinstance(m, str) and m.startswith("URL parameter ") and len(m) < 300, m
@@ -391,24 +392,14 @@ def test_state_from_query_never_raises_and_its_url_parses_back(query) -> None:
 # --- bugs these tests found (fixed; kept as regression tests) --------------------------------------
 
 
-def _render_error_box(messages: list[str]) -> str:
-    """The HTML the browser inserts for app/main.py's error box (its pane type, its join of escaped messages)."""
-    import panel as pn
-
-    src = (ROOT / "app" / "main.py").read_text()
-    pane = re.search(r"error_box = pn\.pane\.(\w+)\(", src)
-    assert pane and '"<br>".join(html.escape(m) for m in msgs)' in src, "app/main.py show_error changed: update me"
-    obj = "<br>".join(html.escape(m) for m in messages)
-    box = getattr(pn.pane, pane.group(1))(obj)
-    return html.unescape(box._transform_object(obj)["object"])  # Panel sends it escaped; BokehJS unescapes
-
-
-def test_url_values_never_become_markup_in_the_error_box() -> None:
-    for value in ("![i](https://example.invalid/a.png)", "x[log in](https://example.invalid)", "https://x.invalid"):
+def test_url_values_never_become_markup_in_the_page() -> None:
+    """The page (app/ui.js) puts every text from the server into the DOM as text, never as HTML."""
+    src = (ROOT / "app" / "ui.js").read_text()
+    for sink in ("innerHTML", "outerHTML", "insertAdjacentHTML", "document.write", "DOMParser", "eval("):
+        assert sink not in src, sink
+    for value in ("![i](https://example.invalid/a.png)", "<img src=x onerror=alert(1)>"):
         _, errors = parse_query({"method": value})
-        rendered = _render_error_box(errors)
-        tags = set(re.findall(r"<\s*([a-zA-Z]+)", rendered))
-        assert tags <= {"p", "br", "div", "span"}, (value, rendered)
+        assert errors and all(m.startswith("URL parameter method:") for m in errors)
 
 
 def test_box_with_overflowing_width_is_a_usage_error() -> None:

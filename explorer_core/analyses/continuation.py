@@ -453,6 +453,7 @@ def continue_orbit(
     numerics: Numerics | None = None,
     param2: str | None = None,
     range2: Sequence[float] | None = None,
+    window1: Sequence[float] | None = None,
     progress: Callable[[int, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
@@ -468,7 +469,7 @@ def continue_orbit(
     ds, ds_min, ds_max : arclength steps in ``(q, r, (p - A) / (B - A))`` (default 0.02, 1e-7, 0.1: at
         least ten points over the range).
     param2, range2 : also follow every fold and period doubling found as a curve in ``(param, param2)``
-        with ``param2`` over ``range2``.
+        with ``param2`` over ``range2`` and ``param`` over ``window1`` (default: the range).
     progress : called with (points so far, current value); cancel: polled at every point.
 
     Every branch stops at the range's end, on escape or integration failure, on leaving the valid
@@ -591,8 +592,9 @@ def continue_orbit(
         res.range2 = (c, d)
         for bif in list(res.bifurcations):
             if bif.kind in ("fold", "period_doubling"):
-                res.curves.append(_follow_curve(base, param, res.param2, bif, (c, d), numerics, max_points, cancel,
-                                                workers))  # fmt: skip
+                w1 = (a, b) if window1 is None else (float(min(window1)), float(max(window1)))
+                res.curves.append(_follow_curve(base, param, res.param2, bif, w1, (c, d), numerics, max_points,
+                                                cancel, workers))  # fmt: skip
     res.elapsed_s = time.perf_counter() - start
     res.completed = not stopped
     return res
@@ -656,10 +658,14 @@ def _located(fol: _Follower, n: int, kind: str, p0: _Point, p1: _Point, branch: 
 # Two-parameter continuation of a fold or period-doubling point.
 
 
-def _follow_curve(base: Params, name1: str, name2: str, bif: Bifurcation, rng2: tuple[float, float],
-                  numerics: Numerics, max_points: int, cancel: Callable[[], bool] | None,
+def _follow_curve(base: Params, name1: str, name2: str, bif: Bifurcation, rng1: tuple[float, float],
+                  rng2: tuple[float, float], numerics: Numerics, max_points: int, cancel: Callable[[], bool] | None,
                   workers: int | None) -> Curve:  # fmt: skip
-    """The curve of ``F = 0, phi = 0`` through ``bif`` in ``(name1, name2)``, both ways, while ``name2`` is in range."""
+    """The curve of ``F = 0, phi = 0`` through ``bif`` in ``(name1, name2)``, both ways, within ``rng1 x rng2``.
+
+    Pseudo-arclength in ``(q, r, s1, s2)`` with each parameter scaled to its range (``rng1``: the window of the
+    first parameter, ``rng2``): a step moves each parameter by at most ``0.05`` of its range.
+    """
     p2_0 = float(getattr(base, name2) if name2 not in ("I11", "I22", "I33", "I12", "I13", "I23")
                  else base.inertia[("I11", "I22", "I33", "I12", "I13", "I23").index(name2)])  # fmt: skip
     sys = _System(base, [name1, name2], numerics, workers)
@@ -669,28 +675,39 @@ def _follow_curve(base: Params, name1: str, name2: str, bif: Bifurcation, rng2: 
     if not lo <= p2_0 <= hi:
         curve.stop = f"{name2} = {p2_0} at the bifurcation is outside the range"
         return curve
+    # Scaled coordinates Z = (q, r, (p1 - o1) / w1, (p2 - o2) / w2).
+    o = np.array([0.0, 0.0, min(rng1), lo])
+    w = np.array([1.0, 1.0, abs(rng1[1] - rng1[0]), hi - lo])
 
-    def residual_and_jac(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return _defining(sys, kind, n, Y)
+    def unscaled(Z: np.ndarray) -> np.ndarray:
+        return o + w * Z
 
-    def correct(Y_pred: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        Y = Y_pred.copy()
-        for _ in range(10):
-            g, jac, _ = residual_and_jac(Y)
-            c = float(t @ (Y - Y_pred))
-            scale = 1.0 + float(np.abs(Y[:2]).max())
-            if np.linalg.norm(g[:2]) <= CORRECTOR_TOL * scale and abs(g[2]) <= 1e-9 and abs(c) <= 1e-10 * scale:
-                return Y, jac
-            step = np.linalg.solve(np.vstack([jac, t[None, :]]), -np.concatenate([g, [c]]))
-            Y = Y + step
-            if not np.all(np.isfinite(Y)):
+    def residual_and_jac(Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        g, jac, _ = _defining(sys, kind, n, unscaled(Z))
+        return g, jac * w[None, :]
+
+    def correct(Z_pred: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        Z = Z_pred.copy()
+        for it in range(1, 11):
+            g, jac = residual_and_jac(Z)
+            c = float(t @ (Z - Z_pred))
+            scale = 1.0 + float(np.abs(Z[:2]).max())
+            try:
+                step = np.linalg.solve(np.vstack([jac, t[None, :]]), -np.concatenate([g, [c]]))
+            except np.linalg.LinAlgError:
+                raise _Stop("singular corrector") from None
+            # Converged when the Newton step is at the accuracy of the map (the test function's own
+            # scale grows with the multipliers: no absolute bound on it means anything).
+            if np.linalg.norm(g[:2]) <= CORRECTOR_TOL * scale * 10 and np.abs(step).max() <= 1e-9 * scale:
+                return Z, jac, it
+            Z = Z + step
+            if not np.all(np.isfinite(Z)):
                 raise _Stop("the corrector overflowed")
         raise _Stop("the corrector did not converge")
 
-    width = hi - lo
-    Y0 = np.array([bif.point[0], bif.point[1], bif.value, p2_0])
+    Z0 = (np.array([bif.point[0], bif.point[1], bif.value, p2_0]) - o) / w
     try:
-        _, jac0, _ = residual_and_jac(Y0)
+        _, jac0 = residual_and_jac(Z0)
     except _Stop as exc:
         curve.stop = str(exc)
         return curve
@@ -699,7 +716,7 @@ def _follow_curve(base: Params, name1: str, name2: str, bif: Bifurcation, rng2: 
     reasons = []
     for sgn in (1.0, -1.0):
         rows: list[tuple[float, float, float, float]] = []
-        Y, t, h = Y0.copy(), sgn * t0, width / 50.0
+        Z, t, h = Z0.copy(), sgn * t0, 0.01
         reason = f"{max_points} points"
         try:
             while len(rows) < max_points:
@@ -707,24 +724,26 @@ def _follow_curve(base: Params, name1: str, name2: str, bif: Bifurcation, rng2: 
                     reason = "cancelled"
                     break
                 try:
-                    Y_new, jac = correct(Y + h * t, t)
+                    Z_new, jac, it = correct(Z + h * t, t)
                 except _Stop:
                     h *= 0.5
-                    if h < width * 1e-7:
+                    if h < 1e-7:
                         raise
                     continue
                 t_new = _null(jac)
                 t_new = t_new if t_new @ t >= 0 else -t_new
-                if not lo <= Y_new[3] <= hi:
+                Y = unscaled(Z_new)
+                if not (lo <= Y[3] <= hi and min(rng1) <= Y[2] <= max(rng1)):
                     reason = "range end"
                     break
-                rows.append((float(Y_new[2]), float(Y_new[3]), float(Y_new[0]), float(Y_new[1])))
-                Y, t = Y_new, t_new
-                h = min(width / 20.0, h * 1.3)
+                rows.append((float(Y[2]), float(Y[3]), float(Y[0]), float(Y[1])))
+                Z, t = Z_new, t_new
+                h = min(0.05, h * 1.5) if it <= 3 else (h * 0.6 if it >= 6 else h)
         except _Stop as exc:
             reason = str(exc)
         halves.append(rows)
         reasons.append(reason)
+    Y0 = unscaled(Z0)
     curve.rows = [*reversed(halves[1]), (float(Y0[2]), float(Y0[3]), float(Y0[0]), float(Y0[1])), *halves[0]]
     curve.stop = "; ".join(reasons)
     return curve
@@ -746,6 +765,9 @@ def continue_from_seeds(
     max_period: int = DEFAULT_MAX_PERIOD,
     max_orbits: int = 6,
     numerics: Numerics | None = None,
+    param2: str | None = None,
+    range2: Sequence[float] | None = None,
+    window1: Sequence[float] | None = None,
     progress: Callable[[int, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
@@ -769,11 +791,13 @@ def continue_from_seeds(
         if cancel is not None and cancel():
             out.completed = False
             break
+        if _on_a_branch(out, orb, a):
+            continue  # already followed: the orbit is a point of a branch computed for an earlier seed
         done = out.n_points
         step = None if progress is None else (lambda n, v, d=done: progress(d + n, v))
         res = continue_orbit(params, param, value_range, orb.points[0], orb.period, switch=switch,
                              max_period=max(max_period, orb.period), numerics=numerics, cancel=cancel, workers=workers,
-                             progress=step)  # fmt: skip
+                             progress=step, param2=param2, range2=range2, window1=window1)  # fmt: skip
         shift = len(out.branches)
         nb = len(out.bifurcations)
         out.branches += res.branches
@@ -783,6 +807,75 @@ def continue_from_seeds(
             if br.parent is not None:
                 br.parent += nb
         out.messages += res.messages
+        out.curves += res.curves
+        out.param2, out.range2 = res.param2, res.range2
         out.completed = out.completed and res.completed
     out.elapsed_s = time.perf_counter() - t0
+    return out
+
+
+def _on_a_branch(cont: Continuation, orbit: Any, value: float) -> bool:
+    """True if ``orbit`` (at the parameter ``value``) is a point of one of ``cont``'s branches."""
+    tol = 1e-6 * (1.0 + float(np.abs(orbit.points).max()))
+    for br in cont.branches:
+        if br.period != orbit.period:
+            continue
+        for v, pts in zip(br.values, br.orbits, strict=True):
+            if abs(v - value) <= 1e-9 * (1.0 + abs(value)):
+                d = np.linalg.norm(pts[:, None, :] - orbit.points[None, 0, :], axis=-1)
+                if d.min() <= tol:
+                    return True
+    return False
+
+
+def chart_boundaries(
+    chart: Any,
+    *,
+    periods: Sequence[int] = (1, 2, 3),
+    numerics: Numerics | None = None,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+) -> list[Continuation]:
+    """The fold and period-doubling curves that bound a chart's regions of stable cycles.
+
+    For each period ``p`` in ``periods`` present in the chart (:class:`explorer_core.analyses.regimes.Chart`),
+    the pixel of period ``p`` nearest the region's centre: its trajectory is run through the chart's
+    transient, Newton finds the period-``p`` orbit there, and that orbit is continued in the chart's ``x``
+    towards both ends with every fold and period doubling followed as a curve in ``(x, y)`` over the
+    chart. Returns one :class:`Continuation` per continued direction (their ``curves`` are the boundaries).
+    """
+    from explorer_core.analyses.orbits import find_orbits
+    from explorer_core.analyses.regimes import PERIODIC
+    from explorer_core.solve.integrators import Batch, advance
+    from explorer_core.system.model import Model
+
+    spec = chart.spec
+    xs, ys = np.asarray(spec.x_values, float), np.asarray(spec.y_values, float)
+    xr, yr = (float(xs.min()), float(xs.max())), (float(ys.min()), float(ys.max()))
+    out: list[Continuation] = []
+    for p in periods:
+        js, is_, ks = np.nonzero((chart.regime == PERIODIC) & (chart.period == p) & chart.computed[..., None])
+        if js.size == 0 or (cancel is not None and cancel()):
+            continue
+        cj, ci = js.mean(), is_.mean()
+        n = int(np.argmin((js - cj) ** 2 + (is_ - ci) ** 2))
+        j, i, k = int(js[n]), int(is_[n]), int(ks[n])
+        params = spec.pixel_params(j, i)
+        if isinstance(params, str):
+            continue
+        batch = Batch.start(spec.ics[k : k + 1], params.t0, params.period)
+        advance(Model(params), batch, spec.transient, store=False, workers=1, **spec.numerics.kernel_kwargs())
+        found = find_orbits(params, batch.y, [p], numerics=numerics, workers=workers).orbits
+        if not found:
+            continue
+        x0 = float(xs[i])
+        for end in xr:
+            if end == x0 or (cancel is not None and cancel()):
+                continue
+            try:
+                out.append(continue_orbit(params, spec.x_param, (x0, end), found[0].points[0], found[0].period,
+                                          numerics=numerics, param2=spec.y_param, range2=yr, window1=xr,
+                                          cancel=cancel, workers=workers))  # fmt: skip
+            except ParameterError:
+                continue
     return out

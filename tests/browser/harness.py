@@ -40,16 +40,21 @@ class Server(NamedTuple):
 
 @contextlib.contextmanager
 def serve(
-    log_path: str | None = None, threads: int = 4, env: dict[str, str] | None = None, session_lifetime: int = 15000
+    log_path: str | None = None,
+    threads: int = 4,
+    env: dict[str, str] | None = None,
+    session_lifetime: int = 15000,
+    procs: int = 1,
 ) -> Iterator[Server]:
-    """Run ``bilimovich serve`` on a free port until /liveness answers (it execs panel: same pid)."""
+    """Run ``bilimovich serve`` on a free port until /liveness answers (it execs the server: same pid;
+    with ``procs`` > 1 that pid is the parent of the workers, see :func:`tree_pids`)."""
     port = free_port()
     log = open(log_path or os.devnull, "w")
     # The same entry point users run (bilimovich serve execs panel serve with the project's flags).
     cmd = [
         sys.executable, "-m", "explorer_core.cli", "serve", "--port", str(port), "--address", "127.0.0.1",
         "--allow-websocket-origin", f"127.0.0.1:{port}", "--allow-websocket-origin", f"localhost:{port}",
-        "--threads", str(threads), "--session-lifetime", str(session_lifetime),
+        "--threads", str(threads), "--session-lifetime", str(session_lifetime), "--procs", str(procs),
     ]  # fmt: skip
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **(env or {})})
     try:
@@ -72,6 +77,16 @@ def serve(
         except subprocess.TimeoutExpired:
             proc.kill()
         log.close()
+
+
+def tree_pids(pid: int) -> list[int]:
+    """A process and its children (the workers of ``--procs N``), from /proc."""
+    out = [pid]
+    with contextlib.suppress(OSError):
+        for task in os.listdir(f"/proc/{pid}/task"):
+            with contextlib.suppress(OSError, ValueError):
+                out += [int(c) for c in Path(f"/proc/{pid}/task/{task}/children").read_text().split()]
+    return out
 
 
 @contextlib.contextmanager
@@ -143,20 +158,26 @@ def section_q(page) -> list[float]:
     return page.evaluate("() => Array.from(Bokeh.documents[0].get_model_by_name('section_source').data.q)")
 
 
-def set_number(page, field: str, value: float) -> None:
-    """Type a value into a control's number box and press Enter, like a user."""
-    box = page.locator(f".ctl-{field} input").first
+def set_number(page, field: str, value: float | str) -> None:
+    """Type a value into a control's box and press Enter, like a user."""
+    box = page.locator(f".ctl-{field} input.num, .ctl-{field} input.txt").first
     box.fill(str(value))
     box.press("Enter")
 
 
+def box_value(page, field: str) -> str:
+    """What a control's box shows."""
+    return page.locator(f".ctl-{field} input.num, .ctl-{field} input.txt").first.input_value()
+
+
 def drag_slider(page, field: str, fraction: float) -> None:
-    """Drag a slider's handle to ``fraction`` of its track and release it."""
-    handle = page.locator(f".ctl-{field} .noUi-handle").first
-    track = page.locator(f".ctl-{field} .noUi-base").first
-    hb = handle.bounding_box()
-    tb = track.bounding_box()
-    page.mouse.move(hb["x"] + hb["width"] / 2, hb["y"] + hb["height"] / 2)
+    """Drag a slider's thumb to ``fraction`` of its track and release it."""
+    rng = page.locator(f".ctl-{field} input[type=range]").first
+    box = rng.bounding_box()
+    lo, hi = float(rng.get_attribute("min")), float(rng.get_attribute("max"))
+    v = float(rng.input_value())
+    y = box["y"] + box["height"] / 2
+    page.mouse.move(box["x"] + (v - lo) / (hi - lo) * box["width"], y)
     page.mouse.down()
-    page.mouse.move(tb["x"] + fraction * tb["width"], hb["y"] + hb["height"] / 2, steps=8)
+    page.mouse.move(box["x"] + fraction * box["width"], y, steps=8)
     page.mouse.up()

@@ -1,0 +1,292 @@
+"""One session's page: the state, its jobs, the figures, the analysis tabs and the component.
+
+:class:`Page` wires :class:`~app.controller.ExplorerSession` (the section) and the analysis
+tabs to :class:`~app.ui.ExplorerUI` (what the browser draws). It needs no server: the tests
+build one with a call-through ``deliver`` and drive it with the same messages a browser sends
+(:meth:`Page.handle`). ``app/main.py`` builds one per browser tab.
+
+What is built for a new page is only what its first view shows: the section figure and the
+component (which draws the k-series from data); an analysis tab's figure is built when the tab
+is first opened.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Mapping
+from concurrent.futures import Executor
+from typing import Any
+
+import panel as pn
+from bokeh.events import RangesUpdate, Tap
+from bokeh.models import Column
+
+from app.analyses import AnalysisTab, BifurcationTab, ChartTab, LyapunovTab
+from app.bench_tab import BenchTab
+from app.controller import SECTION_CHANNELS, ExplorerSession
+from app.runner import FairScheduler, Runner
+from app.state import BY_NAME, CONTROLS, TABS, state_from_query
+from app.ui import ExplorerUI
+from app.views import SectionFigure, SeriesData
+from explorer_core.scenes import get_scene
+
+log = logging.getLogger(__name__)
+
+TAB_CLASSES: dict[str, type[AnalysisTab]] = {
+    "lyapunov": LyapunovTab,
+    "bifurcation": BifurcationTab,
+    "chart": ChartTab,
+    "bench": BenchTab,
+}
+#: Session parameters that change what the section tab shows.
+SESSION_VIEW = ["status", "error", "running", "escaped", "failed", "reliability", "n_points", "orbits", "orbit_status"]
+
+
+class Page:
+    """Everything of one browser tab. ``deliver`` runs a callable on the document's thread."""
+
+    def __init__(
+        self,
+        query: Mapping[str, Any],
+        deliver: Callable[[Callable[[], None]], None],
+        *,
+        publish_url: Callable[[dict[str, str]], None] | None = None,
+        alive: Callable[[], bool] | None = None,
+        executor: Executor | None = None,
+        scheduler: FairScheduler | None = None,
+    ) -> None:
+        self.deliver = deliver
+        state, self.url_errors = state_from_query(query)
+        self.state = state
+        self.runner = Runner(deliver, on_error=self._job_failed, executor=executor, scheduler=scheduler, alive=alive,
+                             on_busy=self._on_busy)  # fmt: skip
+        self.fig = SectionFigure(state.q_range, state.r_range)
+        self.series = SeriesData(on_change=self._on_series)
+        self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
+        self.tabs: dict[str, AnalysisTab] = {}
+        self.messages: dict[str, str] = {}
+        self._analysis_box = Column(sizing_mode="stretch_both", name="analysis_box")
+        self.ui = ExplorerUI(
+            on_message=self.handle,
+            values=self._values(),
+            view={"section": self._section_view()},
+            tab=state.tab,
+            presentation=state.presentation,
+            section_plot=pn.pane.Bokeh(self.fig.fig, sizing_mode="stretch_both"),
+            analysis_plot=pn.pane.Bokeh(self._analysis_box, sizing_mode="stretch_both"),
+            sizing_mode="stretch_both",
+        )
+        if state.presentation:
+            self.fig.set_presentation(True)
+        state.param.watch(self._on_state, [p for p in state.param if p != "name"])
+        self.session.param.watch(self._on_session, SESSION_VIEW)
+        self.fig.fig.on_event(Tap, self._on_tap)
+        self.fig.fig.on_event(RangesUpdate, self._on_ranges)
+
+    # --- lifecycle ------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """The page is loaded: compute the section (and open the tab the URL names)."""
+        self.session.recompute()
+        if self.state.tab != "section":
+            self._open_tab(self.state.tab)
+
+    def close(self) -> None:
+        self.runner.close()
+
+    # --- messages from the page -------------------------------------------------------------
+
+    def handle(self, msg: dict[str, Any]) -> None:
+        """One checked message (:func:`app.ui.check_message`), on the document's thread."""
+        if "commit" in msg:
+            self.commit(msg["commit"], msg["text"])
+            return
+        action = msg["action"]
+        tab = msg.get("tab", "section")
+        if action == "stop":
+            if tab == "section":
+                self.session.stop()
+            elif tab in self.tabs:
+                self.tabs[tab].stop()
+        elif action == "run" and tab in TAB_CLASSES:
+            self._open_tab(tab).run()
+        elif action == "clear":
+            self.session.clear_clicked()
+        elif action == "find_orbits":
+            self.session.find_orbits_in_view()
+        elif action == "clear_orbits":
+            self.session.clear_orbits()
+        elif action == "tab" and tab in TABS:
+            self.state.tab = tab
+        elif action == "presentation" and "on" in msg:
+            self.state.presentation = msg["on"]
+        elif action == "download":
+            self._download(msg.get("what", ""))
+        elif action == "load_bench":
+            self._open_tab("bench").load_results(quiet=False)  # type: ignore[attr-defined]
+        elif action == "bench_choice":
+            problem = self._open_tab("bench").choose(msg.get("value"))  # type: ignore[attr-defined]
+            if problem:
+                self.tabs["bench"].fail(problem)
+
+    def commit(self, name: str, text: Any) -> str | None:
+        """A typed value: applied, or refused with a message next to the control and in the main area."""
+        problem = self.session.commit(name, text)
+        if problem:
+            self.messages[name] = problem
+        else:
+            self.messages.pop(name, None)
+            if name == "scene":
+                self.messages.clear()
+            self.url_errors = [e for e in self.url_errors if not _about(e, name)]
+        self.ui.param.update(messages=dict(self.messages), committed=name, revision=self.ui.revision + 1,
+                             values=self._values())  # fmt: skip
+        self._refresh_views()
+        return problem
+
+    def _download(self, what: str) -> None:
+        if what == "section" and self.session.n_points:
+            self.ui.send_download("section.csv", "text/csv", self.session.csv_bytes().getvalue())
+        elif what == "orbits" and self.session.orbits:
+            self.ui.send_download("orbits.csv", "text/csv", self.session.orbits_csv().getvalue())
+        elif what == "chart" and "chart" in self.tabs:
+            data = self.tabs["chart"].npz_bytes()  # type: ignore[attr-defined]
+            if data is not None:
+                self.ui.send_download("chart.npz", "application/octet-stream", data)
+
+    # --- the figures' events --------------------------------------------------------------------
+
+    def _on_tap(self, event: Tap) -> None:
+        if event.x is None or event.y is None:
+            return
+        if self.state.click_mode == "add":
+            self.session.add_initial_condition(event.x, event.y)
+        elif self.state.click_mode == "orbit":
+            self.session.find_orbit_at(event.x, event.y)
+        else:
+            self.session.select_nearest(event.x, event.y)
+
+    def _on_ranges(self, event: RangesUpdate) -> None:
+        if None not in (event.x0, event.x1, event.y0, event.y1):
+            self.session.set_view_from_plot((event.x0, event.x1), (event.y0, event.y1))
+
+    # --- tabs -----------------------------------------------------------------------------------
+
+    def _open_tab(self, name: str) -> AnalysisTab:
+        """The analysis tab, built on first use; its figure goes in the page when the tab is shown."""
+        tab = self.tabs.get(name)
+        if tab is None:
+            tab = self.tabs[name] = TAB_CLASSES[name](self.session, self._publish_tab)
+        if self.state.tab == name:
+            fig = tab.figure()
+            self.deliver(lambda: setattr(self._analysis_box, "children", [fig]))
+        self._refresh_views()
+        return tab
+
+    def _publish_tab(self, name: str, view: dict[str, Any]) -> None:
+        self._refresh_views()
+
+    def _job_failed(self, channel: str, exc: BaseException) -> None:
+        if channel in self.tabs:
+            self.tabs[channel].failed(exc)
+        else:
+            self.session.failed_job(channel, exc)
+
+    def _on_busy(self, channel: str) -> None:
+        self.session.on_busy(channel)
+        if channel in self.tabs:
+            self._refresh_views()
+
+    # --- state -> page --------------------------------------------------------------------------
+
+    def _values(self) -> dict[str, Any]:
+        return {c.name: self.state.display(c.name) for c in CONTROLS}
+
+    def _on_state(self, *events: Any) -> None:
+        names = {e.name for e in events}
+        if names & set(BY_NAME):
+            values = self._values()
+            if values != self.ui.values:
+                self.ui.values = values
+        if "tab" in names:
+            self.ui.tab = self.state.tab
+            if self.state.tab in TAB_CLASSES:
+                self._open_tab(self.state.tab)
+        if "presentation" in names:
+            on = self.state.presentation
+            self.ui.presentation = on
+            self.deliver(lambda: self.fig.set_presentation(on))
+        if names & {"scene", "selected", "clicked", "n_random"}:
+            self._refresh_views()
+
+    def _on_session(self, *events: Any) -> None:
+        self._refresh_views()
+
+    def _on_series(self, data: dict[str, list[float]]) -> None:
+        ui = getattr(self, "ui", None)
+        if ui is not None and data != ui.series:
+            ui.series = data
+
+    def _section_view(self) -> dict[str, Any]:
+        s, st = self.session, self.state
+        errors = [m for m in (s.error, *self.url_errors) if m]
+        errors += [m for n, m in self.messages.items() if BY_NAME[n].area not in TAB_CLASSES]
+        status = s.status
+        if s.escaped:
+            ids = ", ".join(str(i) for i in s.escaped[:12]) + (" …" if len(s.escaped) > 12 else "")
+            status += f"  |  escaped (noncompact drift, left the bound): {ids}"
+        if s.failed:
+            status += f"  |  failed: {', '.join(str(i) for i in s.failed[:12])}"
+        if st.scene == "custom":
+            info = "Custom parameters."
+        else:
+            sc = get_scene(st.scene)
+            info = f"{sc.figure} — {sc.title}. {sc.shows}"
+        sel = st.selected
+        caption = f"Trajectory {sel}: q_k, r_k and the energy T_k"
+        if sel in s.escaped:
+            caption += " (escaped: its valid points)"
+        elif sel in s.failed:
+            caption += " (failed: its points before the failure)"
+        return {
+            "status": status,
+            "errors": errors,
+            "warnings": [{"level": w["level"], "message": w["message"]} for w in s.reliability],
+            "running": s.running,
+            "n_points": s.n_points,
+            "n_clicked": len(st.clicked),
+            "scene_info": info,
+            "series_caption": caption,
+            "orbits": s.orbits,
+            "orbit_status": s.orbit_status,
+            "n_orbits": len(s.orbits),
+            "orbit_view": st.orbit_view,
+        }
+
+    def _tab_view(self, name: str) -> dict[str, Any]:
+        tab = self.tabs[name]
+        v = dict(tab.view)
+        errors = [v.pop("error", "")] + [m for n, m in self.messages.items() if BY_NAME[n].area == name]
+        v["errors"] = [e for e in errors if e]
+        v["running"] = self.runner.busy(name)
+        return v
+
+    def _refresh_views(self) -> None:
+        view = {"section": self._section_view()}
+        view.update({n: self._tab_view(n) for n in self.tabs})
+        if view != self.ui.view:  # one websocket message per real change
+            self.ui.view = view
+
+    # --- for tests and the load test -------------------------------------------------------------
+
+    def running(self, tab: str = "section") -> bool:
+        """Whether the tab's Stop would stop something (the page enables it exactly then)."""
+        if tab == "section":
+            return any(self.runner.busy(c) for c in SECTION_CHANNELS)
+        return self.runner.busy(tab)
+
+
+def _about(message: str, name: str) -> bool:
+    """Whether a URL error message is about control ``name`` (it names its URL key)."""
+    c = BY_NAME.get(name)
+    return c is not None and c.url is not None and message.startswith(f"URL parameter {c.url}:")

@@ -1,0 +1,117 @@
+"""How ``bilimovich serve`` runs the app: Panel's server with the project's flags, on N processes.
+
+``python -m app.serve ARGS`` is ``panel serve ARGS`` with a parent process that stops its
+workers on SIGTERM (``docker stop``): with ``--num-procs N`` Tornado forks N workers that share
+the listening socket (the kernel hands each new connection to one of them) and the parent only
+waits for them, so without this it would die alone on SIGTERM and leave the workers running (or,
+as PID 1 in a container, ignore the signal).
+
+Why several processes and no proxy: a Bokeh server runs every session's page build, websocket
+messages and callbacks on one event loop per process, so one process uses one core for all of
+that. With ``--reuse-sessions`` the page's HTML comes from a template session built once per
+process, and a session is built only when its websocket connects: a page and its websocket may
+land in different workers without building anything twice, so no session affinity (sticky
+sessions) is needed between the workers. Behind a reverse proxy (TLS, a public name) one
+upstream is enough: the workers share one port (docs/deployment.md).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def command(
+    *,
+    port: int,
+    address: str,
+    threads: int,
+    origins: list[str],
+    session_lifetime: int,
+    procs: int,
+    show: bool = False,
+) -> tuple[list[str], dict[str, str]]:
+    """The command line and environment of the server process."""
+    cmd = [
+        sys.executable, "-m", "app.serve", str(HERE / "main.py"),
+        "--port", str(port), "--address", address,
+        "--setup", str(HERE / "warm.py"),  # compile/load the kernels before the first visitor (in each worker)
+        "--num-threads", str(threads),
+        "--liveness",
+        # The page's HTML from one template session per process; a session is built when its
+        # websocket connects (docs/load.md).
+        "--reuse-sessions",
+        # A closed tab's session (its document, figures, data) is freed this long after it closed;
+        # its jobs stop at once (app/main.py). A page must connect its websocket within it.
+        "--check-unused-sessions", str(min(5000, max(200, session_lifetime // 3))),
+        "--unused-session-lifetime", str(session_lifetime),
+    ]  # fmt: skip
+    if procs > 1:
+        cmd += ["--num-procs", str(procs)]
+    for origin in origins:
+        cmd += ["--allow-websocket-origin", origin]
+    if show:
+        cmd.append("--show")
+    env = dict(os.environ)
+    # BokehJS, Panel's CSS and every other resource from this server: nothing from a CDN (a
+    # classroom network may have no internet, and a page must not depend on it).
+    env["BOKEH_RESOURCES"] = "server"
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(HERE.parent), env.get("PYTHONPATH", "")) if p)
+    return cmd, env
+
+
+def _children() -> list[int]:
+    pids: list[int] = []
+    me = os.getpid()
+    with contextlib.suppress(OSError):
+        for task in os.listdir(f"/proc/{me}/task"):
+            with contextlib.suppress(OSError, ValueError):
+                pids += [int(p) for p in Path(f"/proc/{me}/task/{task}/children").read_text().split()]
+    return pids
+
+
+def _stop_workers(signum: int, frame: object) -> None:
+    """The parent on SIGTERM/SIGINT: stop the workers (Bokeh shuts each down cleanly), then leave."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    for pid in _children():
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGTERM)
+    deadline = time.monotonic() + 8.0
+    while time.monotonic() < deadline:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            break
+        if pid == 0:
+            time.sleep(0.05)
+    os._exit(0)
+
+
+def launch(spec: dict) -> None:
+    """Exec the server for the settings ``bilimovich serve`` checked (``python -m app.serve --launch JSON``)."""
+    cmd, env = command(**spec)
+    os.execve(sys.executable, cmd, env)
+
+
+def main(argv: list[str]) -> None:
+    if argv[:1] == ["--launch"]:
+        launch(json.loads(argv[1]))
+        return
+    if "--num-procs" in argv:
+        signal.signal(signal.SIGTERM, _stop_workers)  # the workers replace it with Bokeh's own
+        signal.signal(signal.SIGINT, _stop_workers)
+    from panel.command import main as panel_main
+
+    sys.argv = ["panel", "serve", *argv]
+    panel_main()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

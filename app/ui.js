@@ -1,0 +1,429 @@
+// The explorer's page: layout, every control, messages, status and buttons in one component
+// (app/ui.py). The server holds the values in use; this module only shows them and sends what
+// the user typed (model.send_msg), so a refused value never stays in a box as if it were used.
+// Text from the server is always set as textContent, never as HTML.
+
+const CSS = `
+:host { display: block; width: 100%; height: 100%; }
+* { box-sizing: border-box; }
+.app { display: grid; grid-template-columns: 330px minmax(0, 1fr); grid-template-rows: auto minmax(0, 1fr);
+  height: 100vh; font-family: system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif;
+  font-size: 13px; color: #1d2430; background: #fff; }
+.app.side-collapsed { grid-template-columns: 0 minmax(0, 1fr); }
+.app.side-collapsed .side { visibility: hidden; padding: 0; border: 0; }
+header { grid-column: 1 / 3; display: flex; align-items: center; gap: 10px; padding: 4px 10px;
+  background: #2c5f8a; color: #fff; min-height: 40px; flex-wrap: wrap; }
+header .title { font-weight: 600; font-size: 1.15em; margin-right: 8px; white-space: nowrap; }
+header button { background: transparent; color: #fff; border: 1px solid rgba(255,255,255,.45); border-radius: 4px;
+  padding: 4px 10px; cursor: pointer; font: inherit; }
+header button:hover { background: rgba(255,255,255,.12); }
+header .tab-btn[aria-selected="true"] { background: #fff; color: #2c5f8a; border-color: #fff; }
+header .spacer { flex: 1; }
+.side { overflow-y: auto; padding: 8px 12px 24px; border-right: 1px solid #d8dde5; background: #f7f9fb; min-width: 0; }
+.side h3 { font-size: 1em; margin: 14px 0 4px; color: #2c5f8a; }
+.main { overflow: auto; min-height: 0; min-width: 0; padding: 6px 10px; display: flex; flex-direction: column; }
+.pane { display: flex; flex-direction: column; gap: 4px; flex: 1 1 auto; min-height: 0; }
+.pane[hidden] { display: none; }
+.ctl { margin: 6px 0; }
+.ctl label, .ctl .lab { display: block; font-size: .92em; color: #3a4554; margin-bottom: 2px; }
+.ctl .row { display: flex; gap: 6px; align-items: center; }
+.ctl input[type=range] { flex: 1 1 auto; min-width: 60px; }
+.ctl input.num, .ctl input.txt { font: inherit; padding: 3px 6px; border: 1px solid #b9c2cf; border-radius: 4px;
+  width: 100%; min-width: 0; }
+.ctl.float input.num { width: 7.5em; flex: 0 0 auto; }
+.ctl select { font: inherit; padding: 3px; width: 100%; }
+.ctl.refused input.num, .ctl.refused input.txt { border-color: #b02a37; background: #fff5f5; }
+.ctl-msg { color: #842029; background: #f8d7da; border: 1px solid #f5c2c7; border-radius: 4px; padding: 3px 6px;
+  margin-top: 3px; font-size: .9em; }
+.ctl-msg:empty { display: none; }
+.seg { display: inline-flex; border: 1px solid #b9c2cf; border-radius: 4px; overflow: hidden; }
+.seg button { font: inherit; border: 0; padding: 3px 9px; background: #fff; cursor: pointer; }
+.seg button[aria-pressed="true"] { background: #2c5f8a; color: #fff; }
+.ctl.check label { display: flex; gap: 6px; align-items: center; font-size: 1em; }
+.help { color: #4a5566; font-size: .92em; margin: 2px 0; }
+.bar { display: flex; flex-wrap: wrap; gap: 8px; align-items: flex-end; }
+.bar .ctl { margin: 0; }
+.bar .ctl.int input.num { width: 6em; }
+button.act { font: inherit; padding: 4px 12px; border-radius: 4px; border: 1px solid #2c5f8a; background: #2c5f8a;
+  color: #fff; cursor: pointer; }
+button.act.warn { background: #b8860b; border-color: #b8860b; }
+button.act.light { background: #fff; color: #2c5f8a; }
+button.act:disabled { opacity: .45; cursor: not-allowed; }
+.error-box { color: #842029; background: #f8d7da; border: 1px solid #f5c2c7; border-radius: 4px; padding: 5px 10px; }
+.error-box:empty, .warnings:empty { display: none; }
+.warn-box { color: #664d03; background: #fff3cd; border: 1px solid #ffecb5; border-radius: 4px; padding: 5px 10px;
+  margin-bottom: 3px; }
+.warn-box.level-error { color: #842029; background: #f8d7da; border-color: #f5c2c7; }
+.status-line { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: .95em; min-height: 1.3em;
+  white-space: pre-wrap; }
+.plots { flex: 1 1 auto; min-height: 380px; display: grid; grid-template-columns: minmax(0, 3fr) minmax(240px, 2fr);
+  gap: 10px; }
+.plot-section, .plot-series, .plot-analysis { min-height: 0; min-width: 0; position: relative; display: flex; }
+.plot-series { flex-direction: column; }
+.plot-series .cap { font-size: .92em; color: #3a4554; }
+.series-chart { flex: 1 1 0; min-height: 70px; position: relative; }
+.series-chart svg { position: absolute; inset: 0; width: 100%; height: 100%; overflow: visible; }
+.series-chart text { font-size: 11px; fill: #3a4554; }
+.app.present .series-chart text { font-size: 15px; }
+.series-chart .axis { stroke: #9aa5b4; stroke-width: 1; }
+.plot-analysis { flex: 1 1 auto; min-height: 300px; }
+.legend { font-size: .9em; color: #3a4554; }
+.legend span.sw { display: inline-block; width: 12px; height: 12px; border: 1px solid #999; vertical-align: -2px;
+  margin: 0 3px 0 8px; }
+.form { display: flex; flex-wrap: wrap; gap: 4px 14px; }
+.form .ctl { flex: 0 1 200px; min-width: 150px; }
+.form .ctl.text { flex-basis: 260px; }
+progress { width: 100%; height: 10px; }
+progress[hidden] { display: none; }
+.result div { margin: 1px 0; }
+.orbits { max-height: 9.5em; overflow-y: auto; border-top: 1px solid #d8dde5; }
+.orbits[hidden] { display: none; }
+.orbits table { border-collapse: collapse; font-size: .92em; width: 100%; }
+.orbits th, .orbits td { text-align: left; padding: 1px 8px 1px 0; white-space: nowrap; }
+.orbits th { position: sticky; top: 0; background: #fff; color: #3a4554; font-weight: 600; }
+.orbit-status { font-size: .92em; color: #3a4554; min-height: 1.2em; }
+.app.present { font-size: 18px; }
+.app.present header .title { font-size: 1.25em; }
+.app.present .status-line { font-size: 1em; }
+`
+
+const TAB_TITLES = {section: "Poincaré section", lyapunov: "Lyapunov spectrum", bifurcation: "Bifurcation diagram",
+                    chart: "Chart of regimes", bench: "Speed vs accuracy"}
+const SIDE_GROUPS = [["scene", null], ["inertia", "Inertia tensor"], ["forcing", "Constraint and forcing"],
+                     ["numerics", "Numerics"], ["layers", "Layers"]]
+
+function h(tag, attrs = {}, ...kids) {
+  const e = document.createElement(tag)
+  for (const [k, v] of Object.entries(attrs)) {
+    if (k === "class") e.className = v
+    else if (k === "text") e.textContent = v
+    else if (v !== null && v !== undefined && v !== false) e.setAttribute(k, v === true ? "" : v)
+  }
+  for (const kid of kids) if (kid) e.append(kid)
+  return e
+}
+
+export function render({model, el}) {
+  const controls = {}          // name -> {spec, box, set(value), focusValue()}
+  const send = (data) => model.send_msg(data)
+  const commit = (name, text) => send({commit: name, text: text})
+
+  // --- one control ---------------------------------------------------------------------------
+  function control(spec) {
+    const wrap = h("div", {class: `ctl ${spec.kind} ctl-${spec.name}`})
+    const msg = h("div", {class: "ctl-msg", role: "alert"})
+    const id = `c-${spec.name}`
+    const entry = {spec, wrap, msg}
+    if (spec.kind === "float") {
+      const range = h("input", {type: "range", min: spec.lo, max: spec.hi, step: spec.step, "aria-label": spec.label})
+      const num = h("input", {class: "num", type: "text", inputmode: "decimal", id})
+      wrap.append(h("label", {for: id, text: spec.label}), h("div", {class: "row"}, range, num), msg)
+      range.addEventListener("input", () => { num.value = range.value })        // live while dragging
+      range.addEventListener("change", () => { num.dataset.sent = range.value; commit(spec.name, range.value) })
+      entry.inputs = [num]
+      entry.set = (v) => { num.value = v; num.dataset.sent = v; range.value = v }
+    } else if (spec.kind === "int" || spec.kind === "text") {
+      const num = h("input", {class: spec.kind === "int" ? "num" : "txt", type: "text", id,
+                              inputmode: spec.kind === "int" ? "numeric" : null, placeholder: spec.placeholder || null})
+      wrap.append(h("label", {for: id, text: spec.label}), num, msg)
+      entry.inputs = [num]
+      entry.set = (v) => { num.value = v; num.dataset.sent = v }
+    } else if (spec.kind === "select") {
+      const sel = h("select", {id})
+      for (const [v, lab] of spec.options) sel.append(h("option", {value: v, text: lab}))
+      sel.addEventListener("change", () => commit(spec.name, sel.value))
+      wrap.append(h("label", {for: id, text: spec.label}), sel, msg)
+      entry.set = (v) => { sel.value = v }
+    } else if (spec.kind === "radio") {
+      const seg = h("div", {class: "seg", role: "group", "aria-label": spec.label})
+      const buttons = spec.options.map(([v, lab]) => {
+        const b = h("button", {type: "button", "data-value": v, text: lab})
+        b.addEventListener("click", () => commit(spec.name, v))
+        seg.append(b)
+        return b
+      })
+      wrap.append(h("span", {class: "lab", text: spec.label}), seg, msg)
+      entry.set = (v) => { for (const b of buttons) b.setAttribute("aria-pressed", String(b.dataset.value === v)) }
+    } else if (spec.kind === "check") {
+      const box = h("input", {type: "checkbox", id})
+      box.addEventListener("change", () => commit(spec.name, box.checked))
+      wrap.append(h("label", {for: id}, box, document.createTextNode(spec.label)), msg)
+      entry.set = (v) => { box.checked = !!v }
+    }
+    for (const inp of entry.inputs || []) {
+      const go = () => { if (inp.value !== inp.dataset.sent) { inp.dataset.sent = inp.value; commit(spec.name, inp.value) } }
+      inp.addEventListener("change", go)
+      inp.addEventListener("keydown", (e) => { if (e.key === "Enter") go() })
+    }
+    if (spec.help) wrap.append(h("div", {class: "help", text: spec.help}))
+    controls[spec.name] = entry
+    return wrap
+  }
+
+  // --- skeleton ---------------------------------------------------------------------------------
+  const style = h("style", {text: CSS})
+  const app = h("div", {class: "app"})
+  const tabButtons = {}
+  const nav = h("nav", {class: "tabs", role: "tablist"})
+  for (const t of model.spec.tabs) {
+    const b = h("button", {class: "tab-btn", role: "tab", "data-tab": t, text: TAB_TITLES[t] || t})
+    b.addEventListener("click", () => { showTab(t); send({action: "tab", tab: t}) })
+    tabButtons[t] = b
+    nav.append(b)
+  }
+  const sideBtn = h("button", {class: "btn-sidebar", title: "Show or hide the controls", text: "☰ Controls"})
+  sideBtn.addEventListener("click", () => app.classList.toggle("side-collapsed"))
+  const presentBtn = h("button", {class: "btn-present", title: "Larger fonts, controls hidden (for a projector)"})
+  presentBtn.addEventListener("click", () => {
+    const on = !app.classList.contains("present")
+    setPresentation(on)
+    send({action: "presentation", on})
+  })
+  const header = h("header", {}, sideBtn, h("span", {class: "title", text: "Bilimovich Explorer"}), nav,
+                   h("span", {class: "spacer"}), presentBtn)
+
+  const side = h("aside", {class: "side"})
+  const byArea = {}
+  for (const s of model.spec.controls) (byArea[s.area] = byArea[s.area] || []).push(s)
+  const sceneInfo = h("div", {class: "help scene-info"})
+  for (const [area, title] of SIDE_GROUPS) {
+    if (title) side.append(h("h3", {text: title}))
+    for (const s of byArea[area] || []) side.append(control(s))
+    if (area === "scene") side.append(sceneInfo)
+  }
+
+  // Section pane.
+  const stopBtn = h("button", {class: "act warn btn-stop", text: "Stop"})
+  stopBtn.addEventListener("click", () => send({action: "stop"}))
+  const clearBtn = h("button", {class: "act light btn-clear", text: "Clear clicked points"})
+  clearBtn.addEventListener("click", () => send({action: "clear"}))
+  const csvBtn = h("button", {class: "act light btn-csv", text: "Download section CSV"})
+  csvBtn.addEventListener("click", () => send({action: "download", what: "section"}))
+  const findBtn = h("button", {class: "act light btn-find-orbits", text: "Find orbits in view",
+                               title: "Newton on P^n(x) - x from a grid of seeds over the plot window"})
+  findBtn.addEventListener("click", () => send({action: "find_orbits"}))
+  const clearOrbBtn = h("button", {class: "act light btn-clear-orbits", text: "Clear orbits"})
+  clearOrbBtn.addEventListener("click", () => send({action: "clear_orbits"}))
+  const orbCsvBtn = h("button", {class: "act light btn-orbits-csv", text: "Download orbits CSV"})
+  orbCsvBtn.addEventListener("click", () => send({action: "download", what: "orbits"}))
+  const secBar = h("div", {class: "bar"})
+  for (const s of byArea.section || []) secBar.append(control(s))
+  secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn)
+  const secErrors = h("div", {class: "error-box main-error", role: "alert"})
+  const warnings = h("div", {class: "warnings reliability-warning"})
+  const status = h("div", {class: "status-line", "aria-live": "polite"})
+  const plotSection = h("div", {class: "plot-section"})
+  const seriesCap = h("div", {class: "cap series-caption"})
+  const charts = [["q", "q_k", "#1f77b4"], ["r", "r_k", "#ff7f0e"], ["T", "T_k (energy)", "#2ca02c"]].map(
+    ([key, label, colour]) => ({key, label, colour, box: h("div", {class: `series-chart series-${key}`})}))
+  const plotSeries = h("div", {class: "plot-series"}, seriesCap, ...charts.map((c) => c.box))
+  const eqLegend = h("div", {class: "legend"})
+  for (const [t, c] of model.spec.eq_colors) {
+    eqLegend.append(h("span", {text: "◆", style: `color:${c};margin-left:8px`}), document.createTextNode(" " + t))
+  }
+  eqLegend.prepend(document.createTextNode("Equilibria of the frozen field (t fixed at t0; tracks over one period; " +
+                                          "a heuristic for slow forcing, not orbits of the map):"))
+  const orbLegend = h("div", {class: "legend orbit-legend",
+    text: "Periodic orbits of the Poincaré map P (fixed points of P^n, found by Newton): ● stable, ○ unstable, " +
+          "◎ elliptic or neutral, ✕ saddle (flip saddle: the expanding multiplier is negative). Hover for the multipliers."})
+  const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
+  const orbTable = h("div", {class: "orbits", hidden: true})
+  const paneSection = h("section", {class: "pane pane-section"}, secBar, secErrors, warnings, status,
+                        h("div", {class: "plots"}, plotSection, plotSeries), eqLegend, orbLegend, orbStatus, orbTable)
+
+  // Analysis pane (one for every analysis tab; its form is the open tab's controls).
+  const aHelp = h("p", {class: "help analysis-help"})
+  const aForm = h("div", {class: "form"})
+  const runBtn = h("button", {class: "act btn-run", text: "Run"})
+  runBtn.addEventListener("click", () => send({action: "run", tab: currentTab}))
+  const aStop = h("button", {class: "act warn btn-stop-analysis", text: "Stop"})
+  aStop.addEventListener("click", () => send({action: "stop", tab: currentTab}))
+  const npzBtn = h("button", {class: "act light btn-npz", text: "Download chart NPZ"})
+  npzBtn.addEventListener("click", () => send({action: "download", what: "chart"}))
+  const loadBtn = h("button", {class: "act light btn-load-bench", text: "Load latest bench run"})
+  loadBtn.addEventListener("click", () => send({action: "load_bench"}))
+  const choice = h("select", {class: "bench-choice", "aria-label": "Diagram"})
+  choice.addEventListener("change", () => send({action: "bench_choice", value: choice.value}))
+  const aBar = h("div", {class: "bar"}, runBtn, aStop, npzBtn, loadBtn, choice)
+  const aError = h("div", {class: "error-box analysis-error", role: "alert"})
+  const progress = h("progress", {max: 100, hidden: true})
+  const aMsg = h("div", {class: "status-line analysis-status", "aria-live": "polite"})
+  const aResult = h("div", {class: "result analysis-result"})
+  const plotAnalysis = h("div", {class: "plot-analysis"})
+  const aLegend = h("div", {class: "legend analysis-legend"})
+  const aFoot = h("p", {class: "help analysis-footnote"})
+  const paneAnalysis = h("section", {class: "pane pane-analysis", hidden: true}, aHelp, aForm, aBar, aError,
+                         progress, aMsg, aResult, plotAnalysis, aLegend, aFoot)
+  const main = h("main", {class: "main"}, paneSection, paneAnalysis)
+  app.append(header, side, main)
+  el.append(style, app)
+
+  // Children: the Bokeh figures (the series and analysis ones fill in after the first view).
+  const place = (slot, name) => {
+    const child = model.get_child(name)
+    if (child && child.parentElement !== slot) slot.append(child)
+  }
+  place(plotSection, "section_plot")
+  place(plotAnalysis, "analysis_plot")
+
+  // --- the k-series of the selected trajectory: three small SVG charts sharing the k axis -------------
+  const SVG = "http://www.w3.org/2000/svg"
+  const sv = (tag, attrs, text) => {
+    const e = document.createElementNS(SVG, tag)
+    for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v)
+    if (text !== undefined) e.textContent = text
+    return e
+  }
+  const fmt = (v) => Math.abs(v) >= 1e4 || (Math.abs(v) < 1e-3 && v !== 0) ? v.toExponential(2) : String(+v.toPrecision(4))
+  function drawSeries() {
+    const d = model.series || {}
+    const ks = d.k || []
+    for (const [i, c] of charts.entries()) {
+      const W = c.box.clientWidth, H = c.box.clientHeight
+      const svg = sv("svg", {viewBox: `0 0 ${Math.max(W, 1)} ${Math.max(H, 1)}`, role: "img",
+                             "aria-label": `${c.label} against k`})
+      c.box.replaceChildren(svg)
+      if (W < 20 || H < 20) continue
+      const left = 64, right = 8, top = 6, bottom = i === charts.length - 1 ? 30 : 14
+      const ys = d[c.key] || []
+      const mid = (top + H - bottom) / 2
+      svg.append(sv("text", {x: 12, y: mid, "text-anchor": "middle", transform: `rotate(-90 12 ${mid})`}, c.label))
+      if (!ks.length) { svg.append(sv("text", {x: left, y: H / 2}, "no points")); continue }
+      const k0 = ks[0], k1 = ks[ks.length - 1] === k0 ? k0 + 1 : ks[ks.length - 1]
+      let y0 = Math.min(...ys), y1 = Math.max(...ys)
+      if (y1 === y0) { y0 -= 0.5; y1 += 0.5 }
+      const X = (k) => left + (k - k0) / (k1 - k0) * (W - left - right)
+      const Y = (y) => top + (1 - (y - y0) / (y1 - y0)) * (H - top - bottom)
+      svg.append(sv("line", {class: "axis", x1: left, y1: top, x2: left, y2: H - bottom}),
+                 sv("line", {class: "axis", x1: left, y1: H - bottom, x2: W - right, y2: H - bottom}),
+                 sv("text", {x: left - 4, y: top + 10, "text-anchor": "end"}, fmt(y1)),
+                 sv("text", {x: left - 4, y: H - bottom, "text-anchor": "end"}, fmt(y0)))
+      if (i === charts.length - 1) {
+        svg.append(sv("text", {x: left, y: H - 8}, fmt(k0)),
+                   sv("text", {x: W - right, y: H - 8, "text-anchor": "end"}, fmt(k1)),
+                   sv("text", {x: (left + W - right) / 2, y: H - 8, "text-anchor": "middle"}, "k"))
+      }
+      const pts = ks.map((k, j) => `${X(k).toFixed(1)},${Y(ys[j]).toFixed(1)}`).join(" ")
+      svg.append(sv("polyline", {points: pts, fill: "none", stroke: c.colour, "stroke-width": 0.8, "stroke-opacity": 0.6}))
+      const dots = sv("path", {d: ks.map((k, j) => `M${X(k).toFixed(1)} ${Y(ys[j]).toFixed(1)}h0`).join(""),
+                               stroke: c.colour, "stroke-width": 3, "stroke-linecap": "round"})
+      svg.append(dots)
+    }
+  }
+  new ResizeObserver(() => drawSeries()).observe(plotSeries)
+
+  // --- state -> page ------------------------------------------------------------------------------
+  let currentTab = "section"
+  function showTab(t) {
+    currentTab = t
+    for (const [k, b] of Object.entries(tabButtons)) b.setAttribute("aria-selected", String(k === t))
+    paneSection.hidden = t !== "section"
+    paneAnalysis.hidden = t === "section"
+    if (t !== "section") {
+      aForm.replaceChildren(...(byArea[t] || []).map((s) => controls[s.name] ? controls[s.name].wrap : control(s)))
+      npzBtn.hidden = t !== "chart"
+      loadBtn.hidden = choice.hidden = t !== "bench"
+      runBtn.textContent = t === "bench" ? "Measure" : "Run"
+      runBtn.className = `act btn-run ${t}-run`
+    }
+    syncValues()
+    showView()
+  }
+  function setPresentation(on) {
+    app.classList.toggle("present", on)
+    app.classList.toggle("side-collapsed", on)
+    presentBtn.textContent = on ? "Leave presentation" : "Presentation mode"
+  }
+  function syncValues(force = null) {
+    const values = model.values
+    const active = el.getRootNode().activeElement
+    for (const [name, c] of Object.entries(controls)) {
+      if (!(name in values)) continue
+      // A box the user is typing in keeps their text until they commit it (Enter or leaving it);
+      // the control just committed always shows the value in use (the typed one, or the one kept).
+      const typing = (c.inputs || []).some((i) => i === active && i.value !== i.dataset.sent)
+      if (!typing || name === force) c.set(values[name])
+    }
+  }
+  function showMessages() {
+    for (const [name, c] of Object.entries(controls)) {
+      const m = model.messages[name] || ""
+      c.msg.textContent = m
+      c.wrap.classList.toggle("refused", !!m)
+    }
+  }
+  function lines(box, items) { box.replaceChildren(...items.map((t) => h("div", {text: t}))) }
+  function showView() {
+    const v = model.view
+    const s = v.section || {}
+    status.textContent = s.status || ""
+    lines(secErrors, s.errors || [])
+    warnings.replaceChildren(...(s.warnings || []).map((w) =>
+      h("div", {class: `warn-box level-${w.level} reliability-${w.level}`}, h("b", {text: w.level + ": "}),
+        document.createTextNode(w.message))))
+    stopBtn.disabled = !s.running
+    clearBtn.disabled = !s.n_clicked
+    csvBtn.disabled = !s.n_points
+    findBtn.disabled = !!s.orbit_view
+    clearOrbBtn.disabled = !s.n_orbits && !s.orbit_view && !s.orbit_status
+    orbCsvBtn.disabled = !s.n_orbits
+    orbStatus.textContent = s.orbit_status || ""
+    const rows = s.orbits || []
+    orbTable.hidden = !rows.length
+    if (rows.length) {
+      const f = (v) => (+v).toPrecision(7)
+      const head = h("tr", {}, ...["period", "type", "q", "r", "multipliers"].map((t) => h("th", {text: t})))
+      orbTable.replaceChildren(h("table", {class: "orbit-table"}, head, ...rows.map((o) =>
+        h("tr", {}, h("td", {text: String(o.period)}), h("td", {text: o.type}), h("td", {text: f(o.q)}),
+          h("td", {text: f(o.r)}), h("td", {text: o.mu})))))
+    }
+    sceneInfo.textContent = s.scene_info || ""
+    seriesCap.textContent = s.series_caption || ""
+    if (currentTab !== "section") {
+      const a = v[currentTab] || {}
+      aHelp.textContent = a.help || ""
+      lines(aError, a.errors || [])
+      progress.hidden = !(a.running && a.progress !== null && a.progress !== undefined)
+      if (!progress.hidden) progress.value = a.progress
+      aMsg.textContent = a.running && !a.message ? "computing…" : (a.message || "")
+      lines(aResult, a.result || [])
+      aStop.disabled = !a.running
+      npzBtn.disabled = !a.download
+      aFoot.textContent = a.footnote || ""
+      aLegend.replaceChildren()
+      if (a.legend) {
+        aLegend.append(document.createTextNode("period of the cycle:"))
+        for (const [lab, c] of a.legend) aLegend.append(h("span", {class: "sw", style: `background:${c}`}),
+                                                       document.createTextNode(lab))
+      }
+      if (currentTab === "bench") {
+        choice.replaceChildren(...(a.options || []).map((o) => h("option", {value: o, text: o})))
+        choice.value = a.choice || ""
+        choice.disabled = !(a.options || []).length
+      }
+    }
+  }
+
+  // --- server -> page ---------------------------------------------------------------------------
+  model.on("values", syncValues)
+  model.on("revision", () => { syncValues(model.committed); showMessages() })
+  model.on("messages", showMessages)
+  model.on("view", showView)
+  model.on("series", drawSeries)
+  model.on("tab", () => { if (model.tab !== currentTab) showTab(model.tab) })
+  model.on("presentation", () => setPresentation(model.presentation))
+  model.on("msg:custom", (msg) => {
+    if (msg && msg.download) {
+      const bytes = Uint8Array.from(atob(msg.data), (c) => c.charCodeAt(0))
+      const url = URL.createObjectURL(new Blob([bytes], {type: msg.mime}))
+      const a = h("a", {href: url, download: msg.download})
+      el.append(a)
+      a.click()
+      a.remove()
+      setTimeout(() => URL.revokeObjectURL(url), 10000)
+    }
+  })
+  setPresentation(!!model.presentation)
+  showTab(model.tab || "section")
+  showMessages()
+}

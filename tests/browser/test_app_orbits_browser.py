@@ -1,0 +1,74 @@
+"""Periodic orbits in the browser: a click finds one and draws it; the orbit diagram gets its continued branches."""
+
+from __future__ import annotations
+
+import pytest
+from harness import text, wait_finished
+from test_app_browser import count, open_app, query_of
+
+pytestmark = pytest.mark.browser
+
+#: Fig. 8B's flip saddle at the centre of the view, so a click at the frame's centre lands near it.
+CENTRED = "?scene=fig8B&n=2&periods=50&click=orbit&orb_n=1&qr=-0.5377,0.4623&rr=-2.8979,-1.8979"
+#: In-page probe: time from the pointerup to the animation frame that draws the first orbit point.
+JS_ORBIT_PROBE = """
+() => {
+  const srcs = ['orbits_saddle', 'orbits_stable', 'orbits_unstable'].map(
+      (n) => Bokeh.documents[0].get_model_by_name(n));
+  const p = {t0: null, drawn: null};
+  window.__orbit = p;
+  window.addEventListener('pointerup', () => { p.t0 = performance.now(); }, {capture: true, once: true});
+  const tick = () => {
+    if (p.t0 !== null && srcs.some((s) => s.get_length() > 0)) { p.drawn = performance.now(); return; }
+    requestAnimationFrame(tick);
+  };
+  requestAnimationFrame(tick);
+}
+"""
+
+
+def click_frame_centre(page) -> None:
+    """Click the centre of the section plot's frame (the data area, between the axes)."""
+    frame = page.evaluate(
+        """() => {
+          const find = (v) => v.model.name === 'section_figure' ? v
+                              : Array.from(v.child_views || []).map(find).find((x) => x) || null;
+          const plot = Object.values(Bokeh.index).map(find).find((x) => x);
+          const b = plot.frame.bbox;
+          const r = plot.canvas_view.el.getBoundingClientRect();
+          return {x: r.left + b.left + b.width / 2, y: r.top + b.top + b.height / 2};
+        }"""
+    )
+    page.mouse.click(frame["x"], frame["y"])
+
+
+def test_a_click_finds_the_orbit_and_draws_it(page, app_url) -> None:
+    open_app(page, app_url, CENTRED)
+    wait_finished(page)
+    page.evaluate(JS_ORBIT_PROBE)
+    click_frame_centre(page)
+    page.wait_for_function("() => window.__orbit.drawn !== null", timeout=30_000)
+    assert count(page, "orbits_saddle") == 1
+    page.wait_for_function(
+        "() => Array.from(document.querySelectorAll('*')).some(e => e.shadowRoot && "
+        "/flip saddle/.test(e.shadowRoot.querySelector('.orbit-table')?.textContent || ''))",
+        timeout=30_000,
+    )
+    assert "flip saddle" in text(page, ".orbit-status")
+    page.wait_for_function("() => (new URLSearchParams(location.search).get('orb') || '').includes(',')")
+    assert query_of(page)["click"] == "orbit"
+    assert page.errors == []
+
+
+def test_the_orbit_diagram_gets_its_continued_branches(page, app_url) -> None:
+    open_app(page, app_url, "?scene=fig10&n=2&periods=40&tab=bifurcation&bif_n=12&bif_pts=10&bif_tr=60")
+    page.wait_for_timeout(1000)
+    page.locator(".bifurcation-run").click()
+    page.wait_for_function(
+        "() => Array.from(document.querySelectorAll('*')).some(e => e.shadowRoot && "
+        "/period doubling of the period-1 orbit at alpha = -0.3753448/.test(e.shadowRoot.textContent))",
+        timeout=180_000,
+    )
+    assert count(page, "branches_stable") > 0 and count(page, "branches_unstable") > 0
+    assert count(page, "bif_points") >= 1
+    assert page.errors == []

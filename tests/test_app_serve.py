@@ -1,0 +1,80 @@
+"""How the app is served: processes, flags, messages from pages, and stopping (app/serve.py, app/ui.py)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import pytest
+from clirun import run_cli
+
+from app.serve import command
+from app.ui import check_message
+from explorer_core.config import resolve_procs, usable_cpus
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "browser"))
+from harness import serve, tree_pids
+
+
+def test_procs_is_a_count_or_auto() -> None:
+    assert resolve_procs("auto") == usable_cpus() >= 1
+    assert resolve_procs("3") == 3 and resolve_procs(" 1 ") == 1
+    for bad, needle in (("0", "between 1 and 64, got 0"), ("65", "got 65"), ("two", "'two'"), ("", "''")):
+        with pytest.raises(ValueError, match="--procs") as exc:
+            resolve_procs(bad)
+        assert needle in str(exc.value)
+
+
+def test_serve_refuses_a_bad_process_count_in_one_line() -> None:
+    rc, out, err = run_cli("serve", "--procs", "lots")
+    assert rc == 2 and "--procs must be a whole number or 'auto', got 'lots'" in err and "Traceback" not in err
+
+
+def test_the_server_command() -> None:
+    cmd, env = command(port=5006, address="0.0.0.0", threads=4, origins=["a.example:443"], session_lifetime=15000,
+                       procs=3)  # fmt: skip
+    assert cmd[1:3] == ["-m", "app.serve"] and "--reuse-sessions" in cmd and "--liveness" in cmd
+    assert cmd[cmd.index("--num-procs") + 1] == "3"
+    assert cmd[cmd.index("--allow-websocket-origin") + 1] == "a.example:443"
+    assert env["BOKEH_RESOURCES"] == "server"  # nothing from a CDN
+    one, _ = command(port=5006, address="127.0.0.1", threads=4, origins=[], session_lifetime=15000, procs=1)
+    assert "--num-procs" not in one
+
+
+def test_messages_from_a_page_are_checked() -> None:
+    assert check_message({"commit": "alpha", "text": "0.2"}) == {"commit": "alpha", "text": "0.2"}
+    assert check_message({"commit": "show_tracks", "text": False}) == {"commit": "show_tracks", "text": False}
+    long = check_message({"commit": "alpha", "text": "9" * 5000})
+    assert long is not None and len(long["text"]) == 201  # answered: refused as too long
+    assert check_message({"action": "tab", "tab": "chart"}) == {"action": "tab", "tab": "chart"}
+    assert check_message({"action": "presentation", "on": True}) == {"action": "presentation", "on": True}
+    bad = [None, [], "stop", {"commit": "nope", "text": "1"}, {"commit": "alpha", "text": {"x": 1}},
+           {"action": "rm -rf"}, {"action": "tab", "tab": 3}, {"action": "presentation", "on": "yes"}]  # fmt: skip
+    for msg in bad:
+        assert check_message(msg) is None, msg
+
+
+def test_workers_share_the_port_and_stop_with_the_parent(tmp_path) -> None:
+    """--procs 2: two workers answer pages; SIGTERM to the parent (docker stop) ends all of them."""
+    with serve(str(tmp_path / "serve.log"), procs=2) as server:
+        pids = tree_pids(server.pid)
+        assert len(pids) == 3, pids  # the parent and two workers
+        for _ in range(4):
+            with urllib.request.urlopen(server.url, timeout=60) as r:
+                assert r.status == 200 and b"Bilimovich Explorer" in r.read()
+        os.kill(server.pid, signal.SIGTERM)
+        deadline = time.monotonic() + 10
+        while any(Path(f"/proc/{p}").exists() and "zombie" not in _state(p) for p in pids):
+            assert time.monotonic() < deadline, f"still running 10 s after SIGTERM: {pids}"
+            time.sleep(0.1)
+
+
+def _state(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/status").read_text().split("State:")[1].split("\n")[0]
+    except (OSError, IndexError):
+        return "zombie"
