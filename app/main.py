@@ -44,25 +44,10 @@ def create_app() -> Any:
 
         doc.add_next_tick_callback(run)
 
-    published: dict[str, str] = {}
-
     def publish(q: dict[str, str]) -> None:
         if location is not None:
-            published.clear()
-            published.update(q)
             # The whole query, replaced (keys of a state no longer in use disappear, e.g. tab=).
             location.search = "?" + urllib.parse.urlencode(q, safe=",;")
-
-    def browser_search(event: Any) -> None:
-        # Panel's Location view copies window.location into the model when it initialises; on a
-        # cold start that can land after the first publish and leave the URL without the state.
-        # The page's URL is the state's: publish it again (compared parsed, so no echo loop).
-        seen = {k: v[-1] for k, v in urllib.parse.parse_qs(str(event.new).lstrip("?"), keep_blank_values=True).items()}
-        if published and seen != published:
-            deliver(lambda: publish(dict(published)))
-
-    if location is not None:
-        location.param.watch(browser_search, "search")
 
     def connected() -> bool:
         # A closed tab drops its websocket at once, but Bokeh discards the session only after
@@ -78,8 +63,10 @@ def create_app() -> Any:
         page.close()
 
     pn.state.on_session_destroyed(destroyed)
-    # Start once the page is loaded, so the first chunk streams into a live plot.
-    pn.state.onload(page.start)
+    # Start once the page is loaded, so the first chunk streams into a live plot. Panel runs onload
+    # callbacks on its thread pool; the start changes models (e.g. clears the orbits layer), which
+    # only the document's thread may do.
+    pn.state.onload(lambda: deliver(page.start))
     return page.ui
 
 

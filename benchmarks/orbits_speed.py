@@ -5,7 +5,8 @@
 * a click: the period-1 orbit Newton finds from one seed near each period-1 orbit of Fig. 8B (core time);
 * a grid: every orbit of period <= 8 from a 15 x 15 grid of seeds over Fig. 8B's box (and, once, the
   same search without the early stop of stalled seeds, for what the early stop loses);
-* a cascade: the Fig. 10 continuation from alpha = -0.35 to -0.42 with branch switching, 1 -> 16.
+* a cascade: the Fig. 10 continuation from alpha = -0.35 to -0.42 with branch switching, 1 -> 16
+  (default steps, and steps of at most 0.01 for ~300 points).
 
 Medians of ``--repeat`` runs after a warm-up (kernels loaded from the on-disk cache).
 """
@@ -67,6 +68,15 @@ def main() -> None:
     report["cascade_points"] = cas.n_points
     report["cascade_branches"] = [br.period for br in cas.branches]
     report["cascade_doublings"] = [b.value for b in cas.bifurcations if b.kind == "period_doubling"]
+    # The issue's size: ~300 points through the same cascade (arclength steps at most 0.01).
+    t_fine, fine = timed(
+        lambda: continue_orbit(
+            fig10, "alpha", (-0.35, -0.42), (-0.0959, -1.962), 1, switch=True, max_period=16, ds_max=0.01
+        ),
+        args.repeat,
+    )
+    report["cascade_ds_max_0.01_s"] = round(t_fine, 3)
+    report["cascade_ds_max_0.01_points"] = fine.n_points
     for k, v in report.items():
         print(f"{k:28s} {v}")
     if args.json:

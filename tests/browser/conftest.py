@@ -11,6 +11,10 @@ def app_url(tmp_path_factory) -> str:
     log = tmp_path_factory.mktemp("serve") / "panel.log"
     with served_app(str(log)) as url:
         yield url
+    # An exception on the server (e.g. a model changed off the document's thread) can leave the page
+    # looking fine while a step after it never ran: none may be logged.
+    text = log.read_text(errors="replace")
+    assert "Traceback" not in text, f"the server logged an exception:\n{text[text.index('Traceback') :][:3000]}"
 
 
 @pytest.fixture
