@@ -6,11 +6,13 @@ import csv
 import json
 import math
 
+import naive
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from explorer_core.analyses import regimes
 from explorer_core.analyses.bifurcation import bifurcation_diagram
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.regimes import (
@@ -25,10 +27,13 @@ from explorer_core.analyses.regimes import (
     chart_spec,
     classify,
     compute_tile,
+    compute_tile_each,
     iter_chart,
     plan_tiles,
     regime_chart,
+    settled_cycle,
 )
+from explorer_core.analyses.sweeps import detect_period
 from explorer_core.scenes import get_scene
 from explorer_core.solve.integrators import Status
 from explorer_core.system.params import ParameterError
@@ -212,3 +217,63 @@ def test_cli(capsys, tmp_path) -> None:
     assert s["computed"] == 4 and s["grid"] == [2, 2] and s["numerics"]["rtol"] == 1e-8 and out.exists()
     assert main([*args[:-3], "--out", str(tmp_path / "c.txt")]) == 2
     assert "--out must end" in capsys.readouterr().err
+
+
+def _settle_spec():
+    return chart_spec(FIG11, "alpha", (-0.6, -0.36), "I11", (1.0, 2.0), (8, 5), ics=[IC, (-0.5, -1.0)],
+                      transient=150, periods=100)  # fmt: skip
+
+
+def test_members_on_an_attracting_cycle_stop_early_the_others_are_the_per_pixel_chart(monkeypatch) -> None:
+    """Early stops change no regime and no period; every member that does not stop is computed as before, to the bit."""
+    spec = _settle_spec()
+    calls = []
+    real = regimes.settled_cycle
+    monkeypatch.setattr(regimes, "settled_cycle", lambda *a: calls.append(a) or real(*a))
+    n_periodic, kinds = 0, set()
+    for t in plan_tiles(spec.shape, 4, 16):
+        a, b = compute_tile(spec, t), compute_tile_each(spec, t)
+        kinds |= {int(r) for r in a.regime.ravel()}
+        np.testing.assert_array_equal(a.regime, b.regime)
+        np.testing.assert_array_equal(a.period, b.period)
+        np.testing.assert_array_equal(a.status, b.status)
+        other = a.regime != PERIODIC
+        np.testing.assert_array_equal(a.lyap[other], b.lyap[other])
+        per = a.regime == PERIODIC
+        n_periodic += int(per.sum())
+        # A cycle's exponent is its own: negative, and what the finite-time average approaches.
+        assert np.all(a.lyap[per] < 0)
+        np.testing.assert_allclose(a.lyap[per], b.lyap[per], atol=5e-3)
+    assert {CHAOTIC, ESCAPED} <= {
+        int(r) for t in plan_tiles(spec.shape, 4, 16) for r in compute_tile(spec, t).regime.ravel()
+    }
+    assert n_periodic > 20 and len(calls) >= n_periodic  # every periodic member stopped early
+
+
+def test_a_settled_cycle_has_its_least_period_its_own_exponent_and_must_attract() -> None:
+    fig10 = get_scene("fig10").params
+    seed = np.array([-0.0959, -1.962])
+    at = fig10.with_(alpha=-0.35)
+    # A stable fixed point returns after 2 and 3 iterations as well: the least period is 1.
+    for p in (1, 2, 3):
+        period, lam = settled_cycle(at, seed, p)
+        assert period == 1
+    # Its exponent from the multipliers of an independent solve_ivp Newton (finite-difference-free variational).
+    _, mono = naive.ivp_fixed_point(at, seed, 1)
+    assert lam == pytest.approx(math.log(np.abs(np.linalg.eigvals(mono)).max()) / at.period, rel=1e-7)
+    # Past the first period doubling (alpha = -0.37534) the same orbit is a flip saddle: no early stop.
+    assert settled_cycle(fig10.with_(alpha=-0.385), seed, 1) is None
+
+
+@pytest.mark.slow
+def test_early_stopped_periods_agree_with_long_independent_integrations() -> None:
+    spec = _settle_spec()
+    seen: dict[int, tuple[int, int, int]] = {}
+    for t in plan_tiles(spec.shape, 4, 16):
+        res = compute_tile(spec, t)
+        for pix, k in zip(*np.nonzero(res.regime == PERIODIC), strict=True):
+            seen.setdefault(int(res.period[pix, k]), (int(res.jj[pix]), int(res.ii[pix]), int(k)))
+    assert len(seen) >= 2
+    for p, (j, i, k) in sorted(seen.items())[:3]:
+        pts = naive.solve_ivp_section(spec.pixel_params(j, i), spec.ics[k], 250, rtol=1e-10, atol=1e-10)[150:]
+        assert detect_period(pts, spec.p_max, spec.tol * (1 + np.abs(pts).max())) == p, (j, i, k)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import time
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
@@ -37,11 +38,13 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.analyses.orbits import find_orbits
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
 from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.solve import tangent
-from explorer_core.solve.integrators import Status, coefficients
+from explorer_core.solve.integrators import Status, coefficients, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.rk import LYAPUNOV
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -262,7 +265,148 @@ class TileResult:
 
 
 def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
-    """Classify every pixel of ``tile`` (a pure function of its arguments; single-threaded)."""
+    """Classify every pixel of ``tile`` (a pure function of its arguments; single-threaded).
+
+    Every pixel and initial condition runs with the tangent system on its own step sequence (lock-step
+    blocks across pixels were measured slower: a block steps at its most demanding member's pace, and
+    escaping or chaotic members multiplied the steps of the whole block ~8x). A member stops as soon as
+    it has settled on an attracting cycle:
+
+    * every :data:`SETTLE_CHUNK` periods, a member whose last :func:`settle_window` section points
+      return within ``tol`` after ``p <= p_max`` iterations is handed to Newton on ``P^p(x) - x``
+      (:func:`~explorer_core.analyses.orbits.find_orbits`, which also finds the least period: a slowly
+      converging focus returns after 3 iterations long before it does after 1). If the cycle attracts
+      (``max |mu| < 1``) the member is periodic with that period and its exponent is the cycle's own,
+      ``log max |mu| / (p T)`` (which a finite-time average only approaches);
+    * a cycle that does not attract, or Newton failing, leaves the member running, never to be stopped:
+      it and every member that never settles are classified from the whole transient and measurement,
+      exactly as :func:`compute_tile_each` does (to the last bit: chunked runs continue each step
+      sequence unchanged).
+    """
+    start = time.perf_counter()
+    pix = tile.pixels()
+    n_ic = spec.ics.shape[0]
+    regime = np.zeros((len(pix), n_ic), dtype=np.int8)
+    period = np.zeros((len(pix), n_ic), dtype=np.int16)
+    lyap = np.zeros((len(pix), n_ic))
+    status = np.zeros((len(pix), n_ic), dtype=np.int8)
+    errors = []
+    members: list[tuple[int, int]] = []
+    member_params: list[Params] = []
+    for n, (j, i) in enumerate(pix):
+        p = spec.pixel_params(j, i)
+        if isinstance(p, str):
+            regime[n] = INVALID
+            errors.append(p)
+            continue
+        errors.append("")
+        members += [(n, k) for k in range(n_ic)]
+        member_params += [p] * n_ic
+    if members:
+        at = np.array(members, dtype=np.int64)
+        _classify_members(spec, member_params, at, regime, period, lyap, status)
+    jj = np.array([j for j, _ in pix], dtype=np.int64)
+    ii = np.array([i for _, i in pix], dtype=np.int64)
+    return TileResult(tile, jj, ii, regime, period, lyap, status, tuple(errors), time.perf_counter() - start)
+
+
+#: Periods between two looks for members that have settled on a cycle (each look is one engine call).
+SETTLE_CHUNK = 10
+
+
+def settle_window(p_max: int) -> int:
+    """Section points a cycle must repeat over before its member is checked for an early stop: 3 longest cycles."""
+    return 3 * p_max
+
+
+def settled_cycle(params: Params, x: np.ndarray, p: int) -> tuple[int, float] | None:
+    """``(least period, exponent)`` of the attracting cycle Newton finds near ``x`` for ``P^p``, or None.
+
+    None when Newton fails or the cycle does not attract (``max |mu| >= 1``).
+    """
+    search = find_orbits(params, np.asarray(x, dtype=float).reshape(1, 2), [int(p)], patience=None)
+    if not search.orbits:
+        return None
+    orbit = search.orbits[0]
+    mu = float(np.abs(orbit.multipliers).max())
+    if not 0.0 < mu < 1.0:
+        return None
+    return orbit.period, math.log(mu) / (orbit.period * params.period)
+
+
+def _classify_members(
+    spec: ChartSpec,
+    params: list[Params],
+    at: np.ndarray,
+    regime: np.ndarray,
+    period: np.ndarray,
+    lyap: np.ndarray,
+    status: np.ndarray,
+) -> None:
+    """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile)."""
+    kw = spec.numerics.kernel_kwargs()
+    total = spec.transient + spec.periods
+    window = settle_window(spec.p_max)
+    y0 = tangent.start(spec.ics[at[:, 1]], 0.0, 1.0).y
+    for idx, coefs, batch in lockstep_groups(params, y0):
+        n = idx.size
+        points = np.zeros((n, spec.periods, 2))  # the measurement's section points
+        logs = np.zeros((n, spec.periods))  # log R_11 of each period of the measurement
+        measured = np.zeros(n, dtype=np.int64)  # periods of the measurement completed
+        recent = np.zeros((n, window, 2))  # the last `window` section points (a ring)
+        may_stop, stopped = np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
+        live = np.flatnonzero(batch.status == Status.OK)
+        done = 0
+        while done < total and live.size:
+            step = min(SETTLE_CHUNK, total - done)
+            part = batch.take(live)
+            rec, npts = run(LYAPUNOV, coefs._replace(row=np.ascontiguousarray(coefs.row[live])), part, step,
+                            workers=1, block=1, **kw)  # fmt: skip
+            batch.put(live, part)
+            for c in range(step):  # this chunk's records into the ring and the measurement
+                kk = done + c
+                ok = npts > c  # period c completed (a member that failed stops recording)
+                recent[live[ok], kk % window] = rec[ok, c, :2]
+                if kk >= spec.transient:
+                    points[live[ok], kk - spec.transient] = rec[ok, c, :2]
+                    logs[live[ok], kk - spec.transient] = rec[ok, c, 2]
+                    measured[live[ok]] += 1
+            done += step
+            live = live[part.status == Status.OK]
+            if done < window or done >= total:
+                continue
+            keep = []
+            for m in live:
+                if may_stop[m]:
+                    ring = np.roll(recent[m], -(done % window), axis=0)  # oldest first
+                    p = detect_period(ring, spec.p_max, spec.tol * (1.0 + float(np.abs(ring).max())))
+                    cycle = settled_cycle(params[idx[m]], ring[-1], p) if p else None
+                    if cycle is not None:
+                        pix, k = at[idx[m]]
+                        regime[pix, k], status[pix, k] = PERIODIC, Status.OK
+                        period[pix, k], lyap[pix, k] = cycle
+                        stopped[m] = True
+                        continue
+                    may_stop[m] = not p  # returns but no attracting cycle: the whole run decides
+                keep.append(m)
+            live = np.array(keep, dtype=np.int64)
+        for row in np.flatnonzero(~stopped):
+            m = idx[row]
+            pix, k = at[m]
+            s, got = int(batch.status[row]), int(measured[row])
+            lyap[pix, k] = logs[row, :got].sum() / (max(got, 1) * params[m].period)
+            status[pix, k] = s
+            regime[pix, k], period[pix, k] = classify(points[row], got, s, lyap[pix, k], p_max=spec.p_max,
+                                                      tol=spec.tol, lyap_threshold=spec.lyap_threshold)  # fmt: skip
+
+
+def compute_tile_each(spec: ChartSpec, tile: TileSpec) -> TileResult:
+    """:func:`compute_tile` one pixel at a time, each trajectory with its own steps and the tangent throughout.
+
+    The chart as it was computed before the lock-step tiles (every member's exponent is
+    :func:`~explorer_core.analyses.lyapunov.lyapunov_spectrum`'s to the last bit); ~40x slower. The
+    benchmark compares the two classifications.
+    """
     start = time.perf_counter()
     pix = tile.pixels()
     n_ic = spec.ics.shape[0]

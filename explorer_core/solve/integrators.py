@@ -86,6 +86,15 @@ class Batch:
     def n(self) -> int:
         return self.y.shape[0]
 
+    def take(self, idx: np.ndarray) -> Batch:
+        """Members ``idx`` as a new batch (copies) at the same section index."""
+        return Batch(self.y[idx], self.h[idx], self.status[idx], self.nsteps[idx], self.k, self.t0, self.period)
+
+    def put(self, idx: np.ndarray, part: Batch) -> None:
+        """Write ``part`` (from :meth:`take`, advanced) back into members ``idx``; the batch is now at its section."""
+        self.y[idx], self.h[idx], self.status[idx], self.nsteps[idx] = part.y, part.h, part.status, part.nsteps
+        self.k = part.k
+
 
 @cache
 def kernel_tableau(name: str) -> rk.Tableau:
@@ -134,6 +143,10 @@ def tables(num, gpc, den, forcing, row: np.ndarray, stacked: bool = False) -> rk
     Any quadratic field in this format works (e.g. a linear test field). The arrays are fresh, contiguous
     and writable, so every call meets the one compiled kernel.
     """
+
+    if stacked and np.unique(np.asarray(forcing, dtype=float)[:, 3]).size > 1:
+        # Lock-step members land on the same section times, and the engine shares cos/sin(omega t).
+        raise ValueError(f"stacked tables must share omega, got {sorted(set(np.asarray(forcing)[:, 3].tolist()))}")
 
     def fresh(a: np.ndarray, rows: int | None) -> np.ndarray:
         a = np.asarray(a, dtype=float)
@@ -297,20 +310,34 @@ def run_at(
     m = y0.shape[0]
     end, status, nsteps = np.zeros_like(y0), np.zeros(m, dtype=np.int64), np.zeros(m, dtype=np.int64)
     recs = np.zeros((m, int(n_periods), rk.RECORD_SIZE[system]))
-    groups: dict[tuple[float, float], list[int]] = {}
-    for i, p in enumerate(params):
-        groups.setdefault((p.t0, p.period), []).append(i)
-    for (t0, period), idx in groups.items():
-        unique: dict[Params, int] = {}
-        rows = np.array([unique.setdefault(params[i], len(unique)) for i in idx], dtype=np.int64)
-        models = [Model(p) for p in unique]
-        coefs = coefficients(models[0], n=len(idx)) if len(models) == 1 else coefficients(models, rows)
-        batch = Batch(y0[idx].copy(), np.zeros(len(idx)), np.zeros(len(idx), dtype=np.int64),
-                      np.zeros(len(idx), dtype=np.int64), 0, t0, period)  # fmt: skip
-        batch.status[~np.all(np.isfinite(batch.y), axis=1)] = int(Status.NONFINITE)
+    for idx, coefs, batch in lockstep_groups(params, y0):
         rec, _ = run(system, coefs, batch, n_periods, workers=workers, block=block, **kw)
         end[idx], recs[idx], status[idx], nsteps[idx] = batch.y, rec, batch.status, batch.nsteps
     return end, recs, status, nsteps
+
+
+def lockstep_groups(params: Sequence[Params], y0: np.ndarray) -> list[tuple[np.ndarray, rk.Coefficients, Batch]]:
+    """State ``y0[i]`` under ``params[i]``, grouped by section times: ``(members, coefficients, batch)`` each.
+
+    Members of a group share ``t0`` and the forcing period, so they can run in lock-step blocks; each
+    distinct parameter set gets one row of coefficient tables (one set for all: the shared fast path).
+    Every batch starts at section index 0 (time ``t0``).
+    """
+    groups: dict[tuple[float, float], list[int]] = {}
+    for i, p in enumerate(params):
+        groups.setdefault((p.t0, p.period), []).append(i)
+    out = []
+    for (t0, period), members in groups.items():
+        idx = np.array(members, dtype=np.int64)
+        unique: dict[Params, int] = {}
+        rows = np.array([unique.setdefault(params[i], len(unique)) for i in idx], dtype=np.int64)
+        models = [Model(p) for p in unique]
+        coefs = coefficients(models[0], n=idx.size) if len(models) == 1 else coefficients(models, rows)
+        batch = Batch(np.array(y0[idx], dtype=float), np.zeros(idx.size), np.zeros(idx.size, dtype=np.int64),
+                      np.zeros(idx.size, dtype=np.int64), 0, t0, period)  # fmt: skip
+        batch.status[~np.all(np.isfinite(batch.y), axis=1)] = int(Status.NONFINITE)
+        out.append((idx, coefs, batch))
+    return out
 
 
 def warmup() -> None:

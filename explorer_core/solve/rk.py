@@ -45,7 +45,7 @@ import numba as nb
 import numpy as np
 
 from explorer_core import config
-from explorer_core.system.model import coefficients_of, forcing_of, quadratic
+from explorer_core.system.model import coefficients_of, forcing_at, forcing_of, quadratic
 
 
 class Status(IntEnum):
@@ -244,9 +244,15 @@ def _coefs(num, gpc, den, forcing, row, shared, t, slot, n, c) -> None:
     """The coefficients at time ``t`` into ``c``: once for the block, or for each of the ``n`` live members."""
     if shared:
         _coefs_set(num, gpc, den, forcing, 0, t, c, 0)
-    else:
+    elif n > 0:
+        # A block's members share omega (the section times): cos and sin once, not once per member.
+        w = forcing[row[slot[0]], 3]
+        cw = math.cos(w * t)
+        sw = math.sin(w * t)
         for p in range(n):
-            _coefs_set(num, gpc, den, forcing, row[slot[p]], t, c, p)
+            s = row[slot[p]]
+            g, gp = forcing_at(forcing, s, cw, sw)
+            coefficients_of(num, gpc, den, s, g, gp, c, p)
 
 
 # ---------------------------------------------------------------------------

@@ -148,12 +148,20 @@ _leaf = nb.njit(nogil=True, cache=True, fastmath=False, error_model="numpy", _nr
 
 
 @_leaf
+def forcing_at(forcing: np.ndarray, s: int, c: float, sn: float) -> tuple[float, float]:
+    """``g`` and ``g'`` for row ``s`` of stacked forcings ``(P, 4)`` from ``cos(omega t)``, ``sin(omega t)``.
+
+    Members with one ``omega`` (a lock-step block's) share the trigonometry, the costliest part.
+    """
+    w = forcing[s, 3]
+    return forcing[s, 0] + forcing[s, 1] * c + forcing[s, 2] * sn, w * (forcing[s, 2] * c - forcing[s, 1] * sn)
+
+
+@_leaf
 def forcing_of(forcing: np.ndarray, s: int, t: float) -> tuple[float, float]:
     """``g(t)`` and ``g'(t)`` for row ``s`` of stacked forcings ``(P, 4)``, each ``(g0, g1, g2, omega)``."""
     w = forcing[s, 3]
-    c = math.cos(w * t)
-    sn = math.sin(w * t)
-    return forcing[s, 0] + forcing[s, 1] * c + forcing[s, 2] * sn, w * (forcing[s, 2] * c - forcing[s, 1] * sn)
+    return forcing_at(forcing, s, math.cos(w * t), math.sin(w * t))
 
 
 @_leaf
