@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from explorer_core.system.model import Model
+from explorer_core.system.model import Model, build_tables, tensor_tables
 from explorer_core.system.params import ParameterError, Params, inertia_entries
 
 
@@ -133,3 +133,11 @@ def test_non_symmetric_matrix_rejected() -> None:
     with pytest.raises(ParameterError, match=r"not symmetric: I12=0\.1"):
         inertia_entries(m)
     assert Params(inertia=np.diag([1.0, 2.0, 3.0])).inertia == (1.0, 2.0, 3.0, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("alpha", [0.0, 1.0, -0.4125760851, 3.7, -250.0])
+def test_tables_scaled_by_powers_of_alpha_equal_a_build_at_alpha(alpha: float) -> None:
+    """alpha enters omega linearly, so each monomial's coefficient is alpha^k times that of alpha = 1."""
+    p = Params(inertia=(1.3, 2.1, 4.2, 0.1, 0.5, 0.3), alpha=alpha)
+    for fast, direct in zip(build_tables(p), tensor_tables(p), strict=True):
+        np.testing.assert_allclose(fast, direct, rtol=1e-14, atol=1e-15 * np.abs(direct).max())

@@ -72,8 +72,32 @@ def _cross(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     )
 
 
+#: The power of ``alpha`` in each monomial's coefficient: ``omega = (alpha, 0, 0) + q u1 + r u2`` enters the
+#: field bilinearly, so the constant monomial goes with ``alpha^2``, ``q`` and ``r`` with ``alpha``.
+ALPHA_POWER = np.array([2, 1, 1, 0, 0, 0])
+
+
 def build_tables(params: Params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact coefficient tables of Q, R and lambda as polynomials in g.
+    """Exact coefficient tables of Q, R and lambda as polynomials in g (see :func:`tensor_tables`).
+
+    The tables of ``alpha = 1`` (one build per tensor, cached) with each monomial scaled by its power of
+    ``alpha`` (:data:`ALPHA_POWER`): a few microseconds, so a continuation in ``alpha`` builds nothing.
+    """
+    num, gpc, den = _tensor_tables(params.inertia)
+    scale = float(params.alpha) ** ALPHA_POWER
+    return np.ascontiguousarray(num * scale[None, :, None]), gpc.copy(), den.copy()
+
+
+@functools.lru_cache(maxsize=256)
+def _tensor_tables(inertia: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    out = tensor_tables(Params(inertia=inertia, alpha=1.0))
+    for arr in out:
+        arr.setflags(write=False)
+    return out
+
+
+def tensor_tables(params: Params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact coefficient tables of Q, R and lambda as polynomials in g, built for ``params`` as given.
 
     Polynomial arithmetic in ``g`` on coefficient arrays, all monomials at once (~0.2 ms: continuation
     in an inertia entry builds a model per point).

@@ -7,6 +7,7 @@ forcing frequency); every boundary (command line, app, URL) builds one and repor
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields, replace
 from typing import Any
@@ -129,7 +130,7 @@ def inertia_entries(matrix: Any, tol: float = 1e-12) -> tuple[float, ...]:
 
 
 def _check_positive_definite(m: np.ndarray, ent: tuple[float, ...]) -> None:
-    eig = np.linalg.eigvalsh(m)
+    eig = _eigenvalues(ent)
     # Relative threshold: a tensor this close to singular makes lambda's
     # denominator vanish and the reduced field meaningless.
     if eig[0] <= 1e-12 * max(1.0, float(np.max(np.abs(eig)))):
@@ -140,5 +141,10 @@ def _check_positive_definite(m: np.ndarray, ent: tuple[float, ...]) -> None:
         )
 
 
-# ---------------------------------------------------------------------------
-# Exact construction of the coefficient tables (polynomials in g).
+@functools.lru_cache(maxsize=1024)
+def _eigenvalues(ent: tuple[float, ...]) -> np.ndarray:
+    # A continuation in alpha or the forcing builds thousands of Params with one tensor.
+    i11, i22, i33, i12, i13, i23 = ent
+    out = np.linalg.eigvalsh(np.array([[i11, i12, i13], [i12, i22, i23], [i13, i23, i33]], dtype=float))
+    out.setflags(write=False)
+    return out
