@@ -33,7 +33,7 @@ from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -283,6 +283,20 @@ def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
       exactly as :func:`compute_tile_each` does (to the last bit: chunked runs continue each step
       sequence unchanged).
     """
+    return _tile(spec, tile, _classify_members)
+
+
+class _Out(NamedTuple):
+    """A tile's result arrays, ``[pixel, ic]``."""
+
+    regime: np.ndarray
+    period: np.ndarray
+    lyap: np.ndarray
+    status: np.ndarray
+
+
+def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileResult:
+    """The tile's arrays; ``fill(spec, params, at, out)`` classifies its valid members into ``out``."""
     start = time.perf_counter()
     pix = tile.pixels()
     n_ic = spec.ics.shape[0]
@@ -304,7 +318,7 @@ def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
         member_params += [p] * n_ic
     if members:
         at = np.array(members, dtype=np.int64)
-        _classify_members(spec, member_params, at, regime, period, lyap, status)
+        fill(spec, member_params, at, _Out(regime, period, lyap, status))
     jj = np.array([j for j, _ in pix], dtype=np.int64)
     ii = np.array([i for _, i in pix], dtype=np.int64)
     return TileResult(tile, jj, ii, regime, period, lyap, status, tuple(errors), time.perf_counter() - start)
@@ -334,16 +348,9 @@ def settled_cycle(params: Params, x: np.ndarray, p: int) -> tuple[int, float] | 
     return orbit.period, math.log(mu) / (orbit.period * params.period)
 
 
-def _classify_members(
-    spec: ChartSpec,
-    params: list[Params],
-    at: np.ndarray,
-    regime: np.ndarray,
-    period: np.ndarray,
-    lyap: np.ndarray,
-    status: np.ndarray,
-) -> None:
+def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
     """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile)."""
+    regime, period, lyap, status = out
     kw = spec.numerics.kernel_kwargs()
     total = spec.transient + spec.periods
     window = settle_window(spec.p_max)
@@ -401,27 +408,20 @@ def _classify_members(
 
 
 def compute_tile_each(spec: ChartSpec, tile: TileSpec) -> TileResult:
-    """:func:`compute_tile` one pixel at a time, each trajectory with its own steps and the tangent throughout.
+    """:func:`compute_tile` without early stops: every pixel and IC the whole way with the tangent system.
 
-    The chart as it was computed before the lock-step tiles (every member's exponent is
-    :func:`~explorer_core.analyses.lyapunov.lyapunov_spectrum`'s to the last bit); ~40x slower. The
-    benchmark compares the two classifications.
+    The chart as it was computed before (every member's exponent is
+    :func:`~explorer_core.analyses.lyapunov.lyapunov_spectrum`'s to the last bit); the benchmark
+    (``benchmarks/chart_speed.py``) compares the two.
     """
-    start = time.perf_counter()
-    pix = tile.pixels()
+    return _tile(spec, tile, _fill_each)
+
+
+def _fill_each(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
+    regime, period, lyap, status = out
     n_ic = spec.ics.shape[0]
-    regime = np.zeros((len(pix), n_ic), dtype=np.int8)
-    period = np.zeros((len(pix), n_ic), dtype=np.int16)
-    lyap = np.zeros((len(pix), n_ic))
-    status = np.zeros((len(pix), n_ic), dtype=np.int8)
-    errors = []
-    for n, (j, i) in enumerate(pix):
-        p = spec.pixel_params(j, i)
-        if isinstance(p, str):
-            regime[n] = INVALID
-            errors.append(p)
-            continue
-        errors.append("")
+    for first in range(0, len(params), n_ic):  # a pixel's ICs are consecutive members
+        p, n = params[first], at[first, 0]
         coefs = coefficients(Model(p), n=n_ic)
         batch = tangent.start(spec.ics, p.t0, p.period)
         if spec.transient:
@@ -431,18 +431,8 @@ def compute_tile_each(spec: ChartSpec, tile: TileSpec) -> TileResult:
             m = int(npts[k])
             lyap[n, k] = logs[k, :m, 0].sum() / (max(m, 1) * p.period)
             status[n, k] = batch.status[k]
-            regime[n, k], period[n, k] = classify(
-                pts[k],
-                m,
-                int(batch.status[k]),
-                lyap[n, k],
-                p_max=spec.p_max,
-                tol=spec.tol,
-                lyap_threshold=spec.lyap_threshold,
-            )
-    jj = np.array([j for j, _ in pix], dtype=np.int64)
-    ii = np.array([i for _, i in pix], dtype=np.int64)
-    return TileResult(tile, jj, ii, regime, period, lyap, status, tuple(errors), time.perf_counter() - start)
+            regime[n, k], period[n, k] = classify(pts[k], m, int(batch.status[k]), lyap[n, k], p_max=spec.p_max,
+                                                  tol=spec.tol, lyap_threshold=spec.lyap_threshold)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------
