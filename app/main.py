@@ -13,10 +13,8 @@ import urllib.parse
 from typing import Any
 
 import panel as pn
-from panel.io.document import unlocked
-from panel.io.state import set_curdoc
 
-from app import warm
+from app import pacing, warm
 from app.page import Page
 
 log = logging.getLogger(__name__)
@@ -35,14 +33,9 @@ def create_app() -> Any:
         if doc is None:
             fn()
             return
+        pacing.DELIVERIES.put(doc, fn)
 
-        def run() -> None:
-            # One websocket message for everything fn changes (points, status, series...): the
-            # browser then applies, lays out and paints once, not once per model change.
-            with set_curdoc(doc), unlocked():
-                fn()
-
-        doc.add_next_tick_callback(run)
+    pacing.DELIVERIES.bind()
 
     def publish(q: dict[str, str]) -> None:
         if location is not None:
@@ -57,7 +50,7 @@ def create_app() -> Any:
 
     page = Page(query, deliver, publish_url=publish, alive=connected)
     # Messages from the browser run on the document's thread, like every other change of the page.
-    page.ui._on_message = lambda msg: deliver(lambda: page.handle(msg))
+    page.ui._on_message = lambda msg: deliver(pacing.urgent(lambda: page.handle(msg)))
 
     def destroyed(ctx: Any) -> None:
         page.close()
@@ -86,6 +79,9 @@ def local_stylesheets(doc: Any) -> None:
 
 
 if __name__.startswith("bokeh_app") or __name__ == "__main__":
-    create_app().servable(title="Bilimovich Explorer")
-    if pn.state.curdoc is not None:
-        local_stylesheets(pn.state.curdoc)
+    try:
+        create_app().servable(title="Bilimovich Explorer")
+        if pn.state.curdoc is not None:
+            local_stylesheets(pn.state.curdoc)
+    finally:
+        pacing.page_built()  # the next tab's page may be built now (app/pacing.py)

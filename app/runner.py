@@ -71,12 +71,16 @@ _POOL = ThreadPoolExecutor(
 
 #: Nice value of heavy jobs' threads (and of the threads they start, which inherit it on Linux); 0: off.
 HEAVY_NICE = int(os.environ.get("BILIMOVICH_APP_HEAVY_NICE", "10"))
+#: Nice value of every other job's thread: the server's event loop (pages, messages, /liveness) goes
+#: before any computation, so a class opening the page at once gets its pages first (docs/load.md).
+JOB_NICE = int(os.environ.get("BILIMOVICH_APP_JOB_NICE", "5"))
 
 
-def _niced(run: Callable[[], None]) -> None:
-    # Per thread on Linux; a raise needs no privilege, and the thread ends with the job.
+def _niced(run: Callable[[], None], nice: int = HEAVY_NICE) -> None:
+    # Per thread on Linux; a raise needs no privilege. Pool threads keep it (every pool job has the same).
     with contextlib.suppress(AttributeError, OSError):
-        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), HEAVY_NICE)
+        if os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) < nice:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
     run()
 
 
@@ -131,6 +135,10 @@ class FairScheduler:
     layer_slots, heavy_slots : running layer / heavy jobs at most.
     max_wait : seconds after which a waiting layer or heavy job is served like the rest of
         a section, so a chart still advances (a tile at a time) under a steady stream of moves.
+    heavy_extra : heavy jobs that may run beside the ``slots`` (the server's: 1). A chart's tiles,
+        once started, cannot be stopped at a poll; with one slot per process they would hold it and
+        the first points of every session of that process would wait for them. They run at a low
+        CPU priority, so the sections still get the cores.
     """
 
     def __init__(
@@ -141,10 +149,12 @@ class FairScheduler:
         heavy_slots: int = 1,
         max_wait: float = 2.0,
         clock: Callable[[], float] = time.monotonic,
+        heavy_extra: int = 0,
     ) -> None:
         if min(slots, per_session, layer_slots, heavy_slots) < 1:
             raise ValueError("slots, per_session, layer_slots and heavy_slots must be >= 1")
         self.slots = slots
+        self.heavy_extra = heavy_extra
         self.per_session = per_session
         self.max_wait = max_wait
         self._caps = {POINTS: slots, LAYER: layer_slots, HEAVY: heavy_slots}
@@ -158,6 +168,8 @@ class FairScheduler:
         self._last: dict[int, float] = {}  # when each session was last given a slot
         self._seq = itertools.count()
         self.granted = 0  # slots given out (for tests)
+        #: Whether new pages are being built in this process (set by app/pacing.py; never in tests).
+        self.pages_due: Callable[[], bool] = lambda: False
 
     # --- used by Runner ---------------------------------------------------------------
 
@@ -257,6 +269,11 @@ class FairScheduler:
         rr = self._last.get(t.session, 0.0) if tier == 0 or t.kind == HEAVY else 0.0
         return (tier, capped, rr, t.seq)
 
+    def _used(self) -> int:
+        """Slots in use; up to ``heavy_extra`` heavy jobs run beside the slots (at a low CPU priority)."""
+        r = self._running
+        return r[POINTS] + r[LAYER] + max(0, r[HEAVY] - self.heavy_extra)
+
     def _dispatch(self) -> None:
         stale = [t for t in self._waiting if t.stale()]
         for t in stale:
@@ -266,8 +283,10 @@ class FairScheduler:
             t.state = _DROPPED
             t.event.set()
         now = self._clock()
-        while sum(self._running.values()) < self.slots and self._waiting:
-            first_due = any(t.kind == POINTS and t.fresh for t in (*self._waiting, *self._active))
+        while self._used() < self.slots and self._waiting:
+            # New pages being built count as first points due: the layers and analyses (Python, they
+            # hold the GIL the event loop needs) wait for them too (app/pacing.py).
+            first_due = self.pages_due() or any(t.kind == POINTS and t.fresh for t in (*self._waiting, *self._active))
             ready = [
                 t for t in self._waiting
                 if self._running[t.kind] < self._caps[t.kind]
@@ -289,7 +308,8 @@ class FairScheduler:
 
 #: The scheduler of every session's jobs; BILIMOVICH_APP_SLOTS=0 turns fair scheduling off (measurements).
 _SLOTS = int(os.environ.get("BILIMOVICH_APP_SLOTS", str(config.N_WORKERS)))
-SCHEDULER: FairScheduler | None = FairScheduler(slots=_SLOTS) if _SLOTS > 0 else None
+_HEAVY_EXTRA = int(os.environ.get("BILIMOVICH_APP_HEAVY_EXTRA", "1"))
+SCHEDULER: FairScheduler | None = FairScheduler(slots=_SLOTS, heavy_extra=_HEAVY_EXTRA) if _SLOTS > 0 else None
 _session_ids = itertools.count(1)
 
 
@@ -385,9 +405,13 @@ class Runner:
                 return True
             return ticket is not None and not sched.checkpoint(ticket)  # may wait for this job's turn
 
+        first = [True]
+
         def emit(fn: Callable[[], None]) -> None:
             if stale():
                 return
+            urgent = first[0] and job_kind(channel) == POINTS  # a user waits for exactly this
+            first[0] = False
             if ticket is not None and ticket.fresh:
                 sched.shown(ticket)  # its first points are out: the rest waits behind others' first points
             if stamps is not None and len(stamps) == 2:
@@ -398,6 +422,7 @@ class Runner:
                 if not stale():
                     fn()
 
+            guarded.urgent = urgent  # type: ignore[attr-defined]  # delivered before the backlog (app/pacing.py)
             self._deliver(guarded)
 
         def run() -> None:
@@ -426,6 +451,8 @@ class Runner:
             # A heavy job's tiles run in threads of its own that no poll can stop once started:
             # they inherit a low CPU priority from this thread, so sections still get the cores.
             threading.Thread(target=_niced, args=(run,), name=f"explorer-{channel}", daemon=True).start()
+        elif self._executor is _POOL and JOB_NICE:
+            self._executor.submit(_niced, run, JOB_NICE)
         else:
             self._executor.submit(run)
         return gen

@@ -63,6 +63,13 @@ def command(
     # BokehJS, Panel's CSS and every other resource from this server: nothing from a CDN (a
     # classroom network may have no internet, and a page must not depend on it).
     env["BOKEH_RESOURCES"] = "server"
+    if procs > 1:
+        # Each worker computes on its share of the cores (job slots and the kernels' threads): the
+        # workers' schedulers do not see each other, and two workers each running two jobs on every
+        # core would share the CPU between all of them and finish every scene later (docs/load.md).
+        share = str(max(1, usable_cpus() // procs))
+        env.setdefault("BILIMOVICH_APP_SLOTS", share)
+        env.setdefault("BILIMOVICH_THREADS", share)
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(HERE.parent), env.get("PYTHONPATH", "")) if p)
     return cmd, env
 

@@ -12,6 +12,7 @@ import ctypes
 import signal
 import threading
 
+from app import pacing
 from app.runner import WARM
 
 _started = threading.Lock()
@@ -46,4 +47,5 @@ def _die_with_parent() -> None:
 
 
 _die_with_parent()
+pacing.install()
 start()

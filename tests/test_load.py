@@ -394,7 +394,7 @@ def test_heavy_jobs_run_at_low_cpu_priority() -> None:
     _until(lambda: "tile" in seen)
     r.start("section", section)
     done.wait(10)
-    assert seen == {"chart": 10, "tile": 10, "section": 0}
+    assert seen == {"chart": 10, "tile": 10, "section": 5}  # every job below the event loop, heavy ones further
     assert nice() == 0
 
 
