@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import gc
 import logging
 import os
 import threading
@@ -44,8 +45,18 @@ async def take_turn() -> None:
     _building_since = time.monotonic()
 
 
+_frozen = False
+
+
 def page_built() -> None:
     """The page is built: let the next one go after the event loop has had a turn."""
+    global _frozen
+    if not _frozen:
+        # Everything loaded so far (numba, Panel, the template page: ~300 MB of objects) stays for
+        # the process's life: out of the garbage collector's full passes, which otherwise walk it
+        # all every few pages (~50-100 ms of the event loop each time).
+        _frozen = True
+        gc.freeze()
     try:
         loop = asyncio.get_running_loop()
     except RuntimeError:  # no server (tests, scripts)

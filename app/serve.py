@@ -25,6 +25,8 @@ import sys
 import time
 from pathlib import Path
 
+from explorer_core.config import usable_cpus
+
 HERE = Path(__file__).resolve().parent
 
 

@@ -71,8 +71,8 @@ button.act:disabled { opacity: .45; cursor: not-allowed; }
 .legend span.sw { display: inline-block; width: 12px; height: 12px; border: 1px solid #999; vertical-align: -2px;
   margin: 0 3px 0 8px; }
 .form { display: flex; flex-wrap: wrap; gap: 4px 14px; }
-.form .ctl { flex: 0 1 200px; min-width: 150px; }
-.form .ctl.text { flex-basis: 260px; }
+.form .ctl { flex: 0 1 170px; min-width: 140px; }
+.form .ctl.text { flex-basis: 200px; }
 progress { width: 100%; height: 10px; }
 progress[hidden] { display: none; }
 .result div { margin: 1px 0; }
