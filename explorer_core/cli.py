@@ -571,6 +571,59 @@ def cmd_continue(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_manifolds(args: argparse.Namespace) -> int:
+    from explorer_core.analyses.manifolds import KINDS, PIXELS, iter_manifolds, saddle_orbit
+
+    params, scene = _params(args)
+    bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
+    numerics = _numerics(args, None, 1, base=Numerics(method="dop853", rtol=1e-10, atol=1e-10, bound=bound))
+    point = _floats(args.orbit, 2, "--orbit")
+    kinds = [k.strip() for k in args.kinds.split(",")] if args.kinds else list(KINDS)
+    bad = [k for k in kinds if k not in KINDS]
+    if bad or not kinds:
+        raise UsageError(f"--kinds must be unstable, stable or both (comma-separated), got {args.kinds!r}")
+    view = check_box(_floats(args.view, 4, "--view"), "--view") if args.view else None
+    if view is None and scene is not None:
+        view = (*scene.q_range, *scene.r_range)
+    pixels = [int(v) for v in _floats(args.pixels, 2, "--pixels")] if args.pixels else list(PIXELS)
+    if args.pixels and not all(float(v).is_integer() for v in _floats(args.pixels, 2, "--pixels")):
+        raise UsageError(f"--pixels W,H must be whole numbers, got {args.pixels!r}")
+    write, show = _progress_line(args.quiet)
+    orbit = saddle_orbit(params, point, args.period)
+    result = None
+    with _Interrupt() as stop:
+        for result in iter_manifolds(params, orbit, kinds=kinds, length=args.length, view=view, pixels=pixels,
+                                     delta_px=args.delta_px, numerics=numerics, max_points=args.max_points,
+                                     cancel=stop):  # fmt: skip
+            grown = ", ".join(f"{b.kind[0]}{b.label} {b.length:.3g}" for b in result.branches)
+            write(f"{result.elapsed_s:.1f} s: {grown}")
+    if show:
+        sys.stderr.write("\n")
+    assert result is not None
+    summary = result.summary()
+    if scene is not None:
+        summary["scene"] = scene.id
+    if args.out:
+        _check_out(args.out)
+        summary["csv"] = {"path": args.out, "rows": result.to_csv(args.out)}
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        o = result.orbit
+        print(f"period {o.period} {o.kind} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g}), "
+              f"mu = {o.multipliers[0].real:.6g}, {o.multipliers[1].real:.6g}")  # fmt: skip
+        for b in result.branches:
+            npts = sum(p.shape[0] for p in b.pieces)
+            print(f"  {b.kind:8s} {b.label}: length {b.length:.4g}, {npts} points, {len(b.pieces)} piece(s), "
+                  f"{b.status}" + (f", {b.escaped} escaped" if b.escaped else ""))  # fmt: skip
+        print(f"{len(result.crossings)} crossings ({sum(c.kind == 'homoclinic' for c in result.crossings)} "
+              f"homoclinic), {result.elapsed_s:.2f} s")  # fmt: skip
+    if stop():
+        sys.stderr.write("bilimovich: interrupted; the manifolds grown so far were written\n")
+        return 130
+    return 0
+
+
 def _executor(args: argparse.Namespace) -> Any:
     """The Dask executor of ``--scheduler`` (None: this machine's threads)."""
     from explorer_core.parallel.cluster import executor_for
@@ -1021,6 +1074,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=cmd_orbits)
 
+    p = sub.add_parser("manifolds", help="stable and unstable manifolds of a saddle orbit, homoclinic points")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--orbit", required=True, metavar="Q,R", help="a point near the saddle orbit (Newton finds it)")
+    p.add_argument("--period", type=_count("period", 1, 64), default=1, help="the orbit's period (default 1)")
+    p.add_argument("--length", type=_number("length"), default=10.0, help="arc length of each branch (default 10)")
+    p.add_argument("--kinds", metavar="K[,K]", help="unstable, stable or both (default both)")
+    p.add_argument(
+        "--view",
+        metavar="Q0,Q1,R0,R1",
+        help="the plot window the curves are refined for (default: the scene's, else around the orbit)",
+    )
+    p.add_argument("--pixels", metavar="W,H", help="the window's size in pixels (default 800,600)")
+    p.add_argument("--delta-px", type=_number("delta-px"), default=3.0, help="longest segment in pixels (default 3)")
+    p.add_argument("--max-points", type=_count("max-points", 100, 10_000_000), default=200_000,
+                   help="points computed over all branches (default 200000)")  # fmt: skip
+    p.add_argument("--out", metavar="FILE.csv", help="CSV branch,kind,s,q,r (s: arc length from the saddle)")
+    p.add_argument("--json", action="store_true", help="print the JSON result")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=cmd_manifolds)
+
     p = sub.add_parser("continue", help="follow a periodic orbit in a parameter through folds and period doublings")
     _add_system_args(p)
     _add_numerics_args(p)
@@ -1141,7 +1215,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 #: Options whose value is a comma list that may start with a minus sign.
-_LIST_OPTIONS = {"--ic", "--box", "--inertia", "--q-range", "--r-range"}
+_LIST_OPTIONS = {"--ic", "--box", "--inertia", "--q-range", "--r-range", "--orbit", "--view"}
 # Options of the analyses (bifurcation, chart, fit) whose values may start with a minus sign.
 _LIST_OPTIONS |= {"--range", "--x-range", "--y-range", "--window", "--ic-box"}
 

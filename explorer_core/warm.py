@@ -2,7 +2,8 @@
 
 The engine (:mod:`explorer_core.solve.rk`) is one kernel for every method, system (sections, the
 tangent system, the Lyapunov basis) and mode (adaptive, fixed, lock-step, per-member parameters): one
-call compiles it. Used by ``bilimovich warmup``, the app server at start-up and the Dask workers.
+call compiles it; the only other kernel finds crossings of manifolds. Used by ``bilimovich warmup``,
+the app server at start-up and the Dask workers.
 """
 
 from __future__ import annotations
@@ -19,7 +20,9 @@ def warm_all() -> None:
     with _lock:
         if _warmed:
             return
+        from explorer_core.analyses import manifolds
         from explorer_core.solve.integrators import warmup
 
         warmup()
+        manifolds.warmup()  # the crossing kernel (the growth runs on the engine)
         _warmed = True

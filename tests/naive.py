@@ -186,3 +186,37 @@ def ivp_fixed_point(params: Params, x, n: int, iterations: int = 4) -> tuple[np.
         end, a = ivp_monodromy(params, x, n)
         x = x - np.linalg.solve(a - np.eye(2), end - x)
     return x, ivp_monodromy(params, x, n)[1]
+
+
+# ---------------------------------------------------------------------------
+# Invariant manifolds (reference for explorer_core.analyses.manifolds).
+
+
+def naive_segment_crossings(a, b) -> list[tuple[int, int, float, float]]:
+    """Every ``(i, j, u, v)``: segment ``a[i] a[i+1]`` at fraction ``u`` in [0, 1) crosses ``b[j] b[j+1]`` at ``v``."""
+    out = []
+    for i in range(len(a) - 1):
+        for j in range(len(b) - 1):
+            (x1, y1), (x2, y2) = a[i], a[i + 1]
+            (x3, y3), (x4, y4) = b[j], b[j + 1]
+            den = (x2 - x1) * (y4 - y3) - (y2 - y1) * (x4 - x3)
+            if den == 0:
+                continue
+            u = ((x3 - x1) * (y4 - y3) - (y3 - y1) * (x4 - x3)) / den
+            v = ((x3 - x1) * (y2 - y1) - (y3 - y1) * (x2 - x1)) / den
+            if 0 <= u < 1 and 0 <= v < 1:
+                out.append((i, j, u, v))
+    return out
+
+
+def ivp_manifold_points(params: Params, x, v, mu: float, n: int, levels: int, count: int, delta: float, sign: int = 1):
+    """Brute force: ``count`` points evenly on the segment ``x + sign s v``, ``s`` in ``[delta, |mu| delta)``,
+    each mapped ``levels`` times by ``P^n`` (``mu``: the eigenvalue, expanding; ``n < 0`` maps backwards) with
+    scipy's DOP853 on the naive field. Returns (levels, count, 2)."""
+    s = delta * np.abs(mu) ** (np.arange(count) / count)
+    pts = np.asarray(x, float)[None, :] + sign * s[:, None] * np.asarray(v, float)[None, :]
+    out = []
+    for _ in range(levels):
+        pts = np.array([ivp_map(params, p, n, rtol=1e-12, atol=1e-12) for p in pts])
+        out.append(pts)
+    return np.array(out)
