@@ -27,6 +27,7 @@ from app.state import (
     CONTROLS,
     MAX_CLICKED,
     MAX_MAGNITUDE,
+    MAX_MANIFOLDS,
     MAX_ORBIT_SEEDS,
     SYSTEM_FIELDS,
     TABS,
@@ -36,6 +37,7 @@ from app.state import (
 )
 from app.views import SectionFigure, SeriesData
 from explorer_core.analyses.equilibria import Cancelled, equilibrium_tracks
+from explorer_core.analyses.manifolds import Manifolds, iter_manifolds, saddle_orbit
 from explorer_core.analyses.orbits import Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
 from explorer_core.analyses.reliability import assess
 from explorer_core.analyses.tprime import energy_change_map, tprime_map
@@ -53,8 +55,13 @@ SECTION_FIELDS = (*SYSTEM_FIELDS, "method", "accuracy", "steps_per_period", "n_r
 SECTION_FIELDS += ("box",)
 LAYER_FIELDS = ("show_tracks", "show_tprime", "tprime_kind")
 ORBIT_FIELDS = ("show_orbits", "orbit_period")
+MANIFOLD_FIELDS = ("manifold_saddles", "manifold_length")
 #: What Stop stops in the section view, and what makes it "running".
-SECTION_CHANNELS = ("section", "tracks", "tprime", "reliability", "orbit", "orbits")
+SECTION_CHANNELS = ("section", "tracks", "tprime", "reliability", "orbit", "orbits", "manifolds")
+#: The plot's size in pixels as the manifolds' refinement assumes it (segments of at most 3 of them).
+MANIFOLD_PIXELS = (800, 600)
+#: A click picks the saddle whose point is nearest, within this fraction of the view's width and height.
+PICK_RADIUS = 0.03
 #: Seeds of the "every orbit in view" search: a grid over the plot window.
 ORBIT_GRID = (10, 10)
 #: Orbits listed in the table (all of them are drawn and in the CSV).
@@ -91,6 +98,9 @@ class ExplorerSession(param.Parameterized):
     #: Periodic orbits on screen, as table rows (:func:`orbit_row`), and what the last search said.
     orbits = param.List(default=[])
     orbit_status = param.String(default="")
+    #: Saddles whose manifolds are drawn, and what the last growth said.
+    n_manifolds = param.Integer(default=0)
+    manifold_status = param.String(default="")
 
     def __init__(
         self,
@@ -126,6 +136,8 @@ class ExplorerSession(param.Parameterized):
         state.param.watch(lambda *e: self.recompute(), ["clicked"])
         state.param.watch(self._on_orbit_settings, list(ORBIT_FIELDS))
         self._orbits: list[Orbit] = []
+        self._manifolds: list[Manifolds] = []
+        state.param.watch(self._on_manifold_settings, list(MANIFOLD_FIELDS))
         state.param.watch(lambda *e: self._publish_query(), ["selected", "tab", "presentation", *ANALYSIS_FIELDS])
 
     # --- input ------------------------------------------------------------------------------
@@ -189,6 +201,8 @@ class ExplorerSession(param.Parameterized):
         self._start_layers(tracks=False)
         if self.state.orbit_view:
             self.recompute_orbits()
+        if self.state.manifold_saddles:
+            self.recompute_manifolds()  # refined for the new view's pixels
         self._publish_query()
 
     # --- the section ------------------------------------------------------------------------
@@ -211,6 +225,7 @@ class ExplorerSession(param.Parameterized):
         self.error = ""
         self._start_section(req, start_layers=self._start_layers)
         self.recompute_orbits()
+        self.recompute_manifolds()
         self._publish_query()
 
     def _start_section(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
@@ -563,6 +578,116 @@ class ExplorerSession(param.Parameterized):
                           f"{m[1].real!r},{m[1].imag!r},{o.det!r},{o.liouville!r},{o.residual!r}\n")  # fmt: skip
         return io.BytesIO(buf.getvalue().encode())
 
+    # --- stable and unstable manifolds of saddles ----------------------------------------------
+
+    def _on_manifold_settings(self, *events: Any) -> None:
+        if not self._suspend:
+            self.recompute_manifolds()
+            self._publish_query()
+
+    def manifolds_at(self, q: float, r: float) -> None:
+        """A click in "manifolds" mode: the saddle of the orbits layer nearest the click (drawn, or removed)."""
+        if not (np.isfinite(q) and np.isfinite(r)):
+            return
+        st = self.state
+        sq = st.q_range[1] - st.q_range[0]
+        sr = st.r_range[1] - st.r_range[0]
+        best, where = None, np.inf
+        for o in self._orbits:
+            if o.kind not in ("saddle", "flip saddle"):
+                continue
+            d = float(np.min(np.hypot((o.points[:, 0] - q) / sq, (o.points[:, 1] - r) / sr)))
+            if d < where:
+                best, where = o, d
+        if best is None or where > PICK_RADIUS:
+            self.manifold_status = (
+                "no saddle ✕ near the click: find the orbits first ('Find orbits in view', or click with "
+                "'finds a periodic orbit')"
+                if best is None
+                else f"no saddle ✕ near ({q:.4g}, {r:.4g}): click on a saddle's cross"
+            )
+            return
+        x = best.points[0]
+        entry = (float(x[0]), float(x[1]), int(best.period))
+        kept = [s for s in st.manifold_saddles if not _same_saddle(s, entry, sq, sr)]
+        if len(kept) < len(st.manifold_saddles):
+            st.manifold_saddles = kept  # a second click on a drawn saddle removes its manifolds
+            return
+        if len(kept) >= MAX_MANIFOLDS:
+            self.manifold_status = f"at most {MAX_MANIFOLDS} saddles at once: click a drawn one to remove it"
+            return
+        st.manifold_saddles = [*kept, entry]
+
+    def clear_manifolds(self) -> None:
+        self.runner.cancel("manifolds")
+        self.state.manifold_saddles = []  # the watcher clears the layer
+        self.manifold_status = ""
+
+    def recompute_manifolds(self) -> None:
+        """The manifolds of every chosen saddle for the system and the view on screen: a layer job, streamed."""
+        self.runner.cancel("manifolds")
+        st = self.state
+        saddles = list(st.manifold_saddles)
+        self.n_manifolds = len(saddles)
+        if not saddles:
+            self._manifolds = []
+            self.manifold_status = ""
+            self.fig.set_manifolds([], [])
+            return
+        try:
+            params = st.system()
+        except ParameterError:
+            return
+        view = (*st.q_range, *st.r_range)
+        length = float(st.manifold_length)
+        self.manifold_status = f"growing the manifolds of {len(saddles)} saddle(s)…"
+
+        def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
+            done: list[Manifolds] = []
+            notes: list[str] = []
+            for q, r, n in saddles:
+                try:
+                    orbit = saddle_orbit(params, (q, r), n)
+                except ParameterError as exc:  # e.g. no longer a saddle for this system
+                    notes.append(f"({q:.4g}, {r:.4g}): {_plain(exc)}")
+                    continue
+                for m in iter_manifolds(params, orbit, length=length, view=view, pixels=MANIFOLD_PIXELS, others=done,
+                                        cancel=cancelled):  # fmt: skip
+                    if cancelled():
+                        return
+                    shown = [*done, m]
+                    text = "; ".join([*(_manifold_text(x) for x in shown), *notes])
+                    if not m.completed:
+                        text = "growing… " + text
+                    emit(lambda s=shown, t=text: self._show_manifolds(params, s, t))
+                done.append(m)
+            if not done:
+                emit(lambda: self._show_manifolds(params, [], "; ".join(notes)))
+
+        self.runner.start("manifolds", job)
+
+    def _show_manifolds(self, params: Params, shown: list[Manifolds], text: str) -> None:
+        try:
+            if params != self.state.system():
+                return  # grown for a system no longer on screen
+        except ParameterError:
+            return
+        self._manifolds = shown
+        lines = [(p[:, 1], p[:, 2], b.kind) for m in shown for b in m.branches for p in b.pieces]
+        marks = [(c.q, c.r, f"{c.kind}: unstable {c.unstable}, stable {c.stable}") for m in shown for c in m.crossings]
+        self.fig.set_manifolds(lines, marks)
+        self.manifold_status = text
+
+    def manifolds_csv(self) -> io.BytesIO:
+        """The manifolds on screen as CSV ``saddle,branch,kind,s,q,r`` with the settings in a comment header."""
+        buf = io.StringIO()
+        buf.write("# Bilimovich Explorer manifolds; " + "&".join(f"{a}={b}" for a, b in self.state.to_query().items()))
+        buf.write("\nsaddle,branch,kind,s,q,r\n")
+        for i, m in enumerate(self._manifolds):
+            for label, kind, s_, q, r in m.rows():
+                buf.write(f"{i},{label},{kind},{s_!r},{q!r},{r!r}\n")
+        return io.BytesIO(buf.getvalue().encode())
+
     # --- layers: equilibrium tracks and the T' map ---------------------------------------------
 
     def _start_layers(self, tracks: bool = True) -> None:
@@ -647,6 +772,27 @@ def _plain(exc: BaseException, limit: int = 300) -> str:
     """An exception as one short line of text (never a multi-line array dump)."""
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def _same_saddle(a: tuple, b: tuple, sq: float, sr: float) -> bool:
+    """The same saddle entry ``(q, r, period)``: equal periods, points within a thousandth of the view."""
+    return a[2] == b[2] and abs(a[0] - b[0]) <= 1e-3 * sq and abs(a[1] - b[1]) <= 1e-3 * sr
+
+
+def _manifold_text(m: Manifolds) -> str:
+    o = m.orbit
+    ends = sorted({b.status for b in m.branches})
+    homoclinic = sum(c.kind == "homoclinic" for c in m.crossings)
+    hetero = len(m.crossings) - homoclinic
+    text = (f"{o.kind} (period {o.period}) at ({o.points[0, 0]:.4g}, {o.points[0, 1]:.4g}): "
+            f"{len(m.branches)} branches to s = {m.length:g} ({', '.join(ends)})")  # fmt: skip
+    if m.completed:
+        text += f", {homoclinic} homoclinic" + (f" and {hetero} heteroclinic" if hetero else "") + " points"
+        escaped = sum(b.escaped for b in m.branches)
+        if escaped:
+            text += f", {escaped} points escaped (pieces split)"
+        text += f", {m.elapsed_s:.2f} s"
+    return text
 
 
 def _segments_by_type(branches) -> list[tuple[np.ndarray, np.ndarray, str]]:

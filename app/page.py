@@ -39,7 +39,8 @@ TAB_CLASSES: dict[str, type[AnalysisTab]] = {
     "bench": BenchTab,
 }
 #: Session parameters that change what the section tab shows.
-SESSION_VIEW = ["status", "error", "running", "escaped", "failed", "reliability", "n_points", "orbits", "orbit_status"]
+SESSION_VIEW = ["status", "error", "running", "escaped", "failed", "reliability", "n_points", "orbits", "orbit_status",
+                "n_manifolds", "manifold_status"]  # fmt: skip
 
 
 class Page:
@@ -116,6 +117,8 @@ class Page:
             self.session.find_orbits_in_view()
         elif action == "clear_orbits":
             self.session.clear_orbits()
+        elif action == "clear_manifolds":
+            self.session.clear_manifolds()
         elif action == "tab" and tab in TABS:
             self.state.tab = tab
         elif action == "presentation" and "on" in msg:
@@ -149,6 +152,8 @@ class Page:
             self.ui.send_download("section.csv", "text/csv", self.session.csv_bytes().getvalue())
         elif what == "orbits" and self.session.orbits:
             self.ui.send_download("orbits.csv", "text/csv", self.session.orbits_csv().getvalue())
+        elif what == "manifolds" and self.session.n_manifolds:
+            self.ui.send_download("manifolds.csv", "text/csv", self.session.manifolds_csv().getvalue())
         elif what == "chart" and "chart" in self.tabs:
             data = self.tabs["chart"].npz_bytes()  # type: ignore[attr-defined]
             if data is not None:
@@ -163,6 +168,8 @@ class Page:
             self.session.add_initial_condition(event.x, event.y)
         elif self.state.click_mode == "orbit":
             self.session.find_orbit_at(event.x, event.y)
+        elif self.state.click_mode == "manifolds":
+            self.session.manifolds_at(event.x, event.y)
         else:
             self.session.select_nearest(event.x, event.y)
 
@@ -261,6 +268,8 @@ class Page:
             "orbit_status": s.orbit_status,
             "n_orbits": len(s.orbits),
             "orbit_view": st.orbit_view,
+            "n_manifolds": s.n_manifolds,
+            "manifold_status": s.manifold_status,
         }
 
     def _tab_view(self, name: str) -> dict[str, Any]:

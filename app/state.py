@@ -37,6 +37,8 @@ MAX_CLICKED = 200
 MAX_ORBIT_SEEDS = 60
 #: Longest period the orbit search tries (P^n of a chaotic region: Newton's basin shrinks like e^(-lambda n T)).
 MAX_ORBIT_PERIOD = 16
+#: Saddles whose stable and unstable manifolds are drawn at once, per session.
+MAX_MANIFOLDS = 4
 TPRIME_GRID = 160
 DEFAULT_SCENE = "fig1C"
 #: Longest text a control accepts (longer is refused, never parsed).
@@ -230,6 +232,16 @@ CONTROLS: tuple[Control, ...] = (
         "'finds a periodic orbit', or find every orbit in view.",
     ),
     _ints("orbit_period", "Orbits: longest period searched", "layers", "orb_n", 1, MAX_ORBIT_PERIOD),
+    _ints(
+        "manifold_length",
+        "Manifolds: arc length of each branch",
+        "layers",
+        "man_len",
+        1,
+        200,
+        help="Click a saddle ✕ with 'draws a saddle's manifolds': its unstable (orange) and stable (teal) "
+        "manifolds, grown to this arc length and refined for the view; ◆ black: homoclinic points.",
+    ),
     Control(
         "show_tracks",
         "Frozen-field equilibria (tracks over one period)",
@@ -257,6 +269,7 @@ CONTROLS: tuple[Control, ...] = (
             ("add", "adds a trajectory"),
             ("select", "selects a trajectory"),
             ("orbit", "finds a periodic orbit"),
+            ("manifolds", "draws a saddle's manifolds"),
         ),
     ),
     _ints("selected", "Trajectory shown in the k-series", "section", "sel", 0, MAX_RANDOM + MAX_CLICKED),
@@ -357,11 +370,13 @@ class ExplorerState(param.Parameterized):
     orbit_period = param.Integer(default=4, bounds=(1, MAX_ORBIT_PERIOD))
     orbit_seeds = param.List(default=[], item_type=tuple, doc="points clicked to find periodic orbits from")
     orbit_view = param.Boolean(default=False, doc="also every orbit Newton finds from a grid over the view")
+    manifold_saddles = param.List(default=[], item_type=tuple, doc="(q, r, period) of the saddles with manifolds")
+    manifold_length = param.Integer(default=10, bounds=(1, 200))
     show_tracks = param.Boolean(default=True)
     show_tprime = param.Boolean(default=True)
     tprime_kind = param.Selector(default="instantaneous", objects=["instantaneous", "per-period"])
     selected = param.Integer(default=0, bounds=(0, None), doc="trajectory shown in the k-series plots")
-    click_mode = param.Selector(default="add", objects=["add", "select", "orbit"])
+    click_mode = param.Selector(default="add", objects=["add", "select", "orbit", "manifolds"])
     tab = param.Selector(default="section", objects=list(TABS))
     presentation = param.Boolean(default=False, doc="larger fonts, sidebar collapsed (for a projector)")
 
@@ -527,8 +542,12 @@ class ExplorerState(param.Parameterized):
             q["orb"] = ";".join(f"{_fmt(a)},{_fmt(b)}" for a, b in self.orbit_seeds)
         if self.orbit_view:
             q["orb_all"] = "1"
-        if self.click_mode == "orbit":
-            q["click"] = "orbit"
+        if self.manifold_saddles:
+            q["man"] = ";".join(f"{_fmt(a)},{_fmt(b)},{n}" for a, b, n in self.manifold_saddles)
+        if self.manifold_saddles or self.manifold_length != self.param["manifold_length"].default:
+            q["man_len"] = str(self.manifold_length)
+        if self.click_mode in ("orbit", "manifolds"):
+            q["click"] = self.click_mode
         if self.tab != "section":
             q["tab"] = self.tab
         if self.presentation:
@@ -688,6 +707,22 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
 
     attempt("orb", orbit_seeds)
 
+    def manifold_saddles(text: str) -> None:
+        parts = [p for p in text.split(";") if p.strip()]
+        if len(parts) > MAX_MANIFOLDS:
+            raise ParameterError(f"at most {MAX_MANIFOLDS} saddles, got {len(parts)}")
+        out = []
+        for p in parts:
+            q, r, n = _numbers("man", p, 3, "q,r,period")
+            if max(abs(q), abs(r)) > MAX_MAGNITUDE:
+                raise ParameterError(f"saddle points must lie within ±{MAX_MAGNITUDE:g}, got {p.strip()[:40]!r}")
+            if not (n == int(n) and 1 <= n <= MAX_ORBIT_PERIOD):
+                raise ParameterError(f"the period must be a whole number 1..{MAX_ORBIT_PERIOD}, got {p.strip()[:40]!r}")
+            out.append((q, r, int(n)))
+        updates["manifold_saddles"] = out
+
+    attempt("man", manifold_saddles)
+
     def choice(key: str, options: Mapping[str, Any], apply: Callable[[Any], None]) -> None:
         def fn(t: str) -> None:
             if t not in options:
@@ -729,7 +764,7 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
     key_of = {c.name: c.url for c in CONTROLS if c.url}
     key_of.update(box="box", q_range="qr", r_range="rr", clicked="ics", show_tprime="tprime", tprime_kind="tprime",
                   tab="tab", presentation="present", orbit_seeds="orb", orbit_view="orb_all",
-                  click_mode="click")  # fmt: skip
+                  click_mode="click", manifold_saddles="man")  # fmt: skip
     names = sorted(updates, key=lambda n: _ORDER.index(n) if n in _ORDER else len(_ORDER))
     changed_system = False
     for name in names:

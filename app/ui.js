@@ -206,9 +206,13 @@ export function render({model, el}) {
   clearOrbBtn.addEventListener("click", () => send({action: "clear_orbits"}))
   const orbCsvBtn = h("button", {class: "act light btn-orbits-csv", text: "Download orbits CSV"})
   orbCsvBtn.addEventListener("click", () => send({action: "download", what: "orbits"}))
+  const clearManBtn = h("button", {class: "act light btn-clear-manifolds", text: "Clear manifolds"})
+  clearManBtn.addEventListener("click", () => send({action: "clear_manifolds"}))
+  const manCsvBtn = h("button", {class: "act light btn-manifolds-csv", text: "Download manifolds CSV"})
+  manCsvBtn.addEventListener("click", () => send({action: "download", what: "manifolds"}))
   const secBar = h("div", {class: "bar"})
   for (const s of byArea.section || []) secBar.append(control(s))
-  secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn)
+  secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn)
   const secErrors = h("div", {class: "error-box main-error", role: "alert"})
   const warnings = h("div", {class: "warnings reliability-warning"})
   const status = h("div", {class: "status-line", "aria-live": "polite"})
@@ -226,10 +230,17 @@ export function render({model, el}) {
   const orbLegend = h("div", {class: "legend orbit-legend",
     text: "Periodic orbits of the Poincaré map P (fixed points of P^n, found by Newton): ● stable, ○ unstable, " +
           "◎ elliptic or neutral, ✕ saddle (flip saddle: the expanding multiplier is negative). Hover for the multipliers."})
+  const manLegend = h("div", {class: "legend manifold-legend"},
+    document.createTextNode("Manifolds of a saddle (click its ✕ with 'draws a saddle's manifolds'): "),
+    h("span", {text: "━", style: "color:#e8590c"}), document.createTextNode(" unstable, "),
+    h("span", {text: "━", style: "color:#0b7285"}), document.createTextNode(" stable, "),
+    h("span", {text: "◆"}), document.createTextNode(" homoclinic points."))
+  const manStatus = h("div", {class: "orbit-status manifold-status", "aria-live": "polite"})
   const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
   const orbTable = h("div", {class: "orbits", hidden: true})
   const paneSection = h("section", {class: "pane pane-section"}, secBar, secErrors, warnings, status,
-                        h("div", {class: "plots"}, plotSection, plotSeries), eqLegend, orbLegend, orbStatus, orbTable)
+                        h("div", {class: "plots"}, plotSection, plotSeries), eqLegend, orbLegend, orbStatus, orbTable,
+                        manLegend, manStatus)
 
   // Analysis pane (one for every analysis tab; its form is the open tab's controls).
   const aHelp = h("p", {class: "help analysis-help"})
@@ -368,6 +379,9 @@ export function render({model, el}) {
     clearOrbBtn.disabled = !s.n_orbits && !s.orbit_view && !s.orbit_status
     orbCsvBtn.disabled = !s.n_orbits
     orbStatus.textContent = s.orbit_status || ""
+    clearManBtn.disabled = !s.n_manifolds && !s.manifold_status
+    manCsvBtn.disabled = !s.n_manifolds
+    manStatus.textContent = s.manifold_status || ""
     const rows = s.orbits || []
     orbTable.hidden = !rows.length
     if (rows.length) {

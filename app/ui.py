@@ -9,7 +9,7 @@ server answers: the value in use, and why a typed value was refused.
 
 Messages from the page (``send_msg``) are dicts, checked here before anything uses them:
 ``{"commit": name, "text": str}`` or ``{"action": ..., ...}`` (stop, clear, run, tab,
-presentation, download, load_bench, bench_choice, find_orbits, clear_orbits).
+presentation, download, load_bench, bench_choice, find_orbits, clear_orbits, clear_manifolds).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from app.views import TYPE_COLORS
 log = logging.getLogger(__name__)
 
 ACTIONS = frozenset({"stop", "clear", "run", "tab", "presentation", "download", "load_bench", "bench_choice",
-                     "find_orbits", "clear_orbits"})  # fmt: skip
+                     "find_orbits", "clear_orbits", "clear_manifolds"})  # fmt: skip
 
 
 def _spec() -> dict[str, Any]:

@@ -70,6 +70,8 @@ ORBIT_KIND = {
     "flip saddle": "saddle",
 }
 ORBIT_COLOUR = "#c2006b"
+#: Invariant manifolds of saddles: unstable and stable (apart from the T' map's red and blue).
+MANIFOLD_COLOURS = {"unstable": "#e8590c", "stable": "#0b7285"}
 N_COLORS = 20
 #: Bokeh output backend of the point plots ("webgl" or "canvas"); see README (performance).
 BACKEND = os.environ.get("BILIMOVICH_BACKEND", "webgl")
@@ -158,6 +160,13 @@ class SectionFigure:
                                                 line_color="black"))  # fmt: skip
         self.ics = source({"q": [], "r": []}, "ics_source")
         ics = _renderer(self.ics, Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2))
+        # Stable and unstable manifolds of saddles over the points, their crossings (homoclinic points) on them.
+        self.manifolds = source({"xs": [], "ys": [], "color": [], "kind": []}, "manifolds_source")
+        man = _renderer(self.manifolds, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6,
+                                                  line_alpha=0.9), name="manifold_lines")  # fmt: skip
+        self.crossings = source({"q": [], "r": [], "what": []}, "crossings_source")
+        diamond = Scatter(x="q", y="r", marker="diamond", size=8, fill_color="black", line_color="white", line_width=1)
+        cross = _renderer(self.crossings, diamond, name="homoclinic_points")
         # Periodic orbits of the map, on top of everything (a white halo under each marker).
         self.orbit_sources = {k: source(_empty_orbits(), f"orbits_{k}") for k in ("stable", "unstable", "saddle")}
         orb = []
@@ -169,7 +178,7 @@ class SectionFigure:
             orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
                                               line_width=2.5, fill_color=fill, fill_alpha=alpha),
                                  name=f"orbit_points_{kind}"))  # fmt: skip
-        fig.renderers.extend([tp, tracks, pts, sel, eq, ics, *orb])
+        fig.renderers.extend([tp, tracks, pts, sel, eq, ics, man, cross, *orb])
         fig.add_layout(
             Legend(items=[LegendItem(label={"field": "type"}, renderers=[eq])], location="top_left",
                    background_fill_alpha=0.7, label_text_font_size="9pt"),
@@ -178,9 +187,10 @@ class SectionFigure:
                                                          ("frozen-field equilibrium", "@type")])  # fmt: skip
         orbit_hover = HoverTool(renderers=orb[1::2], tooltips=[("periodic orbit", "period @period, @type"),
                                                                ("multipliers", "@mu"), ("q, r", "@q, @r")])  # fmt: skip
+        cross_hover = HoverTool(renderers=[cross], tooltips=[("", "@what"), ("q, r", "@q, @r")])
         # No active scroll tool: the wheel scrolls the page until the user picks the zoom tool.
         fig.toolbar = Toolbar(tools=[PanTool(), WheelZoomTool(), BoxZoomTool(), ResetTool(), SaveTool(), hover,
-                                     orbit_hover], logo=None, active_scroll=None)  # fmt: skip
+                                     orbit_hover, cross_hover], logo=None, active_scroll=None)  # fmt: skip
         self.fig = fig
 
     # --- updates (always called on the document's thread) ------------------------------
@@ -218,6 +228,16 @@ class SectionFigure:
                 d["mu"].append(o["mu"])
         for k, src in self.orbit_sources.items():
             src.data = data[k]
+
+    def set_manifolds(self, lines: list[tuple[Any, Any, str]], marks: list[tuple[float, float, str]]) -> None:
+        """Pieces of manifolds ``(q, r, kind)`` (kind: unstable | stable) and crossings ``(q, r, text)``."""
+        self.manifolds.data = {
+            "xs": [ln[0] for ln in lines],
+            "ys": [ln[1] for ln in lines],
+            "color": [MANIFOLD_COLOURS[ln[2]] for ln in lines],
+            "kind": [ln[2] for ln in lines],
+        }
+        self.crossings.data = {"q": [m[0] for m in marks], "r": [m[1] for m in marks], "what": [m[2] for m in marks]}
 
     def orbit_data(self) -> dict[str, list]:
         """All orbit points drawn, every layer together (tests and probes)."""
