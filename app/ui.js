@@ -49,6 +49,7 @@ button.act { font: inherit; padding: 4px 12px; border-radius: 4px; border: 1px s
 button.act.warn { background: #b8860b; border-color: #b8860b; }
 button.act.light { background: #fff; color: #2c5f8a; }
 button.act:disabled { opacity: .45; cursor: not-allowed; }
+button.act[hidden] { display: none; }
 .error-box { color: #842029; background: #f8d7da; border: 1px solid #f5c2c7; border-radius: 4px; padding: 5px 10px; }
 .error-box:empty, .warnings:empty { display: none; }
 .warn-box { color: #664d03; background: #fff3cd; border: 1px solid #ffecb5; border-radius: 4px; padding: 5px 10px;
@@ -206,9 +207,9 @@ export function render({model, el}) {
   clearOrbBtn.addEventListener("click", () => send({action: "clear_orbits"}))
   const orbCsvBtn = h("button", {class: "act light btn-orbits-csv", text: "Download orbits CSV"})
   orbCsvBtn.addEventListener("click", () => send({action: "download", what: "orbits"}))
-  const clearManBtn = h("button", {class: "act light btn-clear-manifolds", text: "Clear manifolds"})
+  const clearManBtn = h("button", {class: "act light btn-clear-manifolds", text: "Clear manifolds", hidden: true})
   clearManBtn.addEventListener("click", () => send({action: "clear_manifolds"}))
-  const manCsvBtn = h("button", {class: "act light btn-manifolds-csv", text: "Download manifolds CSV"})
+  const manCsvBtn = h("button", {class: "act light btn-manifolds-csv", text: "Download manifolds CSV", hidden: true})
   manCsvBtn.addEventListener("click", () => send({action: "download", what: "manifolds"}))
   const secBar = h("div", {class: "bar"})
   for (const s of byArea.section || []) secBar.append(control(s))
@@ -379,8 +380,9 @@ export function render({model, el}) {
     clearOrbBtn.disabled = !s.n_orbits && !s.orbit_view && !s.orbit_status
     orbCsvBtn.disabled = !s.n_orbits
     orbStatus.textContent = s.orbit_status || ""
-    clearManBtn.disabled = !s.n_manifolds && !s.manifold_status
-    manCsvBtn.disabled = !s.n_manifolds
+    // Shown only once there are manifolds (or a message about them): the bar stays as short as it was.
+    clearManBtn.hidden = !s.n_manifolds && !s.manifold_status
+    manCsvBtn.hidden = !s.n_manifolds
     manStatus.textContent = s.manifold_status || ""
     const rows = s.orbits || []
     orbTable.hidden = !rows.length
