@@ -25,6 +25,7 @@ import param
 from app.runner import Runner
 from app.state import (
     CONTROLS,
+    DENSITY_PIXELS,
     MAX_CLICKED,
     MAX_MAGNITUDE,
     MAX_MANIFOLDS,
@@ -36,6 +37,7 @@ from app.state import (
     commit,
 )
 from app.views import SectionFigure, SeriesData
+from explorer_core.analyses.density import iter_density
 from explorer_core.analyses.equilibria import Cancelled, equilibrium_tracks
 from explorer_core.analyses.manifolds import Manifolds, iter_manifolds, saddle_orbit
 from explorer_core.analyses.orbits import Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
@@ -52,7 +54,7 @@ TRACE = bool(os.environ.get("BILIMOVICH_TRACE"))
 
 #: State fields whose change invalidates the section.
 SECTION_FIELDS = (*SYSTEM_FIELDS, "method", "accuracy", "steps_per_period", "n_random", "seed", "periods", "transient")
-SECTION_FIELDS += ("box",)
+SECTION_FIELDS += ("box", "render")
 LAYER_FIELDS = ("show_tracks", "show_tprime", "tprime_kind")
 ORBIT_FIELDS = ("show_orbits", "orbit_period")
 MANIFOLD_FIELDS = ("manifold_saddles", "manifold_length")
@@ -125,6 +127,9 @@ class ExplorerSession(param.Parameterized):
         self._outcome = ""  # "", "stopped" or "failed": how the last run ended short
         self._status_arr = np.zeros(0, dtype=np.int8)  # status of each trajectory on screen
         self._run_n = 0  # trajectories of the run in flight (or the last one)
+        #: The density image on screen: (points computed, points in view), or None when points are drawn.
+        self._density: tuple[int, int] | None = None
+        self._density_req: SectionRequest | None = None
         self._suspend = False
         self._t_req = time.perf_counter()
         if runner._on_busy is None:
@@ -132,7 +137,7 @@ class ExplorerSession(param.Parameterized):
         state.param.watch(self._on_section_change, list(SECTION_FIELDS))
         state.param.watch(self._on_layers_change, list(LAYER_FIELDS))
         state.param.watch(self._on_view_change, ["q_range", "r_range"])
-        state.param.watch(lambda *e: self.runner.ui(self._update_series), ["selected"])
+        state.param.watch(lambda *e: self._on_selected(), ["selected"])
         state.param.watch(lambda *e: self.recompute(), ["clicked"])
         state.param.watch(self._on_orbit_settings, list(ORBIT_FIELDS))
         self._orbits: list[Orbit] = []
@@ -199,6 +204,8 @@ class ExplorerSession(param.Parameterized):
         finally:
             self._suspend = False
         self._start_layers(tracks=False)
+        if self.state.density_view():
+            self._restart_section()  # the image, its tolerance and its seeds are those of the view
         if self.state.orbit_view:
             self.recompute_orbits()
         if self.state.manifold_saddles:
@@ -228,11 +235,30 @@ class ExplorerSession(param.Parameterized):
         self.recompute_manifolds()
         self._publish_query()
 
+    def _restart_section(self) -> None:
+        """The section again with the state's request (a density view after a zoom or a new selection)."""
+        try:
+            req = self.state.section_request()
+        except ParameterError as exc:
+            self.error = str(exc)
+            return
+        self._start_section(req)
+
+    def _on_selected(self) -> None:
+        req = self._density_req
+        if req is not None and self.state.density_view() and self.state.selected not in req.keep:
+            self._restart_section()  # a density run keeps only the selected trajectory's points: keep this one
+        else:
+            self.runner.ui(self._update_series)
+
     def _start_section(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
         self._t_start = time.perf_counter()
         self._progress = (0, req.periods)
         self._outcome = ""
         self._run_n = req.ics.shape[0]
+        if req.density:
+            self._start_density(req, start_layers)
+            return
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
             self._trace("section job starts")
@@ -281,6 +307,70 @@ class ExplorerSession(param.Parameterized):
         self.runner.start("section", job)
         self._update_reliability(req)  # a priori: the new numerics against the states on screen
 
+    def _start_density(self, req: SectionRequest, start_layers: Callable[[], None] | None) -> None:
+        """The section as a density image of the view (binned as computed; only ``req.keep``'s points kept)."""
+        self._density_req = req
+
+        def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
+            pending: list[tuple[np.ndarray, ...]] = []
+            last_emit, interval, first = 0.0, EMIT_INTERVAL, True
+            t_job = time.perf_counter()
+            layers_pending = start_layers is not None
+            last = None
+
+            def flush(img: Any, replace: bool) -> None:
+                cols = tuple(np.concatenate([p[i] for p in pending]) if pending else np.zeros(0) for i in range(4))
+                pending.clear()
+                image = img.counts.astype(np.float32)  # a snapshot: the core keeps adding into its array
+                counts = (img.points, img.in_view)
+                status, done, total = img.status.copy(), img.done_periods, img.total_periods
+                emit(lambda: self._apply_density(image, counts, cols, status, done, total, req if replace else None))
+
+            for img, kept in iter_density(req.params, req.ics, req.periods, view=req.view, pixels=DENSITY_PIXELS,
+                                          transient=req.transient, numerics=req.numerics, keep=req.keep,
+                                          max_chunk=MAX_CHUNK, cancel=cancelled):  # fmt: skip
+                last = img
+                for i, rows in kept.items():
+                    if rows.shape[0]:
+                        traj = np.full(rows.shape[0], i, dtype=np.int64)
+                        pending.append((traj, rows[:, 0].astype(np.int64), rows[:, 1], rows[:, 2]))
+                now = time.perf_counter()
+                if first or now - last_emit >= interval:
+                    flush(img, replace=first)
+                    last_emit = now
+                    interval = min(2 * interval, MAX_EMIT_INTERVAL) if not first else interval
+                    first = False
+                if layers_pending and now - t_job >= LAYER_DELAY:
+                    layers_pending = False
+                    start_layers()  # type: ignore[misc]
+            if last is not None:
+                flush(last, replace=first)
+            done = not cancelled()
+            if layers_pending and done:
+                start_layers()  # type: ignore[misc]
+            status = last.status.copy() if last is not None else None
+            emit(lambda: self._finish(done, status))
+
+        self.runner.start("section", job)
+        self._update_reliability(req)
+
+    def _apply_density(self, image: np.ndarray, counts: tuple[int, int], cols: tuple[np.ndarray, ...],
+                       status: np.ndarray, done: int, total: int, new_run: SectionRequest | None) -> None:  # fmt: skip
+        traj, k, q, r = cols
+        drawn = traj < len(self.state.clicked)  # over the image only the clicked ones (the selected is ringed)
+        if new_run is not None:
+            self._reset(new_run)
+            self.fig.replace_points(traj[drawn], k[drawn], q[drawn], r[drawn])
+        else:
+            self.fig.stream_points(traj[drawn], k[drawn], q[drawn], r[drawn])
+        if traj.size:
+            self._chunks.append(cols)
+        self._density = counts
+        self.fig.set_density(image, self._density_req.view if self._density_req else (0.0, 1.0, 0.0, 1.0))
+        self._set_status(status, done, total, running=True)
+        if traj.size and np.any(traj == self.state.selected):
+            self._update_series()
+
     def stop(self) -> None:
         """Stop everything of the section view in flight; what was computed stays on screen."""
         stopped = self.runner.busy("section")
@@ -302,6 +392,10 @@ class ExplorerSession(param.Parameterized):
     def _reset(self, req: SectionRequest) -> None:
         self._params = req.params
         self._chunks = []
+        if not req.density:
+            self._density = None
+            self._density_req = None
+            self.fig.set_density(None, (0.0, 1.0, 0.0, 1.0))
         self._n_traj = req.ics.shape[0]
         self._status_arr = np.zeros(self._n_traj, dtype=np.int8)
         self.escaped, self.failed = [], []
@@ -369,6 +463,12 @@ class ExplorerSession(param.Parameterized):
             self._elapsed = time.perf_counter() - self._t_start
         n_traj = self._n_traj if n_points else self._run_n  # nothing on screen yet: the run's count
         parts = [f"{n_points:,} points", f"{n_traj} trajectories", f"{self._elapsed:.2f} s"]
+        if self._density is not None:
+            n_traj = self._n_traj or self._run_n
+            n_drawn = sum(int(np.count_nonzero(c[0] < len(self.state.clicked))) for c in self._chunks)
+            drawn = f" ({n_drawn:,} of them drawn as points: the clicked trajectories)" if n_drawn else ""
+            parts = [f"{self._density[0]:,} points as a density image, {self._density[1]:,} in view{drawn}",
+                     f"{n_traj} trajectories", f"{self._elapsed:.2f} s"]  # fmt: skip
         if running:
             done, total = self._progress or (None, None)
             parts.insert(0, f"computing {done}/{total} periods" if done is not None else "computing…")
@@ -378,7 +478,8 @@ class ExplorerSession(param.Parameterized):
             parts.append(f"{len(failed)} failed")
         if not running and self._outcome:
             parts.append(self._outcome)
-        self.status = " · ".join(parts) if (n_points or n_traj or running or self._outcome) else ""
+        shown = n_points or n_traj or running or self._outcome or self._density
+        self.status = " · ".join(parts) if shown else ""
 
     def _update_reliability(self, req: SectionRequest | None, status: np.ndarray | None = None) -> None:
         """Warn when the method is unreliable for this scene (explorer_core.reliability.assess).
@@ -751,13 +852,19 @@ class ExplorerSession(param.Parameterized):
         ks, qs, rs = k[sel][order], q[sel][order], r[sel][order]
         energy = Model(self._params).energy(qs, rs, self._params.t0)
         self.series.set(ks, qs, rs, energy)
-        self.fig.set_selected(qs, rs)
+        if self._density is None:
+            self.fig.set_selected(qs, rs)
+        else:  # rings over a density image would hide it: the k-series below shows the trajectory
+            self.fig.set_selected(np.zeros(0), np.zeros(0))
 
     def csv_bytes(self) -> io.BytesIO:
         """The section on screen as CSV ``traj,k,q,r`` with the settings in a comment header."""
         traj, k, q, r = self.data()
         buf = io.StringIO()
         buf.write("# Bilimovich Explorer section; " + "&".join(f"{a}={b}" for a, b in self.state.to_query().items()))
+        if self._density is not None:
+            buf.write(f"\n# a density view: only the trajectories drawn as points (clicked, selected); the image "
+                      f"holds {self._density[0]} points")  # fmt: skip
         buf.write("\ntraj,k,q,r\n")
         for row in zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True):
             buf.write(f"{row[0]},{row[1]},{row[2]!r},{row[3]!r}\n")

@@ -23,15 +23,21 @@ from typing import Any
 import numpy as np
 import param
 
+from explorer_core.analyses.density import density_numerics
 from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, random_ics
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
 #: Per-session bounds: one browser tab cannot ask for unbounded work.
-MAX_RANDOM = 500
-MAX_PERIODS = 5000
+MAX_RANDOM = 10_000
+MAX_PERIODS = 100_000
 MAX_TRANSIENT = 5000
+#: Points drawn one by one (pickable, coloured by trajectory); beyond, the section is a density image.
 MAX_POINTS = 400_000
+#: Points of a section drawn as a density image (binned on the server, never sent or kept).
+MAX_DENSITY_POINTS = 10_000_000
+#: Pixels of the density image (the plot's size on a large screen).
+DENSITY_PIXELS = (800, 600)
 MAX_CLICKED = 200
 #: Points clicked to find periodic orbits from (each a Newton search), per session.
 MAX_ORBIT_SEEDS = 60
@@ -78,6 +84,10 @@ class SectionRequest:
     periods: int
     transient: int
     numerics: Numerics
+    #: Drawn as a density image of ``view`` (else as points); ``keep``: trajectories also drawn as points.
+    density: bool = False
+    view: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 1.0)
+    keep: tuple[int, ...] = ()
 
 
 def _fmt(v: float) -> str:
@@ -250,6 +260,17 @@ CONTROLS: tuple[Control, ...] = (
         "tracks",
         help="Equilibria of the field with t frozen: a heuristic for slow forcing, not orbits of P.",
     ),
+    Control(
+        "render",
+        "Section drawn as",
+        "radio",
+        "layers",
+        "render",
+        options=(("auto", "auto"), ("points", "points"), ("density", "density")),
+        help=f"points: pickable, coloured by trajectory (up to {MAX_POINTS:,}); density: an image of how many points "
+        f"fall in each pixel, computed on the server (up to {MAX_DENSITY_POINTS:,}; zooming recomputes it for the "
+        f"new view, seeds in the view); auto: points up to {MAX_POINTS:,}, density beyond.",
+    ),
     Control("show_tprime", "T′ map under the points", "check", "layers"),
     Control(
         "tprime_kind",
@@ -374,6 +395,7 @@ class ExplorerState(param.Parameterized):
     manifold_length = param.Integer(default=10, bounds=(1, 200))
     show_tracks = param.Boolean(default=True)
     show_tprime = param.Boolean(default=True)
+    render = param.Selector(default="auto", objects=["auto", "points", "density"])
     tprime_kind = param.Selector(default="instantaneous", objects=["instantaneous", "per-period"])
     selected = param.Integer(default=0, bounds=(0, None), doc="trajectory shown in the k-series plots")
     click_mode = param.Selector(default="add", objects=["add", "select", "orbit", "manifolds"])
@@ -480,20 +502,51 @@ class ExplorerState(param.Parameterized):
     def n_trajectories(self) -> int:
         return len(self.clicked) + self.n_random
 
+    def density_view(self, n: int | None = None, periods: int | None = None, render: str | None = None) -> bool:
+        """Whether the section is drawn as a density image (``render``, or ``auto`` beyond the point bound)."""
+        render = render or self.render
+        n = self.n_trajectories() if n is None else n
+        periods = self.periods if periods is None else periods
+        return render == "density" or (render == "auto" and n * periods > MAX_POINTS)
+
+    def density_box(self) -> tuple[float, float, float, float]:
+        """Where a density view's random seeds start: the box within the view (zoomed in: seeds in the
+        view; the view holding the whole box again, e.g. zoomed out: the box, as before)."""
+        b, v = self.box, (*self.q_range, *self.r_range)
+        q0, q1, r0, r1 = max(b[0], v[0]), min(b[1], v[1]), max(b[2], v[2]), min(b[3], v[3])
+        return (q0, q1, r0, r1) if (q0 < q1 and r0 < r1) else v  # type: ignore[return-value]
+
     def section_request(self) -> SectionRequest:
         params = self.system()
         ics = self.initial_conditions()
         if ics.shape[0] == 0:
             raise ParameterError("no initial conditions: set 'random ICs' above 0 or click in the plot")
         self.check_work(ics.shape[0], self.periods)
-        return SectionRequest(params, ics, self.periods, self.transient, self.numerics())
+        if not self.density_view(ics.shape[0]):
+            return SectionRequest(params, ics, self.periods, self.transient, self.numerics())
+        if self.n_random:
+            ics = np.concatenate([ics[: len(self.clicked)], random_ics(self.n_random, self.density_box(), self.seed)])
+        view = (*self.q_range, *self.r_range)
+        numerics = density_numerics(view, DENSITY_PIXELS, self.numerics().bound, self.method)
+        if self.accuracy == "high":
+            numerics = self.numerics()
+        # Kept as points: the clicked trajectories (drawn), the selected one (ringed, its k-series) and the
+        # first few, so that a selected trajectory lost in the transient can hand over to one with points.
+        keep = (*range(len(self.clicked)), self.selected, *range(min(ics.shape[0], len(self.clicked) + 8)))
+        return SectionRequest(params, ics, self.periods, self.transient, numerics, True, view,  # type: ignore[arg-type]
+                              tuple(sorted(set(keep))))  # fmt: skip
 
-    @staticmethod
-    def check_work(n: int, periods: int) -> None:
-        if n * periods > MAX_POINTS:
+    def check_work(self, n: int, periods: int, render: str | None = None) -> None:
+        if n * periods > MAX_DENSITY_POINTS:
             raise ParameterError(
                 f"{n} trajectories x {periods} periods = {n * periods} points; "
-                f"this server allows {MAX_POINTS} per view: lower one of them"
+                f"this server allows {MAX_DENSITY_POINTS} per view (as a density image): lower one of them"
+            )
+        if n * periods > MAX_POINTS and (render or self.render) == "points":
+            raise ParameterError(
+                f"{n} trajectories x {periods} periods = {n * periods} points; "
+                f"this server allows {MAX_POINTS} per view drawn as points: lower one of them, or draw the "
+                f"section as a density (up to {MAX_DENSITY_POINTS})"
             )
 
     # --- one gate for every value -----------------------------------------------------
@@ -505,6 +558,8 @@ class ExplorerState(param.Parameterized):
         elif name in ("n_random", "periods"):
             n = len(self.clicked) + (value if name == "n_random" else self.n_random)
             self.check_work(max(1, n), value if name == "periods" else self.periods)
+        elif name == "render":
+            self.check_work(max(1, self.n_trajectories()), self.periods, value)
         elif name == "selected" and value >= max(1, self.n_trajectories()):
             raise ParameterError(f"selected must be a trajectory 0..{self.n_trajectories() - 1}, got {value}")
         elif name in ("bif_range", "chart_xrange", "chart_yrange") and value:
@@ -548,6 +603,8 @@ class ExplorerState(param.Parameterized):
             q["man_len"] = str(self.manifold_length)
         if self.click_mode in ("orbit", "manifolds"):
             q["click"] = self.click_mode
+        if self.render != "auto":
+            q["render"] = self.render
         if self.tab != "section":
             q["tab"] = self.tab
         if self.presentation:
@@ -749,7 +806,7 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
 
 
 #: Order in which URL values meet the state's checks: what others are checked against comes first.
-_ORDER = ("clicked", "n_random", "periods", "bif_param", "chart_x", "chart_y")
+_ORDER = ("render", "clicked", "n_random", "periods", "bif_param", "chart_x", "chart_y")
 
 
 def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]]:

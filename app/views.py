@@ -34,6 +34,7 @@ from bokeh.models import (
     LegendItem,
     LinearAxis,
     LinearColorMapper,
+    LogColorMapper,
     MultiLine,
     PanTool,
     Plot,
@@ -45,7 +46,7 @@ from bokeh.models import (
     UnionRenderers,
     WheelZoomTool,
 )
-from bokeh.palettes import Category20, RdBu11, interp_palette
+from bokeh.palettes import Category20, Inferno256, RdBu11, interp_palette
 
 #: One colour per equilibrium type (shared by the tracks and the markers).
 TYPE_COLORS = {
@@ -78,6 +79,8 @@ BACKEND = os.environ.get("BILIMOVICH_BACKEND", "webgl")
 #: Palettes built once per process (every session's figures refer to the same lists).
 TPRIME_PALETTE = interp_palette(RdBu11, 255)  # blue (loss) .. white .. red (gain); odd: 0 is white
 TRAJ_PALETTE = Category20[N_COLORS]
+#: Density images: light (few points) to dark (many), empty pixels transparent over the T' map.
+DENSITY_PALETTE = tuple(reversed(Inferno256))
 #: Font sizes (points) of axis labels and ticks: normal and presentation mode.
 FONTS = {False: ("11pt", "9pt"), True: ("16pt", "13pt")}
 
@@ -146,6 +149,11 @@ class SectionFigure:
         self.tracks = source({"xs": [], "ys": [], "color": [], "type": []}, "tracks_source")
         tracks = _renderer(self.tracks, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6, line_alpha=0.7,
                                                   line_dash="dashed"))  # fmt: skip
+        # A long section as a density image (counts per pixel, binned on the server), under the points.
+        self.density_mapper = LogColorMapper(palette=DENSITY_PALETTE, low=1, high=2, nan_color=(0, 0, 0, 0))
+        self.density = source({"image": [], "x": [], "y": [], "dw": [], "dh": []}, "density_source")
+        shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.density_mapper)
+        dens = _renderer(self.density, shade, level="image", name="density_image")
         self.points = source(_empty_points(), "section_source")
         self.traj_mapper = LinearColorMapper(palette=TRAJ_PALETTE, low=0, high=N_COLORS - 1)
         colour = {"field": "c", "transform": self.traj_mapper}
@@ -178,7 +186,7 @@ class SectionFigure:
             orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
                                               line_width=2.5, fill_color=fill, fill_alpha=alpha),
                                  name=f"orbit_points_{kind}"))  # fmt: skip
-        fig.renderers.extend([tp, tracks, pts, sel, eq, ics, man, cross, *orb])
+        fig.renderers.extend([tp, dens, tracks, pts, sel, eq, ics, man, cross, *orb])
         fig.add_layout(
             Legend(items=[LegendItem(label={"field": "type"}, renderers=[eq])], location="top_left",
                    background_fill_alpha=0.7, label_text_font_size="9pt"),
@@ -208,6 +216,17 @@ class SectionFigure:
     def stream_points(self, traj: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray) -> None:
         if traj.size:
             self.points.stream({"q": q, "r": r, "traj": traj, "k": k, "c": traj % N_COLORS})
+
+    def set_density(self, counts: np.ndarray | None, view: tuple[float, float, float, float]) -> None:
+        """The density image (counts per pixel, row 0 at the bottom of ``view``), or none."""
+        if counts is None or counts.size == 0:
+            if self.density.data["image"]:
+                self.density.data = {"image": [], "x": [], "y": [], "dw": [], "dh": []}
+            return
+        image = np.where(counts > 0, counts, np.nan).astype(np.float32)
+        self.density_mapper.high = max(2.0, float(np.nanmax(image)) if np.any(counts > 0) else 2.0)
+        q0, q1, r0, r1 = view
+        self.density.data = {"image": [image], "x": [q0], "y": [r0], "dw": [q1 - q0], "dh": [r1 - r0]}
 
     def set_selected(self, q: np.ndarray, r: np.ndarray) -> None:
         self.selected.data = {"q": q, "r": r}

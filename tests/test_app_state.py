@@ -7,7 +7,7 @@ import pytest
 
 from app.controller import ExplorerSession
 from app.runner import WARM, InlineExecutor, Runner
-from app.state import MAX_POINTS, ExplorerState, parse_query, state_from_query
+from app.state import MAX_DENSITY_POINTS, MAX_POINTS, ExplorerState, parse_query, state_from_query
 from explorer_core.scenes import get_scene
 from explorer_core.solve.section import section
 
@@ -80,9 +80,9 @@ def test_typed_values_are_applied_or_refused_with_the_value_in_use_named() -> No
         ("I11", "", "I11 is empty"),
         ("alpha", "nan", "alpha must be finite"),
         ("omega", "-1", "omega must be > 0"),
-        ("periods", "0", "periods must be between 1 and 5000"),
+        ("periods", "0", "periods must be between 1 and 100000"),
         ("periods", "2.5", "periods must be a whole number"),
-        ("n_random", "600", "n_random must be between 0 and 500"),
+        ("n_random", "20000", "n_random must be between 0 and 10000"),
         ("method", "euler", "method must be one of dop853"),
         ("chart_grid", "500,3", "chart_grid must be between 2 and 120"),
         ("bif_range", "1e300,1e301", "within ±1e+06"),
@@ -100,9 +100,13 @@ def test_typed_values_are_applied_or_refused_with_the_value_in_use_named() -> No
 
 def test_a_value_that_makes_the_work_too_large_is_refused() -> None:
     sess = make_session(scene="fig1C")
-    sess.state.param.update(n_random=100, periods=10)
-    msg = sess.commit("periods", "5000")  # 100 trajectories x 5000 periods > 400,000 points
-    assert msg is not None and str(MAX_POINTS) in msg and sess.state.periods == 10
+    sess.state.param.update(n_random=100, periods=10, render="points")
+    msg = sess.commit("periods", "5000")  # 100 trajectories x 5000 periods > 400,000 points drawn as points
+    assert msg is not None and str(MAX_POINTS) in msg and "density" in msg and sess.state.periods == 10
+    sess.state.param.update(render="auto", n_random=200)  # beyond the point bound: a density image, up to 10^7
+    assert sess.commit("periods", "2100") is None  # 420,000 points
+    msg = sess.commit("periods", "60000")
+    assert msg is not None and str(MAX_DENSITY_POINTS) in msg and sess.state.periods == 2100
 
 
 def test_recompute_streams_the_section_the_core_computes() -> None:

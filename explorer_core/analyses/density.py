@@ -1,0 +1,168 @@
+"""Sections of millions of points as a density image of the view: the points are binned, never kept.
+
+A section of 10^6-10^7 points is more than a browser can draw point by point and more than a server
+should hold (16 bytes a point). What a picture of it needs is how many points fall in each pixel of
+the view: :func:`iter_density` streams the section (:func:`explorer_core.solve.section.iter_section`,
+the one engine, both cores) and adds every chunk into a ``(pixels_r, pixels_q)`` count image with one
+``bincount``, so the memory is the image and one chunk, whatever the number of points.
+
+Accuracy: a density image shows *where* points fall, not *when*. On a regular orbit the integration
+error is a phase drift along the invariant curve (a point moves along the curve, not off it), and on a
+chaotic attractor pointwise error grows anyway (the picture is right in the shadowing sense). So the
+tolerance keeps every point within a quarter pixel of its exact orbit over a window of
+:data:`DENSITY_WINDOW` periods (:func:`density_numerics`), not over the whole run as the point view's
+"plot" tolerance does; ``tests/test_density.py`` checks the images against a 1e-12 integration.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from explorer_core import config
+from explorer_core.scenes import plot_tolerance
+from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
+from explorer_core.solve.rk import Status
+from explorer_core.solve.section import iter_section
+from explorer_core.system.params import ParameterError, Params
+
+#: Periods over which a density point stays within a quarter pixel of its exact orbit.
+DENSITY_WINDOW = 100
+#: Most points one density image may ask for (the per-session bound of the point view is far lower).
+MAX_DENSITY_POINTS = 10_000_000
+#: Most pixels of a density image along either axis.
+MAX_PIXELS = 4096
+
+
+@dataclass(frozen=True)
+class Density:
+    """Counts of section points per pixel of ``view`` after ``done_periods`` of ``total_periods``.
+
+    ``counts`` (pixels_r, pixels_q) int64, row 0 at ``r0`` (the bottom of the view), column 0 at ``q0``;
+    ``points``: every section point computed; ``in_view``: those counted; ``status`` (n,) per trajectory
+    (:class:`~explorer_core.solve.rk.Status`).
+    """
+
+    counts: np.ndarray
+    view: Sequence[float]
+    points: int
+    in_view: int
+    done_periods: int
+    total_periods: int
+    status: np.ndarray
+    elapsed_s: float
+    completed: bool
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def escaped(self) -> int:
+        return int(np.count_nonzero(self.status == Status.ESCAPED))
+
+    @property
+    def failed(self) -> int:
+        return int(np.count_nonzero((self.status != Status.OK) & (self.status != Status.ESCAPED)))
+
+    def summary(self) -> dict[str, Any]:
+        return {"view": list(self.view), "pixels": [int(self.counts.shape[1]), int(self.counts.shape[0])],
+                "points": self.points, "in_view": self.in_view, "done_periods": self.done_periods,
+                "total_periods": self.total_periods, "trajectories": int(self.status.size), "escaped": self.escaped,
+                "failed": self.failed, "completed": self.completed, "elapsed_s": round(self.elapsed_s, 6),
+                **self.extra}  # fmt: skip
+
+
+def density_numerics(view: Sequence[float], pixels: Sequence[int], bound: float, method: str = "dop853") -> Numerics:
+    """DOP853 keeping each point within a quarter pixel of the view over :data:`DENSITY_WINDOW` periods."""
+    q0, q1, r0, r1 = check_box(view, "view")
+    pixel = min((q1 - q0) / int(pixels[0]), (r1 - r0) / int(pixels[1]))
+    tol = plot_tolerance(pixel, DENSITY_WINDOW)
+    return Numerics(method=method, rtol=tol, atol=tol, bound=bound)
+
+
+def accumulate(counts: np.ndarray, q: np.ndarray, r: np.ndarray, view: Sequence[float]) -> int:
+    """Add points ``(q, r)`` to ``counts`` (pixels_r, pixels_q) over ``view``; return how many fell inside."""
+    ny, nx = counts.shape
+    q0, q1, r0, r1 = view
+    i = np.floor((q - q0) * (nx / (q1 - q0)))
+    j = np.floor((r - r0) * (ny / (r1 - r0)))
+    inside = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
+    flat = j[inside].astype(np.int64) * nx + i[inside].astype(np.int64)
+    if flat.size:
+        counts += np.bincount(flat, minlength=nx * ny).reshape(ny, nx)
+    return int(flat.size)
+
+
+def iter_density(
+    params: Params,
+    ics: Any,
+    periods: int,
+    *,
+    view: Sequence[float],
+    pixels: Sequence[int] = (800, 600),
+    transient: int = 0,
+    numerics: Numerics | None = None,
+    keep: Sequence[int] = (),
+    max_chunk: int = 64,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+) -> Iterator[tuple[Density, dict[int, np.ndarray]]]:
+    """Stream the density image of a section over ``view``: one update per chunk of periods.
+
+    Parameters
+    ----------
+    ics : (n, 2) initial conditions at ``t0``; ``periods`` section points each after ``transient``.
+    view, pixels : the window ``(q0, q1, r0, r1)`` and the image's size ``(pixels_q, pixels_r)``.
+    numerics : default :func:`density_numerics` for the view.
+    keep : trajectories whose points are also returned (e.g. the ones a user clicked or selected).
+    max_chunk : longest chunk of periods (bounds how long a cancel waits; chunks grow 1, 2, 4, ... up to it).
+
+    Yields
+    ------
+    (Density, kept) : the image so far (the same array, updated in place: copy it to keep a snapshot) and,
+        for each trajectory in ``keep``, its section points of this chunk as ``(k, q, r)`` rows.
+    """
+    start = time.perf_counter()
+    ics = check_ics(ics)
+    periods = check_int("periods", periods, 1, config.MAX_PERIODS)
+    transient = check_int("transient", transient, 0, config.MAX_PERIODS)
+    box = check_box(view, "view")
+    px = [check_int(name, v, 1, MAX_PIXELS) for name, v in zip(("pixels (q)", "pixels (r)"), pixels, strict=True)]
+    if ics.shape[0] * periods > MAX_DENSITY_POINTS:
+        raise ParameterError(f"{ics.shape[0]} trajectories x {periods} periods = {ics.shape[0] * periods} points; "
+                             f"a density image takes at most {MAX_DENSITY_POINTS}")  # fmt: skip
+    keep = [int(i) for i in keep if 0 <= int(i) < ics.shape[0]]
+    numerics = numerics or density_numerics(box, px, config.DEFAULT_ESCAPE_BOUND)
+    counts = np.zeros((px[1], px[0]), dtype=np.int64)
+    extra = {"rtol": numerics.rtol}
+    total = inside = 0
+    status = np.zeros(ics.shape[0], dtype=np.int64)
+    done = 0
+    for chunk in iter_section(params, ics, periods, transient=transient, numerics=numerics, max_chunk=max_chunk,
+                              cancel=cancel, workers=workers):  # fmt: skip
+        valid = np.arange(chunk.points.shape[1])[None, :] < chunk.npts[:, None]
+        q, r = chunk.points[..., 0][valid], chunk.points[..., 1][valid]
+        total += q.size
+        inside += accumulate(counts, q, r, box)
+        kept = {}
+        for i in keep:
+            m = int(chunk.npts[i])
+            ks = chunk.k_first + np.arange(m)
+            kept[i] = np.column_stack([ks, chunk.points[i, :m]])
+        status = chunk.status
+        done = chunk.done_periods
+        elapsed = time.perf_counter() - start
+        yield Density(counts, box, total, inside, done, periods, status, elapsed, False, extra), kept
+    completed = not (cancel is not None and cancel())
+    yield Density(counts, box, total, inside, done, periods, status, time.perf_counter() - start, completed, extra), {}
+
+
+def density(params: Params, ics: Any, periods: int, **kw: Any) -> Density:
+    """The final image of :func:`iter_density` (same arguments)."""
+    out = None
+    for out, _ in iter_density(params, ics, periods, **kw):  # noqa: B007 - the last one is the result
+        pass
+    assert out is not None
+    return out
