@@ -134,6 +134,20 @@ def wait_points(page, n: int, timeout: float = 60.0) -> None:
     page.wait_for_function(f"() => Bokeh.documents.length && ({JS_COUNT})() >= {n}", timeout=timeout * 1000)
 
 
+def frame_centre(page) -> dict[str, float]:
+    """The centre of the section plot's frame (the data area, between the axes) in page coordinates."""
+    return page.evaluate(
+        """() => {
+          const find = (v) => v.model.name === 'section_figure' ? v
+                              : Array.from(v.child_views || []).map(find).find((x) => x) || null;
+          const plot = Object.values(Bokeh.index).map(find).find((x) => x);
+          const b = plot.frame.bbox;
+          const r = plot.canvas_view.el.getBoundingClientRect();
+          return {x: r.left + b.left + b.width / 2, y: r.top + b.top + b.height / 2};
+        }"""
+    )
+
+
 def text(page, css: str) -> str:
     """Visible text of a Panel pane (its content lives in a shadow root)."""
     return page.locator(css).first.evaluate(

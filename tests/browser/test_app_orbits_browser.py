@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from harness import text, wait_finished
+from harness import frame_centre, text, wait_finished
 from test_app_browser import count, open_app, query_of
 
 pytestmark = pytest.mark.browser
@@ -29,17 +29,8 @@ JS_ORBIT_PROBE = """
 
 def click_frame_centre(page) -> None:
     """Click the centre of the section plot's frame (the data area, between the axes)."""
-    frame = page.evaluate(
-        """() => {
-          const find = (v) => v.model.name === 'section_figure' ? v
-                              : Array.from(v.child_views || []).map(find).find((x) => x) || null;
-          const plot = Object.values(Bokeh.index).map(find).find((x) => x);
-          const b = plot.frame.bbox;
-          const r = plot.canvas_view.el.getBoundingClientRect();
-          return {x: r.left + b.left + b.width / 2, y: r.top + b.top + b.height / 2};
-        }"""
-    )
-    page.mouse.click(frame["x"], frame["y"])
+    f = frame_centre(page)
+    page.mouse.click(f["x"], f["y"])
 
 
 def test_a_click_finds_the_orbit_and_draws_it(page, app_url) -> None:
