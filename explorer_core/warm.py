@@ -19,7 +19,9 @@ def warm_all() -> None:
     with _lock:
         if _warmed:
             return
+        from explorer_core.analyses.basins import warmup as warm_basins
         from explorer_core.solve.integrators import warmup
 
         warmup()
+        warm_basins()
         _warmed = True
