@@ -11,7 +11,9 @@ from naive import ivp_fate, nearest_attractor
 from explorer_core.analyses.basins import (
     ESCAPE,
     FAILED,
+    LOCATING,
     NOT_COMPUTED,
+    UNDECIDED,
     basin_spec,
     basins,
     iter_basins,
@@ -151,6 +153,9 @@ def test_coarse_to_fine_levels_reuse_the_attractors_and_cancel_stops() -> None:
     ups = list(iter_basins(spec))
     levels = [u for u in ups if u.level_done]
     assert [u.stride for u in levels] == [4, 2, 1]
+    for u in ups:  # every label is an attractor's id or a documented negative code
+        ids = {a.id for a in u.basins.attractors}
+        assert set(np.unique(u.basins.label)) <= ids | {ESCAPE, FAILED, UNDECIDED, NOT_COMPUTED, LOCATING}
     masks = [u.basins.computed for u in levels]
     assert masks[0][::4, ::4].all()  # (finer pixels run alongside once slots are free)
     assert np.all(masks[0] <= masks[1]) and masks[1][::2, ::2].all() and masks[2].all()

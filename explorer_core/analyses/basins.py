@@ -56,8 +56,9 @@ from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
 #: Labels of pixels that reach no attractor (attractor ids are >= 0).
-ESCAPE, FAILED, UNDECIDED, NOT_COMPUTED = -1, -2, -3, -4
-OUTCOMES = {ESCAPE: "escape", FAILED: "failed", UNDECIDED: "undecided", NOT_COMPUTED: "not_computed"}
+ESCAPE, FAILED, UNDECIDED, NOT_COMPUTED, LOCATING = -1, -2, -3, -4, -5
+OUTCOMES = {ESCAPE: "escape", FAILED: "failed", UNDECIDED: "undecided", NOT_COMPUTED: "not_computed",
+            LOCATING: "locating"}  # fmt: skip
 KINDS = ("periodic", "chaotic", "quasi_periodic", "escape")
 #: Integration tolerance: basins need the attractor, not 1e-10 accuracy (as the chart of regimes).
 DEFAULT_BASIN_TOL = 1e-8
@@ -182,14 +183,15 @@ class Basins:
     """Basins of attraction on a grid of initial conditions (possibly partial: see ``computed``).
 
     ``q`` (NX,) and ``r`` (NY,) are the pixel centres; ``label`` (NY, NX) int: the id of the attractor
-    the pixel's trajectory reaches (an index into nothing: match ``Attractor.id``), or :data:`ESCAPE`,
-    :data:`FAILED`, :data:`UNDECIDED`, :data:`NOT_COMPUTED`. ``computed`` (NY, NX) bool. Ids are stable
-    while the computation refines (an attractor found to be one already known is merged into it and its
-    id is not reused). ``fraction`` maps every label present (ids and negative outcomes) to its share of
-    the computed pixels; ``statuses`` counts the pixels by fate (``attractor``: reached one; the
-    engine statuses of the trajectories that ended
-    there (``escaped``: the engine's bound; ``escape_by_cells``: escape told by the cells that escaping
-    trajectories crossed), ``undecided``); ``periods`` and ``steps`` are the work done.
+    the pixel's trajectory reaches (match ``Attractor.id``), or :data:`ESCAPE`, :data:`FAILED`,
+    :data:`UNDECIDED`, :data:`NOT_COMPUTED`, or (partial results only) :data:`LOCATING`: an attractor
+    that is still being located. ``computed`` (NY, NX) bool. Ids are 0, 1, ... in the order attractors
+    are published, stable while the computation refines (an attractor later found to be one already
+    known is merged into it; its id is not reused). ``fraction`` maps every label present (ids and
+    negative outcomes) to its share of the computed pixels; ``statuses`` counts the pixels by fate
+    (``attractor``: reached one; the engine statuses of the trajectories that ended there: ``escaped``
+    is the engine's bound; ``escape_by_cells``: escape told by basin cells, only with ``hit_basin``;
+    ``undecided``); ``periods`` and ``steps`` are the work done (member-periods, RK steps).
     """
 
     spec: BasinSpec
@@ -632,6 +634,7 @@ class _Run:
         self.k = 0
         self.found: dict[int, _Found] = {}  # internal id -> classified attractor (roots and merged)
         self.locating: dict[int, int] = {}  # internal id -> slot of its locating member
+        self.public: dict[int, int] = {}  # internal id of a root -> the id the results show
         self.periods = 0
         self.steps = 0
 
@@ -743,9 +746,11 @@ class _Run:
             if fa.kind != "periodic" and fb.kind != "periodic":
                 lo, hi = sorted((ra, rb))
                 self.merge(hi, lo)
-                if fa.kind == "chaotic" or fb.kind == "chaotic":
-                    self.found[lo].kind = "chaotic"
-                self.found[lo].points = np.vstack([self.found[lo].points, self.found[hi].points])[-256:]
+                f, g = self.found[lo], self.found[hi]
+                exps = [v for v in (f.lyapunov, g.lyapunov) if v is not None]
+                f.lyapunov = max(exps) if exps else None
+                f.kind = "chaotic" if "chaotic" in (f.kind, g.kind) else f.kind
+                f.points = np.vstack([f.points, g.points])[-256:]
         self.counts[1] = len(keep)
         if keep:
             self.overlaps[: len(keep)] = np.array(keep, dtype=np.int64)
@@ -852,10 +857,17 @@ class _Run:
         spec = self.spec
         lab = self.label.copy()
         pos = lab >= 0
+        # Public ids: 0, 1, ... in the order attractors are first published (stable while refining).
+        for ident in sorted(self.found):
+            if self.find(ident) == ident and ident not in self.public:
+                self.public[ident] = len(self.public)
         if pos.any():
-            lab[pos] = self.root[lab[pos]]
-            for _ in range(4):  # roots of roots (merges since the last compression)
-                lab[pos] = self.root[lab[pos]]
+            roots = np.array([self.find(int(v)) for v in range(int(self.counts[0]))], dtype=np.int64)
+            lab[pos] = roots[lab[pos]]
+            table = np.full(int(self.counts[0]), LOCATING, dtype=np.int64)  # attractors still being located
+            for ident, pub in self.public.items():
+                table[ident] = pub
+            lab[pos] = table[lab[pos]]
         computed = lab != NOT_COMPUTED
         n = max(1, int(computed.sum()))
         values, counts = np.unique(lab[computed], return_counts=True)
@@ -865,9 +877,10 @@ class _Run:
             f = self.found[ident]
             if self.find(ident) != ident:
                 continue
-            attractors.append(Attractor(ident, f.kind, f.period, f.points, f.multipliers, f.lyapunov,
-                                        fraction.get(ident, 0.0), f.seed,
+            attractors.append(Attractor(self.public[ident], f.kind, f.period, f.points, f.multipliers, f.lyapunov,
+                                        fraction.get(self.public[ident], 0.0), f.seed,
                                         f.orbit.kind if f.orbit is not None else None))  # fmt: skip
+        attractors.sort(key=lambda a: a.id)
         if fraction.get(ESCAPE):
             attractors.append(Attractor(ESCAPE, "escape", None, np.zeros((0, 2)), fraction=fraction[ESCAPE]))
         statuses = {"attractor": int(np.count_nonzero(pos))}
