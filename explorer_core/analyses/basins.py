@@ -72,8 +72,19 @@ _MIXED = -(2**30)
 #: Fates of pixels beyond the engine's statuses (``Basins.statuses``).
 _UNDECIDED_FATE, _BY_CELLS = -1, -2
 _FATES = {_UNDECIDED_FATE: "undecided", _BY_CELLS: "escape_by_cells"}
-#: Slots of a member's table of visited cells (a power of two); it may fill to 70 %.
-TABLE_SIZE = 4096
+#: Slots of a member's table of visited cells: a power of two, 8 per cell along the cell grid's diagonal,
+#: in [TABLE_MIN, TABLE_MAX]; it may fill to 70 % (a member that visits more cells is undecided). The
+#: most cells one trajectory visited before its fate was known: 387 on Fig. 8B, 852 on Fig. 1C (192 x 192
+#: cells), so 2048 slots (int32: 8 kB a member, 16 MB for 2048 in flight).
+TABLE_MIN, TABLE_MAX = 1024, 16384
+
+
+def table_size(cells: tuple[int, int]) -> int:
+    """Slots of the visited-cell table of one member for a grid of ``cells`` (see :data:`TABLE_MIN`)."""
+    want = 8 * math.hypot(*cells)
+    return int(min(TABLE_MAX, max(TABLE_MIN, 2 ** math.ceil(math.log2(want)))))
+
+
 #: Most attractors (provisional ones included) one computation may register.
 MAX_ATTRACTORS = 4096
 
@@ -304,7 +315,7 @@ def basin_spec(
     box : ``(q0, q1, r0, r1)``, ordered and finite: the initial conditions' window.
     grid : ``(NX, NY)`` pixels, each in ``[1, config.MAX_BASIN_GRID]``, ``NX * NY <= config.MAX_BASIN_PIXELS``.
     numerics : integration (default DOP853 at :data:`DEFAULT_BASIN_TOL`, escape bound
-        ``max(100, 10 max |cell_box|)``).
+        ``max(100, 10 max |cell_box|)``, at most the sections' 1e4 unless the cell box reaches beyond it).
     cell_box : the box of the recurrence cells (default: ``box`` widened by its size on every side).
     cells : cells per axis of ``cell_box`` (default: 64 across ``box``, so 192 across the default cell box).
     chunk : periods per engine call; ``max_periods``: a pixel still undecided then is :data:`UNDECIDED`.
@@ -342,7 +353,8 @@ def basin_spec(
         cl = (check_int("cells NQ", cq, 1, 4096), check_int("cells NR", cr, 1, 4096))
     if numerics is None:
         big = max(abs(v) for v in cb)
-        numerics = Numerics(rtol=DEFAULT_BASIN_TOL, atol=DEFAULT_BASIN_TOL, bound=max(100.0, 10.0 * big))
+        bound = min(max(100.0, 10.0 * big), max(config.DEFAULT_ESCAPE_BOUND, 2.0 * big))
+        numerics = Numerics(rtol=DEFAULT_BASIN_TOL, atol=DEFAULT_BASIN_TOL, bound=bound)
     chunk = check_int("chunk", chunk, 1, 1000)
     max_periods = check_int("max_periods", max_periods, 1, config.MAX_PERIODS)
     recurrences = check_int("recurrences", recurrences, 2, 1_000_000)
@@ -402,12 +414,14 @@ def _record(
     """Feed each member's new section points to the recurrence algorithm (Datseris & Wagemakers 2022).
 
     ``points`` (n, c, 2) with ``npts[m]`` valid for member ``m`` in slot ``slots[m]``; ``geom`` =
-    ``(q0, r0, 1/dq, 1/dr, NQ, NR)`` of the cells; ``att`` (NQ*NR,) attractor cells (id + 1, 0 none);
-    ``bas`` (NQ*NR,) basin cells (id + 1, -1 escape, ``_MIXED``, 0 none); ``root`` maps a provisional id to
-    the one it was merged into; ``table`` (slots, TABLE_SIZE) visited cells; ``state`` (slots, 10) int64:
-    phase, consecutive recurrences, hit id, hits, basin id, basin hits, provisional id, located periods,
-    outcome, visited cells; ``ring`` (slots, W, 2) the last W section points, ``state[:, 9]`` ... see
-    :func:`_ring_push`; ``counts`` = ``[attractors registered, overlaps]``; ``overlaps`` (K, 2).
+    ``(q0, r0, 1/dq, 1/dr, NQ, NR)`` of the cells; ``att`` (NQ*NR,) attractor cells (provisional id + 1,
+    0 none); ``bas`` (NQ*NR,) basin cells (id + 1, -1 escape, ``_MIXED``, 0 none); ``root`` maps a
+    provisional id to the one it was merged into; ``table`` (slots, S) int32 each member's visited cells
+    (open addressing); ``state`` (slots, 11) int64: phase, consecutive recurrences, attractor hit, its
+    consecutive hits, basin hit, its consecutive hits, provisional id being located, periods located,
+    outcome, cells visited, section points seen (the ring's write position); ``ring`` (slots, W, 2) the
+    last W section points; ``counts`` = ``[provisional ids used, overlaps]``; ``overlaps`` (K, 2) pairs
+    of attractors whose located cells touch. ``hit_basin = 0``: no labelling by basin cells.
     """
     q0, r0, iq, ir = geom[0], geom[1], geom[2], geom[3]
     nq, nr = int(geom[4]), int(geom[5])
@@ -557,7 +571,7 @@ def warmup() -> None:
     att = np.zeros(4, np.int64)
     bas = np.zeros(4, np.int64)
     root = np.arange(4, dtype=np.int64)
-    table = np.zeros((1, 8), np.int64)
+    table = np.zeros((1, 8), np.int32)
     state = np.zeros((1, 11), np.int64)
     ring = np.zeros((1, 4, 2))
     slots = np.zeros(1, np.int64)
@@ -620,7 +634,7 @@ class _Run:
         self.overlaps = np.zeros((4096, 2), np.int64)
         slots = min(spec.inflight, n_pix)
         self.slots = slots
-        self.table = np.zeros((slots, TABLE_SIZE), np.int64)
+        self.table = np.zeros((slots, table_size(spec.cells)), np.int32)
         self.state = np.zeros((slots, 11), np.int64)
         self.window = 3 * spec.p_max
         self.ring = np.zeros((slots, max(256, self.window), 2))
@@ -797,7 +811,7 @@ class _Run:
         self.age[live] += npts
         _record(pts, npts, live, self.geom, self.att, self.bas, self.root, self.table, self.state, self.ring,
                 self.counts, self.overlaps, spec.recurrences, spec.locate, spec.hit_attractor, spec.hit_basin or 0,
-                int(0.7 * TABLE_SIZE))  # fmt: skip
+                int(0.7 * self.table.shape[1]))  # fmt: skip
         phase = self.state[live, 0]
         # Located attractors: classify (a cycle or not).
         for s in live[phase == _LOCATED]:
