@@ -219,3 +219,19 @@ def test_all_members_failing_is_said_and_gives_no_attractor() -> None:
     s = b.summary()
     assert s["attractors"] == [] and "no attractor" in s["note"]
     assert s["statuses"] == {"attractor": 0, "too_many_steps": 16}
+
+
+def test_pixels_without_a_fate_in_max_periods_are_undecided() -> None:
+    b = basins(FIG11, BOX, (4, 3), max_periods=3)
+    assert (b.label == UNDECIDED).all() and b.attractors == []
+    s = b.summary()
+    assert s["statuses"] == {"attractor": 0, "undecided": 12} and s["undecided_fraction"] == 1.0
+    assert "no attractor" in s["note"]
+
+
+def test_labelling_by_basin_cells_is_an_option() -> None:
+    # Attractors.jl's consecutive basin steps: off by default (it mislabels pixels at basin boundaries).
+    b = basins(FIG8B, BOX, (12, 12), hit_basin=10)
+    assert b.spec.hit_basin == 10 and b.completed
+    assert {a.kind for a in b.attractors} == {"chaotic", "escape"}
+    assert set(b.statuses) <= {"attractor", "escaped", "escape_by_cells"}

@@ -62,6 +62,9 @@ OUTCOMES = {ESCAPE: "escape", FAILED: "failed", UNDECIDED: "undecided", NOT_COMP
 KINDS = ("periodic", "chaotic", "quasi_periodic", "escape")
 #: Integration tolerance: basins need the attractor, not 1e-10 accuracy (as the chart of regimes).
 DEFAULT_BASIN_TOL = 1e-8
+#: Periods of the Lyapunov exponent that tells a chaotic attractor from a quasi-periodic one, and the
+#: fewest that count if the run fails (escapes) before the end.
+LYAP_PERIODS, LYAP_MIN_PERIODS = 300, 50
 #: Refinement levels: every 4th pixel, then every 2nd, then all.
 LEVELS = (4, 2, 1)
 
@@ -740,8 +743,11 @@ class _Run:
                         return
         lyap = None
         if pts.shape[0]:
-            res = lyapunov_spectrum(spec.params, pts[-1:], 300, transient=20, numerics=spec.numerics, workers=1)
-            lyap = float(res.exponents[0, 0]) if bool(res.ok[0]) else None
+            res = lyapunov_spectrum(
+                spec.params, pts[-1:], LYAP_PERIODS, transient=20, numerics=spec.numerics, workers=1
+            )
+            # a leaky set (the run escapes) still has an exponent over the periods it completed
+            lyap = float(res.exponents[0, 0]) if int(res.npts[0]) >= LYAP_MIN_PERIODS else None
         kind = "chaotic" if lyap is not None and lyap > spec.lyap_threshold else "quasi_periodic"
         self.found[ident] = _Found(ident, kind, None, pts, None, lyap, seed)  # type: ignore[arg-type]
 
