@@ -235,3 +235,32 @@ def test_labelling_by_basin_cells_is_an_option() -> None:
     assert b.spec.hit_basin == 10 and b.completed
     assert {a.kind for a in b.attractors} == {"chaotic", "escape"}
     assert set(b.statuses) <= {"attractor", "escaped", "escape_by_cells"}
+
+
+def test_labels_do_not_depend_on_how_many_trajectories_are_in_flight() -> None:
+    # Which trajectory finds an attractor first depends on the slots; the labels must not (they did when a
+    # long transient's cells were kept as a cycle's: 130 of 40000 pixels at 200 x 200 changed basin).
+    few = basins(FIG11, BOX, (40, 40), inflight=24)
+    many = basins(FIG11, BOX, (40, 40), inflight=1600)
+    assert np.array_equal(few.label, many.label)
+    assert [(a.kind, a.period) for a in few.attractors] == [(a.kind, a.period) for a in many.attractors]
+
+
+def test_a_cycle_found_after_a_long_transient_keeps_only_its_own_cells() -> None:
+    # From (-0.044, 0.11) the trajectory wanders ~1000 periods near the basin boundary, revisiting its
+    # cells 100 times in a row (a "recurrence"), before it falls on the period-1 focus. The 128 cells
+    # it marked while locating were kept as the cycle's before, and captured pixels of the period-3
+    # basin (130 of 40000 at 200 x 200, with 128 in flight); now the cycle owns its point's cell only.
+    from explorer_core.analyses.basins import _Run
+
+    x = (-0.044, 0.11)
+    spec = basin_spec(FIG11, (x[0] - 1e-3, x[0] + 1e-3, x[1] - 1e-3, x[1] + 1e-3), (1, 1),
+                      cell_box=(-4.9, 4.7, -7.0, 5.0), cells=(192, 192))  # fmt: skip
+    run = _Run(spec)
+    queue = [0]
+    while queue or (run.pixel >= 0).any():
+        run.step(queue)
+    assert run.age[0] > 1000  # it was a recurrence, not a settled cycle
+    ((ident, found),) = run.found.items()
+    assert (found.kind, found.period) == ("periodic", 1)
+    assert int(np.count_nonzero(run.att == ident + 1)) == 1

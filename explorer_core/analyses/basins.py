@@ -11,7 +11,10 @@ as its fate is known:
   has visited before ``recurrences`` times in a row has found an attractor, which it then *locates*:
   for ``locate`` more periods every cell it visits becomes a cell of that attractor. A later trajectory
   that is in cells of one known attractor ``hit_attractor`` periods in a row is labelled with it at
-  once: this is what makes basins cheap (a pixel stops after ~20 periods on Fig. 11's tensor).
+  once: this is what makes basins cheap (a pixel stops after ~40 periods on Fig. 11's tensor). Only
+  *classified* attractors label trajectories, and a cycle's cells are its points' cells only: 100
+  recurrences can be a long chaotic transient, whose cells would otherwise capture other basins'
+  pixels (see :meth:`_Run.add_periodic`).
   Attractors.jl also labels a trajectory that crosses ``hit_basin`` cells in a row that earlier
   trajectories of one basin crossed; here that is off by default (``hit_basin=None``): on Fig. 11's
   tensor at ``alpha = -0.5, I11 = 1.6`` it mislabelled 35 of 10^4 pixels next to basin boundaries (a
@@ -78,7 +81,7 @@ _FATES = {_UNDECIDED_FATE: "undecided", _BY_CELLS: "escape_by_cells"}
 #: Slots of a member's table of visited cells: a power of two, 8 per cell along the cell grid's diagonal,
 #: in [TABLE_MIN, TABLE_MAX]; it may fill to 70 % (a member that visits more cells is undecided). The
 #: most cells one trajectory visited before its fate was known: 387 on Fig. 8B, 852 on Fig. 1C (192 x 192
-#: cells), so 2048 slots (int32: 8 kB a member, 16 MB for 2048 in flight).
+#: cells), so 2048 slots (int32: 8 kB a member, 4 MB for the default 512 in flight).
 TABLE_MIN, TABLE_MAX = 1024, 16384
 
 
@@ -155,7 +158,7 @@ class BasinSpec:
     p_max: int = 16
     tol: float = 1e-5
     lyap_threshold: float = 5e-3
-    inflight: int = 2048
+    inflight: int = 512
 
     @property
     def q(self) -> np.ndarray:
@@ -309,7 +312,7 @@ def basin_spec(
     p_max: int = 16,
     tol: float = 1e-5,
     lyap_threshold: float = 5e-3,
-    inflight: int = 2048,
+    inflight: int = 512,
 ) -> BasinSpec:
     """A validated :class:`BasinSpec`; every bad value raises :class:`ParameterError` naming it.
 
@@ -328,7 +331,10 @@ def basin_spec(
         no labelling by basin cells.
     p_max, tol : cycles up to ``p_max`` whose points return within ``tol (1 + |x|)`` go to Newton.
     lyap_threshold : a non-periodic attractor is chaotic above it (per unit time), quasi-periodic below.
-    inflight : trajectories integrated at once (finished ones are replaced by new pixels).
+    inflight : trajectories integrated at once (finished ones are replaced by new pixels). Fewer reach
+        the first level sooner: until the first attractor is classified every member in flight runs on
+        (Fig. 11's tensor, 200 x 200, first level after 0.44 s with 512, 1.5 s with 2048 at about the same
+        total; Fig. 8B 2.5 s against 8.8 s in all).
     """
     b = check_box(box)
     try:
@@ -403,6 +409,7 @@ def _record(
     att: np.ndarray,
     bas: np.ndarray,
     root: np.ndarray,
+    ready: np.ndarray,
     table: np.ndarray,
     state: np.ndarray,
     ring: np.ndarray,
@@ -419,10 +426,12 @@ def _record(
     ``points`` (n, c, 2) with ``npts[m]`` valid for member ``m`` in slot ``slots[m]``; ``geom`` =
     ``(q0, r0, 1/dq, 1/dr, NQ, NR)`` of the cells; ``att`` (NQ*NR,) attractor cells (provisional id + 1,
     0 none); ``bas`` (NQ*NR,) basin cells (id + 1, -1 escape, ``_MIXED``, 0 none); ``root`` maps a
-    provisional id to the one it was merged into; ``table`` (slots, S) int32 each member's visited cells
-    (open addressing); ``state`` (slots, 11) int64: phase, consecutive recurrences, attractor hit, its
-    consecutive hits, basin hit, its consecutive hits, provisional id being located, periods located,
-    outcome, cells visited, section points seen (the ring's write position); ``ring`` (slots, W, 2) the
+    provisional id to the one it was merged into; ``ready`` (ids,) 1 for a classified attractor (only
+    those label members: a provisional one may be a long transient, see :meth:`_Run.add_periodic`);
+    ``table`` (slots, S) int32 each member's visited cells (open addressing); ``state`` (slots, 11)
+    int64: phase, consecutive recurrences, attractor hit, its consecutive hits, basin hit, its
+    consecutive hits, provisional id being located, periods located, outcome, cells visited, section
+    points seen (the ring's write position); ``ring`` (slots, W, 2) the
     last W section points; ``counts`` = ``[provisional ids used, overlaps]``; ``overlaps`` (K, 2) pairs
     of attractors whose located cells touch. ``hit_basin = 0``: no labelling by basin cells.
     """
@@ -465,7 +474,7 @@ def _record(
                 state[s, 5] = 0
                 continue
             a = att[cell]
-            if a > 0:
+            if a > 0 and ready[root[a - 1]] != 0:
                 ra = root[a - 1]
                 if state[s, 2] == ra:
                     state[s, 3] += 1
@@ -500,7 +509,7 @@ def _record(
                 if state[s, 9] >= max_fill:
                     state[s, 0] = _FULL
                     break
-            if state[s, 1] >= recurrences:
+            if state[s, 1] >= recurrences and a == 0:  # (in a cell of one being located: wait for it)
                 if counts[0] >= root.shape[0]:
                     state[s, 0] = _FULL
                     break
@@ -509,8 +518,7 @@ def _record(
                 state[s, 6] = mine
                 state[s, 7] = 0
                 state[s, 0] = _LOCATE
-                if a == 0:
-                    att[cell] = mine + 1
+                att[cell] = mine + 1
 
 
 @njit(nogil=True, cache=True)
@@ -579,8 +587,8 @@ def warmup() -> None:
     ring = np.zeros((1, 4, 2))
     slots = np.zeros(1, np.int64)
     pts = np.array([[[0.5, 0.5], [0.5, 0.5], [1.5, 0.5]]])
-    _record(pts, np.array([3], np.int64), slots, np.array([0.0, 0.0, 1.0, 1.0, 2.0, 2.0]), att, bas, root, table,
-            state, ring, np.zeros(2, np.int64), np.zeros((2, 2), np.int64), 2, 1, 2, 2, 5)  # fmt: skip
+    _record(pts, np.array([3], np.int64), slots, np.array([0.0, 0.0, 1.0, 1.0, 2.0, 2.0]), att, bas, root, root,
+            table, state, ring, np.zeros(2, np.int64), np.zeros((2, 2), np.int64), 2, 1, 2, 2, 5)  # fmt: skip
     _settle(table, 0, att, bas, root, 1)
     _returns(ring, state, slots, 2, 1, 1e-6, np.zeros(1, np.int64))
 
@@ -633,6 +641,7 @@ class _Run:
         self.att = np.zeros(nq * nr, np.int64)
         self.bas = np.zeros(nq * nr, np.int64)
         self.root = np.arange(MAX_ATTRACTORS, dtype=np.int64)
+        self.ready = np.zeros(MAX_ATTRACTORS, dtype=np.int64)
         self.counts = np.zeros(2, np.int64)
         self.overlaps = np.zeros((4096, 2), np.int64)
         slots = min(spec.inflight, n_pix)
@@ -652,6 +661,7 @@ class _Run:
         self.found: dict[int, _Found] = {}  # internal id -> classified attractor (roots and merged)
         self.locating: dict[int, int] = {}  # internal id -> slot of its locating member
         self.public: dict[int, int] = {}  # internal id of a root -> the id the results show
+        self.touch: set[tuple[int, int]] = set()  # attractors whose located cells touch, to merge once classified
         self.periods = 0
         self.steps = 0
 
@@ -683,7 +693,8 @@ class _Run:
         fr = (pts[:, 1] - self.geom[1]) * self.geom[3]
         ok = (fq >= 0) & (fq < nq) & (fr >= 0) & (fr < nr)
         cells = fr[ok].astype(np.int64) * nq + fq[ok].astype(np.int64)
-        free = cells[self.att[cells] == 0]
+        owner = self.att[cells]
+        free = cells[(owner == 0) | (self.ready[self.root[np.maximum(owner, 1) - 1]] == 0)]  # none, or pending
         self.att[free] = ident + 1
 
     def periodic_match(self, x: np.ndarray) -> int | None:
@@ -707,7 +718,14 @@ class _Run:
         return orbit
 
     def add_periodic(self, ident: int, orbit: Orbit, seed: tuple[float, float]) -> int:
-        """Register ``orbit`` as attractor ``ident`` (or merge into the same orbit found before); its root."""
+        """Register ``orbit`` as attractor ``ident`` (or merge into the same orbit found before); its root.
+
+        A cycle's cells are the cells of its points only: the cells a member marked while locating it are
+        dropped, since 100 recurrences can be a long transient (on Fig. 11's tensor a chaotic transient of
+        ~1000 periods near the basin boundary marked 127 cells from ``r = -2.7`` to ``0.6`` before it fell
+        on the period-1 focus; with those cells 130 of 40000 pixels were mislabelled).
+        """
+        self.att[self.att == ident + 1] = 0
         for f in list(self.found.values()):
             if f.orbit is not None and self.find(f.internal) == f.internal and same_orbit(f.orbit, orbit, 1e-6):
                 self.merge(ident, f.internal)
@@ -716,6 +734,7 @@ class _Run:
         self.found[ident] = _Found(ident, "periodic", orbit.period, orbit.points, orbit.multipliers, None, seed,
                                    orbit)  # fmt: skip
         self.mark_cells(ident, orbit.points)
+        self.ready[ident] = 1
         return ident
 
     def ring_points(self, s: int) -> np.ndarray:
@@ -750,20 +769,20 @@ class _Run:
             lyap = float(res.exponents[0, 0]) if int(res.npts[0]) >= LYAP_MIN_PERIODS else None
         kind = "chaotic" if lyap is not None and lyap > spec.lyap_threshold else "quasi_periodic"
         self.found[ident] = _Found(ident, kind, None, pts, None, lyap, seed)  # type: ignore[arg-type]
+        self.ready[ident] = 1
 
     def merge_overlaps(self) -> None:
         """Attractors whose located cells touch are one (both classified and not periodic: a cycle is exact)."""
         n = int(self.counts[1])
-        keep = []
-        for a, b in self.overlaps[:n]:
-            ra, rb = self.find(int(a)), self.find(int(b))
-            if ra == rb:
-                continue
+        self.touch.update((int(a), int(b)) for a, b in self.overlaps[:n])
+        self.counts[1] = 0
+        for a, b in sorted(self.touch):
+            ra, rb = self.find(a), self.find(b)
             fa, fb = self.found.get(ra), self.found.get(rb)
-            if fa is None or fb is None:
-                keep.append((a, b))
-                continue
-            if fa.kind != "periodic" and fb.kind != "periodic":
+            if ra != rb and (fa is None or fb is None):
+                continue  # one is still being located
+            self.touch.discard((a, b))
+            if ra != rb and fa.kind != "periodic" and fb.kind != "periodic":
                 lo, hi = sorted((ra, rb))
                 self.merge(hi, lo)
                 f, g = self.found[lo], self.found[hi]
@@ -771,9 +790,6 @@ class _Run:
                 f.lyapunov = max(exps) if exps else None
                 f.kind = "chaotic" if "chaotic" in (f.kind, g.kind) else f.kind
                 f.points = np.vstack([f.points, g.points])[-256:]
-        self.counts[1] = len(keep)
-        if keep:
-            self.overlaps[: len(keep)] = np.array(keep, dtype=np.int64)
 
     # -- members ---------------------------------------------------------------
 
@@ -815,7 +831,8 @@ class _Run:
         self.steps += int(batch.nsteps.sum()) - steps0
         self.periods += int(npts.sum())
         self.age[live] += npts
-        _record(pts, npts, live, self.geom, self.att, self.bas, self.root, self.table, self.state, self.ring,
+        _record(pts, npts, live, self.geom, self.att, self.bas, self.root, self.ready, self.table, self.state,
+                self.ring,
                 self.counts, self.overlaps, spec.recurrences, spec.locate, spec.hit_attractor, spec.hit_basin or 0,
                 int(0.7 * self.table.shape[1]))  # fmt: skip
         phase = self.state[live, 0]
