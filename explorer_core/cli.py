@@ -752,6 +752,65 @@ def cmd_chart(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_basins(args: argparse.Namespace) -> int:
+    from explorer_core.analyses.basins import basin_spec, iter_basins
+
+    params, scene = _params(args)
+    if args.box:
+        box = check_box(_floats(args.box, 4, "--box"))
+    elif scene is not None:
+        box = scene.box
+    else:
+        raise UsageError("give --box Q0,Q1,R0,R1 (no --scene to take it from)")
+    grid = _floats(args.grid, 2, "--grid")
+    if not all(v == int(v) for v in grid):
+        raise UsageError(f"--grid must be two whole numbers NX,NY, got {args.grid!r}")
+    if args.out:
+        _check_out(args.out)
+        if not args.out.lower().endswith(".npz"):
+            raise UsageError(f"--out must end in .npz, got {args.out!r}")
+    opts: dict[str, Any] = {"max_periods": args.max_periods}
+    if args.cell_box:
+        opts["cell_box"] = check_box(_floats(args.cell_box, 4, "--cell-box"), "--cell-box")
+    if args.cells:
+        opts["cells"] = [int(v) for v in _floats(args.cells, 2, "--cells")]
+    nx, ny = (int(v) for v in grid)
+    base = basin_spec(params, box, (nx, ny), **opts)
+    spec = basin_spec(params, box, (nx, ny), numerics=_numerics(args, None, 1, base=base.numerics), **opts)
+    write, show = _progress_line(args.quiet)
+    result = None
+    with _Interrupt() as stop:
+        for upd in iter_basins(spec, cancel=stop):
+            result = upd.basins
+            write(f"every {upd.stride}th pixel: {upd.done_pixels}/{upd.total_pixels} pixels, "
+                  f"{len(result.attractors)} attractors, {result.elapsed_s:.1f} s")  # fmt: skip
+    if show:
+        sys.stderr.write("\n")
+    if result is None:
+        sys.stderr.write("bilimovich: interrupted before any pixel was computed\n")
+        return 130
+    summary = result.summary()
+    if args.scene:
+        summary["scene"] = args.scene
+    if args.out:
+        result.to_npz(args.out)
+        summary["out"] = args.out
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        for a in result.attractors:
+            per = f" period {a.period}" if a.period else ""
+            at = f" at ({a.points[0, 0]:.6g}, {a.points[0, 1]:.6g})" if a.points.shape[0] else ""
+            print(f"attractor {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%")
+        print(f"{summary['computed']}/{summary['pixels']} pixels, {summary['statuses']}, {result.elapsed_s:.2f} s")
+        if "note" in summary:
+            print(summary["note"])
+    if not result.completed:
+        sys.stderr.write("bilimovich: interrupted; the pixels computed so far were written\n")
+        return 130
+    return 0
+
+
 def cmd_fit(args: argparse.Namespace) -> int:
     from explorer_core.analyses.drift import drift_fit
 
@@ -1133,6 +1192,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_chart)
 
+    p = sub.add_parser("basins", help="basins of attraction: which attractor each IC of a grid reaches")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--box", metavar="Q0,Q1,R0,R1", help="the initial conditions' window (default: the scene's box)")
+    p.add_argument("--grid", default="100,100", metavar="NX,NY", help="pixels (default 100,100)")
+    p.add_argument("--max-periods", type=_count("max-periods", 1, config.MAX_PERIODS), default=3000,
+                   help="a pixel with no fate after this many periods is undecided (label -3)")  # fmt: skip
+    p.add_argument("--cell-box", metavar="Q0,Q1,R0,R1", help="box of the recurrence cells (default: --box widened "
+                   "by its size on every side)")  # fmt: skip
+    p.add_argument("--cells", metavar="NQ,NR", help="recurrence cells per axis (default 64 across --box)")
+    p.add_argument("--out", metavar="FILE.npz", help="arrays q (NX), r (NY), label (NY x NX)")
+    p.add_argument("--json", action="store_true", help="print the JSON result")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=cmd_basins)
+
     p = sub.add_parser("fit", help="polynomial fits of the drift q_k, r_k over a window of k, and the implied map")
     _add_system_args(p)
     _add_numerics_args(p)
@@ -1218,6 +1292,7 @@ def build_parser() -> argparse.ArgumentParser:
 _LIST_OPTIONS = {"--ic", "--box", "--inertia", "--q-range", "--r-range", "--orbit", "--view"}
 # Options of the analyses (bifurcation, chart, fit) whose values may start with a minus sign.
 _LIST_OPTIONS |= {"--range", "--x-range", "--y-range", "--window", "--ic-box"}
+_LIST_OPTIONS |= {"--cell-box"}  # basins
 
 
 def _glue_negative_lists(argv: list[str]) -> list[str]:

@@ -34,6 +34,9 @@ MAX_PERIODS = 10_000_000
 MAX_GRID = 4096
 #: Section points held in memory by one request (16 bytes each).
 MAX_POINTS = 50_000_000
+#: Basins of attraction (``bilimovich basins``): pixels per axis and in all.
+MAX_BASIN_GRID = 2048
+MAX_BASIN_PIXELS = 1_048_576
 
 #: Trajectories integrated in lock-step by the adaptive batch kernel (1 = one step
 #: sequence each). Measured trade-off in the README (performance).

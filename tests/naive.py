@@ -220,3 +220,51 @@ def ivp_manifold_points(params: Params, x, v, mu: float, n: int, levels: int, co
         pts = np.array([ivp_map(params, p, n, rtol=1e-12, atol=1e-12) for p in pts])
         out.append(pts)
     return np.array(out)
+
+
+# ---------------------------------------------------------------------------
+# Basins of attraction (reference for explorer_core.analyses.basins).
+
+
+def ivp_fate(params: Params, ic, periods: int, bound: float, rtol: float = 1e-10, atol: float = 1e-10):
+    """Section points ``k = 1..`` of one long trajectory by scipy's DOP853 on the naive field, to escape.
+
+    Integrates period by period (no cell grid, no early stop, no engine); stops early only when
+    ``max(|q|, |r|)`` passes ``bound`` (a terminal event). Returns ``(points (k, 2), escaped)``.
+    """
+    f = NaiveField(params)
+    T = params.period
+
+    def out(t, y):
+        return bound - max(abs(y[0]), abs(y[1]))
+
+    out.terminal = True
+    y = np.asarray(ic, float)
+    pts = []
+    for k in range(periods):
+        ta = params.t0 + k * T
+        sol = solve_ivp(f.rhs, (ta, ta + T), y, method="DOP853", rtol=rtol, atol=atol, events=out)
+        assert sol.status in (0, 1), sol.message
+        if sol.status == 1:
+            return np.array(pts).reshape(-1, 2), True
+        y = sol.y[:, -1]
+        pts.append(y.copy())
+    return np.array(pts), False
+
+
+def nearest_attractor(points: np.ndarray, escaped: bool, attractors: list[tuple[int, np.ndarray]], tail: int = 20):
+    """Which of ``attractors`` (``(id, its points (m, 2))``) the end of a trajectory lies on, or -1 (escape).
+
+    The trajectory's last ``tail`` section points are compared with each attractor's points: the one
+    with the smallest largest-nearest-neighbour distance wins (a cycle: the distance is the convergence
+    error; a chaotic attractor: the sampling gap). Returns ``(id, that distance)``; ``(-1, 0)`` if escaped.
+    """
+    if escaped:
+        return -1, 0.0
+    end = points[-tail:]
+    best, dist = None, math.inf
+    for ident, pts in attractors:
+        d = np.linalg.norm(end[:, None, :] - pts[None, :, :], axis=-1).min(axis=1).max()
+        if d < dist:
+            best, dist = ident, float(d)
+    return best, dist

@@ -177,3 +177,47 @@ def test_bad_input_one_line_no_traceback(args, needle) -> None:
 def test_console_script_installed() -> None:
     exe = subprocess.run([sys.executable, "-m", "explorer_core.cli", "--version"], capture_output=True, text=True)
     assert exe.returncode == 0 and "bilimovich" in exe.stdout
+
+
+def test_basins_json_and_npz(tmp_path) -> None:
+    out = tmp_path / "b.npz"
+    rc, stdout, err = run_cli("basins", "--scene", "fig11", "--I11", "1.6", "--box", "-1.7,1.5,-3,1", "--grid",
+                              "12,10", "--out", str(out), "--json")  # fmt: skip
+    assert rc == 0, err
+    s = json.loads(stdout)
+    assert sorted((a["kind"], a["period"]) for a in s["attractors"]) == [("periodic", 1), ("periodic", 3)]
+    for a in s["attractors"]:
+        assert len(a["points"]) == a["period"] and 0 < a["fraction"] < 1
+    assert s["grid"] == [12, 10] and s["completed"] is True and s["out"] == str(out)
+    with np.load(out) as z:
+        assert z["q"].shape == (12,) and z["r"].shape == (10,) and z["label"].shape == (10, 12)
+        assert set(np.unique(z["label"])) == {a["id"] for a in s["attractors"]}
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--box", "1,0,0,1"], "qmin < qmax"),
+        (["--box", "0,1,0"], "--box needs 4"),
+        (["--box", "0,inf,0,1"], "--box must be finite"),
+        (["--grid", "0,5"], "grid NX must be an integer in [1, 2048], got 0"),
+        (["--grid", "5,9999"], "grid NY must be an integer in [1, 2048], got 9999"),
+        (["--grid", "5.5,5"], "--grid must be two whole numbers"),
+        (["--grid", "1100,1100"], "1210000 pixels"),
+        (["--out", "/no/such/dir/b.npz"], "does not exist"),
+        (["--out", "b.csv"], "--out must end in .npz"),
+        (["--cells", "0,4"], "cells NQ"),
+        (["--max-periods", "0"], "max-periods must be between 1"),
+    ],
+)
+def test_basins_bad_input_one_line(args, needle) -> None:
+    rc, _, err = run_cli("basins", "--scene", "fig11", *args)
+    assert rc == 2
+    assert needle in err
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_basins_needs_a_box_without_a_scene() -> None:
+    rc, _, err = run_cli("basins", "--grid", "4,4")
+    assert rc == 2 and "give --box" in err

@@ -1,0 +1,1014 @@
+"""Basins of attraction of the Poincare map: which attractor each initial condition of a grid reaches.
+
+Every pixel centre of an ``NX x NY`` grid over a box ``(q0, q1, r0, r1)`` is an initial condition at
+``t0``. Its trajectory is iterated by the one engine (:func:`~explorer_core.solve.integrators.advance`,
+lock-step blocks on both cores) in chunks of periods, many pixels at once, and each pixel stops as soon
+as its fate is known:
+
+* **recurrences on a grid of cells** (Datseris & Wagemakers, "Effortless estimation of basins of
+  attraction", Chaos 32, 023104 (2022); Attractors.jl's ``AttractorsViaRecurrences``): the section
+  points are mapped to cells of a grid over a box around the view; a trajectory that revisits cells it
+  has visited before ``recurrences`` times in a row has found an attractor, which it then *locates*:
+  for ``locate`` more periods every cell it visits becomes a cell of that attractor. A later trajectory
+  that is in cells of one known attractor ``hit_attractor`` periods in a row is labelled with it at
+  once: this is what makes basins cheap (a pixel stops after ~40 periods on Fig. 11's tensor). Only
+  *classified* attractors label trajectories, and a cycle's cells are its points' cells only: 100
+  recurrences can be a long chaotic transient, whose cells would otherwise capture other basins'
+  pixels (see :meth:`_Run.add_periodic`).
+  Attractors.jl also labels a trajectory that crosses ``hit_basin`` cells in a row that earlier
+  trajectories of one basin crossed; here that is off by default (``hit_basin=None``): on Fig. 11's
+  tensor at ``alpha = -0.5, I11 = 1.6`` it mislabelled 35 of 10^4 pixels next to basin boundaries (a
+  cell straddles the boundary) and saved no time, on Fig. 8B 13 of 3600 (measured against 400 periods
+  of every pixel at 1e-10);
+* **attracting cycles** are identified as orbits: the located points that return after ``p <= p_max``
+  iterations (or a trajectory whose last section points do so to ``tol``, as the chart of regimes stops
+  early, :mod:`explorer_core.analyses.regimes`) are handed to Newton on ``P^p(x) - x``
+  (:func:`~explorer_core.analyses.orbits.find_orbits`), which gives the least period, the cycle's
+  points and its multipliers; the attractor is periodic when every multiplier is inside the unit circle.
+  An attractor that is no such cycle is ``chaotic`` when its largest Lyapunov exponent is above
+  ``lyap_threshold`` and ``quasi_periodic`` (an attracting invariant curve, or a longer cycle) otherwise;
+* **escape** (label :data:`ESCAPE` = -1): the engine's status ESCAPED, ``|q|`` or ``|r|`` above the
+  escape bound (by default ``max(100, 10 x`` the largest coordinate of the cell box), much below the
+  sections' 1e4: along the noncompact curves the steps per period grow with ``|x|``, and a trajectory
+  that far out has not been seen to come back; the bound is in the result);
+* **failure** (label :data:`FAILED` = -2): any other engine status (step collapse, step budget,
+  non-finite values); :data:`UNDECIDED` = -3: no fate within ``max_periods`` periods.
+
+Pixels are computed coarse to fine (:func:`iter_basins`: every 4th pixel, then every 2nd, then all);
+the finer levels reuse the cells of the attractors and basins already found.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from explorer_core import config
+from explorer_core.analyses.lyapunov import lyapunov_spectrum
+from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
+from explorer_core.analyses.sweeps import detect_period
+from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.numerics import Numerics, check_box, check_int
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
+
+#: Labels of pixels that reach no attractor (attractor ids are >= 0).
+ESCAPE, FAILED, UNDECIDED, NOT_COMPUTED, LOCATING = -1, -2, -3, -4, -5
+OUTCOMES = {ESCAPE: "escape", FAILED: "failed", UNDECIDED: "undecided", NOT_COMPUTED: "not_computed",
+            LOCATING: "locating"}  # fmt: skip
+KINDS = ("periodic", "chaotic", "quasi_periodic", "escape")
+#: Integration tolerance: basins need the attractor, not 1e-10 accuracy (as the chart of regimes).
+DEFAULT_BASIN_TOL = 1e-8
+#: Periods of the Lyapunov exponent that tells a chaotic attractor from a quasi-periodic one, and the
+#: fewest that count if the run fails (escapes) before the end.
+LYAP_PERIODS, LYAP_MIN_PERIODS = 300, 50
+#: Refinement levels: every 4th pixel, then every 2nd, then all.
+LEVELS = (4, 2, 1)
+
+# Member phases in the cell bookkeeping.
+_SEARCH, _LOCATE, _LOCATED, _LABELLED, _FULL = 0, 1, 2, 3, 4
+#: Basin-cell code of a cell that trajectories of different fates crossed (never used as evidence).
+_MIXED = -(2**30)
+#: Fates of pixels beyond the engine's statuses (``Basins.statuses``).
+_UNDECIDED_FATE, _BY_CELLS = -1, -2
+_FATES = {_UNDECIDED_FATE: "undecided", _BY_CELLS: "escape_by_cells"}
+#: Slots of a member's table of visited cells: a power of two, 8 per cell along the cell grid's diagonal,
+#: in [TABLE_MIN, TABLE_MAX]; it may fill to 70 % (a member that visits more cells is undecided). The
+#: most cells one trajectory visited before its fate was known: 387 on Fig. 8B, 852 on Fig. 1C (192 x 192
+#: cells), so 2048 slots (int32: 8 kB a member, 4 MB for the default 512 in flight).
+TABLE_MIN, TABLE_MAX = 1024, 16384
+
+
+def table_size(cells: tuple[int, int]) -> int:
+    """Slots of the visited-cell table of one member for a grid of ``cells`` (see :data:`TABLE_MIN`)."""
+    want = 8 * math.hypot(*cells)
+    return int(min(TABLE_MAX, max(TABLE_MIN, 2 ** math.ceil(math.log2(want)))))
+
+
+#: Most attractors (provisional ones included) one computation may register.
+MAX_ATTRACTORS = 4096
+
+
+# ---------------------------------------------------------------------------
+# Results.
+
+
+@dataclass(frozen=True)
+class Attractor:
+    """One attractor of the Poincare map found by :func:`basins`.
+
+    ``points`` (m, 2): the cycle's points (periodic; ``x, P(x), ..., P^(n-1)(x)``) or a sample of the
+    attractor's section points (chaotic, quasi-periodic); empty for escape. ``multipliers`` (2,) complex
+    (periodic only), largest modulus first; ``lyapunov``: the largest exponent per unit time (chaotic,
+    quasi-periodic only); ``fraction``: the share of the computed pixels in its basin; ``seed``: the
+    initial condition whose trajectory found it.
+    """
+
+    id: int
+    kind: str
+    period: int | None
+    points: np.ndarray
+    multipliers: np.ndarray | None = None
+    lyapunov: float | None = None
+    fraction: float = 0.0
+    seed: tuple[float, float] = (math.nan, math.nan)
+    orbit_type: str | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "id": self.id,
+            "kind": self.kind,
+            "period": self.period,
+            "points": [[float(q), float(r)] for q, r in self.points],
+            "fraction": float(self.fraction),
+        }
+        if self.multipliers is not None:
+            out["multipliers"] = [[float(m.real), float(m.imag)] for m in self.multipliers]
+            out["type"] = self.orbit_type
+        if self.lyapunov is not None:
+            out["lyapunov"] = float(self.lyapunov)
+        if self.kind != "escape":
+            out["seed"] = [float(self.seed[0]), float(self.seed[1])]
+        return out
+
+
+@dataclass(frozen=True)
+class BasinSpec:
+    """Everything that defines a basin computation (validated by :func:`basin_spec`)."""
+
+    params: Params
+    box: tuple[float, float, float, float]
+    nx: int
+    ny: int
+    numerics: Numerics
+    cell_box: tuple[float, float, float, float]
+    cells: tuple[int, int]
+    chunk: int = 5
+    max_periods: int = 3000
+    recurrences: int = 100
+    locate: int = 1000
+    hit_attractor: int = 3
+    hit_basin: int | None = None
+    p_max: int = 16
+    tol: float = 1e-5
+    lyap_threshold: float = 5e-3
+    inflight: int = 512
+
+    @property
+    def q(self) -> np.ndarray:
+        """(NX,) pixel centres in ``q``."""
+        return self.box[0] + (np.arange(self.nx) + 0.5) * (self.box[1] - self.box[0]) / self.nx
+
+    @property
+    def r(self) -> np.ndarray:
+        """(NY,) pixel centres in ``r``."""
+        return self.box[2] + (np.arange(self.ny) + 0.5) * (self.box[3] - self.box[2]) / self.ny
+
+    @property
+    def cell_size(self) -> tuple[float, float]:
+        b = self.cell_box
+        return (b[1] - b[0]) / self.cells[0], (b[3] - b[2]) / self.cells[1]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "params": self.params.as_dict(),
+            "box": list(self.box),
+            "grid": [self.nx, self.ny],
+            "numerics": self.numerics.as_dict(),
+            "cell_box": list(self.cell_box),
+            "cells": list(self.cells),
+            "chunk": self.chunk,
+            "max_periods": self.max_periods,
+            "recurrences": self.recurrences,
+            "locate": self.locate,
+            "hit_attractor": self.hit_attractor,
+            "hit_basin": self.hit_basin,
+            "p_max": self.p_max,
+            "tol": self.tol,
+            "lyap_threshold": self.lyap_threshold,
+        }
+
+
+@dataclass
+class Basins:
+    """Basins of attraction on a grid of initial conditions (possibly partial: see ``computed``).
+
+    ``q`` (NX,) and ``r`` (NY,) are the pixel centres; ``label`` (NY, NX) int: the id of the attractor
+    the pixel's trajectory reaches (match ``Attractor.id``), or :data:`ESCAPE`, :data:`FAILED`,
+    :data:`UNDECIDED`, :data:`NOT_COMPUTED`, or (partial results only) :data:`LOCATING`: an attractor
+    that is still being located. ``computed`` (NY, NX) bool. Ids are 0, 1, ... in the order attractors
+    are published, stable while the computation refines (an attractor later found to be one already
+    known is merged into it; its id is not reused). ``fraction`` maps every label present (ids and
+    negative outcomes) to its share of the computed pixels; ``statuses`` counts the pixels by fate
+    (``attractor``: reached one; the engine statuses of the trajectories that ended there: ``escaped``
+    is the engine's bound; ``escape_by_cells``: escape told by basin cells, only with ``hit_basin``;
+    ``undecided``); ``periods`` and ``steps`` are the work done (member-periods, RK steps).
+    """
+
+    spec: BasinSpec
+    q: np.ndarray
+    r: np.ndarray
+    label: np.ndarray
+    computed: np.ndarray
+    attractors: list[Attractor]
+    fraction: dict[int, float]
+    statuses: dict[str, int]
+    elapsed_s: float
+    completed: bool
+    stride: int
+    periods: int = 0
+    steps: int = 0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def attractor(self, ident: int) -> Attractor:
+        for a in self.attractors:
+            if a.id == ident:
+                return a
+        raise KeyError(f"no attractor with id {ident}")
+
+    def filled(self) -> np.ndarray:
+        """(NY, NX) labels where every uncomputed pixel shows its nearest computed coarser-lattice pixel."""
+        out = self.label.copy()
+        done = self.computed.copy()
+        ny, nx = done.shape
+        jj, ii = np.mgrid[0:ny, 0:nx]
+        s = 2
+        while not done.all() and s <= 2 * max(ny, nx):
+            pj, pi = (jj // s) * s, (ii // s) * s
+            take = ~done & self.computed[pj, pi]
+            out[take] = self.label[pj[take], pi[take]]
+            done |= take
+            s *= 2
+        return out
+
+    def summary(self) -> dict[str, Any]:
+        """The result as JSON-ready data: ``{"attractors": [{"id", "kind", "period", "points", "fraction"}, ...]}``."""
+        computed = int(self.computed.sum())
+        if computed and not any(self.fraction.get(k, 0.0) for k in self.fraction if k >= ESCAPE):
+            note = "every computed pixel failed or was undecided: no attractor to report"
+        else:
+            note = None
+        out: dict[str, Any] = {
+            "attractors": [a.as_dict() for a in self.attractors],
+            "failed_fraction": float(self.fraction.get(FAILED, 0.0)),
+            "undecided_fraction": float(self.fraction.get(UNDECIDED, 0.0)),
+            "statuses": dict(self.statuses),
+            "pixels": int(self.computed.size),
+            "computed": computed,
+            "completed": self.completed,
+            "elapsed_s": round(self.elapsed_s, 6),
+            "periods": int(self.periods),
+            "steps": int(self.steps),
+            **self.spec.as_dict(),
+            **self.extra,
+        }
+        if note:
+            out["note"] = note
+        return out
+
+    def to_npz(self, path: str) -> None:
+        """Arrays ``q`` (NX,), ``r`` (NY,), ``label`` (NY, NX); ``computed`` and the summary as JSON."""
+        import json
+
+        np.savez_compressed(path, q=self.q, r=self.r, label=self.label, computed=self.computed,
+                            summary=json.dumps(self.summary()))  # fmt: skip
+
+
+@dataclass(frozen=True)
+class BasinsUpdate:
+    """Yielded by :func:`iter_basins`: the live result after a refinement level (or a progress tick)."""
+
+    stride: int
+    level_done: bool
+    done_pixels: int
+    total_pixels: int
+    basins: Basins
+
+
+# ---------------------------------------------------------------------------
+# Validation.
+
+
+def basin_spec(
+    params: Params,
+    box: Sequence[float],
+    grid: Sequence[int],
+    *,
+    numerics: Numerics | None = None,
+    cell_box: Sequence[float] | None = None,
+    cells: Sequence[int] | None = None,
+    chunk: int = 5,
+    max_periods: int = 3000,
+    recurrences: int = 100,
+    locate: int = 1000,
+    hit_attractor: int = 3,
+    hit_basin: int | None = None,
+    p_max: int = 16,
+    tol: float = 1e-5,
+    lyap_threshold: float = 5e-3,
+    inflight: int = 512,
+) -> BasinSpec:
+    """A validated :class:`BasinSpec`; every bad value raises :class:`ParameterError` naming it.
+
+    Parameters
+    ----------
+    box : ``(q0, q1, r0, r1)``, ordered and finite: the initial conditions' window.
+    grid : ``(NX, NY)`` pixels, each in ``[1, config.MAX_BASIN_GRID]``, ``NX * NY <= config.MAX_BASIN_PIXELS``.
+    numerics : integration (default DOP853 at :data:`DEFAULT_BASIN_TOL`, escape bound
+        ``max(100, 10 max |cell_box|)``, at most the sections' 1e4 unless the cell box reaches beyond it).
+    cell_box : the box of the recurrence cells (default: ``box`` widened by its size on every side).
+    cells : cells per axis of ``cell_box`` (default: 64 across ``box``, so 192 across the default cell box).
+    chunk : periods per engine call; ``max_periods``: a pixel still undecided then is :data:`UNDECIDED`.
+    recurrences, locate, hit_attractor, hit_basin : the recurrence algorithm's counts (module docstring;
+        Attractors.jl's ``consecutive_recurrences``, ``attractor_locate_steps``,
+        ``consecutive_attractor_steps``, ``consecutive_basin_steps``); ``hit_basin=None`` (default):
+        no labelling by basin cells.
+    p_max, tol : cycles up to ``p_max`` whose points return within ``tol (1 + |x|)`` go to Newton.
+    lyap_threshold : a non-periodic attractor is chaotic above it (per unit time), quasi-periodic below.
+    inflight : trajectories integrated at once (finished ones are replaced by new pixels). Fewer reach
+        the first level sooner: until the first attractor is classified every member in flight runs on
+        (Fig. 11's tensor, 200 x 200, first level after 0.44 s with 512, 1.5 s with 2048 at about the same
+        total; Fig. 8B 2.5 s against 8.8 s in all).
+    """
+    b = check_box(box)
+    try:
+        nx, ny = (v for v in grid)
+    except (TypeError, ValueError):
+        raise ParameterError(f"grid must be two integers NX,NY, got {grid!r}") from None
+    nx = check_int("grid NX", nx, 1, config.MAX_BASIN_GRID)
+    ny = check_int("grid NY", ny, 1, config.MAX_BASIN_GRID)
+    if nx * ny > config.MAX_BASIN_PIXELS:
+        raise ParameterError(f"grid {nx}x{ny} has {nx * ny} pixels, more than {config.MAX_BASIN_PIXELS}")
+    if cell_box is None:
+        wq, wr = b[1] - b[0], b[3] - b[2]
+        cb = (b[0] - wq, b[1] + wq, b[2] - wr, b[3] + wr)
+    else:
+        cb = check_box(cell_box, "cell_box")
+    if cells is None:
+        nq = max(1, round(64 * (cb[1] - cb[0]) / (b[1] - b[0])))
+        nr = max(1, round(64 * (cb[3] - cb[2]) / (b[3] - b[2])))
+        cl = (min(nq, 4096), min(nr, 4096))
+    else:
+        try:
+            cq, cr = (v for v in cells)
+        except (TypeError, ValueError):
+            raise ParameterError(f"cells must be two integers, got {cells!r}") from None
+        cl = (check_int("cells NQ", cq, 1, 4096), check_int("cells NR", cr, 1, 4096))
+    if numerics is None:
+        big = max(abs(v) for v in cb)
+        bound = min(max(100.0, 10.0 * big), max(config.DEFAULT_ESCAPE_BOUND, 2.0 * big))
+        numerics = Numerics(rtol=DEFAULT_BASIN_TOL, atol=DEFAULT_BASIN_TOL, bound=bound)
+    chunk = check_int("chunk", chunk, 1, 1000)
+    max_periods = check_int("max_periods", max_periods, 1, config.MAX_PERIODS)
+    recurrences = check_int("recurrences", recurrences, 2, 1_000_000)
+    locate = check_int("locate", locate, 1, 1_000_000)
+    hit_attractor = check_int("hit_attractor", hit_attractor, 1, 1_000_000)
+    if hit_basin is not None:
+        hit_basin = check_int("hit_basin", hit_basin, 1, 1_000_000)
+    p_max = check_int("p_max", p_max, 1, 64)
+    inflight = check_int("inflight", inflight, 1, config.MAX_TRAJECTORIES)
+    if not (isinstance(tol, int | float) and 0 < tol < 1):
+        raise ParameterError(f"tol must be in (0, 1), got {tol!r}")
+    if not (isinstance(lyap_threshold, int | float) and math.isfinite(lyap_threshold)):
+        raise ParameterError(f"lyap_threshold must be a finite number, got {lyap_threshold!r}")
+    return BasinSpec(params, b, nx, ny, numerics, cb, cl, chunk, max_periods, recurrences, locate, hit_attractor,
+                     hit_basin, p_max, float(tol), float(lyap_threshold), inflight)  # fmt: skip
+
+
+# ---------------------------------------------------------------------------
+# The cell bookkeeping (numba: sequential over members, since they share the grids).
+
+
+@njit(nogil=True, cache=True)
+def _insert(table: np.ndarray, s: int, key: int) -> bool:
+    """Put ``key`` (> 0) in member ``s``'s open-addressing table; True if it was there already."""
+    size = table.shape[1]
+    h = (key * 2654435761) & (size - 1)
+    while True:
+        v = table[s, h]
+        if v == key:
+            return True
+        if v == 0:
+            table[s, h] = key
+            return False
+        h = (h + 1) & (size - 1)
+
+
+@njit(nogil=True, cache=True)
+def _record(
+    points: np.ndarray,
+    npts: np.ndarray,
+    slots: np.ndarray,
+    geom: np.ndarray,
+    att: np.ndarray,
+    bas: np.ndarray,
+    root: np.ndarray,
+    ready: np.ndarray,
+    table: np.ndarray,
+    state: np.ndarray,
+    ring: np.ndarray,
+    counts: np.ndarray,
+    overlaps: np.ndarray,
+    recurrences: int,
+    locate: int,
+    hit_attractor: int,
+    hit_basin: int,
+    max_fill: int,
+) -> None:
+    """Feed each member's new section points to the recurrence algorithm (Datseris & Wagemakers 2022).
+
+    ``points`` (n, c, 2) with ``npts[m]`` valid for member ``m`` in slot ``slots[m]``; ``geom`` =
+    ``(q0, r0, 1/dq, 1/dr, NQ, NR)`` of the cells; ``att`` (NQ*NR,) attractor cells (provisional id + 1,
+    0 none); ``bas`` (NQ*NR,) basin cells (id + 1, -1 escape, ``_MIXED``, 0 none); ``root`` maps a
+    provisional id to the one it was merged into; ``ready`` (ids,) 1 for a classified attractor (only
+    those label members: a provisional one may be a long transient, see :meth:`_Run.add_periodic`);
+    ``table`` (slots, S) int32 each member's visited cells (open addressing); ``state`` (slots, 11)
+    int64: phase, consecutive recurrences, attractor hit, its consecutive hits, basin hit, its
+    consecutive hits, provisional id being located, periods located, outcome, cells visited, section
+    points seen (the ring's write position); ``ring`` (slots, W, 2) the
+    last W section points; ``counts`` = ``[provisional ids used, overlaps]``; ``overlaps`` (K, 2) pairs
+    of attractors whose located cells touch. ``hit_basin = 0``: no labelling by basin cells.
+    """
+    q0, r0, iq, ir = geom[0], geom[1], geom[2], geom[3]
+    nq, nr = int(geom[4]), int(geom[5])
+    w = ring.shape[1]
+    for m in range(slots.shape[0]):
+        s = slots[m]
+        for c in range(npts[m]):
+            ph = state[s, 0]
+            if ph != _SEARCH and ph != _LOCATE:
+                break
+            x, y = points[m, c, 0], points[m, c, 1]
+            pos = state[s, 10] % w
+            ring[s, pos, 0] = x
+            ring[s, pos, 1] = y
+            state[s, 10] += 1
+            fq = (x - q0) * iq
+            fr = (y - r0) * ir
+            cell = -1
+            if 0.0 <= fq < nq and 0.0 <= fr < nr:
+                cell = int(fr) * nq + int(fq)
+            if ph == _LOCATE:
+                if cell >= 0:
+                    a = att[cell]
+                    mine = state[s, 6]
+                    if a == 0:
+                        att[cell] = mine + 1
+                    elif root[a - 1] != root[mine] and counts[1] < overlaps.shape[0]:
+                        overlaps[counts[1], 0] = mine
+                        overlaps[counts[1], 1] = a - 1
+                        counts[1] += 1
+                state[s, 7] += 1
+                if state[s, 7] >= locate:
+                    state[s, 0] = _LOCATED
+                continue
+            if cell < 0:
+                state[s, 1] = 0
+                state[s, 3] = 0
+                state[s, 5] = 0
+                continue
+            a = att[cell]
+            if a > 0 and ready[root[a - 1]] != 0:
+                ra = root[a - 1]
+                if state[s, 2] == ra:
+                    state[s, 3] += 1
+                else:
+                    state[s, 2] = ra
+                    state[s, 3] = 1
+                if state[s, 3] >= hit_attractor:
+                    state[s, 8] = ra
+                    state[s, 0] = _LABELLED
+                    break
+            else:
+                state[s, 3] = 0
+            b = bas[cell] if hit_basin > 0 else 0
+            if b != 0 and b != _MIXED:
+                lab = root[b - 1] if b > 0 else -1
+                if state[s, 4] == lab and state[s, 5] > 0:
+                    state[s, 5] += 1
+                else:
+                    state[s, 4] = lab
+                    state[s, 5] = 1
+                if state[s, 5] >= hit_basin:
+                    state[s, 8] = lab
+                    state[s, 0] = _LABELLED
+                    break
+            else:
+                state[s, 5] = 0
+            if _insert(table, s, cell + 1):
+                state[s, 1] += 1
+            else:
+                state[s, 1] = 0
+                state[s, 9] += 1
+                if state[s, 9] >= max_fill:
+                    state[s, 0] = _FULL
+                    break
+            if state[s, 1] >= recurrences and a == 0:  # (in a cell of one being located: wait for it)
+                if counts[0] >= root.shape[0]:
+                    state[s, 0] = _FULL
+                    break
+                mine = counts[0]
+                counts[0] += 1
+                state[s, 6] = mine
+                state[s, 7] = 0
+                state[s, 0] = _LOCATE
+                att[cell] = mine + 1
+
+
+@njit(nogil=True, cache=True)
+def _settle(table: np.ndarray, s: int, att: np.ndarray, bas: np.ndarray, root: np.ndarray, code: int) -> None:
+    """Member ``s`` ended with basin code ``code`` (id + 1, or -1 escape; 0: failed): mark the cells it crossed.
+
+    A cell crossed by trajectories of different fates becomes ``_MIXED`` (no evidence). Clears the table.
+    """
+    size = table.shape[1]
+    for h in range(size):
+        key = table[s, h]
+        if key == 0:
+            continue
+        table[s, h] = 0
+        if code == 0:
+            continue
+        cell = key - 1
+        if att[cell] != 0:
+            continue
+        b = bas[cell]
+        if b == 0:
+            bas[cell] = code
+        elif b != _MIXED and b != code:
+            same = b > 0 and code > 0 and root[b - 1] == root[code - 1]
+            if not same:
+                bas[cell] = _MIXED
+
+
+@njit(nogil=True, cache=True)
+def _returns(ring: np.ndarray, state: np.ndarray, slots: np.ndarray, window: int, p_max: int, tol: float,
+             out: np.ndarray) -> None:  # fmt: skip
+    """``out[m]``: least ``p <= p_max`` with the member's last ``window`` points returning within
+    ``tol (1 + max |x|)`` after ``p`` iterations (0: none, or fewer points)."""
+    w = ring.shape[1]
+    for m in range(slots.shape[0]):
+        s = slots[m]
+        out[m] = 0
+        n = state[s, 10]
+        if n < window or state[s, 0] != _SEARCH:
+            continue
+        big = 0.0
+        for j in range(window):
+            pos = (n - 1 - j) % w
+            big = max(big, abs(ring[s, pos, 0]), abs(ring[s, pos, 1]))
+        lim = tol * (1.0 + big)
+        for p in range(1, p_max + 1):
+            ok = True
+            for j in range(window - p):
+                a = (n - 1 - j) % w
+                b = (n - 1 - j - p) % w
+                if abs(ring[s, a, 0] - ring[s, b, 0]) > lim or abs(ring[s, a, 1] - ring[s, b, 1]) > lim:
+                    ok = False
+                    break
+            if ok:
+                out[m] = p
+                break
+
+
+def warmup() -> None:
+    """Compile (or load from the on-disk cache) the bookkeeping kernels."""
+    att = np.zeros(4, np.int64)
+    bas = np.zeros(4, np.int64)
+    root = np.arange(4, dtype=np.int64)
+    table = np.zeros((1, 8), np.int32)
+    state = np.zeros((1, 11), np.int64)
+    ring = np.zeros((1, 4, 2))
+    slots = np.zeros(1, np.int64)
+    pts = np.array([[[0.5, 0.5], [0.5, 0.5], [1.5, 0.5]]])
+    _record(pts, np.array([3], np.int64), slots, np.array([0.0, 0.0, 1.0, 1.0, 2.0, 2.0]), att, bas, root, root,
+            table, state, ring, np.zeros(2, np.int64), np.zeros((2, 2), np.int64), 2, 1, 2, 2, 5)  # fmt: skip
+    _settle(table, 0, att, bas, root, 1)
+    _returns(ring, state, slots, 2, 1, 1e-6, np.zeros(1, np.int64))
+
+
+# ---------------------------------------------------------------------------
+# The driver.
+
+
+@dataclass
+class _Found:
+    """An attractor as the driver tracks it (``internal`` is its provisional id)."""
+
+    internal: int
+    kind: str
+    period: int | None
+    points: np.ndarray
+    multipliers: np.ndarray | None
+    lyapunov: float | None
+    seed: tuple[float, float]
+    orbit: Orbit | None = None
+
+
+def _levels(ny: int, nx: int) -> list[tuple[int, np.ndarray]]:
+    """``(stride, flat pixel indices)`` of each level, every pixel once, coarse first."""
+    jj, ii = np.mgrid[0:ny, 0:nx]
+    taken = np.zeros((ny, nx), bool)
+    out = []
+    for s in LEVELS:
+        sel = (jj % s == 0) & (ii % s == 0) & ~taken
+        taken |= sel
+        out.append((s, np.flatnonzero(sel.ravel())))
+    return out
+
+
+class _Run:
+    """State of one basin computation (see :func:`iter_basins`)."""
+
+    def __init__(self, spec: BasinSpec) -> None:
+        self.spec = spec
+        self.model = Model(spec.params)
+        self.kw = spec.numerics.kernel_kwargs()
+        qq, rr = np.meshgrid(spec.q, spec.r)
+        self.ics = np.column_stack([qq.ravel(), rr.ravel()])
+        n_pix = self.ics.shape[0]
+        self.label = np.full(n_pix, NOT_COMPUTED, dtype=np.int64)  # internal ids until published
+        self.fate = np.zeros(n_pix, dtype=np.int64)  # engine status of each pixel (or -1: undecided)
+        nq, nr = spec.cells
+        cq, cr = spec.cell_size
+        self.geom = np.array([spec.cell_box[0], spec.cell_box[2], 1.0 / cq, 1.0 / cr, float(nq), float(nr)])
+        self.att = np.zeros(nq * nr, np.int64)
+        self.bas = np.zeros(nq * nr, np.int64)
+        self.root = np.arange(MAX_ATTRACTORS, dtype=np.int64)
+        self.ready = np.zeros(MAX_ATTRACTORS, dtype=np.int64)
+        self.counts = np.zeros(2, np.int64)
+        self.overlaps = np.zeros((4096, 2), np.int64)
+        slots = min(spec.inflight, n_pix)
+        self.slots = slots
+        self.table = np.zeros((slots, table_size(spec.cells)), np.int32)
+        self.state = np.zeros((slots, 11), np.int64)
+        self.window = 3 * spec.p_max
+        self.ring = np.zeros((slots, max(256, self.window), 2))
+        self.y = np.zeros((slots, 2))
+        self.h = np.zeros(slots)
+        self.status = np.zeros(slots, np.int64)
+        self.nsteps = np.zeros(slots, np.int64)
+        self.pixel = np.full(slots, -1, np.int64)
+        self.age = np.zeros(slots, np.int64)
+        self.may_check = np.ones(slots, bool)
+        self.k = 0
+        self.found: dict[int, _Found] = {}  # internal id -> classified attractor (roots and merged)
+        self.locating: dict[int, int] = {}  # internal id -> slot of its locating member
+        self.public: dict[int, int] = {}  # internal id of a root -> the id the results show
+        self.touch: set[tuple[int, int]] = set()  # attractors whose located cells touch, to merge once classified
+        self.periods = 0
+        self.steps = 0
+
+    # -- attractors ----------------------------------------------------------
+
+    def find(self, a: int) -> int:
+        while self.root[a] != a:
+            a = int(self.root[a])
+        return a
+
+    def merge(self, a: int, into: int) -> None:
+        a, into = self.find(a), self.find(into)
+        if a != into:
+            self.root[a] = into
+            # path compression for the kernel: every id points at its root
+            for i in range(int(self.counts[0])):
+                self.root[i] = self.find(i)
+
+    def new_id(self) -> int:
+        if self.counts[0] >= MAX_ATTRACTORS:
+            raise RuntimeError(f"more than {MAX_ATTRACTORS} attractors registered")
+        i = int(self.counts[0])
+        self.counts[0] += 1
+        return i
+
+    def mark_cells(self, ident: int, pts: np.ndarray) -> None:
+        nq, nr = self.spec.cells
+        fq = (pts[:, 0] - self.geom[0]) * self.geom[2]
+        fr = (pts[:, 1] - self.geom[1]) * self.geom[3]
+        ok = (fq >= 0) & (fq < nq) & (fr >= 0) & (fr < nr)
+        cells = fr[ok].astype(np.int64) * nq + fq[ok].astype(np.int64)
+        owner = self.att[cells]
+        free = cells[(owner == 0) | (self.ready[self.root[np.maximum(owner, 1) - 1]] == 0)]  # none, or pending
+        self.att[free] = ident + 1
+
+    def periodic_match(self, x: np.ndarray) -> int | None:
+        """A known periodic attractor with a point within ``tol``-ish of ``x`` (or None)."""
+        for f in self.found.values():
+            if f.kind == "periodic" and self.find(f.internal) == f.internal:
+                d = np.linalg.norm(f.points - x[None, :], axis=1).min()
+                if d <= max(1e-3, 100 * self.spec.tol) * (1.0 + float(np.abs(x).max())):
+                    return f.internal
+        return None
+
+    def cycle(self, x: np.ndarray, p: int) -> Orbit | None:
+        """The attracting cycle Newton finds from ``x`` with period ``p`` (least period), or None."""
+        search = find_orbits(self.spec.params, np.asarray(x, float).reshape(1, 2), [int(p)], patience=None,
+                             workers=1)  # fmt: skip
+        if not search.orbits:
+            return None
+        orbit = search.orbits[0]
+        if not orbit.stable:
+            return None
+        return orbit
+
+    def add_periodic(self, ident: int, orbit: Orbit, seed: tuple[float, float]) -> int:
+        """Register ``orbit`` as attractor ``ident`` (or merge into the same orbit found before); its root.
+
+        A cycle's cells are the cells of its points only: the cells a member marked while locating it are
+        dropped, since 100 recurrences can be a long transient (on Fig. 11's tensor a chaotic transient of
+        ~1000 periods near the basin boundary marked 127 cells from ``r = -2.7`` to ``0.6`` before it fell
+        on the period-1 focus; with those cells 130 of 40000 pixels were mislabelled).
+        """
+        self.att[self.att == ident + 1] = 0
+        for f in list(self.found.values()):
+            if f.orbit is not None and self.find(f.internal) == f.internal and same_orbit(f.orbit, orbit, 1e-6):
+                self.merge(ident, f.internal)
+                self.mark_cells(f.internal, orbit.points)
+                return f.internal
+        self.found[ident] = _Found(ident, "periodic", orbit.period, orbit.points, orbit.multipliers, None, seed,
+                                   orbit)  # fmt: skip
+        self.mark_cells(ident, orbit.points)
+        self.ready[ident] = 1
+        return ident
+
+    def ring_points(self, s: int) -> np.ndarray:
+        n = int(self.state[s, 10])
+        w = self.ring.shape[1]
+        m = min(n, w)
+        idx = (n - m + np.arange(m)) % w
+        return self.ring[s, idx].copy()
+
+    def classify_located(self, ident: int, s: int) -> None:
+        """The member in slot ``s`` located attractor ``ident``: a cycle (Newton) or not (Lyapunov exponent)."""
+        spec = self.spec
+        pts = self.ring_points(s)
+        seed = tuple(float(v) for v in self.ics[self.pixel[s]])
+        if pts.shape[0] > spec.p_max + 1:
+            cq, cr = spec.cell_size
+            tail = pts[-min(pts.shape[0], self.window) :]
+            p = detect_period(tail, spec.p_max, math.hypot(cq, cr))
+            if p:
+                orbit = self.cycle(pts[-1], p)
+                if orbit is not None:
+                    d = np.linalg.norm(orbit.points - pts[-1][None, :], axis=1).min()
+                    if d <= 2 * math.hypot(cq, cr):
+                        self.add_periodic(ident, orbit, seed)  # type: ignore[arg-type]
+                        return
+        lyap = None
+        if pts.shape[0]:
+            res = lyapunov_spectrum(
+                spec.params, pts[-1:], LYAP_PERIODS, transient=20, numerics=spec.numerics, workers=1
+            )
+            # a leaky set (the run escapes) still has an exponent over the periods it completed
+            lyap = float(res.exponents[0, 0]) if int(res.npts[0]) >= LYAP_MIN_PERIODS else None
+        kind = "chaotic" if lyap is not None and lyap > spec.lyap_threshold else "quasi_periodic"
+        self.found[ident] = _Found(ident, kind, None, pts, None, lyap, seed)  # type: ignore[arg-type]
+        self.ready[ident] = 1
+
+    def merge_overlaps(self) -> None:
+        """Attractors whose located cells touch are one (both classified and not periodic: a cycle is exact)."""
+        n = int(self.counts[1])
+        self.touch.update((int(a), int(b)) for a, b in self.overlaps[:n])
+        self.counts[1] = 0
+        for a, b in sorted(self.touch):
+            ra, rb = self.find(a), self.find(b)
+            fa, fb = self.found.get(ra), self.found.get(rb)
+            if ra != rb and (fa is None or fb is None):
+                continue  # one is still being located
+            self.touch.discard((a, b))
+            if ra != rb and fa.kind != "periodic" and fb.kind != "periodic":
+                lo, hi = sorted((ra, rb))
+                self.merge(hi, lo)
+                f, g = self.found[lo], self.found[hi]
+                exps = [v for v in (f.lyapunov, g.lyapunov) if v is not None]
+                f.lyapunov = max(exps) if exps else None
+                f.kind = "chaotic" if "chaotic" in (f.kind, g.kind) else f.kind
+                f.points = np.vstack([f.points, g.points])[-256:]
+
+    # -- members ---------------------------------------------------------------
+
+    def end(self, s: int, label: int, code: int) -> None:
+        """Member in slot ``s`` is done: pixel label (internal id or negative outcome), its cells marked."""
+        pix = self.pixel[s]
+        self.label[pix] = label
+        _settle(self.table, s, self.att, self.bas, self.root, code)
+        self.pixel[s] = -1
+
+    def step(self, queue: list[int]) -> None:
+        """Fill free slots, advance every live member by one chunk, and settle those whose fate is known."""
+        spec = self.spec
+        free = np.flatnonzero(self.pixel < 0)
+        take = min(free.size, len(queue))
+        if take:
+            slots = free[:take]
+            pix = np.array(queue[:take], dtype=np.int64)
+            del queue[:take]
+            self.pixel[slots] = pix
+            self.y[slots] = self.ics[pix]
+            self.h[slots] = 0.0
+            self.status[slots] = Status.OK
+            self.nsteps[slots] = 0
+            self.state[slots] = 0
+            self.state[slots, 2] = -(2**40)
+            self.state[slots, 4] = -(2**40)
+            self.age[slots] = 0
+            self.may_check[slots] = True
+        live = np.flatnonzero(self.pixel >= 0)
+        if live.size == 0:
+            return
+        batch = Batch(self.y[live], self.h[live], self.status[live], self.nsteps[live], self.k,
+                      spec.params.t0, spec.params.period)  # fmt: skip
+        steps0 = int(batch.nsteps.sum())
+        pts, npts = advance(self.model, batch, spec.chunk, **self.kw)
+        self.k += spec.chunk
+        self.y[live], self.h[live], self.status[live], self.nsteps[live] = batch.y, batch.h, batch.status, batch.nsteps
+        self.steps += int(batch.nsteps.sum()) - steps0
+        self.periods += int(npts.sum())
+        self.age[live] += npts
+        _record(pts, npts, live, self.geom, self.att, self.bas, self.root, self.ready, self.table, self.state,
+                self.ring,
+                self.counts, self.overlaps, spec.recurrences, spec.locate, spec.hit_attractor, spec.hit_basin or 0,
+                int(0.7 * self.table.shape[1]))  # fmt: skip
+        phase = self.state[live, 0]
+        # Located attractors: classify (a cycle or not).
+        for s in live[phase == _LOCATED]:
+            ident = int(self.state[s, 6])
+            self.locating.pop(ident, None)
+            self.classify_located(ident, s)
+            r = self.find(ident)
+            self.end(s, r, r + 1)
+        for s in live[phase == _LOCATE]:
+            self.locating[int(self.state[s, 6])] = int(s)
+        for s in live[phase == _LABELLED]:
+            lab = int(self.state[s, 8])
+            if lab < 0:
+                self.fate[self.pixel[s]] = _BY_CELLS
+            self.end(s, lab, lab + 1 if lab >= 0 else -1)
+        for s in live[phase == _FULL]:
+            self.fate[self.pixel[s]] = _UNDECIDED_FATE
+            self.end(s, UNDECIDED, 0)
+        # Cycles: members whose last points return (as the chart's early stops) go to Newton.
+        search = live[(self.state[live, 0] == _SEARCH) & (self.pixel[live] >= 0) & self.may_check[live]
+                      & (self.status[live] == Status.OK)]  # fmt: skip
+        if search.size:
+            per = np.zeros(search.size, np.int64)
+            _returns(self.ring, self.state, search, self.window, spec.p_max, spec.tol, per)
+            for s, p in zip(search[per > 0], per[per > 0], strict=True):
+                x = self.ring_points(int(s))[-1]
+                known = self.periodic_match(x)
+                if known is None:
+                    orbit = self.cycle(x, int(p))
+                    if orbit is None:
+                        self.may_check[s] = False
+                        continue
+                    known = self.add_periodic(self.new_id(), orbit, tuple(float(v) for v in self.ics[self.pixel[s]]))
+                self.end(int(s), known, known + 1)
+        # Engine failures and escapes of members still running; the undecided.
+        for s in np.flatnonzero((self.pixel >= 0) & (self.status != Status.OK)):
+            st = int(self.status[s])
+            self.fate[self.pixel[s]] = st
+            self._drop_locating(int(s))
+            self.end(int(s), ESCAPE if st == Status.ESCAPED else FAILED, -1 if st == Status.ESCAPED else 0)
+        for s in np.flatnonzero((self.pixel >= 0) & (self.age >= spec.max_periods)):
+            self.fate[self.pixel[s]] = _UNDECIDED_FATE
+            self._drop_locating(int(s))
+            self.end(int(s), UNDECIDED, 0)
+        self.merge_overlaps()
+
+    def _drop_locating(self, s: int) -> None:
+        """A locating member ended early: classify its attractor from what it saw."""
+        if self.state[s, 0] == _LOCATE:
+            ident = int(self.state[s, 6])
+            self.locating.pop(ident, None)
+            self.classify_located(ident, s)
+
+    # -- results -----------------------------------------------------------------
+
+    def snapshot(self, start: float, completed: bool, stride: int) -> Basins:
+        spec = self.spec
+        lab = self.label.copy()
+        pos = lab >= 0
+        # Public ids: 0, 1, ... in the order attractors are first published (stable while refining).
+        for ident in sorted(self.found):
+            if self.find(ident) == ident and ident not in self.public:
+                self.public[ident] = len(self.public)
+        if pos.any():
+            roots = np.array([self.find(int(v)) for v in range(int(self.counts[0]))], dtype=np.int64)
+            lab[pos] = roots[lab[pos]]
+            table = np.full(int(self.counts[0]), LOCATING, dtype=np.int64)  # attractors still being located
+            for ident, pub in self.public.items():
+                table[ident] = pub
+            lab[pos] = table[lab[pos]]
+        computed = lab != NOT_COMPUTED
+        n = max(1, int(computed.sum()))
+        values, counts = np.unique(lab[computed], return_counts=True)
+        fraction = {int(v): float(c) / n for v, c in zip(values, counts, strict=True)}
+        attractors = []
+        for ident in sorted(self.found):
+            f = self.found[ident]
+            if self.find(ident) != ident:
+                continue
+            attractors.append(Attractor(self.public[ident], f.kind, f.period, f.points, f.multipliers, f.lyapunov,
+                                        fraction.get(self.public[ident], 0.0), f.seed,
+                                        f.orbit.kind if f.orbit is not None else None))  # fmt: skip
+        attractors.sort(key=lambda a: a.id)
+        if fraction.get(ESCAPE):
+            attractors.append(Attractor(ESCAPE, "escape", None, np.zeros((0, 2)), fraction=fraction[ESCAPE]))
+        statuses = {"attractor": int(np.count_nonzero(pos))}
+        fates = self.fate[computed & ~pos]
+        for code in np.unique(fates):
+            key = _FATES.get(int(code)) or Status(int(code)).label
+            statuses[key] = int(np.count_nonzero(fates == code))
+        return Basins(spec, spec.q, spec.r, lab.reshape(spec.ny, spec.nx), computed.reshape(spec.ny, spec.nx),
+                      attractors, fraction, statuses, time.perf_counter() - start, completed, stride,
+                      self.periods, self.steps, {"escape_bound": spec.numerics.bound})  # fmt: skip
+
+
+def iter_basins(
+    spec: BasinSpec,
+    *,
+    cancel: Callable[[], bool] | None = None,
+    update_s: float = 0.5,
+) -> Iterator[BasinsUpdate]:
+    """Compute the basins coarse to fine, yielding the live result (see the module docstring).
+
+    Yields a :class:`BasinsUpdate` when each level (every 4th pixel, every 2nd, all) is complete
+    (``level_done``), and in between at most every ``update_s`` seconds. ``cancel`` is polled after
+    every chunk of periods; once it returns True the last update has ``completed=False`` and the
+    pixels still running are :data:`NOT_COMPUTED`.
+    """
+    start = time.perf_counter()
+    run = _Run(spec)
+    levels = _levels(spec.ny, spec.nx)
+    queue = [int(p) for _, pix in levels for p in pix]
+    total = len(queue)
+    level = 0
+    last = start
+    while True:
+        cancelled = cancel is not None and cancel()
+        if cancelled:
+            break
+        if not queue and not (run.pixel >= 0).any():
+            break
+        run.step(queue)
+        done = total - len(queue) - int(np.count_nonzero(run.pixel >= 0))
+        # a level is done when all its pixels are (the queue is level-ordered; slots may hold later ones)
+        while level < len(levels) and np.all(run.label[levels[level][1]] != NOT_COMPUTED):
+            level += 1
+            last = time.perf_counter()
+            yield BasinsUpdate(levels[level - 1][0], True, done, total,
+                               run.snapshot(start, level == len(levels), levels[level - 1][0]))  # fmt: skip
+        if level < len(levels) and time.perf_counter() - last > update_s:
+            last = time.perf_counter()
+            stride = levels[level - 1][0] if level else LEVELS[0]
+            yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride))
+    if level < len(levels):
+        stride = levels[level - 1][0] if level else LEVELS[0]
+        done = int(np.count_nonzero(run.label != NOT_COMPUTED))
+        yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride))
+
+
+def basins(
+    params: Params,
+    box: Sequence[float],
+    grid: Sequence[int],
+    *,
+    cancel: Callable[[], bool] | None = None,
+    progress: Callable[[BasinsUpdate], None] | None = None,
+    **kw: Any,
+) -> Basins:
+    """Basins of attraction of the Poincare map over ``box`` on a ``grid = (NX, NY)`` of pixel centres.
+
+    Parameters
+    ----------
+    params : the system.
+    box : ``(q0, q1, r0, r1)``.
+    grid : ``(NX, NY)``.
+    cancel : polled after every chunk of periods (a cancelled result has ``completed=False``).
+    progress : called with every :class:`BasinsUpdate` of :func:`iter_basins`.
+    **kw : the options of :func:`basin_spec` (numerics, cells, recurrence counts, ...).
+
+    Returns
+    -------
+    Basins : ``q`` (NX,), ``r`` (NY,), ``label`` (NY, NX), the attractors and their basin fractions.
+
+    References
+    ----------
+    G. Datseris and A. Wagemakers, "Effortless estimation of basins of attraction", Chaos 32, 023104
+    (2022) (the recurrences); the attracting cycles by Newton, :mod:`explorer_core.analyses.orbits`.
+    """
+    spec = basin_spec(params, box, grid, **kw)
+    result: Basins | None = None
+    for upd in iter_basins(spec, cancel=cancel):
+        result = upd.basins
+        if progress is not None:
+            progress(upd)
+    if result is None:  # cancelled before anything ran
+        result = _Run(spec).snapshot(time.perf_counter(), False, LEVELS[0])
+    return result
