@@ -37,6 +37,7 @@ from app.state import (
     commit,
 )
 from app.views import SectionFigure, SeriesData
+from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, basin_spec, iter_basins
 from explorer_core.analyses.density import iter_density
 from explorer_core.analyses.equilibria import Cancelled, equilibrium_tracks
 from explorer_core.analyses.manifolds import Manifolds, iter_manifolds, saddle_orbit
@@ -58,8 +59,13 @@ SECTION_FIELDS += ("box", "render")
 LAYER_FIELDS = ("show_tracks", "show_tprime", "tprime_kind")
 ORBIT_FIELDS = ("show_orbits", "orbit_period")
 MANIFOLD_FIELDS = ("manifold_saddles", "manifold_length")
+BASIN_FIELDS = ("show_basins", "basin_grid")
 #: What Stop stops in the section view, and what makes it "running".
-SECTION_CHANNELS = ("section", "tracks", "tprime", "reliability", "orbit", "orbits", "manifolds")
+SECTION_CHANNELS = ("section", "tracks", "tprime", "reliability", "orbit", "orbits", "manifolds", "basins")
+#: Basins: a colour per attractor id (cycled), and the pixels that reach none.
+BASIN_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#1f78b4")
+OUTCOME_COLOURS = {ESCAPE: "#9e9e9e", FAILED: "#3d3d3d", UNDECIDED: "#ffffff"}
+OUTCOME_NAMES = {ESCAPE: "escape (noncompact drift)", FAILED: "integration failed", UNDECIDED: "undecided"}
 #: The plot's size in pixels as the manifolds' refinement assumes it (segments of at most 3 of them).
 MANIFOLD_PIXELS = (800, 600)
 #: A click picks the saddle whose point is nearest, within this fraction of the view's width and height.
@@ -103,6 +109,9 @@ class ExplorerSession(param.Parameterized):
     #: Saddles whose manifolds are drawn, and what the last growth said.
     n_manifolds = param.Integer(default=0)
     manifold_status = param.String(default="")
+    #: The basins layer: what it says, and its legend rows (colour, text).
+    basin_status = param.String(default="")
+    basin_legend = param.List(default=[])
 
     def __init__(
         self,
@@ -143,6 +152,7 @@ class ExplorerSession(param.Parameterized):
         self._orbits: list[Orbit] = []
         self._manifolds: list[Manifolds] = []
         state.param.watch(self._on_manifold_settings, list(MANIFOLD_FIELDS))
+        state.param.watch(self._on_basin_settings, list(BASIN_FIELDS))
         state.param.watch(lambda *e: self._publish_query(), ["selected", "tab", "presentation", *ANALYSIS_FIELDS])
 
     # --- input ------------------------------------------------------------------------------
@@ -210,6 +220,8 @@ class ExplorerSession(param.Parameterized):
             self.recompute_orbits()
         if self.state.manifold_saddles:
             self.recompute_manifolds()  # refined for the new view's pixels
+        if self.state.show_basins:
+            self.recompute_basins()  # the initial conditions are the new view's pixels
         self._publish_query()
 
     # --- the section ------------------------------------------------------------------------
@@ -233,6 +245,7 @@ class ExplorerSession(param.Parameterized):
         self._start_section(req, start_layers=self._start_layers)
         self.recompute_orbits()
         self.recompute_manifolds()
+        self.recompute_basins()
         self._publish_query()
 
     def _restart_section(self) -> None:
@@ -788,6 +801,77 @@ class ExplorerSession(param.Parameterized):
             for label, kind, s_, q, r in m.rows():
                 buf.write(f"{i},{label},{kind},{s_!r},{q!r},{r!r}\n")
         return io.BytesIO(buf.getvalue().encode())
+
+    # --- basins of attraction over the view ----------------------------------------------------
+
+    def _on_basin_settings(self, *events: Any) -> None:
+        if not self._suspend:
+            self.recompute_basins()
+            self._publish_query()
+
+    def recompute_basins(self) -> None:
+        """Which attractor each pixel centre of the view reaches: a layer job, coarse to fine."""
+        self.runner.cancel("basins")
+        st = self.state
+        if not st.show_basins:
+            self.fig.set_basins(None, (0.0, 1.0, 0.0, 1.0))
+            self.basin_status, self.basin_legend = "", []
+            return
+        try:
+            params = st.system()
+        except ParameterError:
+            return
+        box = (*st.q_range, *st.r_range)
+        n = st.basin_grid
+        try:
+            spec = basin_spec(params, box, (n, n))
+        except ParameterError as exc:
+            self.basin_status = f"basins: {_plain(exc)}"
+            return
+        self.basin_status = f"basins of attraction on {n} x {n} initial conditions in view…"
+
+        def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
+            for upd in iter_basins(spec, cancel=cancelled):
+                if cancelled():
+                    return
+                b = upd.basins
+                done = f"{upd.done_pixels}/{upd.total_pixels}"
+                emit(lambda b=b, d=done: self._show_basins(params, box, b, d))
+
+        self.runner.start("basins", job)
+
+    def _show_basins(self, params: Params, box: tuple[float, ...], b: Basins, done: str) -> None:
+        try:
+            if params != self.state.system() or box != (*self.state.q_range, *self.state.r_range):
+                return  # for a system or a view no longer on screen
+        except ParameterError:
+            return
+        labels = b.filled()
+        colours = {a.id: BASIN_COLOURS[i % len(BASIN_COLOURS)] for i, a in enumerate(b.attractors)}
+        colours.update(OUTCOME_COLOURS)
+        self.fig.set_basins(labels, box, colours)
+        legend = []
+        for a in b.attractors:
+            if a.kind == "escape":
+                continue
+            what = f"period-{a.period} cycle" if a.kind == "periodic" else a.kind.replace("_", "-") + " attractor"
+            if a.orbit_type:
+                what += f" ({a.orbit_type})"
+            if len(a.points):
+                what += f" at ({a.points[0, 0]:.4g}, {a.points[0, 1]:.4g})"
+            legend.append([colours[a.id], f"{what}: {100 * b.fraction.get(a.id, 0.0):.1f}%"])
+        for code, name in OUTCOME_NAMES.items():
+            if b.fraction.get(code, 0.0) > 0:
+                legend.append([OUTCOME_COLOURS[code], f"{name}: {100 * b.fraction[code]:.1f}%"])
+        self.basin_legend = legend
+        n_att = sum(a.kind != "escape" for a in b.attractors)
+        if b.completed:
+            head = f"basins on {b.label.shape[1]} x {b.label.shape[0]} initial conditions: {n_att} attractor(s)"
+            if not n_att:
+                head += " (none found: every pixel escaped, failed or was undecided)"
+            self.basin_status = f"{head}, {b.elapsed_s:.2f} s"
+        else:
+            self.basin_status = f"basins: {done} pixels, {n_att} attractor(s) so far…"
 
     # --- layers: equilibrium tracks and the T' map ---------------------------------------------
 

@@ -40,7 +40,7 @@ TAB_CLASSES: dict[str, type[AnalysisTab]] = {
 }
 #: Session parameters that change what the section tab shows.
 SESSION_VIEW = ["status", "error", "running", "escaped", "failed", "reliability", "n_points", "orbits", "orbit_status",
-                "n_manifolds", "manifold_status"]  # fmt: skip
+                "n_manifolds", "manifold_status", "basin_status", "basin_legend"]  # fmt: skip
 
 
 class Page:
@@ -270,6 +270,8 @@ class Page:
             "orbit_view": st.orbit_view,
             "n_manifolds": s.n_manifolds,
             "manifold_status": s.manifold_status,
+            "basin_status": s.basin_status,
+            "basin_legend": s.basin_legend,
         }
 
     def _tab_view(self, name: str) -> dict[str, Any]:

@@ -56,7 +56,7 @@ Job = Callable[[Callable[[], bool], Emit], None]
 #: them; every other channel (chart, bifurcation, lyapunov, bench, ...) is heavy.
 POINTS, LAYER, HEAVY = "points", "layer", "heavy"
 POINT_CHANNELS = frozenset({"section", "orbit"})  # an orbit found from a click: waited for like points
-LAYER_CHANNELS = frozenset({"tracks", "tprime", "reliability", "orbits", "manifolds"})
+LAYER_CHANNELS = frozenset({"tracks", "tprime", "reliability", "orbits", "manifolds", "basins"})
 
 
 def job_kind(channel: str) -> str:

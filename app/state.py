@@ -43,6 +43,8 @@ MAX_CLICKED = 200
 MAX_ORBIT_SEEDS = 60
 #: Longest period the orbit search tries (P^n of a chaotic region: Newton's basin shrinks like e^(-lambda n T)).
 MAX_ORBIT_PERIOD = 16
+#: Pixels across the basins layer (its work: up to 40,000 initial conditions).
+MAX_BASIN_GRID = 200
 #: Saddles whose stable and unstable manifolds are drawn at once, per session.
 MAX_MANIFOLDS = 4
 TPRIME_GRID = 160
@@ -253,6 +255,16 @@ CONTROLS: tuple[Control, ...] = (
         "manifolds, grown to this arc length and refined for the view; ◆ black: homoclinic points.",
     ),
     Control(
+        "show_basins",
+        "Basins of attraction over the view",
+        "check",
+        "layers",
+        "basins",
+        help="Which attractor each point of the view reaches (a colour per attractor, grey: escape), computed "
+        "coarse to fine by recurrences (as Attractors.jl) and Newton on the cycles; redone when you pan or zoom.",
+    ),
+    _ints("basin_grid", "Basins: pixels across", "layers", "bas_n", 10, MAX_BASIN_GRID),
+    Control(
         "show_tracks",
         "Frozen-field equilibria (tracks over one period)",
         "check",
@@ -393,6 +405,8 @@ class ExplorerState(param.Parameterized):
     orbit_view = param.Boolean(default=False, doc="also every orbit Newton finds from a grid over the view")
     manifold_saddles = param.List(default=[], item_type=tuple, doc="(q, r, period) of the saddles with manifolds")
     manifold_length = param.Integer(default=10, bounds=(1, 200))
+    show_basins = param.Boolean(default=False)
+    basin_grid = param.Integer(default=80, bounds=(10, MAX_BASIN_GRID))
     show_tracks = param.Boolean(default=True)
     show_tprime = param.Boolean(default=True)
     render = param.Selector(default="auto", objects=["auto", "points", "density"])
@@ -603,6 +617,10 @@ class ExplorerState(param.Parameterized):
             q["man_len"] = str(self.manifold_length)
         if self.click_mode in ("orbit", "manifolds"):
             q["click"] = self.click_mode
+        if self.show_basins:
+            q["basins"] = "1"
+        if self.basin_grid != self.param["basin_grid"].default:
+            q["bas_n"] = str(self.basin_grid)
         if self.render != "auto":
             q["render"] = self.render
         if self.tab != "section":

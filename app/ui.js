@@ -56,7 +56,7 @@ button.act[hidden] { display: none; }
   margin-bottom: 3px; }
 .warn-box.level-error { color: #842029; background: #f8d7da; border-color: #f5c2c7; }
 .status-line { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: .95em; min-height: 1.3em;
-  white-space: pre-wrap; }
+  white-space: pre-wrap; flex: none; }
 .plots { flex: 1 1 auto; min-height: 380px; display: grid; grid-template-columns: minmax(0, 3fr) minmax(240px, 2fr);
   gap: 10px; }
 .plot-section, .plot-series, .plot-analysis { min-height: 0; min-width: 0; position: relative; display: flex; }
@@ -69,6 +69,7 @@ button.act[hidden] { display: none; }
 .series-chart .axis { stroke: #9aa5b4; stroke-width: 1; }
 .plot-analysis { flex: 1 1 auto; min-height: 300px; }
 .legend { font-size: .9em; color: #3a4554; }
+.basin-item { margin-right: 12px; white-space: nowrap; }
 .legend span.sw { display: inline-block; width: 12px; height: 12px; border: 1px solid #999; vertical-align: -2px;
   margin: 0 3px 0 8px; }
 .form { display: flex; flex-wrap: wrap; gap: 4px 14px; }
@@ -237,11 +238,13 @@ export function render({model, el}) {
     h("span", {text: "━", style: "color:#0b7285"}), document.createTextNode(" stable, "),
     h("span", {text: "◆"}), document.createTextNode(" homoclinic points."))
   const manStatus = h("div", {class: "orbit-status manifold-status", "aria-live": "polite"})
+  const basStatus = h("div", {class: "orbit-status basin-status", "aria-live": "polite"})
+  const basLegend = h("div", {class: "legend basin-legend"})
   const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
   const orbTable = h("div", {class: "orbits", hidden: true})
   const paneSection = h("section", {class: "pane pane-section"}, secBar, secErrors, warnings, status,
                         h("div", {class: "plots"}, plotSection, plotSeries), eqLegend, orbLegend, orbStatus, orbTable,
-                        manLegend, manStatus)
+                        manLegend, manStatus, basStatus, basLegend)
 
   // Analysis pane (one for every analysis tab; its form is the open tab's controls).
   const aHelp = h("p", {class: "help analysis-help"})
@@ -384,6 +387,9 @@ export function render({model, el}) {
     clearManBtn.hidden = !s.n_manifolds && !s.manifold_status
     manCsvBtn.hidden = !s.n_manifolds
     manStatus.textContent = s.manifold_status || ""
+    basStatus.textContent = s.basin_status || ""
+    basLegend.replaceChildren(...(s.basin_legend || []).map(([c, t]) =>
+      h("span", {class: "basin-item"}, h("span", {class: "sw", style: `background:${c}`}), document.createTextNode(t))))
     const rows = s.orbits || []
     orbTable.hidden = !rows.length
     if (rows.length) {

@@ -30,6 +30,7 @@ from bokeh.models import (
     Grid,
     HoverTool,
     Image,
+    ImageRGBA,
     Legend,
     LegendItem,
     LinearAxis,
@@ -154,6 +155,10 @@ class SectionFigure:
         self.density = source({"image": [], "x": [], "y": [], "dw": [], "dh": []}, "density_source")
         shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.density_mapper)
         dens = _renderer(self.density, shade, level="image", name="density_image")
+        # Basins of attraction: a colour per attractor, translucent, over the T' map and under the points.
+        self.basins = source({"image": [], "x": [], "y": [], "dw": [], "dh": []}, "basins_source")
+        bas = _renderer(self.basins, ImageRGBA(image="image", x="x", y="y", dw="dw", dh="dh", global_alpha=0.5),
+                        level="image", name="basins_image")  # fmt: skip
         self.points = source(_empty_points(), "section_source")
         self.traj_mapper = LinearColorMapper(palette=TRAJ_PALETTE, low=0, high=N_COLORS - 1)
         colour = {"field": "c", "transform": self.traj_mapper}
@@ -186,7 +191,7 @@ class SectionFigure:
             orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
                                               line_width=2.5, fill_color=fill, fill_alpha=alpha),
                                  name=f"orbit_points_{kind}"))  # fmt: skip
-        fig.renderers.extend([tp, dens, tracks, pts, sel, eq, ics, man, cross, *orb])
+        fig.renderers.extend([tp, bas, dens, tracks, pts, sel, eq, ics, man, cross, *orb])
         fig.add_layout(
             Legend(items=[LegendItem(label={"field": "type"}, renderers=[eq])], location="top_left",
                    background_fill_alpha=0.7, label_text_font_size="9pt"),
@@ -227,6 +232,23 @@ class SectionFigure:
         self.density_mapper.high = max(2.0, float(np.nanmax(image)) if np.any(counts > 0) else 2.0)
         q0, q1, r0, r1 = view
         self.density.data = {"image": [image], "x": [q0], "y": [r0], "dw": [q1 - q0], "dh": [r1 - r0]}
+
+    def set_basins(
+        self, labels: np.ndarray | None, view: tuple[float, ...], colours: dict[int, str] | None = None
+    ) -> None:
+        """Basin labels (NY, NX), row 0 at the bottom of ``view``, as colours (``colours[label]``; others clear)."""
+        if labels is None or labels.size == 0:
+            if self.basins.data["image"]:
+                self.basins.data = {"image": [], "x": [], "y": [], "dw": [], "dh": []}
+            return
+        rgba = np.zeros(labels.shape, dtype=np.uint32)
+        view8 = rgba.view(np.uint8).reshape(*labels.shape, 4)
+        for label, hex_ in (colours or {}).items():
+            m = labels == label
+            if m.any():
+                view8[m] = (int(hex_[1:3], 16), int(hex_[3:5], 16), int(hex_[5:7], 16), 255)
+        q0, q1, r0, r1 = view
+        self.basins.data = {"image": [rgba], "x": [q0], "y": [r0], "dw": [q1 - q0], "dh": [r1 - r0]}
 
     def set_selected(self, q: np.ndarray, r: np.ndarray) -> None:
         self.selected.data = {"q": q, "r": r}
