@@ -106,7 +106,7 @@ class ExplorerSession(param.Parameterized):
     #: Periodic orbits on screen, as table rows (:func:`orbit_row`), and what the last search said.
     orbits = param.List(default=[])
     orbit_status = param.String(default="")
-    #: Saddles whose manifolds are drawn, and what the last growth said.
+    #: Saddles whose manifolds are on screen, and what the last growth said.
     n_manifolds = param.Integer(default=0)
     manifold_status = param.String(default="")
     #: The basins layer: what it says, and its legend rows (colour, text).
@@ -742,8 +742,8 @@ class ExplorerSession(param.Parameterized):
         self.runner.cancel("manifolds")
         st = self.state
         saddles = list(st.manifold_saddles)
-        self.n_manifolds = len(saddles)
         if not saddles:
+            self.n_manifolds = 0
             self._manifolds = []
             self.manifold_status = ""
             self.fig.set_manifolds([], [])
@@ -787,6 +787,7 @@ class ExplorerSession(param.Parameterized):
         except ParameterError:
             return
         self._manifolds = shown
+        self.n_manifolds = len(shown)  # on screen (the CSV download offers exactly these)
         lines = [(p[:, 1], p[:, 2], b.kind) for m in shown for b in m.branches for p in b.pieces]
         marks = [(c.q, c.r, f"{c.kind}: unstable {c.unstable}, stable {c.stable}") for m in shown for c in m.crossings]
         self.fig.set_manifolds(lines, marks)
