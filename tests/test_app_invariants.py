@@ -176,6 +176,10 @@ class PageMachine(RuleBasedStateMachine):
     def clear(self) -> None:
         self.page.handle({"action": "clear"})
 
+    @rule(action=st.sampled_from(["find_orbits", "clear_orbits", "clear_manifolds"]))
+    def layer_button(self, action: str) -> None:
+        self.page.handle({"action": action})
+
     @rule(i=st.integers(0, 5))
     def work_a_little(self, i: int) -> None:
         self.jobs.run_one(i)
@@ -222,6 +226,9 @@ class PageMachine(RuleBasedStateMachine):
         page = self.page
         s = page.ui.view["section"]
         assert bool(s["n_points"]) == bool(page.session.data()[0].size)
+        assert bool(s["n_manifolds"]) == bool(page.session._manifolds)  # the manifolds CSV offers exactly these
+        if not page.state.show_basins:
+            assert not s["basin_legend"] and not page.fig.basins.data["image"]
         if "chart" in page.tabs:
             assert page.ui.view["chart"]["download"] == (page.tabs["chart"].npz_bytes() is not None)
 
