@@ -35,7 +35,9 @@ as its fate is known:
   non-finite values); :data:`UNDECIDED` = -3: no fate within ``max_periods`` periods.
 
 Pixels are computed coarse to fine (:func:`iter_basins`: every 4th pixel, then every 2nd, then all);
-the finer levels reuse the cells of the attractors and basins already found.
+the finer levels reuse the attractors (and their cells) already found. The work is not split into
+independent tasks (an executor's): every trajectory reads and writes the shared cells, and the engine
+already runs each chunk on both cores.
 """
 
 from __future__ import annotations
