@@ -191,7 +191,11 @@ class SectionFigure:
             orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
                                               line_width=2.5, fill_color=fill, fill_alpha=alpha),
                                  name=f"orbit_points_{kind}"))  # fmt: skip
-        fig.renderers.extend([tp, bas, dens, tracks, pts, sel, eq, ics, man, cross, *orb])
+        # The phase-plane layers join the plot when first used: a new page sends ~13 models fewer.
+        self._order = [tp, bas, dens, tracks, pts, sel, eq, ics, man, cross, *orb]
+        self._lazy = {"basins": [bas], "density": [dens], "manifolds": [man, cross]}
+        waiting = {id(r) for rs in self._lazy.values() for r in rs}
+        fig.renderers.extend([r for r in self._order if id(r) not in waiting])
         fig.add_layout(
             Legend(items=[LegendItem(label={"field": "type"}, renderers=[eq])], location="top_left",
                    background_fill_alpha=0.7, label_text_font_size="9pt"),
@@ -200,11 +204,21 @@ class SectionFigure:
                                                          ("frozen-field equilibrium", "@type")])  # fmt: skip
         orbit_hover = HoverTool(renderers=orb[1::2], tooltips=[("periodic orbit", "period @period, @type"),
                                                                ("multipliers", "@mu"), ("q, r", "@q, @r")])  # fmt: skip
-        cross_hover = HoverTool(renderers=[cross], tooltips=[("", "@what"), ("q, r", "@q, @r")])
+        self._cross_hover = HoverTool(renderers=[cross], tooltips=[("", "@what"), ("q, r", "@q, @r")])
         # No active scroll tool: the wheel scrolls the page until the user picks the zoom tool.
         fig.toolbar = Toolbar(tools=[PanTool(), WheelZoomTool(), BoxZoomTool(), ResetTool(), SaveTool(), hover,
-                                     orbit_hover, cross_hover], logo=None, active_scroll=None)  # fmt: skip
+                                     orbit_hover], logo=None, active_scroll=None)  # fmt: skip
         self.fig = fig
+
+    def _activate(self, layer: str) -> None:
+        """Put a phase-plane layer's renderers in the plot (in their place among the others), once."""
+        new = self._lazy.pop(layer, None)
+        if new is None:
+            return
+        shown = {id(r) for r in self.fig.renderers} | {id(r) for r in new}
+        self.fig.renderers = [r for r in self._order if id(r) in shown]
+        if layer == "manifolds":
+            self.fig.toolbar.tools = [*self.fig.toolbar.tools, self._cross_hover]
 
     # --- updates (always called on the document's thread) ------------------------------
 
@@ -228,6 +242,7 @@ class SectionFigure:
             if self.density.data["image"]:
                 self.density.data = {"image": [], "x": [], "y": [], "dw": [], "dh": []}
             return
+        self._activate("density")
         image = np.where(counts > 0, counts, np.nan).astype(np.float32)
         self.density_mapper.high = max(2.0, float(np.nanmax(image)) if np.any(counts > 0) else 2.0)
         q0, q1, r0, r1 = view
@@ -241,6 +256,7 @@ class SectionFigure:
             if self.basins.data["image"]:
                 self.basins.data = {"image": [], "x": [], "y": [], "dw": [], "dh": []}
             return
+        self._activate("basins")
         rgba = np.zeros(labels.shape, dtype=np.uint32)
         view8 = rgba.view(np.uint8).reshape(*labels.shape, 4)
         for label, hex_ in (colours or {}).items():
@@ -272,6 +288,8 @@ class SectionFigure:
 
     def set_manifolds(self, lines: list[tuple[Any, Any, str]], marks: list[tuple[float, float, str]]) -> None:
         """Pieces of manifolds ``(q, r, kind)`` (kind: unstable | stable) and crossings ``(q, r, text)``."""
+        if lines or marks:
+            self._activate("manifolds")
         self.manifolds.data = {
             "xs": [ln[0] for ln in lines],
             "ys": [ln[1] for ln in lines],

@@ -65,7 +65,7 @@ def browser_run(n: int, periods: int) -> dict:
         t = time.perf_counter()
         page.goto(server.url + f"?scene=fig8B&n={n}&periods={periods}&render=density&tracks=0")
         page.wait_for_function("() => window.Bokeh && Bokeh.documents.length > 0 && "
-                               "Bokeh.documents[0].get_model_by_name('density_source').get_length() > 0",
+                               "Bokeh.documents[0].get_model_by_name('density_source')?.get_length() > 0",
                                timeout=300_000)  # fmt: skip
         first = time.perf_counter() - t
         status = wait_finished(page, timeout=600)

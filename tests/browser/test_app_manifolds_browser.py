@@ -20,7 +20,7 @@ def test_a_click_on_the_saddle_draws_its_manifolds(page, app_url) -> None:
     page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('orbits_saddle').get_length() === 1",
                            timeout=30_000)  # fmt: skip
     click_frame_centre(page)
-    page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('manifolds_source').get_length() >= 4",
+    page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('manifolds_source')?.get_length() >= 4",
                            timeout=60_000)  # fmt: skip
     page.wait_for_function(
         "() => Array.from(document.querySelectorAll('*')).some(e => e.shadowRoot && "
