@@ -329,7 +329,8 @@ class SectionFigure:
         # Symmetric colour scale about 0 so the sign is the colour; clip outliers.
         lim = float(np.percentile(np.abs(values), 98)) or 1.0
         self.tprime_mapper.update(low=-lim, high=lim)
-        self.colorbar.title = title
+        self._tprime_title = title
+        self.colorbar.title = self._colorbar_title()
         dq = (q[-1] - q[0]) / max(1, q.size - 1)
         dr = (r[-1] - r[0]) / max(1, r.size - 1)
         self.tprime.data = {
@@ -342,7 +343,15 @@ class SectionFigure:
 
     def set_presentation(self, on: bool) -> None:
         set_fonts(self.axes, on)
-        self.colorbar.title_text_font_size = "13pt" if on else "10pt"
+        self._presentation = on
+        self.colorbar.update(title_text_font_size="13pt" if on else "10pt", title=self._colorbar_title())
+
+    def _colorbar_title(self) -> str:
+        # At presentation size the long title runs past the plot's height (seen at 1280x720).
+        title = getattr(self, "_tprime_title", self.colorbar.title)
+        if getattr(self, "_presentation", False):
+            return ("T′" if title.startswith("T′") else "ΔT over a period") + ": red gain, blue loss"
+        return title
 
 
 class SeriesData:
