@@ -9,6 +9,7 @@ gives one line on stderr and exit status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -1283,6 +1284,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=cmd_failures)
 
+    p = sub.add_parser("worker", help="the warm worker that answers small commands at once: status or stop")
+    p.add_argument("action", choices=["status", "stop"])
+    p.set_defaults(func=cmd_worker)
+
     p = sub.add_parser("warmup", help="compile the numba kernels into the on-disk cache")
     p.set_defaults(func=cmd_warmup)
     return parser
@@ -1331,5 +1336,47 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 1
 
 
+def cmd_worker(args: argparse.Namespace) -> int:
+    from explorer_core import worker
+
+    if args.action == "stop":
+        stopped = worker.stop_all()
+        print(f"stopped {len(stopped)} worker(s)" + "".join(f"\n  {p}" for p in stopped))
+    else:
+        path = worker.socket_path()
+        up = path.exists()
+        state = "on" if worker.enabled() else "off (BILIMOVICH_WORKER=0)"
+        print(
+            f"worker: {state}; for this code and environment: {'listening at ' + str(path) if up else 'none running'}"
+        )
+    return 0
+
+
+#: The hidden first argument of the worker process (``python -m explorer_core.cli _worker PATH``).
+_WORKER = "_worker"
+
+
+def entry() -> None:
+    """The ``bilimovich`` console script: a free warm worker runs the command if there is one (see
+    :mod:`explorer_core.worker`), else this process does, and leaves a worker for the next command."""
+    from explorer_core import worker
+
+    argv = sys.argv[1:]
+    if argv[:1] == [_WORKER] and len(argv) == 2:
+        worker.serve(argv[1], main)
+        return
+    cmd = worker.command_of(argv)
+    use = worker.enabled() and cmd is not None and cmd not in worker.LOCAL and not {"-h", "--help"} & set(argv)
+    if use:
+        status = worker.run_in_worker(argv)
+        if status is not None:
+            sys.exit(status)
+    status = main(argv)
+    if use and "numba" in sys.modules:  # this run paid for the kernels: the next one need not
+        with contextlib.suppress(OSError):
+            worker.spawn([sys.executable, "-m", "explorer_core.cli", _WORKER])
+    sys.exit(status)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -24,7 +24,7 @@ FLOORS = (
     ("analyses",),
     ("studies",),
     ("reports",),
-    ("warm", "cli"),
+    ("warm", "worker", "cli"),
 )
 
 
