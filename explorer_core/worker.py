@@ -112,6 +112,12 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
     path = socket_path()
     if not path.exists():
         return None
+    try:  # only a worker in a directory of this user's alone (nobody else could have put a socket there)
+        st = path.parent.stat()
+        if st.st_uid != os.getuid() or st.st_mode & 0o077 or path.stat().st_uid != os.getuid():
+            return None
+    except OSError:
+        return None
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     sock.settimeout(CONNECT_S)
     try:
