@@ -63,7 +63,8 @@ BAD_TEXT = st.sampled_from(["", " ", "nan", "inf", "-inf", "abc", "1e400", "1,2,
 #: Upper bounds that keep one run quick (the text is still typed: a bigger value gets refused).
 QUICK_MAX = {"n_random": 6, "periods": 20, "transient": 20, "steps_per_period": 60, "lyap_periods": 30,
              "lyap_transient": 20, "lyap_ensemble": 3, "bif_values": 6, "bif_points": 5, "bif_transient": 20,
-             "chart_periods": 20, "chart_transient": 10, "bench_periods": 4, "seed": 10**6, "selected": 8}  # fmt: skip
+             "chart_periods": 20, "chart_transient": 10, "bench_periods": 4, "seed": 10**6, "selected": 8,
+             "basin_grid": 12, "manifold_length": 3}  # fmt: skip
 
 
 def texts_for(name: str) -> st.SearchStrategy[Any]:
