@@ -109,6 +109,8 @@ class ExplorerSession(param.Parameterized):
     #: Saddles whose manifolds are on screen, and what the last growth said.
     n_manifolds = param.Integer(default=0)
     manifold_status = param.String(default="")
+    #: The section on screen is a density image (not points).
+    density_shown = param.Boolean(default=False)
     #: The basins layer: what it says, and its legend rows (colour, text).
     basin_status = param.String(default="")
     basin_legend = param.List(default=[])
@@ -379,6 +381,7 @@ class ExplorerSession(param.Parameterized):
         if traj.size:
             self._chunks.append(cols)
         self._density = counts
+        self.density_shown = True
         self.fig.set_density(image, self._density_req.view if self._density_req else (0.0, 1.0, 0.0, 1.0))
         self._set_status(status, done, total, running=True)
         if traj.size and np.any(traj == self.state.selected):
@@ -408,6 +411,7 @@ class ExplorerSession(param.Parameterized):
         if not req.density:
             self._density = None
             self._density_req = None
+            self.density_shown = False
             self.fig.set_density(None, (0.0, 1.0, 0.0, 1.0))
         self._n_traj = req.ics.shape[0]
         self._status_arr = np.zeros(self._n_traj, dtype=np.int8)

@@ -80,6 +80,7 @@ progress[hidden] { display: none; }
 .result div { margin: 1px 0; }
 .orbits { max-height: 9.5em; overflow-y: auto; border-top: 1px solid #d8dde5; }
 .orbits[hidden] { display: none; }
+.legend[hidden] { display: none; }
 .orbits table { border-collapse: collapse; font-size: .92em; width: 100%; }
 .orbits th, .orbits td { text-align: left; padding: 1px 8px 1px 0; white-space: nowrap; }
 .orbits th { position: sticky; top: 0; background: #fff; color: #3a4554; font-weight: 600; }
@@ -239,12 +240,15 @@ export function render({model, el}) {
     h("span", {text: "◆"}), document.createTextNode(" homoclinic points."))
   const manStatus = h("div", {class: "orbit-status manifold-status", "aria-live": "polite"})
   const basStatus = h("div", {class: "orbit-status basin-status", "aria-live": "polite"})
+  const densLegend = h("div", {class: "legend density-legend", hidden: true,
+    text: "Density image: section points per pixel of the view, log scale from light (a few) to dark (many); " +
+          "recomputed for the view when you pan or zoom."})
   const basLegend = h("div", {class: "legend basin-legend"})
   const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
   const orbTable = h("div", {class: "orbits", hidden: true})
   const paneSection = h("section", {class: "pane pane-section"}, secBar, secErrors, warnings, status,
                         h("div", {class: "plots"}, plotSection, plotSeries), eqLegend, orbLegend, orbStatus, orbTable,
-                        manLegend, manStatus, basStatus, basLegend)
+                        densLegend, manLegend, manStatus, basStatus, basLegend)
 
   // Analysis pane (one for every analysis tab; its form is the open tab's controls).
   const aHelp = h("p", {class: "help analysis-help"})
@@ -388,6 +392,7 @@ export function render({model, el}) {
     manCsvBtn.hidden = !s.n_manifolds
     manStatus.textContent = s.manifold_status || ""
     basStatus.textContent = s.basin_status || ""
+    densLegend.hidden = !s.density
     basLegend.replaceChildren(...(s.basin_legend || []).map(([c, t]) =>
       h("span", {class: "basin-item"}, h("span", {class: "sw", style: `background:${c}`}), document.createTextNode(t))))
     const rows = s.orbits || []

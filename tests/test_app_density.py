@@ -27,6 +27,7 @@ def test_a_density_view_bins_every_point_and_keeps_only_the_selected_trajectory(
     assert np.nansum(img) > 0.5 * 40 * 200  # Fig. 8B: some escape, most stay in view
     status = page.ui.view["section"]["status"]
     assert "points as a density image" in status and "in view" in status
+    assert page.ui.view["section"]["density"]  # the page shows the image's legend
     # No clicked trajectory: no points over the image; the selected one (0 escaped in the transient: the first
     # kept one with points took over) is ringed and its k-series shown; only a few trajectories are kept.
     assert len(page.fig.points.data["q"]) == 0
@@ -50,6 +51,7 @@ def test_auto_draws_points_up_to_the_bound_and_a_density_beyond() -> None:
     assert page.commit("periods", "50") is None  # back under the bound: points, no image
     jobs.drain()
     assert image(page) is None and len(page.fig.points.data["q"]) > 100
+    assert not page.ui.view["section"]["density"]
 
 
 def test_zooming_a_density_view_recomputes_it_for_the_view_with_seeds_in_it() -> None:
