@@ -249,6 +249,62 @@ def cmd_section(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_density(args: argparse.Namespace) -> int:
+    from explorer_core.analyses.density import MAX_DENSITY_POINTS, density_numerics, iter_density
+
+    params, scene = _params(args)
+    periods = args.periods if args.periods is not None else (scene.periods if scene else None)
+    if periods is None:
+        raise UsageError("--periods is required (no --scene to take it from)")
+    transient = args.transient if args.transient is not None else (scene.transient if scene else 0)
+    box = check_box(_floats(args.box, 4, "--box"), "--box") if args.box else (scene.box if scene else None)
+    if box is None:
+        raise UsageError("give --box Q0,Q1,R0,R1 for the random initial conditions (no --scene to take it from)")
+    view = (
+        check_box(_floats(args.view, 4, "--view"), "--view")
+        if args.view
+        else ((*scene.q_range, *scene.r_range) if scene else box)
+    )
+    pixels = [int(v) for v in _floats(args.pixels, 2, "--pixels")] if args.pixels else [800, 600]
+    if args.pixels and not all(float(v).is_integer() and 1 <= v <= 4096 for v in _floats(args.pixels, 2, "--pixels")):
+        raise UsageError(f"--pixels W,H must be whole numbers in [1, 4096], got {args.pixels!r}")
+    if args.random * periods > MAX_DENSITY_POINTS:
+        raise UsageError(f"--random {args.random} x --periods {periods} = {args.random * periods} points; "
+                         f"at most {MAX_DENSITY_POINTS}")  # fmt: skip
+    bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
+    numerics = _numerics(args, None, 1, base=density_numerics(view, pixels, bound))
+    if args.out:
+        _check_out(args.out)
+    ics = random_ics(args.random, box, seed=args.seed)
+    write, show = _progress_line(args.quiet)
+    img = None
+    with _Interrupt() as stop:
+        for img, _ in iter_density(params, ics, periods, view=view, pixels=pixels, transient=transient,
+                                   numerics=numerics, max_chunk=64, cancel=stop):  # fmt: skip
+            write(f"{img.done_periods}/{periods} periods, {img.points:,} points, {img.elapsed_s:.1f} s")
+    if show:
+        sys.stderr.write("\n")
+    assert img is not None
+    summary = {**img.summary(), "params": params.as_dict(), "numerics": numerics.as_dict(),
+               "ics": {"random": args.random, "box": list(box), "seed": args.seed}, "transient": transient}  # fmt: skip
+    if scene is not None:
+        summary["scene"] = scene.id
+    if args.out:
+        q = np.linspace(view[0], view[1], pixels[0] + 1)
+        r = np.linspace(view[2], view[3], pixels[1] + 1)
+        np.savez_compressed(args.out, counts=img.counts, q_edges=q, r_edges=r, summary=json.dumps(summary))
+        summary["npz"] = {"path": args.out}
+    if args.json:
+        _write_json(summary)
+    elif not args.quiet:
+        print(f"{img.points:,} points, {img.in_view:,} in view, {img.escaped} escaped, {img.failed} failed, "
+              f"{img.elapsed_s:.2f} s")  # fmt: skip
+    if stop():
+        sys.stderr.write("bilimovich: interrupted; the image so far was written\n")
+        return 130
+    return 0
+
+
 def cmd_critical(args: argparse.Namespace) -> int:
     from explorer_core.analyses.equilibria import equilibria, equilibrium_tracks
 
@@ -1065,6 +1121,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress line")
     p.set_defaults(func=cmd_section)
 
+    p = sub.add_parser("density", help="a long section (up to 10^7 points) as a density image of a window")
+    _add_system_args(p)
+    _add_numerics_args(p)
+    p.add_argument("--random", type=_count("random", 1, config.MAX_TRAJECTORIES), default=1000, metavar="N",
+                   help="random initial conditions in --box (default 1000)")  # fmt: skip
+    p.add_argument("--seed", type=_count("seed", 0, 2**63 - 1), default=0)
+    p.add_argument("--box", metavar="Q0,Q1,R0,R1", help="box of the initial conditions (default: the scene's)")
+    p.add_argument("--periods", type=_count("periods", 1, config.MAX_PERIODS), help="section points per trajectory")
+    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), help="periods dropped first")
+    p.add_argument("--view", metavar="Q0,Q1,R0,R1", help="the image's window (default: the scene's)")
+    p.add_argument("--pixels", metavar="W,H", help="the image's size (default 800,600; at most 4096 each)")
+    p.add_argument("--out", metavar="FILE.npz", help="counts (H x W, row 0 at R0), q_edges, r_edges, summary")
+    p.add_argument("--json", action="store_true", help="print a JSON summary to stdout")
+    p.add_argument("--quiet", action="store_true", help="no progress line")
+    p.set_defaults(func=cmd_density)
+
     p = sub.add_parser("critical", help="equilibria ('critical points') of the frozen-time field")
     _add_system_args(p)
     p.add_argument("--t", type=_number("t"), help="frozen time (default t0)")
@@ -1294,7 +1366,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 #: Options whose value is a comma list that may start with a minus sign.
-_LIST_OPTIONS = {"--ic", "--box", "--inertia", "--q-range", "--r-range", "--orbit", "--view"}
+_LIST_OPTIONS = {"--ic", "--box", "--inertia", "--q-range", "--r-range", "--orbit", "--view", "--pixels"}
 # Options of the analyses (bifurcation, chart, fit) whose values may start with a minus sign.
 _LIST_OPTIONS |= {"--range", "--x-range", "--y-range", "--window", "--ic-box"}
 _LIST_OPTIONS |= {"--cell-box"}  # basins

@@ -107,3 +107,23 @@ def test_bad_input_is_refused() -> None:
         density(s.params, [[0.1, 0.2]], 10, view=(1, -1, -1, 1))
     with pytest.raises(ParameterError, match="pixels"):
         density(s.params, [[0.1, 0.2]], 10, view=(-1, 1, -1, 1), pixels=(0, 10))
+
+
+def test_cli_density_npz_and_json(tmp_path) -> None:
+    import json
+
+    from clirun import run_cli
+
+    out = tmp_path / "d.npz"
+    rc, stdout, err = run_cli("density", "--scene", "fig8B", "--random", "50", "--periods", "40", "--transient", "10",
+                              "--pixels", "64,48", "--out", str(out), "--json")  # fmt: skip
+    assert rc == 0, err
+    data = json.loads(stdout)
+    npz = np.load(out)
+    assert npz["counts"].shape == (48, 64) and npz["counts"].sum() == data["in_view"] > 0
+    assert npz["q_edges"].size == 65 and npz["r_edges"].size == 49
+    assert data["points"] <= 50 * 40 and data["completed"] and data["scene"] == "fig8B"
+    for args, needle in ((["--pixels", "0,3"], "--pixels"), (["--random", "1000", "--periods", "20000"], "at most"),
+                         (["--view", "1,0,0,1"], "--view")):  # fmt: skip
+        rc, _, err = run_cli("density", "--scene", "fig8B", *args)
+        assert rc == 2 and needle in err and "Traceback" not in err

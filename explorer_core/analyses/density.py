@@ -77,7 +77,8 @@ class Density:
 def density_numerics(view: Sequence[float], pixels: Sequence[int], bound: float, method: str = "dop853") -> Numerics:
     """DOP853 keeping each point within a quarter pixel of the view over :data:`DENSITY_WINDOW` periods."""
     q0, q1, r0, r1 = check_box(view, "view")
-    pixel = min((q1 - q0) / int(pixels[0]), (r1 - r0) / int(pixels[1]))
+    px = [check_int(name, v, 1, MAX_PIXELS) for name, v in zip(("pixels (q)", "pixels (r)"), pixels, strict=True)]
+    pixel = min((q1 - q0) / px[0], (r1 - r0) / px[1])
     tol = plot_tolerance(pixel, DENSITY_WINDOW)
     return Numerics(method=method, rtol=tol, atol=tol, bound=bound)
 
