@@ -269,19 +269,26 @@ def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
 
     Every pixel and initial condition runs with the tangent system on its own step sequence (lock-step
     blocks across pixels were measured slower: a block steps at its most demanding member's pace, and
-    escaping or chaotic members multiplied the steps of the whole block ~8x). A member stops as soon as
-    it has settled on an attracting cycle:
+    escaping or chaotic members multiplied the steps of the whole block ~8x). Every
+    :data:`SETTLE_CHUNK` periods a member may stop early:
 
-    * every :data:`SETTLE_CHUNK` periods, a member whose last :func:`settle_window` section points
-      return within ``tol`` after ``p <= p_max`` iterations is handed to Newton on ``P^p(x) - x``
-      (:func:`~explorer_core.analyses.orbits.find_orbits`, which also finds the least period: a slowly
-      converging focus returns after 3 iterations long before it does after 1). If the cycle attracts
-      (``max |mu| < 1``) the member is periodic with that period and its exponent is the cycle's own,
-      ``log max |mu| / (p T)`` (which a finite-time average only approaches);
-    * a cycle that does not attract, or Newton failing, leaves the member running, never to be stopped:
-      it and every member that never settles are classified from the whole transient and measurement,
-      exactly as :func:`compute_tile_each` does (to the last bit: chunked runs continue each step
-      sequence unchanged).
+    * **on an attracting cycle**: once its last :func:`settle_window` section points return within
+      :data:`SETTLE_TOL` after ``p <= p_max`` iterations it is handed to Newton on ``P^p(x) - x``
+      (:func:`settled_cycle`: least period at the resolution ``tol``, multipliers). If the cycle
+      attracts (``max |mu| < 1``) and lies within that tolerance of the member, the member is periodic
+      with that period and its exponent is the cycle's own, ``log max |mu| / (p T)`` (which a
+      finite-time average only approaches). Otherwise it is tried again :data:`SETTLE_RETRY` periods
+      later, or never again once its points return within ``tol`` (the whole run decides, as before);
+    * **escaped**: ``|q|`` or ``|r|`` passed :data:`ESCAPE_BOUND` (or the integration's bound if smaller);
+    * **chaotic**: after :data:`CHAOS_MIN_PERIODS` measured periods with no return within ``tol``, if
+      the mean per-period ``log R_11`` minus :data:`CHAOS_Z` standard errors (:func:`chaos_bound`) is
+      above :data:`CHAOS_MARGIN` times the threshold; its exponent is the mean so far.
+
+    Every other member runs the whole transient and measurement and is classified exactly as
+    :func:`compute_tile_each` does (to the last bit: chunked runs continue each step sequence
+    unchanged). Differences from that reference (``benchmarks/chart_speed.py``) are on regime
+    boundaries: cycles the reference's finite tail had not converged on (Newton finds them), and long
+    chaotic transients that settle after the chaos decision.
     """
     return _tile(spec, tile, _classify_members)
 
@@ -326,6 +333,22 @@ def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileRes
 
 #: Periods between two looks for members that have settled on a cycle (each look is one engine call).
 SETTLE_CHUNK = 10
+#: A member whose last section points return within this (relative, as ``tol``) is handed to Newton: the
+#: cycle Newton finds decides, so the points need not have converged to ``tol`` yet (a member on a cycle
+#: with ``|mu| = 0.9`` returns within 1e-3 ~60 periods before it does within 1e-5).
+SETTLE_TOL = 1e-3
+#: Periods to wait before a member that returned within SETTLE_TOL but gave no attracting cycle is tried again.
+SETTLE_RETRY = 50
+#: Charts stop a member once ``|q|`` or ``|r|`` passes this (and the integration's own bound): escaped. On the
+#: Fig. 11 window no bounded orbit goes beyond 6.1 and every escaping one passes 100 within ~20 periods, then
+#: spends ~95% of its steps on the way to 1e4 (steps grow with the speed of rotation).
+ESCAPE_BOUND = 100.0
+#: A member is decided chaotic once it has measured this many periods and the confidence bound below holds.
+CHAOS_MIN_PERIODS = 100
+#: Chaos bound: the mean of the per-period ``log R_11`` over blocks of SETTLE_CHUNK periods, minus CHAOS_Z
+#: standard errors of that mean, above CHAOS_MARGIN times the threshold (per period).
+CHAOS_Z = 4.0
+CHAOS_MARGIN = 1.5
 
 
 def settle_window(p_max: int) -> int:
@@ -333,25 +356,53 @@ def settle_window(p_max: int) -> int:
     return 3 * p_max
 
 
-def settled_cycle(params: Params, x: np.ndarray, p: int) -> tuple[int, float] | None:
+def settled_cycle(
+    params: Params, x: np.ndarray, p: int, near: float | None = None, same: float = 0.0
+) -> tuple[int, float] | None:
     """``(least period, exponent)`` of the attracting cycle Newton finds near ``x`` for ``P^p``, or None.
 
-    None when Newton fails or the cycle does not attract (``max |mu| >= 1``).
+    None when Newton fails, the cycle does not attract (``max |mu| >= 1``) or, with ``near``, Newton went
+    farther than ``near`` (max-norm) from ``x``: the cycle is not the one the trajectory is close to.
+    Points of the cycle within ``same`` (max-norm) of its first are one point: the period is the least
+    ``d`` dividing it with ``P^d(x) = x`` at that resolution (a fixed point with a multiplier near 1 can
+    come back from Newton on ``P^2`` as a "period-2 orbit" whose points differ by ~1e-8); the exponent,
+    ``log max |mu| / (p T)``, is the same for the cycle and its multiples.
     """
-    search = find_orbits(params, np.asarray(x, dtype=float).reshape(1, 2), [int(p)], patience=None)
+    x = np.asarray(x, dtype=float).reshape(1, 2)
+    search = find_orbits(params, x, [int(p)], patience=None)
     if not search.orbits:
         return None
     orbit = search.orbits[0]
+    if near is not None and np.abs(orbit.points - x).max(axis=1).min() > near:
+        return None
     mu = float(np.abs(orbit.multipliers).max())
     if not 0.0 < mu < 1.0:
         return None
-    return orbit.period, math.log(mu) / (orbit.period * params.period)
+    n = orbit.period
+    least = next(
+        d for d in range(1, n + 1) if n % d == 0 and np.abs(orbit.points[d % n] - orbit.points[0]).max() <= same
+    )
+    return least, math.log(mu) / (n * params.period)
+
+
+def chaos_bound(logs: np.ndarray, block: int = SETTLE_CHUNK) -> tuple[float, float]:
+    """Mean per-period ``log R_11`` of ``logs`` (1-D) and the standard error of that mean from block means.
+
+    Blocks of ``block`` consecutive periods (the tail beyond whole blocks is left out) are nearly
+    independent on a chaotic orbit, so their spread measures the uncertainty of the mean.
+    """
+    nb = logs.size // block
+    if nb < 2:
+        return math.nan, math.inf
+    b = logs[: nb * block].reshape(nb, block).mean(axis=1)
+    return float(b.mean()), float(b.std(ddof=1)) / math.sqrt(nb)
 
 
 def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
     """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile)."""
     regime, period, lyap, status = out
     kw = spec.numerics.kernel_kwargs()
+    kw["bound"] = min(kw["bound"], ESCAPE_BOUND)
     total = spec.transient + spec.periods
     window = settle_window(spec.p_max)
     y0 = tangent.start(spec.ics[at[:, 1]], 0.0, 1.0).y
@@ -362,6 +413,7 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
         measured = np.zeros(n, dtype=np.int64)  # periods of the measurement completed
         recent = np.zeros((n, window, 2))  # the last `window` section points (a ring)
         may_stop, stopped = np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
+        next_try = np.zeros(n, dtype=np.int64)  # no Newton before this many periods
         live = np.flatnonzero(batch.status == Status.OK)
         done = 0
         while done < total and live.size:
@@ -384,17 +436,36 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
                 continue
             keep = []
             for m in live:
-                if may_stop[m]:
-                    ring = np.roll(recent[m], -(done % window), axis=0)  # oldest first
-                    p = detect_period(ring, spec.p_max, spec.tol * (1.0 + float(np.abs(ring).max())))
-                    cycle = settled_cycle(params[idx[m]], ring[-1], p) if p else None
+                pm = params[idx[m]]
+                ring = np.roll(recent[m], -(done % window), axis=0)  # oldest first
+                scale = 1.0 + float(np.abs(ring).max())
+                returns = detect_period(ring, spec.p_max, spec.tol * scale)
+                if may_stop[m] and done >= next_try[m]:
+                    p = returns or detect_period(ring, spec.p_max, max(SETTLE_TOL, spec.tol) * scale)
+                    cycle = (
+                        settled_cycle(pm, ring[-1], p, near=max(SETTLE_TOL, spec.tol) * scale, same=spec.tol * scale)
+                        if p
+                        else None
+                    )
                     if cycle is not None:
                         pix, k = at[idx[m]]
                         regime[pix, k], status[pix, k] = PERIODIC, Status.OK
                         period[pix, k], lyap[pix, k] = cycle
                         stopped[m] = True
                         continue
-                    may_stop[m] = not p  # returns but no attracting cycle: the whole run decides
+                    if returns:
+                        may_stop[m] = False  # returns within tol but no attracting cycle: the whole run decides
+                    elif p:
+                        next_try[m] = done + SETTLE_RETRY  # close, not yet a cycle Newton confirms
+                got = int(measured[m])
+                if not returns and got >= CHAOS_MIN_PERIODS:
+                    mean, err = chaos_bound(logs[m, :got])
+                    if mean - CHAOS_Z * err > CHAOS_MARGIN * spec.lyap_threshold * abs(pm.period):
+                        pix, k = at[idx[m]]
+                        regime[pix, k], status[pix, k], period[pix, k] = CHAOTIC, Status.OK, 0
+                        lyap[pix, k] = logs[m, :got].sum() / (got * pm.period)
+                        stopped[m] = True
+                        continue
                 keep.append(m)
             live = np.array(keep, dtype=np.int64)
         for row in np.flatnonzero(~stopped):
