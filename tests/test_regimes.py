@@ -254,8 +254,8 @@ def test_members_on_an_attracting_cycle_stop_early_the_others_are_the_per_pixel_
     to the bit (escaped members stop at ESCAPE_BOUND, before the integration's bound)."""
     spec = _settle_spec()
     calls = []
-    real = regimes.settled_cycle
-    monkeypatch.setattr(regimes, "settled_cycle", lambda *a, **kw: calls.append(a) or real(*a, **kw))
+    real = regimes.settled_cycles
+    monkeypatch.setattr(regimes, "settled_cycles", lambda *a, **kw: calls.extend(real(*a, **kw)) or calls[-len(a[1]) :])
     n_periodic, n_differ = 0, 0
     for t in plan_tiles(spec.shape, 4, 16):
         a, b = compute_tile(spec, t), compute_tile_each(spec, t)
@@ -272,7 +272,8 @@ def test_members_on_an_attracting_cycle_stop_early_the_others_are_the_per_pixel_
     assert {CHAOTIC, ESCAPED} <= {
         int(r) for t in plan_tiles(spec.shape, 4, 16) for r in compute_tile(spec, t).regime.ravel()
     }
-    assert n_periodic > 20 and len(calls) >= n_periodic  # every periodic member stopped early
+    # Every periodic member stopped early, on a cycle Newton found.
+    assert n_periodic > 20 and sum(c is not None for c in calls) >= n_periodic
     assert n_differ <= 2
 
 
@@ -351,3 +352,56 @@ def test_early_chaos_agrees_with_long_independent_integrations() -> None:
         tail = pts[-spec.periods // 2 :]
         assert lam > spec.lyap_threshold, (j, i, k, lam)
         assert detect_period(tail, spec.p_max, spec.tol * (1 + np.abs(tail).max())) == 0
+
+
+def _simulate_refinement(true: np.ndarray, coarse: int) -> tuple[np.ndarray, int]:
+    """Refine a known picture of codes ``[j, i, ic]`` as iter_chart(refine=True) does; (picture, pixels computed)."""
+    ny, nx, _ = true.shape
+    code = np.zeros_like(true)
+    ys, xs = regimes.lattice(ny, coarse), regimes.lattice(nx, coarse)
+    code[np.ix_(ys, xs)] = true[np.ix_(ys, xs)]
+    n = ys.size * xs.size
+    s = coarse // 2
+    while s >= 1:
+        compute, fill = regimes.refine_level(code, (ny, nx), s, regimes.REFINE_RING)
+        for j, i in compute:
+            code[j, i] = true[j, i]
+        for j, i, sj, si in fill:
+            code[j, i] = code[sj, si]
+        n += len(compute)
+        s //= 2
+    return code, n
+
+
+def test_refinement_reproduces_regions_and_computes_only_near_boundaries() -> None:
+    assert regimes.lattice(10, 4).tolist() == [0, 4, 8, 9] and regimes.lattice(9, 4).tolist() == [0, 4, 8]
+    jj, ii = np.mgrid[0:61, 0:83]
+    disc = (jj - 30) ** 2 + (ii - 40) ** 2 < 18**2
+    band = (ii > 2 * jj) & (ii < 2 * jj + 9)  # a band 9 pixels wide: wider than a coarse cell's half-diagonal
+    true = np.stack([disc * 1 + band * 2, disc * 1], axis=-1)
+    for coarse in (4, 8):
+        picture, n = _simulate_refinement(true, coarse)
+        np.testing.assert_array_equal(picture, true)
+        assert n < 0.5 * true[..., 0].size
+    # A feature smaller than the coarse cells and away from every other is not seen: the price of refining.
+    dot = np.zeros((33, 33, 1), dtype=np.int64)
+    dot[13, 13] = 5
+    assert not np.any(_simulate_refinement(dot, 8)[0] == 5)
+
+
+def test_refined_chart_computes_pixels_as_the_full_chart_and_fills_the_rest() -> None:
+    spec = chart_spec(FIG11, "alpha", (-0.6, -0.4), "I11", (0.0, 2.0), (13, 11), ics=[IC], transient=60, periods=40,
+                      p_max=8)  # fmt: skip
+    full = regime_chart(spec, workers=2)
+    refined = regime_chart(spec, workers=2, coarse=4, refine=True)
+    assert refined.completed and refined.computed.all() and 0 < refined.inferred.sum() < refined.inferred.size
+    own = ~refined.inferred
+    for name in ("regime", "period", "lyap", "status"):
+        np.testing.assert_array_equal(getattr(refined, name)[own], getattr(full, name)[own])
+    # I11 = 0 is not positive definite: never inferred, computed, with its reason.
+    assert np.all(refined.regime[0] == INVALID) and not refined.inferred[0].any() and (0, 5) in refined.errors
+    assert refined.summary()["inferred_pixels"] == int(refined.inferred.sum())
+    # A cancelled refinement is a partial chart.
+    calls = []
+    part = regime_chart(spec, workers=1, coarse=4, refine=True, progress=calls.append, cancel=lambda: len(calls) >= 2)
+    assert not part.completed and len(calls) == 2

@@ -38,13 +38,12 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from explorer_core import config
-from explorer_core.analyses.orbits import find_orbits
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
 from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.solve import tangent
 from explorer_core.solve.integrators import Status, coefficients, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
-from explorer_core.solve.rk import LYAPUNOV
+from explorer_core.solve.rk import LYAPUNOV, Coefficients
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -211,9 +210,13 @@ class TileSpec:
     j1: int
     i0: int
     i1: int
+    #: The pixels themselves, when a refinement chose them (then the block and lattice are not used).
+    only: tuple[tuple[int, int], ...] = ()
 
     def pixels(self) -> list[tuple[int, int]]:
         """``(j, i)`` of the tile's pixels, row by row."""
+        if self.only:
+            return list(self.only)
         s = self.stride
         out = []
         for j in range(self.j0 + (-self.j0) % s, self.j1, s):
@@ -247,6 +250,50 @@ def plan_tiles(shape: tuple[int, int], coarse: int = 8, tile_pixels: int = 64) -
                     tiles.append(t)
         stride //= 2
     return tiles
+
+
+def lattice(n: int, stride: int) -> np.ndarray:
+    """Indices ``0, stride, 2 stride, ...`` of an axis of ``n`` pixels, and its last index ``n - 1``."""
+    return np.unique(np.r_[np.arange(0, n, stride), n - 1])
+
+
+def _bracket(coords: np.ndarray, v: int, ring: int) -> np.ndarray:
+    """The entries of ``coords`` (sorted) that enclose ``v``, with ``ring`` more on each side."""
+    a = int(np.searchsorted(coords, v, side="right")) - 1
+    hi = a + 1 if coords[a] == v else a + 2
+    return coords[max(0, a - ring) : min(coords.size, hi + ring)]
+
+
+def refine_level(
+    code: np.ndarray, shape: tuple[int, int], stride: int, ring: int = 1
+) -> tuple[list[tuple[int, int]], list[tuple[int, int, int, int]]]:
+    """Which pixels of the ``stride`` lattice to compute and which to fill from the ``2 stride`` lattice.
+
+    ``code`` ``[j, i, ic]`` (:meth:`Chart.code`) is known on the ``2 stride`` lattice (:func:`lattice` of both
+    axes). A new pixel is filled when every known pixel of its enclosing cell and of ``ring`` cells around
+    it has the same code for every initial condition (a region of one regime and period); otherwise it is
+    computed. Returns ``(compute [(j, i)], fill [(j, i, source j, source i)])``, the source being the
+    nearest corner of the cell.
+    """
+    ny, nx = shape
+    ys, xs = lattice(ny, stride), lattice(nx, stride)
+    ys2, xs2 = lattice(ny, 2 * stride), lattice(nx, 2 * stride)
+    old_y, old_x = np.isin(ys, ys2), np.isin(xs, xs2)
+    compute, fill = [], []
+    for a, j in enumerate(ys):
+        rows = _bracket(ys2, int(j), ring)
+        for b, i in enumerate(xs):
+            if old_y[a] and old_x[b]:
+                continue
+            cols = _bracket(xs2, int(i), ring)
+            block = code[np.ix_(rows, cols)].reshape(-1, code.shape[-1])
+            if np.all(block == block[0]):
+                sj = int(rows[np.argmin(np.abs(rows - j))])
+                si = int(cols[np.argmin(np.abs(cols - i))])
+                fill.append((int(j), int(i), sj, si))
+            else:
+                compute.append((int(j), int(i)))
+    return compute, fill
 
 
 @dataclass(frozen=True)
@@ -356,33 +403,96 @@ def settle_window(p_max: int) -> int:
     return 3 * p_max
 
 
-def settled_cycle(
-    params: Params, x: np.ndarray, p: int, near: float | None = None, same: float = 0.0
-) -> tuple[int, float] | None:
-    """``(least period, exponent)`` of the attracting cycle Newton finds near ``x`` for ``P^p``, or None.
+#: Newton for settled cycles: the map's accuracy, the convergence test ``|P^p(x) - x| <= ftol (1 + |x|)``
+#: and the iterations allowed (a member hands over within SETTLE_TOL of its cycle: ~3 suffice).
+NEWTON_NUMERICS = Numerics(rtol=1e-10, atol=1e-10)
+NEWTON_FTOL = 1e-8
+NEWTON_ITER = 8
 
-    None when Newton fails, the cycle does not attract (``max |mu| >= 1``) or, with ``near``, Newton went
-    farther than ``near`` (max-norm) from ``x``: the cycle is not the one the trajectory is close to.
-    Points of the cycle within ``same`` (max-norm) of its first are one point: the period is the least
-    ``d`` dividing it with ``P^d(x) = x`` at that resolution (a fixed point with a multiplier near 1 can
-    come back from Newton on ``P^2`` as a "period-2 orbit" whose points differ by ~1e-8); the exponent,
-    ``log max |mu| / (p T)``, is the same for the cycle and its multiples.
+
+def settled_cycles(
+    coefs: Coefficients,
+    x: np.ndarray,
+    p: int,
+    t0: float,
+    period: float,
+    near: np.ndarray | float = math.inf,
+    same: np.ndarray | float = 1e-6,
+) -> list[tuple[int, float] | None]:
+    """``(least period, exponent)`` of the attracting cycle Newton finds near each ``x[m]`` for ``P^p``, or None.
+
+    ``coefs`` holds one row of coefficients per point (``coefs.row``, as a chart's members), so the points
+    of many pixels go through one batch per iteration. None when Newton fails, when it goes farther than
+    ``near[m]`` (max-norm) from ``x[m]`` (not the cycle the trajectory is close to), or when the cycle does
+    not attract (``max |mu| >= 1``). Points of the cycle within ``same[m]`` (max-norm) of its first are one
+    point: the period is the least ``d`` dividing ``p`` with ``P^d(x) = x`` at that resolution (Newton on
+    ``P^2`` converges to a fixed point too); the exponent ``log max |mu| / (p T)`` is the same for a cycle
+    and its multiples.
     """
-    x = np.asarray(x, dtype=float).reshape(1, 2)
-    search = find_orbits(params, x, [int(p)], patience=None)
-    if not search.orbits:
-        return None
-    orbit = search.orbits[0]
-    if near is not None and np.abs(orbit.points - x).max(axis=1).min() > near:
-        return None
-    mu = float(np.abs(orbit.multipliers).max())
-    if not 0.0 < mu < 1.0:
-        return None
-    n = orbit.period
-    least = next(
-        d for d in range(1, n + 1) if n % d == 0 and np.abs(orbit.points[d % n] - orbit.points[0]).max() <= same
-    )
-    return least, math.log(mu) / (n * params.period)
+    x0 = np.asarray(x, dtype=float).reshape(-1, 2)
+    m = x0.shape[0]
+    near = np.broadcast_to(np.asarray(near, dtype=float), (m,))
+    same = np.broadcast_to(np.asarray(same, dtype=float), (m,))
+    out: list[tuple[int, float] | None] = [None] * m
+    x = x0.copy()
+    todo = np.arange(m)
+    for _ in range(NEWTON_ITER):
+        if todo.size == 0:
+            break
+        co = coefs._replace(row=np.ascontiguousarray(coefs.row[todo]))
+        mono = tangent.monodromy(co, x[todo], p, t0, period, NEWTON_NUMERICS, workers=1, block=1)
+        f = mono.end - x[todo]
+        ok = mono.ok & np.all(np.isfinite(f), axis=1)
+        conv = ok & (np.abs(f).max(axis=1) <= NEWTON_FTOL * (1.0 + np.abs(x[todo]).max(axis=1)))
+        for j in np.flatnonzero(conv):
+            i = int(todo[j])
+            mu = float(np.abs(np.linalg.eigvals(mono.matrix[j])).max())
+            if not 0.0 < mu < 1.0:
+                continue  # a saddle or a repeller: no early stop
+            pts = mono.points[j]  # P(x), ..., P^p(x)
+            least = next(d for d in range(1, p + 1) if p % d == 0 and np.abs(pts[d - 1] - x[i]).max() <= same[i])
+            out[i] = (least, math.log(mu) / (p * period))
+        go = ok & ~conv
+        jac = mono.matrix[go] - np.eye(2)[None]
+        with np.errstate(all="ignore"):
+            det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
+            rhs = -f[go]
+            dx = np.column_stack([(jac[:, 1, 1] * rhs[:, 0] - jac[:, 0, 1] * rhs[:, 1]) / det,
+                                  (jac[:, 0, 0] * rhs[:, 1] - jac[:, 1, 0] * rhs[:, 0]) / det])  # fmt: skip
+        sel = todo[go]
+        x[sel] += dx
+        stay = np.all(np.isfinite(x[sel]), axis=1) & (np.abs(x[sel] - x0[sel]).max(axis=1) <= near[sel])
+        todo = sel[stay]
+    return out
+
+
+def settled_cycle(
+    params: Params, x: np.ndarray, p: int, near: float = math.inf, same: float = 1e-6
+) -> tuple[int, float] | None:
+    """:func:`settled_cycles` of one point under ``params``."""
+    coefs = coefficients(Model(params), n=1)
+    return settled_cycles(coefs, np.asarray(x, dtype=float).reshape(1, 2), int(p), params.t0, params.period, near,
+                          same)[0]  # fmt: skip
+
+
+def returns(rings: np.ndarray, p_max: int) -> np.ndarray:
+    """``d[m, p - 1] = max_k |x_(k+p) - x_k|`` (max-norm) over the points ``rings[m]`` (n, 2), ``p <= p_max``.
+
+    The least ``p`` with ``d <= tol`` is :func:`~explorer_core.analyses.sweeps.detect_period`'s answer,
+    for every member and any tolerance at once.
+    """
+    n = rings.shape[1]
+    ps = range(1, min(p_max, n - 1) + 1)
+    lo = np.concatenate([np.arange(n - q) for q in ps])
+    starts = np.cumsum([0] + [n - q for q in ps])[:-1]
+    d = np.abs(rings[:, lo + np.repeat(np.array(list(ps)), [n - q for q in ps])] - rings[:, lo]).max(axis=2)
+    return np.maximum.reduceat(d, starts, axis=1)
+
+
+def first_return(d: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """The least ``p`` with ``d[m, p - 1] <= tol[m]`` (0: none), from :func:`returns`."""
+    hit = d <= np.asarray(tol)[:, None]
+    return np.where(hit.any(axis=1), hit.argmax(axis=1) + 1, 0)
 
 
 def chaos_bound(logs: np.ndarray, block: int = SETTLE_CHUNK) -> tuple[float, float]:
@@ -434,36 +544,41 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
             live = live[part.status == Status.OK]
             if done < window or done >= total:
                 continue
+            rings = np.roll(recent[live], -(done % window), axis=1)  # oldest first
+            scale = 1.0 + np.abs(rings).max(axis=(1, 2))
+            d = returns(rings, spec.p_max)
+            back = first_return(d, spec.tol * scale)  # returns within tol: what the classification sees
+            loose = max(SETTLE_TOL, spec.tol) * scale
+            close = np.where(back > 0, back, first_return(d, loose))
+            ask = may_stop[live] & (next_try[live] <= done) & (close > 0)
+            found: dict[int, tuple[int, float] | None] = {}
+            for p in np.unique(close[ask]):  # Newton for every member close to a cycle of period p at once
+                sel = np.flatnonzero(ask & (close == p))
+                co = coefs._replace(row=np.ascontiguousarray(coefs.row[live[sel]]))
+                cyc = settled_cycles(co, rings[sel, -1], int(p), batch.t0, batch.period, near=loose[sel],
+                                     same=spec.tol * scale[sel])  # fmt: skip
+                found.update(zip(sel.tolist(), cyc, strict=True))
             keep = []
-            for m in live:
-                pm = params[idx[m]]
-                ring = np.roll(recent[m], -(done % window), axis=0)  # oldest first
-                scale = 1.0 + float(np.abs(ring).max())
-                returns = detect_period(ring, spec.p_max, spec.tol * scale)
-                if may_stop[m] and done >= next_try[m]:
-                    p = returns or detect_period(ring, spec.p_max, max(SETTLE_TOL, spec.tol) * scale)
-                    cycle = (
-                        settled_cycle(pm, ring[-1], p, near=max(SETTLE_TOL, spec.tol) * scale, same=spec.tol * scale)
-                        if p
-                        else None
-                    )
+            for a, m in enumerate(live):
+                if ask[a]:
+                    cycle = found[a]
                     if cycle is not None:
                         pix, k = at[idx[m]]
                         regime[pix, k], status[pix, k] = PERIODIC, Status.OK
                         period[pix, k], lyap[pix, k] = cycle
                         stopped[m] = True
                         continue
-                    if returns:
+                    if back[a]:
                         may_stop[m] = False  # returns within tol but no attracting cycle: the whole run decides
-                    elif p:
+                    else:
                         next_try[m] = done + SETTLE_RETRY  # close, not yet a cycle Newton confirms
                 got = int(measured[m])
-                if not returns and got >= CHAOS_MIN_PERIODS:
+                if not back[a] and got >= CHAOS_MIN_PERIODS:
                     mean, err = chaos_bound(logs[m, :got])
-                    if mean - CHAOS_Z * err > CHAOS_MARGIN * spec.lyap_threshold * abs(pm.period):
+                    if mean - CHAOS_Z * err > CHAOS_MARGIN * spec.lyap_threshold * abs(batch.period):
                         pix, k = at[idx[m]]
                         regime[pix, k], status[pix, k], period[pix, k] = CHAOTIC, Status.OK, 0
-                        lyap[pix, k] = logs[m, :got].sum() / (got * pm.period)
+                        lyap[pix, k] = logs[m, :got].sum() / (got * params[idx[m]].period)
                         stopped[m] = True
                         continue
                 keep.append(m)
@@ -528,6 +643,12 @@ class Chart:
     errors: dict[tuple[int, int], str] = field(default_factory=dict)
     elapsed_s: float = 0.0
     completed: bool = False
+    #: ``[j, i]``: True where a refined chart filled the pixel from its neighbours instead of computing it.
+    inferred: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.inferred is None:
+            self.inferred = np.zeros(self.computed.shape, dtype=bool)
 
     @classmethod
     def empty(cls, spec: ChartSpec) -> Chart:
@@ -552,6 +673,16 @@ class Chart:
             if e:
                 self.errors[(int(j), int(i))] = e
 
+    def infer(self, fill: Sequence[tuple[int, int, int, int]]) -> None:
+        """Pixels ``(j, i)`` take the values of ``(source j, source i)`` (see :func:`refine_level`)."""
+        if not fill:
+            return
+        j, i, sj, si = (np.array(v, dtype=np.int64) for v in zip(*fill, strict=True))
+        for arr in (self.regime, self.period, self.lyap, self.status):
+            arr[j, i] = arr[sj, si]
+        self.computed[j, i] = True
+        self.inferred[j, i] = True
+
     def code(self) -> np.ndarray:
         """One integer per pixel and IC for colouring: ``p`` for a period-``p`` cycle, else ``-regime``."""
         return np.where(self.regime == PERIODIC, self.period.astype(np.int64), -self.regime.astype(np.int64))
@@ -568,6 +699,7 @@ class Chart:
             dict(self.errors),
             self.elapsed_s,
             self.completed,
+            self.inferred.copy(),
         )
         ny, nx = self.computed.shape
         jj, ii = np.mgrid[0:ny, 0:nx]
@@ -604,6 +736,7 @@ class Chart:
             "counts": self.counts(),
             "multistable_pixels": int(self.multistable()[self.computed].sum()),
             "invalid_pixels": len(self.errors),
+            "inferred_pixels": int(self.inferred.sum()),
             "completed": self.completed,
             "elapsed_s": round(self.elapsed_s, 6),
         }
@@ -619,6 +752,7 @@ class Chart:
             lyap=self.lyap,
             status=self.status,
             computed=self.computed,
+            inferred=self.inferred,
             regimes=np.array(REGIMES),
             spec=json.dumps(self.spec.as_dict()),
         )
@@ -659,13 +793,23 @@ def iter_chart(
     workers: int | None = None,
     cancel: Callable[[], bool] | None = None,
     executor: Executor | None = None,
+    refine: bool = False,
 ) -> Iterator[ChartUpdate]:
     """Compute the chart tile by tile, coarse levels first, yielding after every tile.
 
     Tiles are tasks of ``executor`` (:mod:`explorer_core.parallel.executor`; default: ``workers`` threads
     of this process, both cores) -- a Dask executor runs them on a cluster with the same updates and
     the same chart. ``cancel`` is polled whenever a tile finishes; no new tile starts once it returns True.
+
+    ``refine``: compute the ``coarse`` lattice (:func:`lattice`: every ``coarse``-th pixel and the last
+    row and column), then each finer level only where the coarser one is not uniform around a pixel
+    (:func:`refine_level`); the other pixels are filled from their neighbours (``Chart.inferred``).
+    Levels run one after another (each needs the previous one); ``total_tiles`` of an update counts
+    the tiles planned so far.
     """
+    if refine:
+        yield from _iter_refined(spec, coarse, tile_pixels, local_executor(executor, workers), cancel)
+        return
     start = time.perf_counter()
     tiles = plan_tiles(spec.shape, coarse, tile_pixels)
     chart = Chart.empty(spec)
@@ -682,6 +826,54 @@ def iter_chart(
                 yield ChartUpdate(res, done, len(tiles), chart)
 
 
+#: Cells around a pixel's own that must share its code before :func:`refine_level` fills it (0: the cell only).
+REFINE_RING = 1
+
+
+def _iter_refined(
+    spec: ChartSpec, coarse: int, tile_pixels: int, ex: Executor, cancel: Callable[[], bool] | None
+) -> Iterator[ChartUpdate]:
+    """:func:`iter_chart` with ``refine=True``."""
+    if coarse < 1 or coarse & (coarse - 1):
+        raise ParameterError(f"coarse must be a power of two, got {coarse!r}")
+    start = time.perf_counter()
+    ny, nx = spec.shape
+    chart = Chart.empty(spec)
+    todo: deque = deque()
+    level, pending, done, planned = coarse, 0, 0, 0
+
+    def push(pixels: list[tuple[int, int]], stride: int) -> int:
+        # Small tiles: a level must finish before the next is planned, so its last tile should be short.
+        size = max(4, min(tile_pixels, math.ceil(len(pixels) / (4 * ex.threads()))))
+        for k in range(0, len(pixels), size):
+            tile = TileSpec(stride, coarse, 0, ny, 0, nx, only=tuple(pixels[k : k + size]))
+            todo.append((None, compute_tile, (spec, tile)))
+        return math.ceil(len(pixels) / size)
+
+    first = [(int(j), int(i)) for j in lattice(ny, coarse) for i in lattice(nx, coarse)]
+    pending = planned = push(first, coarse)
+    with closing(ex.stream(todo, cancel)) as stream:
+        for batch in stream:
+            for _, res in batch:
+                chart.add(res)
+                done += 1
+                pending -= 1
+                while pending == 0 and level > 1:  # a level is complete: plan the next
+                    level //= 2
+                    compute, fill = refine_level(chart.code(), spec.shape, level, REFINE_RING)
+                    invalid = [f for f in fill if isinstance(spec.pixel_params(f[0], f[1]), str)]
+                    if invalid:  # never inferred: computed, so the chart says why
+                        fill = [f for f in fill if f not in invalid]
+                        compute += [(j, i) for j, i, _, _ in invalid]
+                    chart.infer(fill)
+                    if compute:
+                        pending = push(compute, level)
+                        planned += pending
+                chart.elapsed_s = time.perf_counter() - start
+                chart.completed = pending == 0 and level == 1
+                yield ChartUpdate(res, done, planned, chart)
+
+
 def regime_chart(
     spec: ChartSpec,
     *,
@@ -691,10 +883,12 @@ def regime_chart(
     progress: Callable[[ChartUpdate], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     executor: Executor | None = None,
+    refine: bool = False,
 ) -> Chart:
     """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``."""
     chart = Chart.empty(spec)
-    kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "executor": executor}
+    kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "executor": executor,
+          "refine": refine}  # fmt: skip
     for upd in iter_chart(spec, **kw):
         chart = upd.chart
         if progress is not None:
