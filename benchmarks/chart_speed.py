@@ -1,10 +1,11 @@
 """The chart of regimes, old and new ways, in one run (issue: heavy analyses at the paper's resolution).
 
     .venv/bin/python benchmarks/chart_speed.py [--grid 60,30] [--modes reference,pixels,refined]
-        [--old /path/to/old/checkout] [--rounds 1] [--json out.json]
+        [--old /path/to/old/checkout] [--rounds 1] [--ics 2] [--transient 500] [--periods 500] [--json out.json]
 
 Fig. 11's chart (its scene's window, the two initial conditions of the paper's Fig. 11 discussion, 500
-transient + 500 measured periods, today's classification), on both cores, in these modes (each in a
+transient + 500 measured periods, today's classification; ``--ics 1 --transient 300 --periods 300``
+is the app's preview), on both cores, in these modes (each in a
 child process of its own, the modes alternating round by round; times are medians over rounds):
 
 ``reference``
@@ -40,7 +41,7 @@ HERE = Path(__file__).resolve().parents[1]
 ICS = [(-0.09, -2.0), (-0.5, -1.0)]
 
 
-def child(mode: str, grid: tuple[int, int], out: str) -> None:
+def child(mode: str, grid: tuple[int, int], out: str, ics: list, transient: int, periods: int) -> None:
     """Compute the chart one way in this process; write its arrays and time to ``out``."""
     if mode == "old":  # the checkout on PYTHONPATH, not the editable install's (see engine_ab.py)
         for finder in list(sys.meta_path):
@@ -60,7 +61,8 @@ def child(mode: str, grid: tuple[int, int], out: str) -> None:
     warm_all()
     scene = get_scene("fig11")
     c = scene.extra["chart"]
-    spec = chart_spec(scene.params, c["x_param"], c["x_range"], c["y_param"], c["y_range"], grid, ics=ICS)
+    spec = chart_spec(scene.params, c["x_param"], c["x_range"], c["y_param"], c["y_range"], grid, ics=ics,
+                      transient=transient, periods=periods)  # fmt: skip
     inferred = np.zeros(spec.shape, dtype=bool)
     t = time.perf_counter()
     if mode == "reference":
@@ -97,13 +99,17 @@ def main() -> None:
     ap.add_argument("--modes", default="reference,pixels,refined")
     ap.add_argument("--old", help="checkout of the old code (mode 'old')")
     ap.add_argument("--rounds", type=int, default=1)
+    ap.add_argument("--ics", type=int, default=2, choices=(1, 2), help="initial conditions per pixel")
+    ap.add_argument("--transient", type=int, default=500)
+    ap.add_argument("--periods", type=int, default=500)
     ap.add_argument("--json")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("--child-out", help=argparse.SUPPRESS)
     args = ap.parse_args()
     grid = tuple(int(v) for v in args.grid.split(","))
+    ics = ICS[: args.ics]
     if args.child:
-        child(args.child, grid, args.child_out)
+        child(args.child, grid, args.child_out, ics, args.transient, args.periods)
         return
     modes = args.modes.split(",")
     if "old" in modes and not args.old:
@@ -117,17 +123,19 @@ def main() -> None:
                 env = dict(os.environ)
                 if mode == "old":
                     env["PYTHONPATH"] = str(Path(args.old).resolve())
-                cmd = [sys.executable, __file__, "--grid", args.grid, "--child", mode, "--child-out", out]
+                cmd = [sys.executable, __file__, "--grid", args.grid, "--child", mode, "--child-out", out, "--ics",
+                       str(args.ics), "--transient", str(args.transient), "--periods", str(args.periods)]  # fmt: skip
                 subprocess.run(cmd, check=True, env=env)
                 with np.load(out) as z:
                     charts[mode] = {k: z[k] for k in z.files}
                 times[mode].append(float(charts[mode]["elapsed"]))
                 print(f"round {r + 1} {mode}: {times[mode][-1]:.2f} s", flush=True)
-    n = grid[0] * grid[1] * len(ICS)
+    n = grid[0] * grid[1] * len(ics)
     base = modes[0]
     ref = charts[base]
     ref_code = np.where(ref["regime"] == 1, ref["period"].astype(np.int64), -ref["regime"].astype(np.int64))
-    report: dict = {"grid": list(grid), "ics": ICS, "rounds": args.rounds, "modes": {}}
+    report: dict = {"grid": list(grid), "ics": ics, "transient": args.transient, "periods": args.periods,
+                    "rounds": args.rounds, "modes": {}}  # fmt: skip
     for mode in modes:
         ch = charts[mode]
         med = statistics.median(times[mode])
