@@ -228,6 +228,9 @@ def test_cli(capsys, tmp_path) -> None:
     assert s["computed"] == 4 and s["grid"] == [2, 2] and s["numerics"]["rtol"] == 1e-8 and out.exists()
     assert main([*args[:-3], "--out", str(tmp_path / "c.txt")]) == 2
     assert "--out must end" in capsys.readouterr().err
+    assert main([*args, "--refine", "--coarse", "1"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["computed"] == 4 and s["inferred_pixels"] == 0  # a coarse lattice of stride 1 is every pixel
 
 
 def _long_period(spec, j: int, i: int, k: int, periods: int = 3000) -> int:
