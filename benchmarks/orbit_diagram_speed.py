@@ -7,8 +7,8 @@ Modes, alternating round by round in this process after a warm-up (medians over 
 (every value from the same IC, values one by one in threads: ``lockstep=False``) and ``lockstep``
 (fixed seeding, every value at once in lock-step blocks with per-member coefficients, the default for
 fixed seeding). The lock-step diagram is compared with the value-by-value one: the period detected at
-each value (``OrbitDiagram.periods``, tol 1e-5) and, where both see a cycle, the largest distance
-between their points (sorted: the phase of a cycle is the same, the points are compared one by one).
+each value (``OrbitDiagram.periods``, tol 1e-5) and, where both see the same period, the largest
+distance from a point of one cycle to the nearest point of the other (the phase may differ).
 """
 
 from __future__ import annotations
@@ -26,6 +26,12 @@ from explorer_core.scenes import get_scene
 from explorer_core.warm import warm_all
 
 IC = (-0.0959, -1.962)
+
+
+def cycle_distance(x: np.ndarray, y: np.ndarray, p: int) -> float:
+    """Largest distance from a point of ``y``'s last cycle of ``p`` points to the nearest of ``x``'s (any phase)."""
+    cx, cy = x[-p:], y[-p:]
+    return float(np.abs(cy[:, None, :] - cx[None, :, :]).max(axis=2).min(axis=1).max())
 
 
 def main() -> None:
@@ -54,8 +60,7 @@ def main() -> None:
     a, b = last["fixed"], last["lockstep"]
     pa, pb = a.periods(tol=1e-5)[0, :, 0], b.periods(tol=1e-5)[0, :, 0]
     both = (pa > 0) & (pa == pb)
-    dist = [float(np.abs(np.sort(a.points[0, v, 0], axis=0) - np.sort(b.points[0, v, 0], axis=0)).max())
-            for v in np.flatnonzero(both)]  # fmt: skip
+    dist = [cycle_distance(a.points[0, v, 0], b.points[0, v, 0], int(pa[v])) for v in np.flatnonzero(both)]
     report = {
         "values": args.values,
         "rounds": args.rounds,
