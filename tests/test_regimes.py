@@ -320,6 +320,24 @@ def test_early_stopped_periods_agree_with_long_independent_integrations() -> Non
         assert detect_period(pts, spec.p_max, spec.tol * (1 + np.abs(pts).max())) == p, (j, i, k)
 
 
+@pytest.mark.slow
+def test_early_escape_agrees_with_an_independent_integration() -> None:
+    """A sampled member stopped at ESCAPE_BOUND: solve_ivp on the naive field leaves that bound too, and 1e3."""
+    from scipy.integrate import solve_ivp
+
+    spec = _settle_spec()
+    res = compute_tile(spec, plan_tiles(spec.shape, 4, 16)[0])
+    pix, k = (int(v[0]) for v in np.nonzero(res.regime == ESCAPED))
+    p = spec.pixel_params(int(res.jj[pix]), int(res.ii[pix]))
+    field = naive.NaiveField(p)
+    for bound in (regimes.ESCAPE_BOUND, 1e3):
+        leave = lambda t, y, b=bound: max(abs(y[0]), abs(y[1])) - b  # noqa: E731
+        leave.terminal = True
+        sol = solve_ivp(field.rhs, (p.t0, p.t0 + (spec.transient + spec.periods) * p.period), spec.ics[k],
+                        method="DOP853", rtol=1e-10, atol=1e-10, events=leave)  # fmt: skip
+        assert sol.status == 1 and sol.t_events[0].size == 1, bound
+
+
 def _chaos_spec():
     return chart_spec(FIG11, "alpha", (-0.6, -0.42), "I11", (1.0, 1.5), (6, 3), ics=[IC], transient=100, periods=250)
 

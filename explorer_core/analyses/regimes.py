@@ -20,7 +20,11 @@ a :class:`ChartSpec` and a :class:`TileSpec` (both plain picklable data), so a
 task scheduler can run tiles anywhere. :func:`plan_tiles` orders them
 progressively -- every ``coarse``-th pixel first, then each finer level -- and
 :func:`iter_chart` streams partial charts (with :meth:`Chart.filled` showing a
-coarse picture at once) while both cores work.
+coarse picture at once) while both cores work. Members stop as soon as their regime
+is decided (:func:`compute_tile`); :func:`compute_tile_each` is the reference that runs
+every member the whole way. With ``refine=True`` the finer levels are computed only
+where the coarser one is not uniform (:func:`refine_level`) and the other pixels are
+filled (``Chart.inferred``).
 """
 
 from __future__ import annotations
