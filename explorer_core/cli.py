@@ -780,6 +780,7 @@ def cmd_chart(args: argparse.Namespace) -> int:
             ),
             cancel=stop,
             executor=_executor(args),
+            refine=args.refine,
         )
     if show:
         sys.stderr.write("\n")
@@ -1259,6 +1260,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tol", type=_number("tol"), default=1e-5, help="return tolerance (relative to 1 + |x|)")
     p.add_argument("--lyap-threshold", type=_number("lyap-threshold"), default=5e-3, help="chaos above (per time)")
     p.add_argument("--coarse", type=_count("coarse", 1, 1024), default=8, help="stride of the first coarse pass")
+    p.add_argument("--refine", action="store_true", help="finer levels only where neighbours differ (README)")
     p.add_argument("--out", action="append", metavar="FILE", help=".npz, .csv or .png (repeatable)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask cluster: tcp://HOST:PORT or local:N (docs/dask.md)")
     p.add_argument("--json", action="store_true")

@@ -158,10 +158,38 @@ def test_cancel_and_progress() -> None:
     seen = []
     d = bifurcation_diagram(
         FIG10, "alpha", sweep_values((-0.4, -0.36), 40), points=5, transient=5, seeding="fixed",
-        progress=seen.append, cancel=lambda: len(seen) >= 3, workers=1,
+        progress=seen.append, cancel=lambda: len(seen) >= 3, workers=1, lockstep=False,
     )  # fmt: skip
     assert not d.completed and len(seen) == 3 and seen[-1].total == 40
     assert d.status_counts()["not_run"] == 37
+    # In lock-step every value advances together: progress by periods, a cancel leaves nothing drawn.
+    seen.clear()
+    d = bifurcation_diagram(
+        FIG10, "alpha", sweep_values((-0.4, -0.36), 40), points=5, transient=250, seeding="fixed",
+        progress=seen.append, cancel=lambda: len(seen) >= 2,
+    )  # fmt: skip
+    assert not d.completed and len(seen) == 2 and seen[0].done < seen[1].done < 40
+    assert d.status_counts() == {"not_run": 40}
+
+
+def test_fixed_seeding_in_lockstep_is_the_value_by_value_diagram() -> None:
+    """Lock-step blocks of neighbouring values: the same periods and, on cycles, the same points (to 1e-6)."""
+    vals = sweep_values((-0.42, -0.35), 24)
+    kw = {"points": 64, "transient": 400, "ics": [(-0.09, -2.0), (-0.5, -1.0)], "seeding": "fixed"}
+    a = bifurcation_diagram(FIG10, "alpha", vals, lockstep=False, **kw)
+    b = bifurcation_diagram(FIG10, "alpha", vals, **kw)
+    one = bifurcation_diagram(FIG10, "alpha", vals, workers=1, **kw)  # the blocks do not depend on the threads
+    assert np.array_equal(one.points, b.points) and np.array_equal(one.final, b.final)
+    assert b.completed and b.status_counts() == a.status_counts() == {"ok": 48}
+    pa, pb = a.periods(tol=1e-5), b.periods(tol=1e-5)
+    # Other step sequences: at alpha = -0.4017 a transient that ends within the 400 periods on one of them
+    # (period 2) has not ended on the other (its 64 points show no period yet).
+    assert (pa != pb).sum() <= 1
+    assert {0, 1, 2, 4} <= set(pa.ravel().tolist())
+    for s, v, i in zip(*np.nonzero((pa > 0) & (pa == pb)), strict=True):
+        p = int(pa[s, v, i])
+        ca, cb = a.points[s, v, i, -p:], b.points[s, v, i, -p:]  # the same cycle, in any phase
+        assert np.abs(cb[:, None, :] - ca[None, :, :]).max(axis=2).min(axis=1).max() < 1e-6, (v, i)
 
 
 @pytest.mark.parametrize(

@@ -35,7 +35,8 @@ from explorer_core.analyses.regimes import (
 )
 from explorer_core.analyses.sweeps import detect_period
 from explorer_core.scenes import get_scene
-from explorer_core.solve.integrators import Status
+from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError
 
 FIG11 = get_scene("fig11").params
@@ -102,9 +103,19 @@ def test_line_of_the_chart_agrees_with_the_bifurcation_diagram_and_lyapunov() ->
     assert chart.period[0, :, 0].tolist() == [0, 4, 2, 1]
     d = bifurcation_diagram(FIG11.with_(I11=1.0), "alpha", alphas, points=128, transient=400, ics=[IC], seeding="fixed")
     assert d.periods(tol=1e-5)[0, 1:, 0].tolist() == [4, 2, 1]
-    lyap = lyapunov_spectrum(FIG11.with_(I11=1.0, alpha=-0.42), [IC], 128, transient=400, numerics=spec.numerics)
-    assert chart.lyap[0, 0, 0] == pytest.approx(lyap.exponents[0, 0], rel=1e-12)
-    assert lyap.exponents[0, 0] > 0.02
+    # Chaos was decided in the transient, as soon as the early bound held over the second half of the run so
+    # far: the exponent is the mean log R_11 over those periods, the spectrum's own (an independent driver).
+    at = FIG11.with_(I11=1.0, alpha=-0.42)
+    whole = lyapunov_spectrum(at, [IC], 528, transient=0, numerics=spec.numerics)
+    per = whole.logs[0, :, 0]
+    thr = regimes.CHAOS_EARLY_MARGIN * spec.lyap_threshold * at.period
+    n = next(
+        n
+        for n in range(regimes.CHAOS_EARLY_PERIODS, 400, 10)
+        if (lambda m, e: m - regimes.CHAOS_EARLY_Z * e > thr)(*regimes.chaos_bound(per[n // 2 // 10 * 10 : n]))
+    )
+    assert chart.lyap[0, 0, 0] == pytest.approx(per[n // 2 // 10 * 10 : n].mean() / at.period, rel=1e-12)
+    assert lyapunov_spectrum(at, [IC], 128, transient=400, numerics=spec.numerics).exponents[0, 0] > 0.02
 
 
 def _small_spec(**kw):
@@ -217,6 +228,31 @@ def test_cli(capsys, tmp_path) -> None:
     assert s["computed"] == 4 and s["grid"] == [2, 2] and s["numerics"]["rtol"] == 1e-8 and out.exists()
     assert main([*args[:-3], "--out", str(tmp_path / "c.txt")]) == 2
     assert "--out must end" in capsys.readouterr().err
+    assert main([*args, "--refine", "--coarse", "1"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["computed"] == 4 and s["inferred_pixels"] == 0  # a coarse lattice of stride 1 is every pixel
+
+
+def _long_period(spec, j: int, i: int, k: int, periods: int = 3000) -> int:
+    """Period detected over the last 250 of ``periods`` section points at rtol 1e-10 (0: none)."""
+    p = spec.pixel_params(int(j), int(i))
+    batch = Batch.start(spec.ics[k : k + 1], p.t0, p.period)
+    pts, _ = advance(Model(p), batch, periods, rtol=1e-10, atol=1e-10, workers=1, block=1)
+    tail = pts[0, -250:]
+    return detect_period(tail, spec.p_max, spec.tol * (1 + np.abs(tail).max()))
+
+
+def _same_or_confirmed(spec, a, b) -> np.ndarray:
+    """Where tiles ``a`` (early stops) and ``b`` (the whole way) differ, ``a`` found a cycle a long run confirms.
+
+    Newton confirms an attracting cycle that the reference's short measurement had not converged on yet;
+    a long integration at another tolerance settles on it. Returns the mask of differences.
+    """
+    differ = (a.regime != b.regime) | (a.period != b.period)
+    for pix, k in zip(*np.nonzero(differ), strict=True):
+        assert a.regime[pix, k] == PERIODIC
+        assert _long_period(spec, a.jj[pix], a.ii[pix], k) == a.period[pix, k]
+    return differ
 
 
 def _settle_spec():
@@ -225,20 +261,23 @@ def _settle_spec():
 
 
 def test_members_on_an_attracting_cycle_stop_early_the_others_are_the_per_pixel_chart(monkeypatch) -> None:
-    """Early stops change no regime and no period; every member that does not stop is computed as before, to the bit."""
+    """Early stops change no regime and no period here (but cycles the reference had not converged on); every
+    member that runs to the end is computed as before, to the bit (escaped members stop at ESCAPE_BOUND)."""
     spec = _settle_spec()
     calls = []
-    real = regimes.settled_cycle
-    monkeypatch.setattr(regimes, "settled_cycle", lambda *a: calls.append(a) or real(*a))
-    n_periodic, kinds = 0, set()
+    real = regimes.settled_cycles
+    monkeypatch.setattr(regimes, "settled_cycles", lambda *a, **kw: calls.extend(real(*a, **kw)) or calls[-len(a[1]) :])
+    n_periodic, n_differ = 0, 0
     for t in plan_tiles(spec.shape, 4, 16):
         a, b = compute_tile(spec, t), compute_tile_each(spec, t)
-        kinds |= {int(r) for r in a.regime.ravel()}
-        np.testing.assert_array_equal(a.regime, b.regime)
-        np.testing.assert_array_equal(a.period, b.period)
+        differ = _same_or_confirmed(spec, a, b)
+        n_differ += int(differ.sum())
         np.testing.assert_array_equal(a.status, b.status)
-        other = a.regime != PERIODIC
+        # Members run to the end: bit for bit. Chaos may be decided early (200 periods): a finite-time estimate.
+        other = (a.regime != PERIODIC) & (a.regime != ESCAPED) & (a.regime != CHAOTIC) & ~differ
         np.testing.assert_array_equal(a.lyap[other], b.lyap[other])
+        chaos = (a.regime == CHAOTIC) & ~differ
+        assert np.all(a.lyap[chaos] > regimes.CHAOS_MARGIN * spec.lyap_threshold) and np.all(b.lyap[chaos] > 0)
         per = a.regime == PERIODIC
         n_periodic += int(per.sum())
         # A cycle's exponent is its own: negative, and what the finite-time average approaches.
@@ -247,7 +286,9 @@ def test_members_on_an_attracting_cycle_stop_early_the_others_are_the_per_pixel_
     assert {CHAOTIC, ESCAPED} <= {
         int(r) for t in plan_tiles(spec.shape, 4, 16) for r in compute_tile(spec, t).regime.ravel()
     }
-    assert n_periodic > 20 and len(calls) >= n_periodic  # every periodic member stopped early
+    # Every periodic member stopped early, on a cycle Newton found.
+    assert n_periodic > 20 and sum(c is not None for c in calls) >= n_periodic
+    assert n_differ <= 2
 
 
 def test_a_settled_cycle_has_its_least_period_its_own_exponent_and_must_attract() -> None:
@@ -277,3 +318,125 @@ def test_early_stopped_periods_agree_with_long_independent_integrations() -> Non
     for p, (j, i, k) in sorted(seen.items())[:3]:
         pts = naive.solve_ivp_section(spec.pixel_params(j, i), spec.ics[k], 250, rtol=1e-10, atol=1e-10)[150:]
         assert detect_period(pts, spec.p_max, spec.tol * (1 + np.abs(pts).max())) == p, (j, i, k)
+
+
+@pytest.mark.slow
+def test_early_escape_agrees_with_an_independent_integration() -> None:
+    """A sampled member stopped at ESCAPE_BOUND: solve_ivp on the naive field leaves that bound too, and 1e3."""
+    from scipy.integrate import solve_ivp
+
+    spec = _settle_spec()
+    res = compute_tile(spec, plan_tiles(spec.shape, 4, 16)[0])
+    pix, k = (int(v[0]) for v in np.nonzero(res.regime == ESCAPED))
+    p = spec.pixel_params(int(res.jj[pix]), int(res.ii[pix]))
+    field = naive.NaiveField(p)
+    for bound in (regimes.ESCAPE_BOUND, 1e3):
+        leave = lambda t, y, b=bound: max(abs(y[0]), abs(y[1])) - b  # noqa: E731
+        leave.terminal = True
+        sol = solve_ivp(field.rhs, (p.t0, p.t0 + (spec.transient + spec.periods) * p.period), spec.ics[k],
+                        method="DOP853", rtol=1e-10, atol=1e-10, events=leave)  # fmt: skip
+        assert sol.status == 1 and sol.t_events[0].size == 1, bound
+
+
+def _chaos_spec():
+    return chart_spec(FIG11, "alpha", (-0.6, -0.42), "I11", (1.0, 1.5), (6, 3), ics=[IC], transient=100, periods=250)
+
+
+def _early_chaos(spec) -> list[tuple[int, int, int, float, float]]:
+    """``(j, i, ic, early exponent, reference exponent)`` of every member decided chaotic before the end."""
+    out = []
+    for t in plan_tiles(spec.shape, 2, 64):
+        a, b = compute_tile(spec, t), compute_tile_each(spec, t)
+        # Regimes and periods as the whole computation's (this window has no long chaotic transient).
+        assert _same_or_confirmed(spec, a, b).sum() <= 1
+        for pix, k in zip(*np.nonzero((a.regime == CHAOTIC) & (a.lyap != b.lyap)), strict=True):
+            out.append((int(a.jj[pix]), int(a.ii[pix]), int(k), float(a.lyap[pix, k]), float(b.lyap[pix, k])))
+    return out
+
+
+def test_chaos_is_decided_early_when_the_bound_on_the_exponent_holds() -> None:
+    spec = _chaos_spec()
+    early = _early_chaos(spec)
+    assert len(early) >= 3
+    for j, i, k, lam, ref in early:
+        # The exponent over the first CHAOS_MIN_PERIODS.. measured periods, the same computation cut short.
+        assert lam > regimes.CHAOS_MARGIN * spec.lyap_threshold and ref > spec.lyap_threshold
+        p = spec.pixel_params(j, i)
+        short = lyapunov_spectrum(p, [spec.ics[k]], regimes.CHAOS_MIN_PERIODS, transient=spec.transient,
+                                  numerics=spec.numerics)  # fmt: skip
+        assert lam == pytest.approx(short.exponents[0, 0], rel=1e-12)
+    # The bound: block means of a chaotic orbit's log R_11.
+    rng = np.random.default_rng(0)
+    mean, err = regimes.chaos_bound(0.3 + rng.normal(0, 1, 400))
+    assert abs(mean - 0.3) < 4 * err and 0.03 < err < 0.07
+    assert math.isinf(regimes.chaos_bound(np.ones(15))[1])  # fewer than two blocks: no bound
+
+
+@pytest.mark.slow
+def test_early_chaos_agrees_with_long_independent_integrations() -> None:
+    """A sampled early-decided member of each kind (after 100 measured periods; in the transient at 200 periods):
+    solve_ivp's exponent over the whole measurement is chaos, and no cycle."""
+    sampled = []
+    for spec in (_chaos_spec(), _settle_spec()):
+        early = _early_chaos(spec)
+        sampled.append((spec, *early[len(early) // 2][:3]))
+    for spec, j, i, k in sampled:
+        p = spec.pixel_params(j, i)
+        logs, _, pts = naive.solve_ivp_lyapunov(p, spec.ics[k], spec.transient + spec.periods, rtol=1e-9, atol=1e-9)
+        lam = logs[spec.transient :, 0].mean() / p.period
+        tail = pts[-spec.periods // 2 :]
+        assert lam > spec.lyap_threshold, (j, i, k, lam)
+        assert detect_period(tail, spec.p_max, spec.tol * (1 + np.abs(tail).max())) == 0
+
+
+def _simulate_refinement(true: np.ndarray, coarse: int) -> tuple[np.ndarray, int]:
+    """Refine a known picture of codes ``[j, i, ic]`` as iter_chart(refine=True) does; (picture, pixels computed)."""
+    ny, nx, _ = true.shape
+    code = np.zeros_like(true)
+    ys, xs = regimes.lattice(ny, coarse), regimes.lattice(nx, coarse)
+    code[np.ix_(ys, xs)] = true[np.ix_(ys, xs)]
+    n = ys.size * xs.size
+    s = coarse // 2
+    while s >= 1:
+        compute, fill = regimes.refine_level(code, (ny, nx), s, regimes.REFINE_RING)
+        for j, i in compute:
+            code[j, i] = true[j, i]
+        for j, i, sj, si in fill:
+            code[j, i] = code[sj, si]
+        n += len(compute)
+        s //= 2
+    return code, n
+
+
+def test_refinement_reproduces_regions_and_computes_only_near_boundaries() -> None:
+    assert regimes.lattice(10, 4).tolist() == [0, 4, 8, 9] and regimes.lattice(9, 4).tolist() == [0, 4, 8]
+    jj, ii = np.mgrid[0:61, 0:83]
+    disc = (jj - 30) ** 2 + (ii - 40) ** 2 < 18**2
+    band = (ii > 2 * jj) & (ii < 2 * jj + 9)  # a band 9 pixels wide: wider than a coarse cell's half-diagonal
+    true = np.stack([disc * 1 + band * 2, disc * 1], axis=-1)
+    for coarse in (4, 8):
+        picture, n = _simulate_refinement(true, coarse)
+        np.testing.assert_array_equal(picture, true)
+        assert n < 0.5 * true[..., 0].size
+    # A feature smaller than the coarse cells and away from every other is not seen: the price of refining.
+    dot = np.zeros((33, 33, 1), dtype=np.int64)
+    dot[13, 13] = 5
+    assert not np.any(_simulate_refinement(dot, 8)[0] == 5)
+
+
+def test_refined_chart_computes_pixels_as_the_full_chart_and_fills_the_rest() -> None:
+    spec = chart_spec(FIG11, "alpha", (-0.6, -0.4), "I11", (0.0, 2.0), (13, 11), ics=[IC], transient=60, periods=40,
+                      p_max=8)  # fmt: skip
+    full = regime_chart(spec, workers=2)
+    refined = regime_chart(spec, workers=2, coarse=4, refine=True)
+    assert refined.completed and refined.computed.all() and 0 < refined.inferred.sum() < refined.inferred.size
+    own = ~refined.inferred
+    for name in ("regime", "period", "lyap", "status"):
+        np.testing.assert_array_equal(getattr(refined, name)[own], getattr(full, name)[own])
+    # I11 = 0 is not positive definite: never inferred, computed, with its reason.
+    assert np.all(refined.regime[0] == INVALID) and not refined.inferred[0].any() and (0, 5) in refined.errors
+    assert refined.summary()["inferred_pixels"] == int(refined.inferred.sum())
+    # A cancelled refinement is a partial chart.
+    calls = []
+    part = regime_chart(spec, workers=1, coarse=4, refine=True, progress=calls.append, cancel=lambda: len(calls) >= 2)
+    assert not part.completed and len(calls) == 2

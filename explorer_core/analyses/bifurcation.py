@@ -48,8 +48,9 @@ from explorer_core.analyses.sweeps import (
     status_label,
 )
 from explorer_core.parallel.executor import Executor
-from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.integrators import Batch, Status, advance, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.rk import FIELD
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -344,6 +345,76 @@ class SweepSpec:
         return bilimovich_orbits(p, seed, self.transient, self.n_points, self.numerics, threads)
 
 
+#: Fixed seeding in lock-step: members (value, IC) per block, and periods per engine call (cancel and
+#: progress are looked at between calls).
+LOCKSTEP_BLOCK = 16
+LOCKSTEP_CHUNK = 100
+
+
+def fixed_lockstep(
+    spec: SweepSpec,
+    valid: np.ndarray,
+    *,
+    workers: int | None = None,
+    progress: Callable[[SweepProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> dict[str, np.ndarray]:
+    """:func:`sweep_orbits` with ``fixed`` seeding, every value and IC at once in lock-step blocks.
+
+    Every member starts from its IC, so neighbouring values (similar dynamics) share a block of
+    :data:`LOCKSTEP_BLOCK` with one row of coefficients each (:func:`~explorer_core.solve.integrators.
+    lockstep_groups`): the block's loops run over its members together, each member still meets the
+    tolerance (a step is accepted only if every member's error is), so the points agree with the
+    value-by-value computation to the tolerance (bit for bit only on cycles' ends, not on chaotic orbits).
+    """
+    start = time.perf_counter()
+    n_ic = spec.ics.shape[0]
+    out = empty_sweep_arrays(1, valid, n_ic, spec.n_points)
+    todo = [int(v) for v in np.flatnonzero(valid)]
+    members = [(v, i) for v in todo for i in range(n_ic)]
+    if not members:
+        return {"sweeps": np.array(["fixed"]), **out}
+    pset = [spec.params_at(v) for v in todo]
+    plist = [pset[k // n_ic] for k in range(len(members))]
+    y0 = spec.ics[[i for _, i in members]]
+    kw = spec.numerics.kernel_kwargs()
+    total_periods = spec.transient + spec.n_points
+    done_periods = 0
+
+    def stopped() -> bool:
+        return cancel is not None and bool(cancel())
+
+    def report() -> None:
+        if progress is not None:
+            done = len(todo) * done_periods // total_periods
+            progress(SweepProgress(done, len(todo), time.perf_counter() - start))
+
+    groups = lockstep_groups(plist, y0)
+    for idx, coefs, batch in groups:
+        left = spec.transient
+        while left > 0:
+            if stopped():
+                return {"sweeps": np.array(["fixed"]), **out}
+            c = min(LOCKSTEP_CHUNK, left)
+            run(FIELD, coefs, batch, c, store=False, workers=workers, block=LOCKSTEP_BLOCK, **kw)
+            left -= c
+            done_periods += c * idx.size // len(members)
+            report()
+        if stopped():
+            return {"sweeps": np.array(["fixed"]), **out}
+        pts, npts = run(FIELD, coefs, batch, spec.n_points, workers=workers, block=LOCKSTEP_BLOCK, **kw)
+        pts[np.arange(spec.n_points)[None, :] >= npts[:, None]] = 0.0  # not data: make results reproducible
+        for j, m in enumerate(idx):
+            v, i = members[m]
+            out["points"][0, v, i] = pts[j]
+            out["npts"][0, v, i] = npts[j]
+            out["status"][0, v, i] = batch.status[j]
+            out["final"][0, v, i] = batch.y[j]
+    done_periods = total_periods
+    report()
+    return {"sweeps": np.array(["fixed"]), **out}
+
+
 @dataclass(frozen=True)
 class SweepChunk:
     """Orbits at consecutive values of one sweep; arrays are ``[k, ic, ...]`` for ``indices[k]``."""
@@ -399,6 +470,7 @@ def bifurcation_diagram(
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
     executor: Executor | None = None,
+    lockstep: bool = True,
 ) -> OrbitDiagram:
     """Orbit diagram of the Poincare map over ``param`` (paper, Fig. 10).
 
@@ -420,6 +492,8 @@ def bifurcation_diagram(
     executor : ``None`` (this process: values one by one, both sweeps at once), or an executor
         (:mod:`explorer_core.parallel.executor`, e.g. a Dask cluster's) that runs chunks of values as
         tasks, with identical results.
+    lockstep : with ``fixed`` seeding in this process, integrate the values in lock-step blocks
+        (:func:`fixed_lockstep`); False: one value at a time, as the executors do.
     """
     start = time.perf_counter()
     param = check_param(param)
@@ -440,6 +514,8 @@ def bifurcation_diagram(
     valid = np.array([not e for e in errors])
     if executor is not None:
         out = sweep_tasks(spec, valid, seeding, sweeps, executor, progress=progress, cancel=cancel)
+    elif seeding == "fixed" and lockstep:
+        out = fixed_lockstep(spec, valid, workers=workers, progress=progress, cancel=cancel)
     else:
         out = sweep_orbits(
             spec.orbits,

@@ -20,7 +20,11 @@ a :class:`ChartSpec` and a :class:`TileSpec` (both plain picklable data), so a
 task scheduler can run tiles anywhere. :func:`plan_tiles` orders them
 progressively -- every ``coarse``-th pixel first, then each finer level -- and
 :func:`iter_chart` streams partial charts (with :meth:`Chart.filled` showing a
-coarse picture at once) while both cores work.
+coarse picture at once) while both cores work. Members stop as soon as their regime
+is decided (:func:`compute_tile`); :func:`compute_tile_each` is the reference that runs
+every member the whole way. With ``refine=True`` the finer levels are computed only
+where the coarser one is not uniform (:func:`refine_level`) and the other pixels are
+filled (``Chart.inferred``).
 """
 
 from __future__ import annotations
@@ -38,13 +42,12 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from explorer_core import config
-from explorer_core.analyses.orbits import find_orbits
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
 from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.solve import tangent
 from explorer_core.solve.integrators import Status, coefficients, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
-from explorer_core.solve.rk import LYAPUNOV
+from explorer_core.solve.rk import LYAPUNOV, Coefficients
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -211,9 +214,13 @@ class TileSpec:
     j1: int
     i0: int
     i1: int
+    #: The pixels themselves, when a refinement chose them (then the block and lattice are not used).
+    only: tuple[tuple[int, int], ...] = ()
 
     def pixels(self) -> list[tuple[int, int]]:
         """``(j, i)`` of the tile's pixels, row by row."""
+        if self.only:
+            return list(self.only)
         s = self.stride
         out = []
         for j in range(self.j0 + (-self.j0) % s, self.j1, s):
@@ -249,6 +256,50 @@ def plan_tiles(shape: tuple[int, int], coarse: int = 8, tile_pixels: int = 64) -
     return tiles
 
 
+def lattice(n: int, stride: int) -> np.ndarray:
+    """Indices ``0, stride, 2 stride, ...`` of an axis of ``n`` pixels, and its last index ``n - 1``."""
+    return np.unique(np.r_[np.arange(0, n, stride), n - 1])
+
+
+def _bracket(coords: np.ndarray, v: int, ring: int) -> np.ndarray:
+    """The entries of ``coords`` (sorted) that enclose ``v``, with ``ring`` more on each side."""
+    a = int(np.searchsorted(coords, v, side="right")) - 1
+    hi = a + 1 if coords[a] == v else a + 2
+    return coords[max(0, a - ring) : min(coords.size, hi + ring)]
+
+
+def refine_level(
+    code: np.ndarray, shape: tuple[int, int], stride: int, ring: int = 1
+) -> tuple[list[tuple[int, int]], list[tuple[int, int, int, int]]]:
+    """Which pixels of the ``stride`` lattice to compute and which to fill from the ``2 stride`` lattice.
+
+    ``code`` ``[j, i, ic]`` (:meth:`Chart.code`) is known on the ``2 stride`` lattice (:func:`lattice` of both
+    axes). A new pixel is filled when every known pixel of its enclosing cell and of ``ring`` cells around
+    it has the same code for every initial condition (a region of one regime and period); otherwise it is
+    computed. Returns ``(compute [(j, i)], fill [(j, i, source j, source i)])``, the source being the
+    nearest corner of the cell.
+    """
+    ny, nx = shape
+    ys, xs = lattice(ny, stride), lattice(nx, stride)
+    ys2, xs2 = lattice(ny, 2 * stride), lattice(nx, 2 * stride)
+    old_y, old_x = np.isin(ys, ys2), np.isin(xs, xs2)
+    compute, fill = [], []
+    for a, j in enumerate(ys):
+        rows = _bracket(ys2, int(j), ring)
+        for b, i in enumerate(xs):
+            if old_y[a] and old_x[b]:
+                continue
+            cols = _bracket(xs2, int(i), ring)
+            block = code[np.ix_(rows, cols)].reshape(-1, code.shape[-1])
+            if np.all(block == block[0]):
+                sj = int(rows[np.argmin(np.abs(rows - j))])
+                si = int(cols[np.argmin(np.abs(cols - i))])
+                fill.append((int(j), int(i), sj, si))
+            else:
+                compute.append((int(j), int(i)))
+    return compute, fill
+
+
 @dataclass(frozen=True)
 class TileResult:
     """Regimes of a tile's pixels; arrays are indexed ``[pixel, ic]`` in ``tile.pixels()`` order."""
@@ -269,19 +320,28 @@ def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
 
     Every pixel and initial condition runs with the tangent system on its own step sequence (lock-step
     blocks across pixels were measured slower: a block steps at its most demanding member's pace, and
-    escaping or chaotic members multiplied the steps of the whole block ~8x). A member stops as soon as
-    it has settled on an attracting cycle:
+    escaping or chaotic members multiplied the steps of the whole block ~8x). Every
+    :data:`SETTLE_CHUNK` periods a member may stop early:
 
-    * every :data:`SETTLE_CHUNK` periods, a member whose last :func:`settle_window` section points
-      return within ``tol`` after ``p <= p_max`` iterations is handed to Newton on ``P^p(x) - x``
-      (:func:`~explorer_core.analyses.orbits.find_orbits`, which also finds the least period: a slowly
-      converging focus returns after 3 iterations long before it does after 1). If the cycle attracts
-      (``max |mu| < 1``) the member is periodic with that period and its exponent is the cycle's own,
-      ``log max |mu| / (p T)`` (which a finite-time average only approaches);
-    * a cycle that does not attract, or Newton failing, leaves the member running, never to be stopped:
-      it and every member that never settles are classified from the whole transient and measurement,
-      exactly as :func:`compute_tile_each` does (to the last bit: chunked runs continue each step
-      sequence unchanged).
+    * **on an attracting cycle**: once its last ``p_max +`` :data:`SETTLE_POINTS` section points return
+      within :data:`SETTLE_TOL` after ``p <= p_max`` iterations it is handed to Newton on ``P^p(x) - x``
+      (:func:`settled_cycle`: least period at the resolution ``tol``, multipliers). If the cycle
+      attracts (``max |mu| < 1``) and lies within that tolerance of the member, the member is periodic
+      with that period and its exponent is the cycle's own, ``log max |mu| / (p T)`` (which a
+      finite-time average only approaches). Otherwise it is tried again :data:`SETTLE_RETRY` periods
+      later, or never again once its points return within ``tol`` (the whole run decides, as before);
+    * **escaped**: ``|q|`` or ``|r|`` passed :data:`ESCAPE_BOUND` (or the integration's bound if smaller);
+    * **chaotic**: after :data:`CHAOS_MIN_PERIODS` measured periods with no return within ``tol``, if
+      the mean per-period ``log R_11`` minus :data:`CHAOS_Z` standard errors (:func:`chaos_bound`) is
+      above :data:`CHAOS_MARGIN` times the threshold; its exponent is the mean so far. A strongly
+      chaotic member is decided from :data:`CHAOS_EARLY_PERIODS` periods on, in the transient, by a
+      stricter bound over the second half of its periods so far (its exponent is their mean).
+
+    Every other member runs the whole transient and measurement and is classified exactly as
+    :func:`compute_tile_each` does (to the last bit: chunked runs continue each step sequence
+    unchanged). Differences from that reference (``benchmarks/chart_speed.py``) are on regime
+    boundaries: cycles the reference's finite tail had not converged on (Newton finds them), and long
+    chaotic transients that settle after the chaos decision.
     """
     return _tile(spec, tile, _classify_members)
 
@@ -326,6 +386,31 @@ def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileRes
 
 #: Periods between two looks for members that have settled on a cycle (each look is one engine call).
 SETTLE_CHUNK = 10
+#: A member whose last ``p_max + SETTLE_POINTS`` section points return within SETTLE_TOL (relative, as
+#: ``tol``) is handed to Newton: the cycle Newton finds decides, so the points need not have converged to
+#: ``tol`` yet. (Fig. 11 window: periodic members hand over after a median 50 periods, against 120 when
+#: the last 48 points had to return within 1e-5.)
+SETTLE_TOL = 1e-2
+SETTLE_POINTS = 8
+#: Periods to wait before a member that returned within SETTLE_TOL but gave no attracting cycle is tried again.
+SETTLE_RETRY = 50
+#: Charts stop a member once ``|q|`` or ``|r|`` passes this (and the integration's own bound): escaped. On the
+#: Fig. 11 window no bounded orbit goes beyond 6.1 and every escaping one passes 100 within ~20 periods, then
+#: spends ~95% of its steps on the way to 1e4 (steps grow with the speed of rotation).
+ESCAPE_BOUND = 100.0
+#: A member is decided chaotic once it has measured this many periods and the confidence bound below holds.
+CHAOS_MIN_PERIODS = 100
+#: Chaos bound: the mean of the per-period ``log R_11`` over blocks of SETTLE_CHUNK periods, minus CHAOS_Z
+#: standard errors of that mean, above CHAOS_MARGIN times the threshold (per period).
+CHAOS_Z = 4.0
+CHAOS_MARGIN = 1.5
+#: A strongly chaotic member is decided sooner, still in the transient: from CHAOS_EARLY_PERIODS periods on,
+#: if the bound over the second half of its periods so far, with CHAOS_EARLY_Z standard errors, is above
+#: CHAOS_EARLY_MARGIN times the threshold. (Measured on the Fig. 11 window, 60x30 x 2 ICs: chaotic members
+#: cost half as much; one more member of 3600 is called chaotic that a long transient brings to a cycle.)
+CHAOS_EARLY_PERIODS = 200
+CHAOS_EARLY_Z = 5.0
+CHAOS_EARLY_MARGIN = 8.0
 
 
 def settle_window(p_max: int) -> int:
@@ -333,35 +418,129 @@ def settle_window(p_max: int) -> int:
     return 3 * p_max
 
 
-def settled_cycle(params: Params, x: np.ndarray, p: int) -> tuple[int, float] | None:
-    """``(least period, exponent)`` of the attracting cycle Newton finds near ``x`` for ``P^p``, or None.
+#: Newton for settled cycles: the map's accuracy, the convergence test ``|P^p(x) - x| <= ftol (1 + |x|)``
+#: and the iterations allowed (a member hands over within SETTLE_TOL of its cycle: ~3 suffice).
+NEWTON_NUMERICS = Numerics(rtol=1e-10, atol=1e-10)
+NEWTON_FTOL = 1e-8
+NEWTON_ITER = 8
 
-    None when Newton fails or the cycle does not attract (``max |mu| >= 1``).
+
+def settled_cycles(
+    coefs: Coefficients,
+    x: np.ndarray,
+    p: int,
+    t0: float,
+    period: float,
+    near: np.ndarray | float = math.inf,
+    same: np.ndarray | float = 1e-6,
+) -> list[tuple[int, float] | None]:
+    """``(least period, exponent)`` of the attracting cycle Newton finds near each ``x[m]`` for ``P^p``, or None.
+
+    ``coefs`` holds one row of coefficients per point (``coefs.row``, as a chart's members), so the points
+    of many pixels go through one batch per iteration. None when Newton fails, when it goes farther than
+    ``near[m]`` (max-norm) from ``x[m]`` (not the cycle the trajectory is close to), or when the cycle does
+    not attract (``max |mu| >= 1``). Points of the cycle within ``same[m]`` (max-norm) of its first are one
+    point: the period is the least ``d`` dividing ``p`` with ``P^d(x) = x`` at that resolution (Newton on
+    ``P^2`` converges to a fixed point too); the exponent ``log max |mu| / (p T)`` is the same for a cycle
+    and its multiples.
     """
-    search = find_orbits(params, np.asarray(x, dtype=float).reshape(1, 2), [int(p)], patience=None)
-    if not search.orbits:
-        return None
-    orbit = search.orbits[0]
-    mu = float(np.abs(orbit.multipliers).max())
-    if not 0.0 < mu < 1.0:
-        return None
-    return orbit.period, math.log(mu) / (orbit.period * params.period)
+    x0 = np.asarray(x, dtype=float).reshape(-1, 2)
+    m = x0.shape[0]
+    near = np.broadcast_to(np.asarray(near, dtype=float), (m,))
+    same = np.broadcast_to(np.asarray(same, dtype=float), (m,))
+    out: list[tuple[int, float] | None] = [None] * m
+    x = x0.copy()
+    todo = np.arange(m)
+    for _ in range(NEWTON_ITER):
+        if todo.size == 0:
+            break
+        co = coefs._replace(row=np.ascontiguousarray(coefs.row[todo]))
+        mono = tangent.monodromy(co, x[todo], p, t0, period, NEWTON_NUMERICS, workers=1, block=1)
+        f = mono.end - x[todo]
+        ok = mono.ok & np.all(np.isfinite(f), axis=1)
+        conv = ok & (np.abs(f).max(axis=1) <= NEWTON_FTOL * (1.0 + np.abs(x[todo]).max(axis=1)))
+        for j in np.flatnonzero(conv):
+            i = int(todo[j])
+            mu = float(np.abs(np.linalg.eigvals(mono.matrix[j])).max())
+            if not 0.0 < mu < 1.0:
+                continue  # a saddle or a repeller: no early stop
+            pts = mono.points[j]  # P(x), ..., P^p(x)
+            least = next(d for d in range(1, p + 1) if p % d == 0 and np.abs(pts[d - 1] - x[i]).max() <= same[i])
+            out[i] = (least, math.log(mu) / (p * period))
+        go = ok & ~conv
+        jac = mono.matrix[go] - np.eye(2)[None]
+        with np.errstate(all="ignore"):
+            det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
+            rhs = -f[go]
+            dx = np.column_stack([(jac[:, 1, 1] * rhs[:, 0] - jac[:, 0, 1] * rhs[:, 1]) / det,
+                                  (jac[:, 0, 0] * rhs[:, 1] - jac[:, 1, 0] * rhs[:, 0]) / det])  # fmt: skip
+        sel = todo[go]
+        x[sel] += dx
+        stay = np.all(np.isfinite(x[sel]), axis=1) & (np.abs(x[sel] - x0[sel]).max(axis=1) <= near[sel])
+        todo = sel[stay]
+    return out
+
+
+def settled_cycle(
+    params: Params, x: np.ndarray, p: int, near: float = math.inf, same: float = 1e-6
+) -> tuple[int, float] | None:
+    """:func:`settled_cycles` of one point under ``params``."""
+    coefs = coefficients(Model(params), n=1)
+    return settled_cycles(coefs, np.asarray(x, dtype=float).reshape(1, 2), int(p), params.t0, params.period, near,
+                          same)[0]  # fmt: skip
+
+
+def returns(rings: np.ndarray, p_max: int) -> np.ndarray:
+    """``d[m, p - 1] = max_k |x_(k+p) - x_k|`` (max-norm) over the points ``rings[m]`` (n, 2), ``p <= p_max``.
+
+    The least ``p`` with ``d <= tol`` is :func:`~explorer_core.analyses.sweeps.detect_period`'s answer,
+    for every member and any tolerance at once.
+    """
+    n = rings.shape[1]
+    ps = range(1, min(p_max, n - 1) + 1)
+    lo = np.concatenate([np.arange(n - q) for q in ps])
+    starts = np.cumsum([0] + [n - q for q in ps])[:-1]
+    d = np.abs(rings[:, lo + np.repeat(np.array(list(ps)), [n - q for q in ps])] - rings[:, lo]).max(axis=2)
+    return np.maximum.reduceat(d, starts, axis=1)
+
+
+def first_return(d: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """The least ``p`` with ``d[m, p - 1] <= tol[m]`` (0: none), from :func:`returns`."""
+    hit = d <= np.asarray(tol)[:, None]
+    return np.where(hit.any(axis=1), hit.argmax(axis=1) + 1, 0)
+
+
+def chaos_bound(logs: np.ndarray, block: int = SETTLE_CHUNK) -> tuple[float, float]:
+    """Mean per-period ``log R_11`` of ``logs`` (1-D) and the standard error of that mean from block means.
+
+    Blocks of ``block`` consecutive periods (the tail beyond whole blocks is left out) are nearly
+    independent on a chaotic orbit, so their spread measures the uncertainty of the mean.
+    """
+    nb = logs.size // block
+    if nb < 2:
+        return math.nan, math.inf
+    b = logs[: nb * block].reshape(nb, block).mean(axis=1)
+    return float(b.mean()), float(b.std(ddof=1)) / math.sqrt(nb)
 
 
 def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
     """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile)."""
     regime, period, lyap, status = out
     kw = spec.numerics.kernel_kwargs()
+    kw["bound"] = min(kw["bound"], ESCAPE_BOUND)
     total = spec.transient + spec.periods
     window = settle_window(spec.p_max)
+    short = min(window, spec.p_max + SETTLE_POINTS)  # points that must return before Newton is asked
     y0 = tangent.start(spec.ics[at[:, 1]], 0.0, 1.0).y
     for idx, coefs, batch in lockstep_groups(params, y0):
         n = idx.size
         points = np.zeros((n, spec.periods, 2))  # the measurement's section points
-        logs = np.zeros((n, spec.periods))  # log R_11 of each period of the measurement
+        every = np.zeros((n, total))  # log R_11 of every period (the measurement's: from spec.transient on)
+        logs = every[:, spec.transient :]
         measured = np.zeros(n, dtype=np.int64)  # periods of the measurement completed
         recent = np.zeros((n, window, 2))  # the last `window` section points (a ring)
         may_stop, stopped = np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
+        next_try = np.zeros(n, dtype=np.int64)  # no Newton before this many periods
         live = np.flatnonzero(batch.status == Status.OK)
         done = 0
         while done < total and live.size:
@@ -374,27 +553,59 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
                 kk = done + c
                 ok = npts > c  # period c completed (a member that failed stops recording)
                 recent[live[ok], kk % window] = rec[ok, c, :2]
+                every[live[ok], kk] = rec[ok, c, 2]
                 if kk >= spec.transient:
                     points[live[ok], kk - spec.transient] = rec[ok, c, :2]
-                    logs[live[ok], kk - spec.transient] = rec[ok, c, 2]
                     measured[live[ok]] += 1
             done += step
             live = live[part.status == Status.OK]
-            if done < window or done >= total:
+            if done < short or done >= total:
                 continue
+            rings = np.roll(recent[live], -(done % window), axis=1)  # oldest first (valid: the last `done`)
+            scale = 1.0 + np.abs(rings[:, -min(done, window) :]).max(axis=(1, 2))
+            # Returns within tol over the whole ring: what the classification sees.
+            back = (
+                first_return(returns(rings, spec.p_max), spec.tol * scale)
+                if done >= window
+                else np.zeros(live.size, dtype=np.int64)
+            )
+            loose = max(SETTLE_TOL, spec.tol) * scale
+            close = np.where(back > 0, back, first_return(returns(rings[:, -short:], spec.p_max), loose))
+            ask = may_stop[live] & (next_try[live] <= done) & (close > 0)
+            found: dict[int, tuple[int, float] | None] = {}
+            for p in np.unique(close[ask]):  # Newton for every member close to a cycle of period p at once
+                sel = np.flatnonzero(ask & (close == p))
+                co = coefs._replace(row=np.ascontiguousarray(coefs.row[live[sel]]))
+                cyc = settled_cycles(co, rings[sel, -1], int(p), batch.t0, batch.period, near=loose[sel],
+                                     same=spec.tol * scale[sel])  # fmt: skip
+                found.update(zip(sel.tolist(), cyc, strict=True))
             keep = []
-            for m in live:
-                if may_stop[m]:
-                    ring = np.roll(recent[m], -(done % window), axis=0)  # oldest first
-                    p = detect_period(ring, spec.p_max, spec.tol * (1.0 + float(np.abs(ring).max())))
-                    cycle = settled_cycle(params[idx[m]], ring[-1], p) if p else None
+            for a, m in enumerate(live):
+                if ask[a]:
+                    cycle = found[a]
                     if cycle is not None:
                         pix, k = at[idx[m]]
                         regime[pix, k], status[pix, k] = PERIODIC, Status.OK
                         period[pix, k], lyap[pix, k] = cycle
                         stopped[m] = True
                         continue
-                    may_stop[m] = not p  # returns but no attracting cycle: the whole run decides
+                    if back[a]:
+                        may_stop[m] = False  # returns within tol but no attracting cycle: the whole run decides
+                    else:
+                        next_try[m] = done + SETTLE_RETRY  # close, not yet a cycle Newton confirms
+                got = int(measured[m])
+                if not back[a] and (got >= CHAOS_MIN_PERIODS or done >= CHAOS_EARLY_PERIODS):
+                    # The measurement so far, or (before it is long enough) the second half of the run so far.
+                    early = got < CHAOS_MIN_PERIODS
+                    span = every[m, (done // 2) // SETTLE_CHUNK * SETTLE_CHUNK : done] if early else logs[m, :got]
+                    z, margin = (CHAOS_EARLY_Z, CHAOS_EARLY_MARGIN) if early else (CHAOS_Z, CHAOS_MARGIN)
+                    mean, err = chaos_bound(span)
+                    if mean - z * err > margin * spec.lyap_threshold * abs(batch.period):
+                        pix, k = at[idx[m]]
+                        regime[pix, k], status[pix, k], period[pix, k] = CHAOTIC, Status.OK, 0
+                        lyap[pix, k] = span.mean() / params[idx[m]].period
+                        stopped[m] = True
+                        continue
                 keep.append(m)
             live = np.array(keep, dtype=np.int64)
         for row in np.flatnonzero(~stopped):
@@ -457,6 +668,12 @@ class Chart:
     errors: dict[tuple[int, int], str] = field(default_factory=dict)
     elapsed_s: float = 0.0
     completed: bool = False
+    #: ``[j, i]``: True where a refined chart filled the pixel from its neighbours instead of computing it.
+    inferred: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.inferred is None:
+            self.inferred = np.zeros(self.computed.shape, dtype=bool)
 
     @classmethod
     def empty(cls, spec: ChartSpec) -> Chart:
@@ -481,6 +698,16 @@ class Chart:
             if e:
                 self.errors[(int(j), int(i))] = e
 
+    def infer(self, fill: Sequence[tuple[int, int, int, int]]) -> None:
+        """Pixels ``(j, i)`` take the values of ``(source j, source i)`` (see :func:`refine_level`)."""
+        if not fill:
+            return
+        j, i, sj, si = (np.array(v, dtype=np.int64) for v in zip(*fill, strict=True))
+        for arr in (self.regime, self.period, self.lyap, self.status):
+            arr[j, i] = arr[sj, si]
+        self.computed[j, i] = True
+        self.inferred[j, i] = True
+
     def code(self) -> np.ndarray:
         """One integer per pixel and IC for colouring: ``p`` for a period-``p`` cycle, else ``-regime``."""
         return np.where(self.regime == PERIODIC, self.period.astype(np.int64), -self.regime.astype(np.int64))
@@ -497,6 +724,7 @@ class Chart:
             dict(self.errors),
             self.elapsed_s,
             self.completed,
+            self.inferred.copy(),
         )
         ny, nx = self.computed.shape
         jj, ii = np.mgrid[0:ny, 0:nx]
@@ -533,6 +761,7 @@ class Chart:
             "counts": self.counts(),
             "multistable_pixels": int(self.multistable()[self.computed].sum()),
             "invalid_pixels": len(self.errors),
+            "inferred_pixels": int(self.inferred.sum()),
             "completed": self.completed,
             "elapsed_s": round(self.elapsed_s, 6),
         }
@@ -548,6 +777,7 @@ class Chart:
             lyap=self.lyap,
             status=self.status,
             computed=self.computed,
+            inferred=self.inferred,
             regimes=np.array(REGIMES),
             spec=json.dumps(self.spec.as_dict()),
         )
@@ -588,13 +818,23 @@ def iter_chart(
     workers: int | None = None,
     cancel: Callable[[], bool] | None = None,
     executor: Executor | None = None,
+    refine: bool = False,
 ) -> Iterator[ChartUpdate]:
     """Compute the chart tile by tile, coarse levels first, yielding after every tile.
 
     Tiles are tasks of ``executor`` (:mod:`explorer_core.parallel.executor`; default: ``workers`` threads
     of this process, both cores) -- a Dask executor runs them on a cluster with the same updates and
     the same chart. ``cancel`` is polled whenever a tile finishes; no new tile starts once it returns True.
+
+    ``refine``: compute the ``coarse`` lattice (:func:`lattice`: every ``coarse``-th pixel and the last
+    row and column), then each finer level only where the coarser one is not uniform around a pixel
+    (:func:`refine_level`); the other pixels are filled from their neighbours (``Chart.inferred``).
+    Levels run one after another (each needs the previous one); ``total_tiles`` of an update counts
+    the tiles planned so far.
     """
+    if refine:
+        yield from _iter_refined(spec, coarse, tile_pixels, local_executor(executor, workers), cancel)
+        return
     start = time.perf_counter()
     tiles = plan_tiles(spec.shape, coarse, tile_pixels)
     chart = Chart.empty(spec)
@@ -611,6 +851,54 @@ def iter_chart(
                 yield ChartUpdate(res, done, len(tiles), chart)
 
 
+#: Cells around a pixel's own that must share its code before :func:`refine_level` fills it (0: the cell only).
+REFINE_RING = 1
+
+
+def _iter_refined(
+    spec: ChartSpec, coarse: int, tile_pixels: int, ex: Executor, cancel: Callable[[], bool] | None
+) -> Iterator[ChartUpdate]:
+    """:func:`iter_chart` with ``refine=True``."""
+    if coarse < 1 or coarse & (coarse - 1):
+        raise ParameterError(f"coarse must be a power of two, got {coarse!r}")
+    start = time.perf_counter()
+    ny, nx = spec.shape
+    chart = Chart.empty(spec)
+    todo: deque = deque()
+    level, pending, done, planned = coarse, 0, 0, 0
+
+    def push(pixels: list[tuple[int, int]], stride: int) -> int:
+        # Small tiles: a level must finish before the next is planned, so its last tile should be short.
+        size = max(4, min(tile_pixels, math.ceil(len(pixels) / (4 * ex.threads()))))
+        for k in range(0, len(pixels), size):
+            tile = TileSpec(stride, coarse, 0, ny, 0, nx, only=tuple(pixels[k : k + size]))
+            todo.append((None, compute_tile, (spec, tile)))
+        return math.ceil(len(pixels) / size)
+
+    first = [(int(j), int(i)) for j in lattice(ny, coarse) for i in lattice(nx, coarse)]
+    pending = planned = push(first, coarse)
+    with closing(ex.stream(todo, cancel)) as stream:
+        for batch in stream:
+            for _, res in batch:
+                chart.add(res)
+                done += 1
+                pending -= 1
+                while pending == 0 and level > 1:  # a level is complete: plan the next
+                    level //= 2
+                    compute, fill = refine_level(chart.code(), spec.shape, level, REFINE_RING)
+                    invalid = [f for f in fill if isinstance(spec.pixel_params(f[0], f[1]), str)]
+                    if invalid:  # never inferred: computed, so the chart says why
+                        fill = [f for f in fill if f not in invalid]
+                        compute += [(j, i) for j, i, _, _ in invalid]
+                    chart.infer(fill)
+                    if compute:
+                        pending = push(compute, level)
+                        planned += pending
+                chart.elapsed_s = time.perf_counter() - start
+                chart.completed = pending == 0 and level == 1
+                yield ChartUpdate(res, done, planned, chart)
+
+
 def regime_chart(
     spec: ChartSpec,
     *,
@@ -620,10 +908,12 @@ def regime_chart(
     progress: Callable[[ChartUpdate], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     executor: Executor | None = None,
+    refine: bool = False,
 ) -> Chart:
     """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``."""
     chart = Chart.empty(spec)
-    kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "executor": executor}
+    kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "executor": executor,
+          "refine": refine}  # fmt: skip
     for upd in iter_chart(spec, **kw):
         chart = upd.chart
         if progress is not None:
