@@ -406,7 +406,10 @@ class ChartTab(AnalysisTab):
             last = [0.0]
             upd = None
             try:
-                for upd in iter_chart(spec, cancel=cancelled, executor=executor_for(scheduler, warm_all)):
+                # Refined (finer levels only where the coarser one is not uniform) on this machine; every pixel
+                # on a Dask cluster (the refinement is untested there).
+                for upd in iter_chart(spec, cancel=cancelled, executor=executor_for(scheduler, warm_all),
+                                      refine=scheduler is None):  # fmt: skip
                     now = time.perf_counter()
                     if now - last[0] > REFRESH:
                         last[0] = now
@@ -459,6 +462,10 @@ class ChartTab(AnalysisTab):
             summary = ", ".join(f"{k.replace('_', ' ')}: {v}" for k, v in counts.items())
             result = [f"pixels: {summary}"] if classified else [
                 f"No pixel could be classified: every one failed or was invalid ({summary})."]  # fmt: skip
+            inferred = int(chart.inferred.sum()) if chart.inferred is not None else 0
+            if classified and inferred:
+                result.append(f"{inferred} of {chart.inferred.size} pixels filled from a uniform neighbourhood "
+                              "(refinement: only where neighbours differ are finer pixels computed)")  # fmt: skip
         self.set_view(download=True, result=result)
         self.set_progress(done, total, f"{done}/{total} tiles" + ("" if not final or chart.completed else " (stopped)"))
 
