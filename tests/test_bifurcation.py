@@ -226,3 +226,33 @@ def test_cli(tmp_path) -> None:
     assert len(list(csv.reader(path.open()))) == 1 + 48
     rc, _, err = run_cli("bifurcation", "--param", "beta", "--range", "0,1", "--n-values", "3", "--out", "x.csv")
     assert rc == 2 and "beta" in err
+
+
+@pytest.mark.parametrize("alpha", [-0.36, -0.39, -0.41, -0.418])
+def test_a_settled_transient_gives_the_same_orbit_and_phase(alpha: float) -> None:
+    """Continuation sweeps end a transient once the members repeat a cycle (to 1e-9): the recorded points
+    are those of the whole transient (the same cycle and phase), and a chaotic orbit runs it all (bit for bit)."""
+    p = get_scene("fig10").params.with_(alpha=alpha)
+    ics = np.array([[-0.0959, -1.962]])
+    num = Numerics(rtol=1e-9, atol=1e-9)
+    full = bilimovich_orbits(p, ics, 500, 100, num)
+    settled = bilimovich_orbits(p, ics, 500, 100, num, settle=True)
+    period = detect_period(full[0][0, 50:], 16, 1e-7)
+    if period:
+        np.testing.assert_allclose(settled[0], full[0], rtol=0, atol=1e-7)
+    else:
+        np.testing.assert_array_equal(settled[0], full[0])
+
+
+def test_settled_period_needs_every_member_on_a_cycle() -> None:
+    from explorer_core.analyses.bifurcation import settled_period
+
+    cyc2 = np.tile([[0.1, 0.2], [0.3, 0.4]], (16, 1))[None]  # (1, 32, 2)
+    cyc3 = np.tile([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0]], (11, 1))[None, :32]
+    drift = np.cumsum(np.full((1, 32, 2), 1e-6), axis=1)
+    ok = np.zeros(2, np.int64)
+    n = np.full(2, 32)
+    assert settled_period(np.concatenate([cyc2, cyc3]), n, ok) == 6  # the common period
+    assert settled_period(np.concatenate([cyc2, drift]), n, ok) == 0  # one still moving: not settled
+    escaped = np.array([0, int(Status.ESCAPED)])
+    assert settled_period(np.concatenate([cyc2, drift]), n, escaped) == 2  # an escaped member is ignored

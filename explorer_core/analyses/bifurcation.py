@@ -305,18 +305,68 @@ class OrbitDiagram:
         }
 
 
+#: A continuation sweep's transient may end early: checked every SETTLE_CHUNK periods, it ends when every
+#: member's last SETTLE_WINDOW points repeat after one period ``p <= SETTLE_P_MAX`` to SETTLE_TOL (relative).
+#: The numerical map is deterministic, so a member on an attracting cycle repeats it to rounding; the rest
+#: of the transient is then whole turns of the cycle (skipped) and its remainder mod ``p`` (integrated), so
+#: the recorded points start at the same phase as after the whole transient.
+SETTLE_CHUNK = 48
+SETTLE_WINDOW = 8
+SETTLE_P_MAX = 16
+SETTLE_TOL = 1e-9
+
+
+def settled_period(points: np.ndarray, npts: np.ndarray, status: np.ndarray) -> int:
+    """The least common period ``p`` every running member of ``points`` (n, m, 2) has settled on; 0 if not."""
+    common = 1
+    for i in range(points.shape[0]):
+        if status[i] != Status.OK:
+            continue  # escaped or failed: it goes no further anyway
+        m = int(npts[i])
+        x = points[i, :m]
+        found = 0
+        for p in range(1, SETTLE_P_MAX + 1):
+            if m < p + SETTLE_WINDOW:
+                break
+            a, b = x[m - SETTLE_WINDOW :], x[m - SETTLE_WINDOW - p : m - p]
+            if np.all(np.abs(a - b) <= SETTLE_TOL * (1.0 + np.abs(a))):
+                found = p
+                break
+        if not found:
+            return 0
+        common = math.lcm(common, found)
+    return common
+
+
 def bilimovich_orbits(
-    params: Params, ics: np.ndarray, transient: int, n_points: int, numerics: Numerics, workers: int = 1
+    params: Params,
+    ics: np.ndarray,
+    transient: int,
+    n_points: int,
+    numerics: Numerics,
+    workers: int = 1,
+    settle: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Orbits of the Poincare map at one parameter set: transient, then ``n_points`` points.
+
+    ``settle``: the transient ends once every member has settled on an attracting cycle (see
+    :data:`SETTLE_TOL`); for continuation sweeps, whose members start on the previous value's attractor.
 
     Returns ``(points (n, n_points, 2), npts (n,), status (n,), final (n, 2))``.
     """
     model = Model(params)
     batch = Batch.start(ics, params.t0, params.period)
     kw = numerics.kernel_kwargs()
-    if transient:
-        advance(model, batch, transient, store=False, workers=workers, **kw)
+    left = int(transient)
+    while settle and left > SETTLE_CHUNK:
+        pts, npts_t = advance(model, batch, SETTLE_CHUNK, workers=workers, **kw)
+        left -= SETTLE_CHUNK
+        p = settled_period(pts, npts_t, batch.status)
+        if p:
+            left %= p  # whole turns of the cycle change nothing but rounding
+            break
+    if left:
+        advance(model, batch, left, store=False, workers=workers, **kw)
     pts, npts = advance(model, batch, n_points, workers=workers, **kw)
     pts[np.arange(n_points)[None, :] >= npts[:, None]] = 0.0  # not data (unset memory): make results reproducible
     return pts, npts, batch.status.copy(), batch.y.copy()
@@ -343,6 +393,13 @@ class SweepSpec:
         if isinstance(p, str):
             raise ParameterError(p)
         return bilimovich_orbits(p, seed, self.transient, self.n_points, self.numerics, threads)
+
+    def orbits_settled(self, v: int, seed: np.ndarray, threads: int = 1) -> tuple[np.ndarray, ...]:
+        """:meth:`orbits` whose transient ends once the members settle on a cycle (continuation sweeps)."""
+        p = self.params_at(v)
+        if isinstance(p, str):
+            raise ParameterError(p)
+        return bilimovich_orbits(p, seed, self.transient, self.n_points, self.numerics, threads, settle=True)
 
 
 #: Fixed seeding in lock-step: members (value, IC) per block, and periods per engine call (cancel and
@@ -442,7 +499,7 @@ def sweep_chunk(
     outs = []
     seed = np.asarray(seed, dtype=float)
     for v in indices:
-        out = spec.orbits(int(v), seed if continuation else spec.ics, threads)
+        out = spec.orbits_settled(int(v), seed, threads) if continuation else spec.orbits(int(v), spec.ics, threads)
         outs.append(out)
         if continuation:
             seed = next_seed(out[2], out[3], spec.ics)
@@ -518,7 +575,7 @@ def bifurcation_diagram(
         out = fixed_lockstep(spec, valid, workers=workers, progress=progress, cancel=cancel)
     else:
         out = sweep_orbits(
-            spec.orbits,
+            spec.orbits if seeding == "fixed" else spec.orbits_settled,
             vals.size,
             ics,
             int(points),
