@@ -15,22 +15,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
-import time
+
+from orbits_speed import timed  # the same medians as the orbits' benchmark (this folder is on the path)
 
 from explorer_core.analyses.manifolds import manifolds, saddle_orbit
 from explorer_core.scenes import get_scene
 from explorer_core.warm import warm_all
-
-
-def timed(fn, repeat: int) -> tuple[float, object]:
-    out = fn()
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times), out
 
 
 def main() -> None:

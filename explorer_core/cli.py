@@ -138,6 +138,15 @@ def _numerics(args: argparse.Namespace, scene: Scene | None, periods: int, base:
     return Numerics(**kw)
 
 
+def _periods_transient(args: argparse.Namespace, scene: Scene | None) -> tuple[int, int]:
+    """``--periods`` and ``--transient``, or the scene's."""
+    periods = args.periods if args.periods is not None else (scene.periods if scene else None)
+    if periods is None:
+        raise UsageError("--periods is required (no --scene to take it from)")
+    transient = args.transient if args.transient is not None else (scene.transient if scene else 0)
+    return periods, transient
+
+
 def _write_json(obj: Any) -> None:
     sys.stdout.write(json.dumps(obj, indent=None, separators=(",", ": ")) + "\n")
     sys.stdout.flush()
@@ -168,10 +177,7 @@ def cmd_section(args: argparse.Namespace) -> int:
     from explorer_core.solve.section import SectionChunk, section
 
     params, scene = _params(args)
-    periods = args.periods if args.periods is not None else (scene.periods if scene else None)
-    if periods is None:
-        raise UsageError("--periods is required (no --scene to take it from)")
-    transient = args.transient if args.transient is not None else (scene.transient if scene else 0)
+    periods, transient = _periods_transient(args, scene)
     if args.ic:
         ics = np.array([_floats(s, 2, "--ic") for s in args.ic])
     elif args.random is not None:
@@ -253,10 +259,7 @@ def cmd_density(args: argparse.Namespace) -> int:
     from explorer_core.analyses.density import MAX_DENSITY_POINTS, density_numerics, iter_density
 
     params, scene = _params(args)
-    periods = args.periods if args.periods is not None else (scene.periods if scene else None)
-    if periods is None:
-        raise UsageError("--periods is required (no --scene to take it from)")
-    transient = args.transient if args.transient is not None else (scene.transient if scene else 0)
+    periods, transient = _periods_transient(args, scene)
     box = check_box(_floats(args.box, 4, "--box"), "--box") if args.box else (scene.box if scene else None)
     if box is None:
         raise UsageError("give --box Q0,Q1,R0,R1 for the random initial conditions (no --scene to take it from)")
