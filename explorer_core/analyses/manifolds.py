@@ -662,22 +662,6 @@ def _cross(a: np.ndarray, i: int, b: np.ndarray, j: int) -> tuple[bool, float, f
 
 
 @njit(nogil=True, cache=True)
-def _test(
-    a: np.ndarray, i: int, b: np.ndarray, j: int, out: np.ndarray, c: int
-) -> tuple[np.ndarray, int]:  # pragma: no cover
-    # Segment a[i] against b[j]: a crossing is appended to out[:c] (grown when full).
-    hit, u, v = _cross(a, i, b, j)
-    if hit:
-        if c == out.shape[0]:
-            grown = np.empty((2 * c, 4))
-            grown[:c] = out
-            out = grown
-        out[c, 0], out[c, 1], out[c, 2], out[c, 3] = i, j, u, v
-        c += 1
-    return out, c
-
-
-@njit(nogil=True, cache=True)
 def segment_crossings(a: np.ndarray, b: np.ndarray, cell: float) -> np.ndarray:  # pragma: no cover - compiled
     """Every crossing of a segment of polyline ``a`` (m, 2) with one of ``b`` (k, 2).
 
@@ -718,12 +702,28 @@ def segment_crossings(a: np.ndarray, b: np.ndarray, cell: float) -> np.ndarray: 
                     while m < nb and sorted_keys[m] == k:
                         j = order[m]
                         m += 1
-                        out, c = _test(a, i, b, j, out, c)
+                        hit, u, v = _cross(a, i, b, j)
+                        if hit:
+                            if c == out.shape[0]:
+                                grown = np.empty((2 * c, 4))
+                                grown[:c] = out
+                                out = grown
+                            out[c, 0], out[c, 1], out[c, 2], out[c, 3] = i, j, u, v
+                            c += 1
             candidates = long_b
         else:
             candidates = np.arange(nb)
+        # The same append as above, written out: a helper returning the grown array cost reference
+        # counting on every pair tested (5-7x slower measured).
         for j in candidates:
-            out, c = _test(a, i, b, j, out, c)
+            hit, u, v = _cross(a, i, b, j)
+            if hit:
+                if c == out.shape[0]:
+                    grown = np.empty((2 * c, 4))
+                    grown[:c] = out
+                    out = grown
+                out[c, 0], out[c, 1], out[c, 2], out[c, 3] = i, j, u, v
+                c += 1
     return out[:c]
 
 
