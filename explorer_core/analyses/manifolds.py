@@ -35,7 +35,7 @@ import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -102,6 +102,10 @@ class Branch:
     def label(self) -> str:
         """``<orbit point><sign>``, e.g. ``0+``; a later piece of a split branch is ``0+#1``, ``0+#2``, ..."""
         return f"{self.point}{'+' if self.sign > 0 else '-'}"
+
+    def piece_label(self, k: int) -> str:
+        """The label of piece ``k``: the branch's own for the first, ``<label>#k`` after a split."""
+        return self.label if k == 0 else f"{self.label}#{k}"
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -175,7 +179,7 @@ class Manifolds:
         """``(branch, kind, s, q, r)`` for every point, pieces of a split branch labelled ``0+#1``, ..."""
         for b in self.branches:
             for k, piece in enumerate(b.pieces):
-                label = b.label if k == 0 else f"{b.label}#{k}"
+                label = b.piece_label(k)
                 for s, q, r in piece:
                     yield label, b.kind, float(s), float(q), float(r)
 
@@ -259,7 +263,6 @@ class _Growth:
         start = self._start_points(self.t, self.br)
         self.pts[:, 0] = start
         self.batch = Batch.start(start, params.t0, self.direction * params.period)
-        self.mstatus = self.batch.status.copy()
         budget[0] -= self.t.size
 
     # -- members ------------------------------------------------------------------------------------
@@ -608,10 +611,8 @@ def iter_manifolds(
         branches = [b for g in growth for b in g.branches(pts.shape[0])]
         mine = Manifolds(params, numerics, orbit, branches, [], box, px, float(length),  # type: ignore[arg-type]
                          time.perf_counter() - start, done)  # fmt: skip
-        cross = crossings([mine, *others]) if done else []
-        cross = [c for c in cross if c.unstable.startswith("A:") or c.stable.startswith("A:")]
-        cross = [Crossing(c.q, c.r, c.kind, c.unstable.removeprefix("A:"), c.stable.removeprefix("A:"),
-                          c.s_unstable, c.s_stable) for c in cross]  # fmt: skip
+        cross = [replace(c, unstable=c.unstable.removeprefix("A:"), stable=c.stable.removeprefix("A:"))
+                 for c in (crossings([mine, *others]) if done else [])]  # fmt: skip
         return Manifolds(params, numerics, orbit, branches, cross, box, px, float(length),  # type: ignore[arg-type]
                          time.perf_counter() - start, done,
                          {"members_left": budget[0], "delta": float(delta)})  # fmt: skip
@@ -735,7 +736,8 @@ def _cell(*polylines: np.ndarray) -> float:
 
 
 def crossings(sets: Sequence[Manifolds]) -> list[Crossing]:
-    """Crossings of every unstable piece with every stable piece of the given manifolds.
+    """Crossings of the unstable pieces of ``sets[0]`` with every stable piece, and of every unstable piece
+    with the stable pieces of ``sets[0]`` (the others' crossings among themselves were found with them).
 
     Pieces of ``sets[0]`` are labelled ``A:<branch>``, of the others ``<orbit index>:<branch>``; a crossing
     of one orbit's two manifolds is homoclinic, of two orbits' heteroclinic. The saddles themselves
@@ -747,11 +749,11 @@ def crossings(sets: Sequence[Manifolds]) -> list[Crossing]:
         tag = "A:" if k == 0 else f"{k}:"
         for b in m.branches:
             for i, p in enumerate(b.pieces):
-                label = tag + (b.label if i == 0 else f"{b.label}#{i}")
+                label = tag + b.piece_label(i)
                 body = p[1:] if i == 0 else p  # from the first point off the saddle
                 if body.shape[0] >= 2:
                     parts.append((label, b.kind, k, body))
-    pairs = [(u, s_) for u in parts if u[1] == "unstable" for s_ in parts if s_[1] == "stable"]
+    pairs = [(u, s_) for u in parts if u[1] == "unstable" for s_ in parts if s_[1] == "stable" and 0 in (u[2], s_[2])]
 
     def hits_of(pair: tuple) -> np.ndarray:
         a, b = np.ascontiguousarray(pair[0][3][:, 1:]), np.ascontiguousarray(pair[1][3][:, 1:])
