@@ -109,8 +109,6 @@ class ExplorerSession(param.Parameterized):
     #: Saddles whose manifolds are on screen, and what the last growth said.
     n_manifolds = param.Integer(default=0)
     manifold_status = param.String(default="")
-    #: The section on screen is a density image (not points).
-    density_shown = param.Boolean(default=False)
     #: The basins layer: what it says, and its legend rows (colour, text).
     basin_status = param.String(default="")
     basin_legend = param.List(default=[])
@@ -153,6 +151,8 @@ class ExplorerSession(param.Parameterized):
         state.param.watch(self._on_orbit_settings, list(ORBIT_FIELDS))
         self._orbits: list[Orbit] = []
         self._manifolds: list[Manifolds] = []
+        #: The inputs of each phase-plane layer's last job (see _new_inputs).
+        self._layer_inputs: dict[str, Any] = {}
         state.param.watch(self._on_manifold_settings, list(MANIFOLD_FIELDS))
         state.param.watch(self._on_basin_settings, list(BASIN_FIELDS))
         state.param.watch(lambda *e: self._publish_query(), ["selected", "tab", "presentation", *ANALYSIS_FIELDS])
@@ -168,6 +168,11 @@ class ExplorerSession(param.Parameterized):
                 self.runner.ui(lambda: self.fig.set_view(q_range, r_range))
             return msg
         return commit(self.state, name, text)
+
+    @property
+    def density_shown(self) -> bool:
+        """The section on screen is a density image (not points)."""
+        return self._density is not None
 
     def on_busy(self, channel: str) -> None:
         """A channel started or stopped (document thread): the section view runs while any of its channels do."""
@@ -279,15 +284,12 @@ class ExplorerSession(param.Parameterized):
             self._trace("section job starts")
             last_status = None
             pending: list[tuple[np.ndarray, ...]] = []
-            last_emit = 0.0
-            interval = EMIT_INTERVAL
-            first = True
-            t_job = time.perf_counter()
-            layers_pending = start_layers is not None
+            cadence = _Cadence(start_layers)
 
-            def flush(status: np.ndarray, done: int, total: int, replace: bool) -> None:
+            def flush(status: np.ndarray, done: int, total: int) -> None:
                 cols = tuple(np.concatenate([p[i] for p in pending]) for i in range(4))
                 pending.clear()
+                replace = cadence.sent()
                 emit(lambda: self._apply_chunk(cols, status, done, total, req if replace else None))
 
             for chunk in iter_section(
@@ -301,22 +303,13 @@ class ExplorerSession(param.Parameterized):
             ):
                 pending.append(chunk.long())
                 last_status = chunk.status
-                now = time.perf_counter()
-                # The first points go out at once; then updates back off (0.5, 1 s):
-                # each one makes the browser redraw every point, which costs more than the data.
-                if first or now - last_emit >= interval:
-                    flush(chunk.status, chunk.done_periods, chunk.total_periods, replace=first)
-                    last_emit = now
-                    interval = min(2 * interval, MAX_EMIT_INTERVAL) if not first else interval
-                    first = False
-                if layers_pending and now - t_job >= LAYER_DELAY:
-                    layers_pending = False
-                    start_layers()  # a long run: the layers need not wait for its end
+                if cadence.due():
+                    flush(chunk.status, chunk.done_periods, chunk.total_periods)
+                cadence.layers_if_late()
             if pending and last_status is not None:
-                flush(last_status, req.periods, req.periods, replace=first)
+                flush(last_status, req.periods, req.periods)
             done = not cancelled()
-            if layers_pending and done:
-                start_layers()  # stale runs start none: the newer run starts its own
+            cadence.layers_at_end(done)
             emit(lambda: self._finish(done, last_status))
 
         self.runner.start("section", job)
@@ -328,18 +321,17 @@ class ExplorerSession(param.Parameterized):
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
             pending: list[tuple[np.ndarray, ...]] = []
-            last_emit, interval, first = 0.0, EMIT_INTERVAL, True
-            t_job = time.perf_counter()
-            layers_pending = start_layers is not None
+            cadence = _Cadence(start_layers)
             last = None
 
-            def flush(img: Any, replace: bool) -> None:
+            def flush(img: Any) -> None:
                 cols = tuple(np.concatenate([p[i] for p in pending]) if pending else np.zeros(0) for i in range(4))
                 pending.clear()
                 image = img.counts.astype(np.float32)  # a snapshot: the core keeps adding into its array
                 counts = (img.points, img.in_view)
                 status, done, total = img.status.copy(), img.done_periods, img.total_periods
-                emit(lambda: self._apply_density(image, counts, cols, status, done, total, req if replace else None))
+                new_run = req if cadence.sent() else None
+                emit(lambda: self._apply_density(image, req.view, counts, cols, status, done, total, new_run))
 
             for img, kept in iter_density(req.params, req.ics, req.periods, view=req.view, pixels=DENSITY_PIXELS,
                                           transient=req.transient, numerics=req.numerics, keep=req.keep,
@@ -349,28 +341,22 @@ class ExplorerSession(param.Parameterized):
                     if rows.shape[0]:
                         traj = np.full(rows.shape[0], i, dtype=np.int64)
                         pending.append((traj, rows[:, 0].astype(np.int64), rows[:, 1], rows[:, 2]))
-                now = time.perf_counter()
-                if first or now - last_emit >= interval:
-                    flush(img, replace=first)
-                    last_emit = now
-                    interval = min(2 * interval, MAX_EMIT_INTERVAL) if not first else interval
-                    first = False
-                if layers_pending and now - t_job >= LAYER_DELAY:
-                    layers_pending = False
-                    start_layers()  # type: ignore[misc]
+                if cadence.due():
+                    flush(img)
+                cadence.layers_if_late()
             if last is not None:
-                flush(last, replace=first)
+                flush(last)
             done = not cancelled()
-            if layers_pending and done:
-                start_layers()  # type: ignore[misc]
+            cadence.layers_at_end(done)
             status = last.status.copy() if last is not None else None
             emit(lambda: self._finish(done, status))
 
         self.runner.start("section", job)
         self._update_reliability(req)
 
-    def _apply_density(self, image: np.ndarray, counts: tuple[int, int], cols: tuple[np.ndarray, ...],
-                       status: np.ndarray, done: int, total: int, new_run: SectionRequest | None) -> None:  # fmt: skip
+    def _apply_density(self, image: np.ndarray, view: tuple[float, float, float, float], counts: tuple[int, int],
+                       cols: tuple[np.ndarray, ...], status: np.ndarray, done: int, total: int,
+                       new_run: SectionRequest | None) -> None:  # fmt: skip
         traj, k, q, r = cols
         drawn = traj < len(self.state.clicked)  # over the image only the clicked ones (the selected is ringed)
         if new_run is not None:
@@ -381,15 +367,24 @@ class ExplorerSession(param.Parameterized):
         if traj.size:
             self._chunks.append(cols)
         self._density = counts
-        self.density_shown = True
-        self.fig.set_density(image, self._density_req.view if self._density_req else (0.0, 1.0, 0.0, 1.0))
+        self.fig.set_density(image, view)
         self._set_status(status, done, total, running=True)
         if traj.size and np.any(traj == self.state.selected):
             self._update_series()
 
+    def _new_inputs(self, layer: str, inputs: Any) -> bool:
+        """Whether ``layer`` must be recomputed: its inputs differ from those of its last job (None: nothing
+        to compute, always handled). A layer of the system and the view need not be redone when only the
+        section's numerics or initial conditions change."""
+        if inputs is not None and self._layer_inputs.get(layer) == inputs:
+            return False
+        self._layer_inputs[layer] = inputs
+        return True
+
     def stop(self) -> None:
         """Stop everything of the section view in flight; what was computed stays on screen."""
         stopped = self.runner.busy("section")
+        self._layer_inputs.clear()  # a stopped layer is computed again next time
         for channel in SECTION_CHANNELS:
             self.runner.cancel(channel)
         if stopped:
@@ -401,6 +396,7 @@ class ExplorerSession(param.Parameterized):
         """A job of the section view raised (document thread): say so; nothing stays "computing"."""
         msg = _plain(exc)
         self.error = f"{channel} computation failed: {msg}"
+        self._layer_inputs.pop(channel, None)  # tried again on the next change
         if channel == "section":
             self._outcome = "failed"
             self._refresh_status()
@@ -411,8 +407,7 @@ class ExplorerSession(param.Parameterized):
         if not req.density:
             self._density = None
             self._density_req = None
-            self.density_shown = False
-            self.fig.set_density(None, (0.0, 1.0, 0.0, 1.0))
+            self.fig.set_density(None)
         self._n_traj = req.ics.shape[0]
         self._status_arr = np.zeros(self._n_traj, dtype=np.int8)
         self.escaped, self.failed = [], []
@@ -743,21 +738,25 @@ class ExplorerSession(param.Parameterized):
 
     def recompute_manifolds(self) -> None:
         """The manifolds of every chosen saddle for the system and the view on screen: a layer job, streamed."""
-        self.runner.cancel("manifolds")
         st = self.state
         saddles = list(st.manifold_saddles)
+        try:
+            params = st.system()
+        except ParameterError:
+            params = None
+        view = (*st.q_range, *st.r_range)
+        length = float(st.manifold_length)
+        if not self._new_inputs("manifolds", (params, view, tuple(saddles), length) if saddles and params else None):
+            return  # these manifolds are on screen or on their way (only the section's settings changed)
+        self.runner.cancel("manifolds")
         if not saddles:
             self.n_manifolds = 0
             self._manifolds = []
             self.manifold_status = ""
             self.fig.set_manifolds([], [])
             return
-        try:
-            params = st.system()
-        except ParameterError:
-            return
-        view = (*st.q_range, *st.r_range)
-        length = float(st.manifold_length)
+        if params is None:
+            return  # the error is already shown by recompute
         self.manifold_status = f"growing the manifolds of {len(saddles)} saddle(s)…"
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
@@ -816,18 +815,22 @@ class ExplorerSession(param.Parameterized):
 
     def recompute_basins(self) -> None:
         """Which attractor each pixel centre of the view reaches: a layer job, coarse to fine."""
-        self.runner.cancel("basins")
         st = self.state
-        if not st.show_basins:
-            self.fig.set_basins(None, (0.0, 1.0, 0.0, 1.0))
-            self.basin_status, self.basin_legend = "", []
-            return
         try:
             params = st.system()
         except ParameterError:
-            return
+            params = None
         box = (*st.q_range, *st.r_range)
         n = st.basin_grid
+        if not self._new_inputs("basins", (params, box, n) if st.show_basins and params else None):
+            return  # these basins are on screen or on their way (only the section's settings changed)
+        self.runner.cancel("basins")
+        if not st.show_basins:
+            self.fig.set_basins(None)
+            self.basin_status, self.basin_legend = "", []
+            return
+        if params is None:
+            return  # the error is already shown by recompute
         try:
             spec = basin_spec(params, box, (n, n))
         except ParameterError as exc:
@@ -962,6 +965,45 @@ class ExplorerSession(param.Parameterized):
     def _publish_query(self) -> None:
         if self._on_query is not None:
             self._on_query(self.state.to_query())
+
+
+class _Cadence:
+    """When a streaming section job sends an update, and when it starts the layers.
+
+    The first update goes out at once; later ones back off (EMIT_INTERVAL doubling up to MAX_EMIT_INTERVAL):
+    each makes the browser redraw every point, which costs more than the data. The layers start
+    LAYER_DELAY into a long run, or at the end of a shorter one that was not cancelled.
+    """
+
+    def __init__(self, start_layers: Callable[[], None] | None) -> None:
+        self._first = True
+        self._last = 0.0
+        self._interval = EMIT_INTERVAL
+        self._t0 = time.perf_counter()
+        self._layers = start_layers
+
+    def due(self) -> bool:
+        return self._first or time.perf_counter() - self._last >= self._interval
+
+    def sent(self) -> bool:
+        """An update goes out now; whether it is the run's first (it replaces the picture on screen)."""
+        first, self._first = self._first, False
+        self._last = time.perf_counter()
+        if not first:
+            self._interval = min(2 * self._interval, MAX_EMIT_INTERVAL)
+        return first
+
+    def layers_if_late(self) -> None:
+        if self._layers is not None and time.perf_counter() - self._t0 >= LAYER_DELAY:
+            self._start_layers()  # a long run: the layers need not wait for its end
+
+    def layers_at_end(self, done: bool) -> None:
+        if self._layers is not None and done:
+            self._start_layers()  # stale runs start none: the newer run starts its own
+
+    def _start_layers(self) -> None:
+        start, self._layers = self._layers, None
+        start()  # type: ignore[misc]
 
 
 def _plain(exc: BaseException, limit: int = 300) -> str:

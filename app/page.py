@@ -40,7 +40,7 @@ TAB_CLASSES: dict[str, type[AnalysisTab]] = {
 }
 #: Session parameters that change what the section tab shows.
 SESSION_VIEW = ["status", "error", "running", "escaped", "failed", "reliability", "n_points", "orbits", "orbit_status",
-                "n_manifolds", "manifold_status", "basin_status", "basin_legend", "density_shown"]  # fmt: skip
+                "n_manifolds", "manifold_status", "basin_status", "basin_legend"]  # fmt: skip
 
 
 class Page:

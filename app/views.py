@@ -90,6 +90,13 @@ def _empty_points() -> dict[str, list]:
     return {"q": [], "r": [], "traj": [], "k": [], "c": []}
 
 
+def _image_data(image: np.ndarray | None = None, q0: float = 0, q1: float = 0, r0: float = 0, r1: float = 0) -> dict:
+    """An image source's data: ``image`` over ``[q0, q1] x [r0, r1]`` (row 0 at ``r0``), or empty."""
+    if image is None:
+        return {"image": [], "x": [], "y": [], "dw": [], "dh": []}
+    return {"image": [image], "x": [q0], "y": [r0], "dw": [q1 - q0], "dh": [r1 - r0]}
+
+
 def _empty_orbits() -> dict[str, list]:
     return {"q": [], "r": [], "period": [], "type": [], "mu": []}
 
@@ -136,7 +143,7 @@ class SectionFigure:
             return ColumnDataSource(data, name=name, selection_policy=policy)
 
         self.tprime_mapper = LinearColorMapper(palette=TPRIME_PALETTE, low=-1, high=1)
-        self.tprime = source({"image": [], "x": [], "y": [], "dw": [], "dh": []}, "tprime_source")
+        self.tprime = source(_image_data(), "tprime_source")
         image = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.tprime_mapper, global_alpha=0.55)
         tp = _renderer(self.tprime, image, level="image")
         self.colorbar = ColorBar(
@@ -147,16 +154,17 @@ class SectionFigure:
             location=(0, 0),
         )
         fig.add_layout(self.colorbar, "right")
+        self._tprime_title, self._presentation = self.colorbar.title, False
         self.tracks = source({"xs": [], "ys": [], "color": [], "type": []}, "tracks_source")
         tracks = _renderer(self.tracks, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6, line_alpha=0.7,
                                                   line_dash="dashed"))  # fmt: skip
         # A long section as a density image (counts per pixel, binned on the server), under the points.
         self.density_mapper = LogColorMapper(palette=DENSITY_PALETTE, low=1, high=2, nan_color=(0, 0, 0, 0))
-        self.density = source({"image": [], "x": [], "y": [], "dw": [], "dh": []}, "density_source")
+        self.density = source(_image_data(), "density_source")
         shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.density_mapper)
         dens = _renderer(self.density, shade, level="image", name="density_image")
         # Basins of attraction: a colour per attractor, translucent, over the T' map and under the points.
-        self.basins = source({"image": [], "x": [], "y": [], "dw": [], "dh": []}, "basins_source")
+        self.basins = source(_image_data(), "basins_source")
         bas = _renderer(self.basins, ImageRGBA(image="image", x="x", y="y", dw="dw", dh="dh", global_alpha=0.5),
                         level="image", name="basins_image")  # fmt: skip
         self.points = source(_empty_points(), "section_source")
@@ -236,25 +244,23 @@ class SectionFigure:
         if traj.size:
             self.points.stream({"q": q, "r": r, "traj": traj, "k": k, "c": traj % N_COLORS})
 
-    def set_density(self, counts: np.ndarray | None, view: tuple[float, float, float, float]) -> None:
+    def set_density(self, counts: np.ndarray | None, view: tuple[float, ...] | None = None) -> None:
         """The density image (counts per pixel, row 0 at the bottom of ``view``), or none."""
         if counts is None or counts.size == 0:
             if self.density.data["image"]:
-                self.density.data = {"image": [], "x": [], "y": [], "dw": [], "dh": []}
+                self.density.data = _image_data()
             return
         self._activate("density")
         image = np.where(counts > 0, counts, np.nan).astype(np.float32)
-        self.density_mapper.high = max(2.0, float(np.nanmax(image)) if np.any(counts > 0) else 2.0)
-        q0, q1, r0, r1 = view
-        self.density.data = {"image": [image], "x": [q0], "y": [r0], "dw": [q1 - q0], "dh": [r1 - r0]}
+        self.density_mapper.high = max(2.0, float(counts.max()))
+        self.density.data = _image_data(image, *view)  # type: ignore[misc]
 
-    def set_basins(
-        self, labels: np.ndarray | None, view: tuple[float, ...], colours: dict[int, str] | None = None
-    ) -> None:
+    def set_basins(self, labels: np.ndarray | None, view: tuple[float, ...] | None = None,
+                   colours: dict[int, str] | None = None) -> None:  # fmt: skip
         """Basin labels (NY, NX), row 0 at the bottom of ``view``, as colours (``colours[label]``; others clear)."""
         if labels is None or labels.size == 0:
             if self.basins.data["image"]:
-                self.basins.data = {"image": [], "x": [], "y": [], "dw": [], "dh": []}
+                self.basins.data = _image_data()
             return
         self._activate("basins")
         rgba = np.zeros(labels.shape, dtype=np.uint32)
@@ -263,8 +269,7 @@ class SectionFigure:
             m = labels == label
             if m.any():
                 view8[m] = (int(hex_[1:3], 16), int(hex_[3:5], 16), int(hex_[5:7], 16), 255)
-        q0, q1, r0, r1 = view
-        self.basins.data = {"image": [rgba], "x": [q0], "y": [r0], "dw": [q1 - q0], "dh": [r1 - r0]}
+        self.basins.data = _image_data(rgba, *view)  # type: ignore[misc]
 
     def set_selected(self, q: np.ndarray, r: np.ndarray) -> None:
         self.selected.data = {"q": q, "r": r}
@@ -324,7 +329,7 @@ class SectionFigure:
 
     def set_tprime(self, values: np.ndarray | None, q: np.ndarray, r: np.ndarray, title: str) -> None:
         if values is None or values.size == 0:
-            self.tprime.data = {"image": [], "x": [], "y": [], "dw": [], "dh": []}
+            self.tprime.data = _image_data()
             return
         # Symmetric colour scale about 0 so the sign is the colour; clip outliers.
         lim = float(np.percentile(np.abs(values), 98)) or 1.0
@@ -333,13 +338,8 @@ class SectionFigure:
         self.colorbar.title = self._colorbar_title()
         dq = (q[-1] - q[0]) / max(1, q.size - 1)
         dr = (r[-1] - r[0]) / max(1, r.size - 1)
-        self.tprime.data = {
-            "image": [values],
-            "x": [q[0] - dq / 2],
-            "y": [r[0] - dr / 2],
-            "dw": [q[-1] - q[0] + dq],
-            "dh": [r[-1] - r[0] + dr],
-        }
+        # Each value is a pixel centred on its grid point.
+        self.tprime.data = _image_data(values, q[0] - dq / 2, q[-1] + dq / 2, r[0] - dr / 2, r[-1] + dr / 2)
 
     def set_presentation(self, on: bool) -> None:
         set_fonts(self.axes, on)
@@ -348,8 +348,8 @@ class SectionFigure:
 
     def _colorbar_title(self) -> str:
         # At presentation size the long title runs past the plot's height (seen at 1280x720).
-        title = getattr(self, "_tprime_title", self.colorbar.title)
-        if getattr(self, "_presentation", False):
+        title = self._tprime_title
+        if self._presentation:
             return ("T′" if title.startswith("T′") else "ΔT over a period") + ": red gain, blue loss"
         return title
 

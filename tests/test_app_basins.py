@@ -61,3 +61,19 @@ def test_bad_basin_values_are_refused() -> None:
     assert not page.state.show_basins and page.state.basin_grid == 80
     msg = page.commit("basin_grid", "3")
     assert msg is not None and "between 10 and 200" in msg
+
+
+def test_the_layers_are_not_redone_when_only_the_section_changes() -> None:
+    page, jobs = page_for({"basins": "1", "bas_n": "12", "man": "-0.1744,-2.1855,1", "man_len": "1"})
+    assert page.commit("periods", "6") is None  # the section's setting: the same basins and manifolds
+    assert not page.runner.busy("basins") and not page.runner.busy("manifolds")
+    jobs.drain()
+    assert page.fig.basins.data["image"]
+    assert page.commit("alpha", "-0.49") is None  # a new system: both again
+    assert page.runner.busy("basins") and page.runner.busy("manifolds")
+    jobs.drain()
+    assert page.commit("alpha", "-0.5") is None
+    page.handle({"action": "stop"})  # stopped layers are computed again on the next change, any change
+    assert page.commit("periods", "7") is None
+    assert page.runner.busy("basins") and page.runner.busy("manifolds")
+    jobs.drain()
