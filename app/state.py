@@ -541,9 +541,9 @@ class ExplorerState(param.Parameterized):
         if self.n_random:
             ics = np.concatenate([ics[: len(self.clicked)], random_ics(self.n_random, self.density_box(), self.seed)])
         view = (*self.q_range, *self.r_range)
-        numerics = density_numerics(view, DENSITY_PIXELS, self.numerics().bound, self.method)
-        if self.accuracy == "high":
-            numerics = self.numerics()
+        numerics = self.numerics()  # "high" as for points; "plot": a quarter pixel over the density's window
+        if self.accuracy != "high":
+            numerics = density_numerics(view, DENSITY_PIXELS, numerics.bound, self.method)
         # Kept as points: the clicked trajectories (drawn), the selected one (ringed, its k-series) and the
         # first few, so that a selected trajectory lost in the transient can hand over to one with points.
         keep = (*range(len(self.clicked)), self.selected, *range(min(ics.shape[0], len(self.clicked) + 8)))
@@ -772,27 +772,15 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
     attempt("ics", ics)
 
     def orbit_seeds(text: str) -> None:
-        pts = [p for p in text.split(";") if p.strip()]
-        if len(pts) > MAX_ORBIT_SEEDS:
-            raise ParameterError(f"at most {MAX_ORBIT_SEEDS} orbit seeds, got {len(pts)}")
-        seeds = [_numbers("orb", p, 2, "q,r") for p in pts]
-        if any(max(abs(a), abs(b)) > MAX_MAGNITUDE for a, b in seeds):
-            raise ParameterError(f"orbit seeds must lie within ±{MAX_MAGNITUDE:g}")
-        updates["orbit_seeds"] = seeds
+        updates["orbit_seeds"] = _places("orb", text, MAX_ORBIT_SEEDS, "orbit seeds", 2, "q,r")
 
     attempt("orb", orbit_seeds)
 
     def manifold_saddles(text: str) -> None:
-        parts = [p for p in text.split(";") if p.strip()]
-        if len(parts) > MAX_MANIFOLDS:
-            raise ParameterError(f"at most {MAX_MANIFOLDS} saddles, got {len(parts)}")
         out = []
-        for p in parts:
-            q, r, n = _numbers("man", p, 3, "q,r,period")
-            if max(abs(q), abs(r)) > MAX_MAGNITUDE:
-                raise ParameterError(f"saddle points must lie within ±{MAX_MAGNITUDE:g}, got {p.strip()[:40]!r}")
+        for q, r, n in _places("man", text, MAX_MANIFOLDS, "saddles", 3, "q,r,period"):
             if not (n == int(n) and 1 <= n <= MAX_ORBIT_PERIOD):
-                raise ParameterError(f"the period must be a whole number 1..{MAX_ORBIT_PERIOD}, got {p.strip()[:40]!r}")
+                raise ParameterError(f"the period must be a whole number 1..{MAX_ORBIT_PERIOD}, got {n:g}")
             out.append((q, r, int(n)))
         updates["manifold_saddles"] = out
 
@@ -821,6 +809,19 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
     choice("tab", {t: t for t in TABS}, lambda v: updates.__setitem__("tab", v))
     choice("present", {"1": True, "0": False}, lambda v: updates.__setitem__("presentation", v))
     return updates, errors
+
+
+def _places(key: str, text: str, most: int, what: str, n: int, fields: str) -> list[tuple[float, ...]]:
+    """``;``-separated points of a URL value (``n`` numbers each, the first two ``q, r`` within
+    ±MAX_MAGNITUDE), at most ``most`` of them."""
+    parts = [p for p in text.split(";") if p.strip()]
+    if len(parts) > most:
+        raise ParameterError(f"at most {most} {what}, got {len(parts)}")
+    out = [_numbers(key, p, n, fields) for p in parts]
+    for p, v in zip(parts, out, strict=True):
+        if max(abs(v[0]), abs(v[1])) > MAX_MAGNITUDE:
+            raise ParameterError(f"{what} must lie within ±{MAX_MAGNITUDE:g}, got {p.strip()[:40]!r}")
+    return out
 
 
 #: Order in which URL values meet the state's checks: what others are checked against comes first.
