@@ -148,13 +148,13 @@ class ExplorerSession(param.Parameterized):
         state.param.watch(self._on_view_change, ["q_range", "r_range"])
         state.param.watch(lambda *e: self._on_selected(), ["selected"])
         state.param.watch(lambda *e: self.recompute(), ["clicked"])
-        state.param.watch(self._on_orbit_settings, list(ORBIT_FIELDS))
+        state.param.watch(self._layer_watcher(self.recompute_orbits), list(ORBIT_FIELDS))
         self._orbits: list[Orbit] = []
         self._manifolds: list[Manifolds] = []
         #: The inputs of each phase-plane layer's last job (see _new_inputs).
         self._layer_inputs: dict[str, Any] = {}
-        state.param.watch(self._on_manifold_settings, list(MANIFOLD_FIELDS))
-        state.param.watch(self._on_basin_settings, list(BASIN_FIELDS))
+        state.param.watch(self._layer_watcher(self.recompute_manifolds), list(MANIFOLD_FIELDS))
+        state.param.watch(self._layer_watcher(self.recompute_basins), list(BASIN_FIELDS))
         state.param.watch(lambda *e: self._publish_query(), ["selected", "tab", "presentation", *ANALYSIS_FIELDS])
 
     # --- input ------------------------------------------------------------------------------
@@ -184,6 +184,16 @@ class ExplorerSession(param.Parameterized):
                 self._refresh_status()
 
     # --- reacting to the state ------------------------------------------------------------
+
+    def _layer_watcher(self, recompute: Callable[[], None]) -> Callable[..., None]:
+        """A watcher of a layer's own settings: recompute the layer and publish the URL (not during a scene)."""
+
+        def watcher(*events: Any) -> None:
+            if not self._suspend:
+                recompute()
+                self._publish_query()
+
+        return watcher
 
     def _on_section_change(self, *events: Any) -> None:
         if not self._suspend:
@@ -564,11 +574,6 @@ class ExplorerSession(param.Parameterized):
 
     # --- periodic orbits of the map ------------------------------------------------------------
 
-    def _on_orbit_settings(self, *events: Any) -> None:
-        if not self._suspend:
-            self.recompute_orbits()
-            self._publish_query()
-
     def find_orbit_at(self, q: float, r: float) -> None:
         """Newton from a click, for every period up to the setting; drawn as soon as found (one job)."""
         if not (np.isfinite(q) and np.isfinite(r)) or max(abs(q), abs(r)) > MAX_MAGNITUDE:
@@ -693,11 +698,6 @@ class ExplorerSession(param.Parameterized):
 
     # --- stable and unstable manifolds of saddles ----------------------------------------------
 
-    def _on_manifold_settings(self, *events: Any) -> None:
-        if not self._suspend:
-            self.recompute_manifolds()
-            self._publish_query()
-
     def manifolds_at(self, q: float, r: float) -> None:
         """A click in "manifolds" mode: the saddle of the orbits layer nearest the click (drawn, or removed)."""
         if not (np.isfinite(q) and np.isfinite(r)):
@@ -807,11 +807,6 @@ class ExplorerSession(param.Parameterized):
         return io.BytesIO(buf.getvalue().encode())
 
     # --- basins of attraction over the view ----------------------------------------------------
-
-    def _on_basin_settings(self, *events: Any) -> None:
-        if not self._suspend:
-            self.recompute_basins()
-            self._publish_query()
 
     def recompute_basins(self) -> None:
         """Which attractor each pixel centre of the view reaches: a layer job, coarse to fine."""
