@@ -322,6 +322,8 @@ def settled_period(points: np.ndarray, npts: np.ndarray, status: np.ndarray) -> 
     for i in range(points.shape[0]):
         if status[i] != Status.OK:
             continue  # escaped or failed: it goes no further anyway
+        # Not sweeps.detect_period: its tolerance is relative to the largest |x| of the window and it checks
+        # every pair; with it two chaotic-band values of the Fig. 10 sweeps settled differently (measured).
         m = int(npts[i])
         x = points[i, :m]
         found = 0
