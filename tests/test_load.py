@@ -436,6 +436,8 @@ def test_classroom_under_load(tmp_path) -> None:
     # Closed tabs stop their work: the server is near idle right after (a run keeps both cores busy).
     assert c["server_cpu_s_in_3s_after_close"] < 1.0
     assert all(cpu < 0.7 for cpu in report["cycles"]["server_cpu_s_in_2s_after_close"])
-    # Memory: each session costs something, and closing them gives it back (no growth per cycle).
-    assert 0 < c["memory"]["per_session_mb"] < 60 and c["memory"]["procs"] == 2
+    # Memory: no session costs much, and closing them gives it back (no growth per cycle). No lower
+    # bound: 6 sessions' ~30 MB on two ~350 MB processes is within the allocator's noise (a CI run
+    # measured -0.58 MB per session); the per-session figure is measured with 30 in benchmarks/load_test.py.
+    assert c["memory"]["per_session_mb"] < 60 and c["memory"]["procs"] == 2
     assert report["cycles"]["max_growth_mb"] < 150
