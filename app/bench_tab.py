@@ -19,7 +19,8 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from bokeh.models import ColumnDataSource, HoverTool, Plot, Span
+from bokeh.core.properties import field
+from bokeh.models import ColumnDataSource, HoverTool, Legend, LegendItem, Plot, Span
 from bokeh.plotting import figure
 
 from app.analyses import REFRESH, AnalysisTab, Publish
@@ -140,9 +141,11 @@ class BenchTab(AnalysisTab):
                    y_axis_label="max error over k = 1..K")  # fmt: skip
         f.toolbar.logo = None
         f.toolbar.active_scroll = None
-        f.multi_line("xs", "ys", color="color", legend_field="label", line_width=2, source=self.solid)
-        f.multi_line("xs", "ys", color="color", legend_field="label", line_width=2, line_dash="dashed",
-                     source=self.dashed)  # fmt: skip
+        solid = f.multi_line("xs", "ys", color="color", line_width=2, source=self.solid)
+        dashed = f.multi_line("xs", "ys", color="color", line_width=2, line_dash="dashed", source=self.dashed)
+        # One legend item per source: with legend_field on both, figure() merges them into one item
+        # whose renderers' sources differ (Bokeh's check E-1006), and the dashed lines' labels are lost.
+        f.add_layout(Legend(items=[LegendItem(label=field("label"), renderers=[r]) for r in (solid, dashed)]))
         dots = f.scatter("x", "y", color="color", size=6, source=self.points)
         f.add_tools(HoverTool(renderers=[dots], tooltips=[("", "@label"), ("setting", "@setting"),
                                                           ("error", "@y{0.00e}"), ("time / traj", "@x{0.000e} s"),

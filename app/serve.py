@@ -65,6 +65,9 @@ def command(
     # BokehJS, Panel's CSS and every other resource from this server: nothing from a CDN (a
     # classroom network may have no internet, and a page must not depend on it).
     env["BOKEH_RESOURCES"] = "server"
+    # Bokeh's integrity checks of every new page walk all its models (~25 ms of the event loop a
+    # page, a sixth of it); the same checks run once in the tests (test_app_serve.py).
+    env.setdefault("BOKEH_VALIDATE_DOC", "false")
     if procs > 1:
         # Each worker computes on its share of the cores (job slots and the kernels' threads): the
         # workers' schedulers do not see each other, and two workers each running two jobs on every

@@ -9,6 +9,7 @@ import time
 import urllib.request
 from pathlib import Path
 
+import numpy as np
 import pytest
 from clirun import run_cli
 
@@ -41,8 +42,38 @@ def test_the_server_command() -> None:
     assert cmd[cmd.index("--num-procs") + 1] == "3"
     assert cmd[cmd.index("--allow-websocket-origin") + 1] == "a.example:443"
     assert env["BOKEH_RESOURCES"] == "server"  # nothing from a CDN
+    assert env["BOKEH_VALIDATE_DOC"] == "false"  # checked here instead: test_pages_pass_bokehs_checks
     one, _ = command(port=5006, address="127.0.0.1", threads=4, origins=[], session_lifetime=15000, procs=1)
     assert "--num-procs" not in one
+
+
+def test_pages_pass_bokehs_checks() -> None:
+    """What the server no longer checks on every page (BOKEH_VALIDATE_DOC=false): Bokeh's integrity
+    checks of a page's document, with every layer drawn and every analysis tab opened."""
+    from bokeh.core.validation.check import check_integrity
+    from bokeh.document import Document
+
+    from app.page import TAB_CLASSES, Page
+    from app.runner import WARM
+
+    WARM.set()
+    page = Page({"scene": "fig8B"}, lambda fn: fn())
+    doc = Document()
+    page.ui.server_doc(doc)
+    view = (-2.0, 1.5, -3.5, 0.5)
+    page.fig.set_density(np.ones((4, 4)), view)
+    page.fig.set_basins(np.zeros((4, 4), dtype=int), view, {0: "#1f77b4"})
+    page.fig.set_manifolds([(np.array([0.0, 1.0]), np.array([0.0, 1.0]), "unstable")], [(0.5, 0.5, "homoclinic")])
+
+    def errors() -> list:
+        refs = set().union(*(root.references() for root in doc.roots))
+        return check_integrity(refs).error
+
+    assert errors() == []
+    for name in TAB_CLASSES:
+        page.handle({"action": "tab", "tab": name})
+        assert errors() == [], name
+    page.close()
 
 
 def test_messages_from_a_page_are_checked() -> None:
