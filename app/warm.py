@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import logging
 import signal
 import threading
 
@@ -49,3 +50,27 @@ def _die_with_parent() -> None:
 _die_with_parent()
 pacing.install()
 start()
+
+
+def warm_page() -> None:
+    """Build and serialize one page with no visitor, before the server answers.
+
+    The first page of a process costs ~1 s of the event loop more than the next ones (the app's
+    modules and what they import, Bokeh's and Panel's per-class caches, the component's bundle):
+    without this the first visitor of each worker waited for it, and every request with them.
+    """
+    from bokeh.document import Document
+
+    from app.page import Page
+
+    try:
+        page = Page({}, lambda fn: fn())
+        doc = Document()
+        page.ui.server_doc(doc)
+        doc.to_json()
+        page.close()
+    except Exception:  # a page that cannot be built fails again, visibly, for the visitor
+        logging.getLogger(__name__).exception("warming a page failed")
+
+
+warm_page()

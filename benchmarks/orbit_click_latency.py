@@ -32,9 +32,11 @@ def main() -> None:
         page.wait_for_function("() => window.Bokeh && Bokeh.documents.length > 0", timeout=120_000)
         wait_finished(page, timeout=120)
         for _ in range(args.repeat + 1):  # the first is a warm-up
-            if page.evaluate("() => Bokeh.documents[0].get_model_by_name('orbits_saddle').get_length() > 0"):
+            if page.evaluate("() => Bokeh.documents[0].get_model_by_name('orbits_saddle')?.get_length() > 0"):
                 page.locator(".btn-clear-orbits").click()  # enabled only while orbits are shown
-            page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('orbits_saddle').get_length() === 0")
+            page.wait_for_function(
+                "() => (Bokeh.documents[0].get_model_by_name('orbits_saddle')?.get_length() ?? 0) === 0"
+            )
             page.wait_for_timeout(300)
             page.evaluate(JS_ORBIT_PROBE)
             click_frame_centre(page)

@@ -17,7 +17,7 @@ CENTRED = ("?scene=fig8B&n=2&periods=50&orb=-0.0377,-2.3979&orb_n=1&click=manifo
 def test_a_click_on_the_saddle_draws_its_manifolds(page, app_url) -> None:
     open_app(page, app_url, CENTRED)
     wait_finished(page)
-    page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('orbits_saddle').get_length() === 1",
+    page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('orbits_saddle')?.get_length() === 1",
                            timeout=30_000)  # fmt: skip
     click_frame_centre(page)
     page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('manifolds_source')?.get_length() >= 4",

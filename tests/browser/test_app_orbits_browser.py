@@ -13,13 +13,14 @@ CENTRED = "?scene=fig8B&n=2&periods=50&click=orbit&orb_n=1&qr=-0.5377,0.4623&rr=
 #: In-page probe: time from the pointerup to the animation frame that draws the first orbit point.
 JS_ORBIT_PROBE = """
 () => {
-  const srcs = ['orbits_saddle', 'orbits_stable', 'orbits_unstable'].map(
+  // The orbits layer joins the plot with its first orbit: look its sources up on every frame.
+  const srcs = () => ['orbits_saddle', 'orbits_stable', 'orbits_unstable'].map(
       (n) => Bokeh.documents[0].get_model_by_name(n));
   const p = {t0: null, drawn: null};
   window.__orbit = p;
   window.addEventListener('pointerup', () => { p.t0 = performance.now(); }, {capture: true, once: true});
   const tick = () => {
-    if (p.t0 !== null && srcs.some((s) => s.get_length() > 0)) { p.drawn = performance.now(); return; }
+    if (p.t0 !== null && srcs().some((s) => s?.get_length() > 0)) { p.drawn = performance.now(); return; }
     requestAnimationFrame(tick);
   };
   requestAnimationFrame(tick);
