@@ -8,7 +8,6 @@ the selected trajectory and the analysis tabs. The URL carries the whole state.
 
 from __future__ import annotations
 
-import logging
 import urllib.parse
 from typing import Any
 
@@ -17,8 +16,9 @@ import panel as pn
 from app import pacing, warm
 from app.page import Page
 
-log = logging.getLogger(__name__)
-
+# Bokeh runs this file again for every session, as a new module (``bokeh_app_<uuid>``): nothing at
+# module level may register itself globally (``logging.getLogger(__name__)`` here kept one Logger per
+# session for the life of the server). What is built once lives in the modules imported above.
 pn.extension(notifications=False)
 
 

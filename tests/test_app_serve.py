@@ -43,6 +43,7 @@ def test_the_server_command() -> None:
     assert cmd[cmd.index("--allow-websocket-origin") + 1] == "a.example:443"
     assert env["BOKEH_RESOURCES"] == "server"  # nothing from a CDN
     assert env["BOKEH_VALIDATE_DOC"] == "false"  # checked here instead: test_pages_pass_bokehs_checks
+    assert env["MALLOC_ARENA_MAX"] == "2"  # no RSS growth over open/close cycles (docs/load.md)
     one, _ = command(port=5006, address="127.0.0.1", threads=4, origins=[], session_lifetime=15000, procs=1)
     assert "--num-procs" not in one
 
