@@ -126,6 +126,22 @@ def set_fonts(axes: list[LinearAxis], presentation: bool) -> None:
         a.update(axis_label_text_font_size=label, major_label_text_font_size=ticks)
 
 
+class _OfLayer:
+    """An attribute of :class:`SectionFigure` made by one of its layers: read, it builds that layer."""
+
+    def __init__(self, layer: str) -> None:
+        self.layer = layer
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.attr = f"_{name}"
+
+    def __get__(self, fig: Any, owner: type | None = None) -> Any:
+        if fig is None:
+            return self
+        fig._build(self.layer)
+        return getattr(fig, self.attr)
+
+
 class SectionFigure:
     """The (q, r) plane with all its layers."""
 
@@ -241,35 +257,13 @@ class SectionFigure:
         self._hovers["orbits"] = HoverTool(renderers=orb[1::2], tooltips=tips)
         return orb
 
-    @property
-    def density(self) -> ColumnDataSource:
-        self._build("density")
-        return self._density
-
-    @property
-    def density_mapper(self) -> LogColorMapper:
-        self._build("density")
-        return self._density_mapper
-
-    @property
-    def basins(self) -> ColumnDataSource:
-        self._build("basins")
-        return self._basins
-
-    @property
-    def manifolds(self) -> ColumnDataSource:
-        self._build("manifolds")
-        return self._manifolds
-
-    @property
-    def crossings(self) -> ColumnDataSource:
-        self._build("manifolds")
-        return self._crossings
-
-    @property
-    def orbit_sources(self) -> dict[str, ColumnDataSource]:
-        self._build("orbits")
-        return self._orbit_sources
+    # Models of the layers built on first use (reading one builds its layer, not showing it).
+    density = _OfLayer("density")
+    density_mapper = _OfLayer("density")
+    basins = _OfLayer("basins")
+    manifolds = _OfLayer("manifolds")
+    crossings = _OfLayer("manifolds")
+    orbit_sources = _OfLayer("orbits")
 
     def _activate(self, layer: str) -> None:
         """Put a layer's renderers in the plot (in their place among the others), once."""
