@@ -185,6 +185,13 @@ class ExplorerSession(param.Parameterized):
 
     # --- reacting to the state ------------------------------------------------------------
 
+    def _system(self) -> Params | None:
+        """The system on screen; None while a typed value is refused (recompute shows why)."""
+        try:
+            return self.state.system()
+        except ParameterError:
+            return None
+
     def _layer_watcher(self, recompute: Callable[[], None]) -> Callable[..., None]:
         """A watcher of a layer's own settings: recompute the layer and publish the URL (not during a scene)."""
 
@@ -582,9 +589,8 @@ class ExplorerSession(param.Parameterized):
         if len(st.orbit_seeds) >= MAX_ORBIT_SEEDS:
             self.orbit_status = f"at most {MAX_ORBIT_SEEDS} orbit seeds; clear the orbits first"
             return
-        try:
-            params = st.system()
-        except ParameterError:
+        params = self._system()
+        if params is None:
             return
         seed = (float(q), float(r))
         st.orbit_seeds = [*st.orbit_seeds, seed]
@@ -636,9 +642,8 @@ class ExplorerSession(param.Parameterized):
             self.orbit_status = ""
             self._show_orbits()
             return
-        try:
-            params = st.system()
-        except ParameterError:
+        params = self._system()
+        if params is None:
             return
         periods = list(range(1, st.orbit_period + 1))
         box = (*st.q_range, *st.r_range)
@@ -657,11 +662,8 @@ class ExplorerSession(param.Parameterized):
         self._merge_orbits(params, res, "")
 
     def _merge_orbits(self, params: Params, res: OrbitSearch, where: str) -> None:
-        try:
-            if params != self.state.system():
-                return  # found for a system no longer on screen
-        except ParameterError:
-            return
+        if params != self._system():
+            return  # found for a system no longer on screen
         new = [o for o in res.orbits if not any(same_orbit(o, k) for k in self._orbits)]
         self._orbits = sorted([*self._orbits, *new], key=lambda o: (o.period, float(o.points[0, 0])))
         self._show_orbits()
@@ -740,10 +742,7 @@ class ExplorerSession(param.Parameterized):
         """The manifolds of every chosen saddle for the system and the view on screen: a layer job, streamed."""
         st = self.state
         saddles = list(st.manifold_saddles)
-        try:
-            params = st.system()
-        except ParameterError:
-            params = None
+        params = self._system()
         view = (*st.q_range, *st.r_range)
         length = float(st.manifold_length)
         if not self._new_inputs("manifolds", (params, view, tuple(saddles), length) if saddles and params else None):
@@ -784,11 +783,8 @@ class ExplorerSession(param.Parameterized):
         self.runner.start("manifolds", job)
 
     def _show_manifolds(self, params: Params, shown: list[Manifolds], text: str) -> None:
-        try:
-            if params != self.state.system():
-                return  # grown for a system no longer on screen
-        except ParameterError:
-            return
+        if params != self._system():
+            return  # grown for a system no longer on screen
         self._manifolds = shown
         self.n_manifolds = len(shown)  # on screen (the CSV download offers exactly these)
         lines = [(p[:, 1], p[:, 2], b.kind) for m in shown for b in m.branches for p in b.pieces]
@@ -811,10 +807,7 @@ class ExplorerSession(param.Parameterized):
     def recompute_basins(self) -> None:
         """Which attractor each pixel centre of the view reaches: a layer job, coarse to fine."""
         st = self.state
-        try:
-            params = st.system()
-        except ParameterError:
-            params = None
+        params = self._system()
         box = (*st.q_range, *st.r_range)
         n = st.basin_grid
         if not self._new_inputs("basins", (params, box, n) if st.show_basins and params else None):
@@ -844,11 +837,8 @@ class ExplorerSession(param.Parameterized):
         self.runner.start("basins", job)
 
     def _show_basins(self, params: Params, box: tuple[float, ...], b: Basins, done: str) -> None:
-        try:
-            if params != self.state.system() or box != (*self.state.q_range, *self.state.r_range):
-                return  # for a system or a view no longer on screen
-        except ParameterError:
-            return
+        if params != self._system() or box != (*self.state.q_range, *self.state.r_range):
+            return  # for a system or a view no longer on screen
         labels = b.filled()
         colours = {a.id: BASIN_COLOURS[i % len(BASIN_COLOURS)] for i, a in enumerate(b.attractors)}
         colours.update(OUTCOME_COLOURS)
@@ -879,9 +869,8 @@ class ExplorerSession(param.Parameterized):
     # --- layers: equilibrium tracks and the T' map ---------------------------------------------
 
     def _start_layers(self, tracks: bool = True) -> None:
-        try:
-            params = self.state.system()
-        except ParameterError:
+        params = self._system()
+        if params is None:
             return  # the error is already shown by recompute
         st = self.state
         show_tracks, show_tp, kind = st.show_tracks, st.show_tprime, st.tprime_kind
