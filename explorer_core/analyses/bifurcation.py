@@ -389,19 +389,16 @@ class SweepSpec:
     def params_at(self, v: int) -> Params | str:
         return params_at(self.params, self.param, float(self.values[v]))
 
-    def orbits(self, v: int, seed: np.ndarray, threads: int = 1) -> tuple[np.ndarray, ...]:
+    def orbits(self, v: int, seed: np.ndarray, threads: int = 1, settle: bool = False) -> tuple[np.ndarray, ...]:
         """:func:`bilimovich_orbits` at ``values[v]`` from ``seed`` (results do not depend on ``threads``)."""
         p = self.params_at(v)
         if isinstance(p, str):
             raise ParameterError(p)
-        return bilimovich_orbits(p, seed, self.transient, self.n_points, self.numerics, threads)
+        return bilimovich_orbits(p, seed, self.transient, self.n_points, self.numerics, threads, settle=settle)
 
     def orbits_settled(self, v: int, seed: np.ndarray, threads: int = 1) -> tuple[np.ndarray, ...]:
         """:meth:`orbits` whose transient ends once the members settle on a cycle (continuation sweeps)."""
-        p = self.params_at(v)
-        if isinstance(p, str):
-            raise ParameterError(p)
-        return bilimovich_orbits(p, seed, self.transient, self.n_points, self.numerics, threads, settle=True)
+        return self.orbits(v, seed, threads, settle=True)
 
 
 #: Fixed seeding in lock-step: members (value, IC) per block, and periods per engine call (cancel and
@@ -428,11 +425,11 @@ def fixed_lockstep(
     """
     start = time.perf_counter()
     n_ic = spec.ics.shape[0]
-    out = empty_sweep_arrays(1, valid, n_ic, spec.n_points)
+    out = {"sweeps": np.array(["fixed"]), **empty_sweep_arrays(1, valid, n_ic, spec.n_points)}
     todo = [int(v) for v in np.flatnonzero(valid)]
     members = [(v, i) for v in todo for i in range(n_ic)]
     if not members:
-        return {"sweeps": np.array(["fixed"]), **out}
+        return out
     pset = [spec.params_at(v) for v in todo]
     plist = [pset[k // n_ic] for k in range(len(members))]
     y0 = spec.ics[[i for _, i in members]]
@@ -453,14 +450,14 @@ def fixed_lockstep(
         left = spec.transient
         while left > 0:
             if stopped():
-                return {"sweeps": np.array(["fixed"]), **out}
+                return out
             c = min(LOCKSTEP_CHUNK, left)
             run(FIELD, coefs, batch, c, store=False, workers=workers, block=LOCKSTEP_BLOCK, **kw)
             left -= c
             done_periods += c * idx.size // len(members)
             report()
         if stopped():
-            return {"sweeps": np.array(["fixed"]), **out}
+            return out
         pts, npts = run(FIELD, coefs, batch, spec.n_points, workers=workers, block=LOCKSTEP_BLOCK, **kw)
         pts[np.arange(spec.n_points)[None, :] >= npts[:, None]] = 0.0  # not data: make results reproducible
         for j, m in enumerate(idx):
@@ -471,7 +468,7 @@ def fixed_lockstep(
             out["final"][0, v, i] = batch.y[j]
     done_periods = total_periods
     report()
-    return {"sweeps": np.array(["fixed"]), **out}
+    return out
 
 
 @dataclass(frozen=True)

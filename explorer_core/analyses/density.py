@@ -74,10 +74,15 @@ class Density:
                 **self.extra}  # fmt: skip
 
 
+def check_pixels(pixels: Sequence[int]) -> list[int]:
+    """An image's size ``(pixels_q, pixels_r)``, each a whole number in ``[1, MAX_PIXELS]``."""
+    return [check_int(name, v, 1, MAX_PIXELS) for name, v in zip(("pixels (q)", "pixels (r)"), pixels, strict=True)]
+
+
 def density_numerics(view: Sequence[float], pixels: Sequence[int], bound: float, method: str = "dop853") -> Numerics:
     """DOP853 keeping each point within a quarter pixel of the view over :data:`DENSITY_WINDOW` periods."""
     q0, q1, r0, r1 = check_box(view, "view")
-    px = [check_int(name, v, 1, MAX_PIXELS) for name, v in zip(("pixels (q)", "pixels (r)"), pixels, strict=True)]
+    px = check_pixels(pixels)
     pixel = min((q1 - q0) / px[0], (r1 - r0) / px[1])
     tol = plot_tolerance(pixel, DENSITY_WINDOW)
     return Numerics(method=method, rtol=tol, atol=tol, bound=bound)
@@ -130,7 +135,7 @@ def iter_density(
     periods = check_int("periods", periods, 1, config.MAX_PERIODS)
     transient = check_int("transient", transient, 0, config.MAX_PERIODS)
     box = check_box(view, "view")
-    px = [check_int(name, v, 1, MAX_PIXELS) for name, v in zip(("pixels (q)", "pixels (r)"), pixels, strict=True)]
+    px = check_pixels(pixels)
     if ics.shape[0] * periods > MAX_DENSITY_POINTS:
         raise ParameterError(f"{ics.shape[0]} trajectories x {periods} periods = {ics.shape[0] * periods} points; "
                              f"a density image takes at most {MAX_DENSITY_POINTS}")  # fmt: skip
