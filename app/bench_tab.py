@@ -147,12 +147,11 @@ class BenchTab(AnalysisTab):
         # whose renderers' sources differ (Bokeh's check E-1006), and the dashed lines' labels are lost.
         # Beside the plot, not over it: inside it covered the solve_ivp line's end (far right).
         items = [LegendItem(label=field("label"), renderers=[r]) for r in (solid, dashed)]
-        f.add_layout(Legend(items=items), "right")
+        f.add_layout(Legend(items=items, label_text_font_size="8pt"), "right")
         dots = f.scatter("x", "y", color="color", size=6, source=self.points)
         f.add_tools(HoverTool(renderers=[dots], tooltips=[("", "@label"), ("setting", "@setting"),
                                                           ("error", "@y{0.00e}"), ("time / traj", "@x{0.000e} s"),
                                                           ("status", "@status")]))  # fmt: skip
-        f.legend.label_text_font_size = "8pt"
         f.add_layout(self.floor)
         return f
 

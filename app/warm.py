@@ -1,8 +1,9 @@
-"""Warm the numba kernels in the background, once per server process.
+"""Warm a server process before its first visitor: the numba kernels in the background, one page now.
 
 Used as ``panel serve --setup app/warm.py`` (so warming starts before the first visitor; with
-``--num-procs`` in each worker) and called again by the app (idempotent). While it runs, the
-page says the server is warming and jobs wait for :data:`app.runner.WARM`.
+``--num-procs`` in each worker) and called again by the app (idempotent). While the kernels load, the
+page says the server is warming and jobs wait for :data:`app.runner.WARM`; :func:`warm_page` builds
+one page at import, so the first visitor's does not pay for the imports and caches.
 """
 
 from __future__ import annotations
