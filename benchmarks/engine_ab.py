@@ -1,6 +1,7 @@
 """A/B of the integration engine between two checkouts, in one run (issue: one engine, nothing >5 % slower).
 
     .venv/bin/python benchmarks/engine_ab.py --old /path/to/old/checkout [--rounds 5] [--out ab.json]
+    .venv/bin/python benchmarks/engine_ab.py --old /path/to/old/checkout --suite analyses [--rounds 3 --repeat 3]
 
 Runs the same cases alternately in the old and the new checkout (a child process each round, with
 ``PYTHONPATH`` pointing at the checkout), each case timed as the median of ``--repeat`` calls after a
@@ -10,6 +11,10 @@ results, compared between the checkouts (bit-for-bit or the largest difference).
 Cases: the per-trajectory section kernel (``block=1``), the lock-step block kernel, fixed-step RK4,
 the Lyapunov spectrum and a small chart of regimes, all on one worker thread so the figures measure
 the kernels and not the thread pool.
+
+``--suite analyses`` times the analyses as a user runs them (default workers: both cores): periodic orbits
+from a grid of seeds, the Fig. 10 continuation with branch switching, a chart of regimes, basins and the
+Fig. 8B flip saddle's manifolds (the "nothing slower by more than 5 %" check of the one-contract issue).
 """
 
 from __future__ import annotations
@@ -46,7 +51,52 @@ def _imports():
     return Batch, advance, lyapunov_spectrum, chart_spec, regime_chart, Numerics, Model, Params
 
 
-def child(repeat: int) -> dict:
+def analyses_cases() -> dict:
+    """The analyses as a user runs them (default workers), each returning numbers to compare."""
+    from explorer_core.analyses.basins import basins
+    from explorer_core.analyses.continuation import continue_orbit
+    from explorer_core.analyses.manifolds import manifolds, saddle_orbit
+    from explorer_core.analyses.orbits import find_orbits, grid_seeds
+    from explorer_core.analyses.regimes import chart_spec, regime_chart
+    from explorer_core.scenes import get_scene
+    from explorer_core.solve.numerics import Numerics
+
+    fig8b, fig10 = get_scene("fig8B"), get_scene("fig10")
+    view = (*fig8b.q_range, *fig8b.r_range)
+    flip = saddle_orbit(fig8b.params, (-0.04, -2.40), 1)
+
+    def orbits():
+        res = find_orbits(fig8b.params, grid_seeds(fig8b.box, 8, 8), [1, 2, 3])
+        return sorted(float(o.points[0, 0]) for o in res.orbits)
+
+    def cont():
+        res = continue_orbit(fig10.params, "alpha", (-0.35, -0.42), (-0.0959, -1.962), 1, switch=True)
+        return sorted(b.value for b in res.bifurcations)
+
+    def chart():
+        spec = chart_spec(fig8b.params, "alpha", (-0.6, -0.4), "I11", (1.0, 2.0), (12, 8),
+                          ics=((-0.09, -2.0), (-0.5, -1.0)), transient=200, periods=200,
+                          numerics=Numerics(rtol=1e-8, atol=1e-8))  # fmt: skip
+        return regime_chart(spec).regime
+
+    def basin():
+        return basins(fig8b.params.with_(alpha=-0.5, inertia=(1.6, 2, 4, 0.0, 0.5, 0.3)), (-1.7, 1.5, -3, 1),
+                      (40, 40)).label  # fmt: skip
+
+    def manifold():
+        m = manifolds(fig8b.params, flip, length=10.0, view=view, pixels=(800, 600))
+        return [sum(p.shape[0] for p in b.pieces) for b in m.branches]
+
+    return {
+        "orbits (fig8B, 8x8 seeds, periods 1-3)": orbits,
+        "continuation (fig10, alpha -0.35..-0.42, switch)": cont,
+        "chart (fig8B 12x8 px, 2 ICs, 200+200, rtol 1e-8)": chart,
+        "basins (alpha -0.5, I11 1.6, 40x40)": basin,
+        "manifolds (fig8B flip saddle, length 10, 800x600)": manifold,
+    }
+
+
+def child(repeat: int, suite: str = "engine") -> dict:
     # The project's editable install maps explorer_core's sub-packages to its own checkout whatever
     # PYTHONPATH says: without its finder, the checkout on PYTHONPATH is the one imported.
     for finder in list(sys.meta_path):
@@ -65,7 +115,7 @@ def child(repeat: int) -> dict:
         out, npts = advance(Model(fig1c), b, 40, method=method, workers=1, block=block, **kw)
         return out
 
-    cases = {
+    cases = analyses_cases() if suite == "analyses" else {
         "section kernel (block=1, 64 ICs x 40 periods, dop853 1e-10)": lambda: section(1, rtol=1e-10, atol=1e-10),
         "block kernel (block=32, 64 ICs x 40 periods, dop853 1e-10)": lambda: section(32, rtol=1e-10, atol=1e-10),
         "rk4 (64 ICs x 40 periods x 400 steps)": lambda: section(32, "rk4", steps_per_period=400),
@@ -90,9 +140,10 @@ def child(repeat: int) -> dict:
     return out
 
 
-def run_child(tree: Path, repeat: int) -> dict:
+def run_child(tree: Path, repeat: int, suite: str) -> dict:
     env = {**os.environ, "PYTHONPATH": str(tree)}
-    cmd = [sys.executable, str(HERE / "benchmarks" / "engine_ab.py"), "--child", "--repeat", str(repeat)]
+    cmd = [sys.executable, str(HERE / "benchmarks" / "engine_ab.py"), "--child", "--repeat", str(repeat),
+           "--suite", suite]  # fmt: skip
     proc = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True, check=True)
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
@@ -104,10 +155,11 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--out")
+    ap.add_argument("--suite", choices=("engine", "analyses"), default="engine")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(child(args.repeat)))
+        print(json.dumps(child(args.repeat, args.suite)))
         return
     if not args.old:
         ap.error("--old is required")
@@ -116,11 +168,12 @@ def main() -> None:
     results: dict[str, dict] = {}
     for rnd in range(args.rounds):
         for label in ("old", "new") if rnd % 2 == 0 else ("new", "old"):
-            res = run_child(trees[label], args.repeat)
+            res = run_child(trees[label], args.repeat, args.suite)
             for case, v in res.items():
                 times[label].setdefault(case, []).append(v["median_s"])
             results[label] = res
-    report = {"rounds": args.rounds, "repeat": args.repeat, "cases": {}}
+    report = {"suite": args.suite, "rounds": args.rounds, "repeat": args.repeat, "load": os.getloadavg()[0],
+              "cases": {}}  # fmt: skip
     print(f"{'case':64s} {'old ms':>9s} {'new ms':>9s} {'new/old':>8s}  results")
     for case in times["old"]:
         old = statistics.median(times["old"][case])

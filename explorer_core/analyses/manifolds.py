@@ -190,7 +190,7 @@ class Manifolds:
             w = csv.writer(fh)
             w.writerow(["branch", "kind", "s", "q", "r"])
             for label, kind, s, q, r in self.rows():
-                w.writerow([label, kind, repr(s), repr(q), repr(r)])
+                w.writerow([label, kind, float(s), float(q), float(r)])
                 n += 1
         return n
 

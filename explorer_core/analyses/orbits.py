@@ -29,9 +29,10 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.solve import poincare
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
-from explorer_core.solve.rk import Status
-from explorer_core.solve.tangent import Monodromy, monodromy_at
+from explorer_core.solve.poincare import PATIENCE, NewtonResult, PoincareMap, least_period
+from explorer_core.solve.tangent import Monodromy
 from explorer_core.system.params import ParameterError, Params
 
 #: Integration settings for orbits: the residual can only be as small as ``P^n`` is accurate.
@@ -41,6 +42,8 @@ MAX_PERIOD = 64
 #: Newton stops when the residual ``|P^n(x) - x|`` is below ``ftol (1 + |x|)``.
 FTOL = 1e-9
 MAX_ITER = 40
+#: ``det DP^n`` below this many ulps of ``max |DP^n|^2`` is rounding noise (see :func:`orbit_from`).
+DET_ROUNDING = 64.0
 #: ``|mu| = 1`` within this: neutral (real) or elliptic (complex pair).
 UNIT_TOL = 1e-6
 TYPES = ("stable node", "stable focus", "unstable node", "unstable focus", "saddle", "flip saddle", "elliptic",
@@ -67,6 +70,9 @@ class Orbit:
     iterations: int
     kind: str
     seed: tuple[float, float] = (math.nan, math.nan)
+    #: False when ``det DP^n`` is below the rounding of its entries: ``det`` (and the small real multiplier)
+    #: are then Liouville's ``exp(int div dt)`` (and it over ``mu1``).
+    det_resolved: bool = True
 
     @property
     def stable(self) -> bool:
@@ -85,6 +91,7 @@ class Orbit:
             "residual": float(self.residual),
             "iterations": int(self.iterations),
             "seed": [float(self.seed[0]), float(self.seed[1])],
+            "det_resolved": self.det_resolved,
         }
 
 
@@ -136,8 +143,8 @@ class OrbitSearch:
             for i, o in enumerate(self.orbits):
                 mu = o.multipliers
                 for j, (q, r) in enumerate(o.points):
-                    w.writerow([i, o.period, o.kind, int(o.stable), j, repr(float(q)), repr(float(r)),
-                                repr(mu[0].real), repr(mu[0].imag), repr(mu[1].real), repr(mu[1].imag)])  # fmt: skip
+                    w.writerow([i, o.period, o.kind, int(o.stable), j, float(q), float(r), float(mu[0].real),
+                                float(mu[0].imag), float(mu[1].real), float(mu[1].imag)])  # fmt: skip
                     rows += 1
         return rows
 
@@ -179,25 +186,6 @@ def classify(mu: np.ndarray, unit_tol: float = UNIT_TOL) -> str:
 # Newton on P^n(x) - x, many seeds at once.
 
 
-#: Newton gives up on a seed whose best residual has not halved in this many iterations.
-PATIENCE = 6
-#: A seed whose iterate comes this close (relative) to a point of an orbit already found (of a period
-#: dividing its own) would converge to that orbit: it stops as a duplicate.
-DUPLICATE_TOL = 1e-4
-#: Far from an orbit Newton needs no 1e-12 map: iterates integrate 1e4 times less accurately (DOP853 takes
-#: ~3x fewer steps) until the residual is below ``COARSE_UNTIL (1 + |x|)``.
-COARSE_UNTIL = 1e-5
-
-
-def _solve2(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``a^-1 b`` for stacks of 2x2 systems (closed form) and the determinants."""
-    det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x0 = (a[:, 1, 1] * b[:, 0] - a[:, 0, 1] * b[:, 1]) / det
-        x1 = (a[:, 0, 0] * b[:, 1] - a[:, 1, 0] * b[:, 0]) / det
-    return np.column_stack([x0, x1]), det
-
-
 def newton(
     params: Params,
     seeds: np.ndarray,
@@ -211,103 +199,25 @@ def newton(
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
 ) -> tuple[list[tuple[int, np.ndarray, Monodromy, int]], list[OrbitFailure]]:
-    """Newton on ``P^n(x) - x`` from every ``(seeds[i], periods[i])``, all at once (low-level call).
+    """:func:`~explorer_core.solve.poincare.newton` under one system (low-level call).
 
-    Every iteration integrates the tangent system of all unfinished seeds of one period in one lock-step
-    batch, then updates them together. Returns the converged ``(i, x, monodromy at x, iterations)`` and
-    the failures with their reasons; seeds that ran into an orbit already found stop as duplicates (in
-    neither list). The period of a converged point is not yet checked to be minimal (see :func:`find_orbits`).
+    Returns the converged ``(i, x, monodromy at x, iterations)`` and the failures with their reasons; seeds
+    that ran into an orbit already found stop as duplicates (in neither list). The period of a converged
+    point is the one asked (see :func:`find_orbits` for the least one).
     """
-    m = seeds.shape[0]
-    coarse = Numerics(**{**numerics.as_dict(), "rtol": min(1e-6, numerics.rtol * 1e4),
-                         "atol": min(1e-6, numerics.atol * 1e4)})  # fmt: skip
-    fine = np.zeros(m, bool)
-    x = seeds.astype(float).copy()
-    period = periods.astype(np.int64)
-    prev, prev_res = x.copy(), np.full(m, np.inf)
-    best, since = np.full(m, np.inf), np.zeros(m, np.int64)
-    radius = np.full(m, float(max_step))
-    iters, backtracks = np.zeros(m, np.int64), np.zeros(m, np.int64)
-    done = np.zeros(m, bool)
-    conv: list[tuple[int, np.ndarray, Monodromy, int]] = []
-    known: list[tuple[int, np.ndarray]] = []  # (period, its points) of the converged
-    failures: list[OrbitFailure] = []
+    res = _newton(params, seeds, periods, numerics=numerics, ftol=ftol, max_iter=max_iter, max_step=max_step,
+                  patience=patience, cancel=cancel, workers=workers)  # fmt: skip
+    return [(c.i, c.x, c.mono, c.iterations) for c in res.converged], _failures(res, seeds)
 
-    def fail(idx: np.ndarray, reason: Callable[[int], str]) -> None:
-        for i in idx:
-            done[i] = True
-            failures.append(OrbitFailure((float(seeds[i, 0]), float(seeds[i, 1])), int(period[i]), reason(int(i)),
-                                         int(iters[i])))  # fmt: skip
 
-    for _ in range(max_iter):
-        active = np.flatnonzero(~done)
-        if active.size == 0 or (cancel is not None and cancel()):
-            break
-        for n, accurate in sorted({(int(a), bool(b)) for a, b in zip(period[active], fine[active], strict=True)}):
-            idx = active[(period[active] == n) & (fine[active] == accurate)]
-            # Duplicates: an iterate next to a point of an orbit found already (of a period dividing n).
-            near = np.zeros(idx.size, bool)
-            for kn, pts in known:
-                if n % kn == 0:
-                    d = np.linalg.norm(x[idx, None, :] - pts[None, :, :], axis=-1).min(axis=1)
-                    near |= d <= DUPLICATE_TOL * (1.0 + np.linalg.norm(x[idx], axis=1))
-            done[idx[near]] = True
-            idx = idx[~near]
-            if idx.size == 0:
-                continue
-            mono = monodromy_at([params], x[idx], int(n), numerics if accurate else coarse, workers=workers)
-            iters[idx] += 1
-            xi = x[idx]
-            bad = mono.status != Status.OK
-            res = np.where(bad, np.inf, np.linalg.norm(mono.end - xi, axis=1))
-            scale = 1.0 + np.linalg.norm(xi, axis=1)
-            ok = ~bad & (res <= ftol * scale) & accurate
-            for j in np.flatnonzero(ok):
-                i = idx[j]
-                done[i] = True
-                conv.append((int(i), xi[j].copy(), mono.member(j), int(iters[i])))
-                known.append((int(n), np.vstack([xi[j][None, :], mono.points[j, : n - 1]])))
-            # No progress (or the trajectory failed): pull back half way, shrink the trust radius.
-            back = ~ok & ~(res < prev_res[idx]) & np.isfinite(prev_res[idx])
-            backtracks[idx[back]] += 1
-            radius[idx[back]] *= 0.5
-            stalled = back & (backtracks[idx] > (patience or 8))
-            fail(idx[stalled], lambda i: "Newton stalled: no decrease of the residual")
-            pull = back & ~stalled
-            x[idx[pull]] = 0.5 * (prev[idx[pull]] + xi[pull])
-            first_bad = ~ok & ~back & bad
-            for j in np.flatnonzero(first_bad):
-                fail(idx[j : j + 1], lambda i, c=int(mono.status[j]): f"the trajectory from the seed failed: "
-                                                                         f"{Status(c).label}")  # fmt: skip
-            step_ = ~ok & ~back & ~bad
-            sel = idx[step_]
-            if sel.size == 0:
-                continue
-            backtracks[sel] = 0
-            prev[sel] = xi[step_]
-            prev_res[sel] = res[step_]
-            improved = res[step_] < 0.5 * best[sel]
-            since[sel] = np.where(improved, 0, since[sel] + 1)
-            best[sel] = np.where(improved, res[step_], best[sel])
-            # Close enough for the accurate map (its residual is not comparable: the trust region starts over).
-            switch = (res[step_] <= COARSE_UNTIL * scale[step_]) & (not accurate)
-            fine[sel[switch]] = True
-            prev_res[sel[switch]] = np.inf
-            slow = since[sel] > (patience if patience is not None else max_iter)
-            fail(sel[slow], lambda i: f"no convergence: the residual stalled at {best[i]:.3g}")
-            jac = mono.matrix[step_] - np.eye(2)[None]
-            dx, det = _solve2(jac, -(mono.end[step_] - xi[step_]))
-            singular = ~np.isfinite(det) | (np.abs(det) < 1e-14 * np.maximum(1.0, np.abs(jac).max(axis=(1, 2)) ** 2))
-            fail(sel[~slow & singular], lambda i: "singular: a multiplier is 1 (det(DP^n - I) = 0)")
-            go = ~slow & ~singular
-            length = np.linalg.norm(dx, axis=1)
-            shrink = np.where(length > radius[sel], radius[sel] / np.maximum(length, 1e-300), 1.0)
-            new = xi[step_] + dx * shrink[:, None]
-            x[sel[go]] = new[go]
-            over = go & ~np.all(np.isfinite(new), axis=1)
-            fail(sel[over], lambda i: "the Newton step overflowed")
-    fail(np.flatnonzero(~done), lambda i: f"no convergence in {int(iters[i])} iterations (residual {prev_res[i]:.3g})")
-    return conv, failures
+def _newton(params: Params, seeds: np.ndarray, periods: np.ndarray, *, numerics: Numerics, workers: int | None,
+            **kw: Any) -> NewtonResult:  # fmt: skip
+    return poincare.newton(PoincareMap.of(params, numerics, workers=workers), seeds, periods, **kw)
+
+
+def _failures(res: NewtonResult, seeds: np.ndarray) -> list[OrbitFailure]:
+    return [OrbitFailure((float(seeds[f.i, 0]), float(seeds[f.i, 1])), f.period, f.reason, f.iterations)
+            for f in res.failures]  # fmt: skip
 
 
 def orbit_from(
@@ -320,24 +230,29 @@ def orbit_from(
     if shift:
         # DP^n at another point of the orbit is conjugate (same multipliers); recompute it there exactly.
         x0 = pts[shift]
-        mono = monodromy_at([params], x0[None, :], period, ORBIT_NUMERICS)
+        mono = PoincareMap.of(params, ORBIT_NUMERICS).derivative(x0, period)
         a = mono.matrix[0]
         pts = np.roll(pts, -shift, axis=0)
         res = float(np.linalg.norm(mono.end[0] - x0))
     else:
         res = float(np.linalg.norm(mono.end[0] - x))
     mu = multipliers(a)
-    return Orbit(period, pts, a, mu, float(np.linalg.det(a)), float(math.exp(mono.div[0])), res, int(iterations),
-                 classify(mu, unit_tol), (float(seed[0]), float(seed[1])))  # fmt: skip
+    liouville = math.exp(float(mono.div[0]))
+    det = float(np.linalg.det(a))
+    # det from the entries carries a rounding error ~eps |a|^2: on a long, strongly contracting orbit it is all
+    # noise (of either sign). Liouville's exp(int div dt) is the same number without the cancellation.
+    resolved = abs(det) > DET_ROUNDING * np.finfo(float).eps * float(np.abs(a).max()) ** 2
+    if not resolved:
+        det = liouville
+        if abs(mu[0].imag) == 0.0 and mu[0] != 0:
+            mu = np.array([mu[0], liouville / mu[0].real], dtype=complex)  # mu1 mu2 = det
+    return Orbit(period, pts, a, mu, det, liouville, res, int(iterations), classify(mu, unit_tol),
+                 (float(seed[0]), float(seed[1])), det_resolved=bool(resolved))  # fmt: skip
 
 
 def minimal_period(points: np.ndarray, end: np.ndarray, period: int, tol: float) -> int:
     """The least ``d`` dividing ``period`` with ``P^d(x) = x`` within ``tol`` (``points`` are ``x, P(x), ...``)."""
-    x = points[0]
-    for d in range(1, period):
-        if period % d == 0 and np.linalg.norm(points[d] - x) <= tol * (1.0 + np.linalg.norm(x)):
-            return d
-    return period
+    return least_period(points, period, tol * (1.0 + float(np.linalg.norm(points[0]))))
 
 
 def same_orbit(a: Orbit, b: Orbit, tol: float = 1e-6) -> bool:
@@ -398,18 +313,16 @@ def find_orbits(
         raise ParameterError(f"{seeds.shape[0]} seeds x {len(per)} periods exceeds {config.MAX_TRAJECTORIES}")
     all_seeds = np.repeat(seeds, len(per), axis=0)
     all_periods = np.tile(np.array(per, dtype=np.int64), seeds.shape[0])
-    conv, failures = newton(params, all_seeds, all_periods, numerics=numerics, ftol=ftol, max_iter=max_iter,
-                            max_step=max_step, patience=patience, cancel=cancel, workers=workers)  # fmt: skip
+    res = _newton(params, all_seeds, all_periods, numerics=numerics, ftol=ftol, max_iter=max_iter,
+                  max_step=max_step, patience=patience, cancel=cancel, workers=workers)  # fmt: skip
+    failures = _failures(res, all_seeds)
     orbits: list[Orbit] = []
     outside = 0
-    for i, x, mono, iters in conv:
-        n = int(all_periods[i])
-        pts = np.vstack([x[None, :], mono.points[0]])
-        d = minimal_period(pts, mono.end[0], n, max(100.0 * ftol, 1e-7))
-        if d < n:
-            mono = monodromy_at([params], x[None, :], d, numerics)  # the orbit's own period
-            n = d
-        orb = orbit_from(params, x, n, mono, iters, all_seeds[i], unit_tol)
+    for c in res.converged:
+        mono, n = c.mono, int(all_periods[c.i])
+        if c.least < n:
+            mono, n = PoincareMap.of(params, numerics).derivative(c.x, c.least), c.least  # the orbit's own period
+        orb = orbit_from(params, c.x, n, mono, c.iterations, all_seeds[c.i], unit_tol)
         if box is not None and not np.all(
             (orb.points[:, 0] >= box[0])
             & (orb.points[:, 0] <= box[1])

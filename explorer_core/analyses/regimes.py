@@ -43,10 +43,12 @@ import numpy as np
 
 from explorer_core import config
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
+from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.solve import tangent
 from explorer_core.solve.integrators import Status, coefficients, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.solve.rk import LYAPUNOV, Coefficients
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
@@ -54,6 +56,7 @@ from explorer_core.system.params import ParameterError, Params
 #: Regime codes of :attr:`Chart.regime`.
 NOT_COMPUTED, PERIODIC, QUASI_PERIODIC, CHAOTIC, ESCAPED, FAILED, INVALID = range(7)
 REGIMES = ("not_computed", "periodic", "quasi_periodic", "chaotic", "escaped", "failed", "invalid")
+_ENGINE_CODES = frozenset(int(c) for c in Status)
 #: Defaults: charts need the regime, not 1e-10 accuracy; cycles attract integration errors anyway.
 DEFAULT_CHART_TOL = 1e-8
 
@@ -446,38 +449,14 @@ def settled_cycles(
     """
     x0 = np.asarray(x, dtype=float).reshape(-1, 2)
     m = x0.shape[0]
-    near = np.broadcast_to(np.asarray(near, dtype=float), (m,))
-    same = np.broadcast_to(np.asarray(same, dtype=float), (m,))
+    pmap = PoincareMap.rows(coefs, t0, period, NEWTON_NUMERICS, workers=1, block=1)
+    res = newton(pmap, x0, np.full(m, int(p)), ftol=NEWTON_FTOL, max_iter=NEWTON_ITER, max_step=math.inf,
+                 patience=None, coarse=False, near=near, dedupe=False, same=same)  # fmt: skip
     out: list[tuple[int, float] | None] = [None] * m
-    x = x0.copy()
-    todo = np.arange(m)
-    for _ in range(NEWTON_ITER):
-        if todo.size == 0:
-            break
-        co = coefs._replace(row=np.ascontiguousarray(coefs.row[todo]))
-        mono = tangent.monodromy(co, x[todo], p, t0, period, NEWTON_NUMERICS, workers=1, block=1)
-        f = mono.end - x[todo]
-        ok = mono.ok & np.all(np.isfinite(f), axis=1)
-        conv = ok & (np.abs(f).max(axis=1) <= NEWTON_FTOL * (1.0 + np.abs(x[todo]).max(axis=1)))
-        for j in np.flatnonzero(conv):
-            i = int(todo[j])
-            mu = float(np.abs(np.linalg.eigvals(mono.matrix[j])).max())
-            if not 0.0 < mu < 1.0:
-                continue  # a saddle or a repeller: no early stop
-            pts = mono.points[j]  # P(x), ..., P^p(x)
-            least = next(d for d in range(1, p + 1) if p % d == 0 and np.abs(pts[d - 1] - x[i]).max() <= same[i])
-            out[i] = (least, math.log(mu) / (p * period))
-        go = ok & ~conv
-        jac = mono.matrix[go] - np.eye(2)[None]
-        with np.errstate(all="ignore"):
-            det = jac[:, 0, 0] * jac[:, 1, 1] - jac[:, 0, 1] * jac[:, 1, 0]
-            rhs = -f[go]
-            dx = np.column_stack([(jac[:, 1, 1] * rhs[:, 0] - jac[:, 0, 1] * rhs[:, 1]) / det,
-                                  (jac[:, 0, 0] * rhs[:, 1] - jac[:, 1, 0] * rhs[:, 0]) / det])  # fmt: skip
-        sel = todo[go]
-        x[sel] += dx
-        stay = np.all(np.isfinite(x[sel]), axis=1) & (np.abs(x[sel] - x0[sel]).max(axis=1) <= near[sel])
-        todo = sel[stay]
+    for c in res.converged:
+        mu = float(np.abs(np.linalg.eigvals(c.mono.matrix[0])).max())
+        if 0.0 < mu < 1.0:  # a saddle or a repeller: no early stop
+            out[c.i] = (c.least, math.log(mu) / (p * period))
     return out
 
 
@@ -753,9 +732,37 @@ class Chart:
             out[key] = int(np.count_nonzero(self.code()[..., ic][sel] == code))
         return out
 
+    @property
+    def lost(self) -> list[Loss]:
+        """What this chart does not hold of what its spec asked for, and why."""
+        out = []
+        missing = int((~self.computed).sum())
+        if missing:
+            out.append(Loss("pixels", missing, "not computed: the chart was stopped before them"))
+        inferred = int(self.inferred.sum())
+        if inferred:
+            out.append(Loss("pixels", inferred, "not computed: filled from computed neighbours of the same regime "
+                                                "(refine); a window narrower than the computed lattice is not "
+                                                "seen: compute every pixel to see it"))  # fmt: skip
+        if self.errors:
+            first = next(iter(self.errors.values()))
+            out.append(Loss("pixels", len(self.errors), f"not a valid system (e.g. {first})"))
+        failed = self.computed & ~self.inferred
+        failed = (self.regime == FAILED) & failed[..., None]
+        if failed.any():
+            codes = sorted({Status(int(c)).label for c in self.status[failed] if int(c) in _ENGINE_CODES})
+            out.append(Loss("pixel-ICs", int(failed.sum()), f"the integration failed ({', '.join(codes) or 'failed'})"))
+        return out
+
+    @property
+    def complete(self) -> bool:
+        return not self.lost
+
     def summary(self) -> dict[str, Any]:
         return {
             **self.spec.as_dict(),
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "computed": int(self.computed.sum()),
             "pixels": int(self.computed.size),
             "counts": self.counts(),

@@ -34,7 +34,7 @@ import numpy as np
 from explorer_core.solve.numerics import Numerics, check_ics
 from explorer_core.solve.section import section
 from explorer_core.system.model import Model
-from explorer_core.system.params import ParameterError, Params
+from explorer_core.system.params import ParameterError, Params, check_time
 
 #: A residual of the field identities below this (relative to the field's size) is rounding.
 FIELD_TOL = 1e-12
@@ -180,6 +180,7 @@ def check_symmetry(
     s = float(params.t0 if centre is None else centre)
     if not math.isfinite(s):
         raise ParameterError(f"centre must be finite, got {centre!r}")
+    check_time("centre", s, params.period)
     if not (isinstance(tol, int | float) and tol > 0):
         raise ParameterError(f"tol must be positive, got {tol!r}")
     numerics = numerics or Numerics(rtol=1e-12, atol=1e-12)

@@ -34,7 +34,7 @@ from explorer_core.solve import rk
 from explorer_core.solve.rk import FIELD, Status
 from explorer_core.solve.tableaus import METHODS, Method, get_method
 from explorer_core.system.model import Model
-from explorer_core.system.params import Params
+from explorer_core.system.params import Params, check_time
 
 __all__ = [
     "FIXED_BLOCK",
@@ -224,6 +224,8 @@ def run(
         return rec[:, :0], npts
     if coefs.row.shape[0] != n:
         raise ValueError(f"coefficient rows for {coefs.row.shape[0]} trajectories, the batch has {n}")
+    # The horizon's end must still resolve the forcing phase (else the steps freeze: t + h == t).
+    check_time("the horizon's end t", batch.t0 + (batch.k + n_periods) * batch.period, batch.period)
     fixed = 0 if (adaptive and meth.adaptive) else int(steps_per_period)
     tab = kernel_tableau(meth.name)
     ctl = rk.Control(float(rtol), float(atol), int(max_steps), float(bound), fixed)

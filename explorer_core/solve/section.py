@@ -22,7 +22,7 @@ from explorer_core import config
 from explorer_core.solve.integrators import Batch, Status, advance
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.system.model import Model
-from explorer_core.system.params import ParameterError, Params
+from explorer_core.system.params import ParameterError, Params, check_time
 
 
 @dataclass(frozen=True)
@@ -105,6 +105,8 @@ def iter_section(
     transient = check_int("transient", transient, 0, config.MAX_PERIODS)
     if direction not in (1, -1) or isinstance(direction, bool):
         raise ParameterError(f"direction must be +1 or -1, got {direction!r}")
+    # The whole horizon is checked before any work (the engine would refuse it only at the chunk that passes it).
+    check_time("the horizon's end t", params.t0 + direction * (transient + periods) * params.period, params.period)
     model = Model(params)
     batch = Batch.start(ics, params.t0, direction * params.period)
     kw = numerics.kernel_kwargs()

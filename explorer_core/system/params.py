@@ -22,6 +22,22 @@ class ParameterError(ValueError):
     """A parameter set that does not define a valid Bilimovich system."""
 
 
+#: The forcing phase must be resolved to this fraction of a period: beyond, doubles near ``t`` are so far
+#: apart that the forcing is a staircase, and far beyond, ``t + h == t`` and the integration freezes.
+TIME_RESOLUTION = 1e-6
+
+
+def check_time(name: str, t: float, period: float) -> None:
+    """Refuse a time ``t`` whose doubles do not resolve the forcing phase (``ulp(t) > TIME_RESOLUTION T``)."""
+    spacing = math.ulp(abs(t))
+    if spacing > TIME_RESOLUTION * abs(period):
+        limit = 2.0 ** (math.floor(52 + math.log2(TIME_RESOLUTION * abs(period))) + 1)
+        raise ParameterError(
+            f"{name} = {t:.6g} cannot be resolved in double precision: doubles there are {spacing:.3g} apart, "
+            f"more than {TIME_RESOLUTION:g} of the forcing period {abs(period):.6g}; keep |{name}| below {limit:.3g}"
+        )
+
+
 def _check_finite(name: str, value: Any) -> float:
     try:
         v = float(value)
@@ -75,6 +91,7 @@ class Params:
             object.__setattr__(self, f, _check_finite(f, getattr(self, f)))
         if self.omega <= 0.0:
             raise ParameterError(f"omega must be > 0 (forcing frequency), got {self.omega!r}")
+        check_time("t0", self.t0, self.period)
         _check_positive_definite(self.inertia_matrix, ent)
 
     @property

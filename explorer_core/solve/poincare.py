@@ -1,0 +1,301 @@
+"""The Poincare map as an object with verbs, and the one Newton on ``P^n(x) - x``.
+
+``P`` is the stroboscopic map over one forcing period (the paper's poi-map): ``x_(k+1) = P(x_k)``,
+``x_k = (q, r)(t0 + k T)``. A :class:`PoincareMap` holds what an analysis needs to ask for it -- the
+system (one parameter set for every point, or one per member) and the numerics -- and answers with
+verbs, as DynamicalSystemsBase's ``StroboscopicMap`` and ``TangentDynamicalSystem`` do:
+
+* :meth:`PoincareMap.iterate`: the section points of a batch, streamed in chunks (cancellable);
+* :meth:`PoincareMap.derivative`: ``P^n(x)`` with ``DP^n(x)`` (the monodromy of the tangent system) and
+  the members' statuses.
+
+Analyses use the verbs and never assemble kernel inputs themselves. :func:`newton` is the one Newton on
+``F(x) = P^n(x) - x`` (batched over seeds and periods, a trust region, a coarse map far from the orbit,
+the least period of every converged point); periodic orbits, continuation's start, the charts' cycle
+detection, basins and manifolds all go through it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from explorer_core.solve import rk
+from explorer_core.solve.numerics import Numerics
+from explorer_core.solve.rk import Status
+from explorer_core.solve.section import SectionChunk, iter_section
+from explorer_core.solve.tangent import Monodromy, monodromy, monodromy_at
+from explorer_core.system.params import Params
+
+
+@dataclass(frozen=True)
+class PoincareMap:
+    """``P`` for one parameter set, or one per member (see the module docstring).
+
+    Build it with :meth:`of` (one system), :meth:`members` (one :class:`Params` per member: members that
+    share the section times run in lock-step blocks, so finite differences in a parameter see one step
+    sequence) or :meth:`rows` (a chart's members: a coefficient table per row, one ``t0`` and period).
+    ``workers`` and ``block`` say how its integrations are spread (a map used inside a worker thread
+    takes ``workers=1``).
+    """
+
+    numerics: Numerics
+    params: tuple[Params, ...] = ()
+    coefs: rk.Coefficients | None = None
+    t0: float = 0.0
+    period: float = 2.0 * math.pi
+    workers: int | None = None
+    block: int = 32
+
+    @classmethod
+    def of(cls, params: Params, numerics: Numerics | None = None, **kw: Any) -> PoincareMap:
+        return cls(numerics or Numerics(), (params,), **kw)
+
+    @classmethod
+    def members(cls, params: Sequence[Params], numerics: Numerics, **kw: Any) -> PoincareMap:
+        return cls(numerics, tuple(params), **kw)
+
+    @classmethod
+    def rows(cls, coefs: rk.Coefficients, t0: float, period: float, numerics: Numerics, **kw: Any) -> PoincareMap:
+        return cls(numerics, (), coefs, float(t0), float(period), **kw)
+
+    @property
+    def shared(self) -> bool:
+        """One system for every point."""
+        return self.coefs is None and len(self.params) == 1
+
+    def with_numerics(self, numerics: Numerics) -> PoincareMap:
+        return replace(self, numerics=numerics)
+
+    def derivative(self, x: np.ndarray, n: int, members: np.ndarray | None = None) -> Monodromy:
+        """``P^n``, ``DP^n`` and ``int div dt`` at the rows of ``x`` (m, 2); point ``j`` under member ``members[j]``
+        (ignored for a shared map; default ``0 .. m-1``). Statuses in :attr:`Monodromy.status`."""
+        x = np.asarray(x, dtype=float).reshape(-1, 2)
+        idx = np.arange(x.shape[0]) if members is None else np.asarray(members, dtype=np.int64)
+        if self.coefs is not None:
+            co = self.coefs._replace(row=np.ascontiguousarray(self.coefs.row[idx]))
+            return monodromy(co, x, int(n), self.t0, self.period, self.numerics, workers=self.workers,
+                             block=self.block)  # fmt: skip
+        params = list(self.params) if self.shared else [self.params[int(i)] for i in idx]
+        return monodromy_at(params, x, int(n), self.numerics, workers=self.workers, block=self.block)
+
+    def iterate(
+        self,
+        x: np.ndarray,
+        n: int,
+        *,
+        transient: int = 0,
+        direction: int = 1,
+        cancel: Callable[[], bool] | None = None,
+        **kw: Any,
+    ) -> Iterator[SectionChunk]:
+        """Stream ``P^k(x)``, ``k = transient + 1 .. transient + n``, in chunks (see :func:`~.section.iter_section`)."""
+        if not self.shared:
+            raise ValueError("iterate streams one system: build the map with PoincareMap.of")
+        yield from iter_section(self.params[0], x, n, transient=transient, numerics=self.numerics,
+                                direction=direction, cancel=cancel, workers=self.workers, **kw)  # fmt: skip
+
+
+# ---------------------------------------------------------------------------
+# The one Newton.
+
+#: Newton gives up on a seed whose best residual has not halved in this many iterations.
+PATIENCE = 6
+#: A seed whose iterate comes this close (relative) to a point of an orbit already found (of a period
+#: dividing its own) would converge to that orbit: it stops as a duplicate.
+DUPLICATE_TOL = 1e-4
+#: Far from an orbit Newton needs no accurate map: iterates integrate 1e4 times less accurately (DOP853 takes
+#: ~3x fewer steps) until the residual is below ``COARSE_UNTIL (1 + |x|)``.
+COARSE_UNTIL = 1e-5
+
+
+@dataclass(frozen=True)
+class Converged:
+    """Seed ``i`` converged to ``x`` (a fixed point of ``P^n``) in ``iterations``; ``least`` is its least period
+    (the least ``d`` dividing ``n`` with ``P^d(x) = x`` at the resolution asked); ``mono`` is ``DP^n`` at ``x``."""
+
+    i: int
+    x: np.ndarray
+    mono: Monodromy
+    iterations: int
+    least: int
+
+
+@dataclass(frozen=True)
+class NewtonFailure:
+    """Seed ``i`` found no fixed point of ``P^period``, and why."""
+
+    i: int
+    period: int
+    reason: str
+    iterations: int
+
+
+@dataclass
+class NewtonResult:
+    converged: list[Converged] = field(default_factory=list)
+    failures: list[NewtonFailure] = field(default_factory=list)
+    #: Seeds that ran into an orbit already found (in neither list).
+    duplicates: int = 0
+    cancelled: bool = False
+
+
+def least_period(chain: np.ndarray, n: int, tol: float) -> int:
+    """The least ``d`` dividing ``n`` with ``|P^d(x) - x| <= tol`` (``chain`` = ``x, P(x), ..., P^n(x)``)."""
+    x = chain[0]
+    for d in range(1, n):
+        if n % d == 0 and np.linalg.norm(chain[d] - x) <= tol:
+            return d
+    return n
+
+
+def _solve2(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a^-1 b`` for stacks of 2x2 systems (closed form) and the determinants."""
+    det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x0 = (a[:, 1, 1] * b[:, 0] - a[:, 0, 1] * b[:, 1]) / det
+        x1 = (a[:, 0, 0] * b[:, 1] - a[:, 1, 0] * b[:, 0]) / det
+    return np.column_stack([x0, x1]), det
+
+
+def newton(
+    pmap: PoincareMap,
+    seeds: np.ndarray,
+    periods: np.ndarray,
+    *,
+    ftol: float,
+    max_iter: int,
+    max_step: float = 1.0,
+    patience: int | None = PATIENCE,
+    coarse: bool = True,
+    near: np.ndarray | float = math.inf,
+    dedupe: bool = True,
+    same: np.ndarray | float | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> NewtonResult:
+    """Newton on ``P^n(x) - x`` from every ``(seeds[i], periods[i])``, all at once.
+
+    Every iteration integrates the tangent system of all unfinished seeds of one period in one lock-step
+    batch (``pmap.derivative``; seed ``i`` is member ``i`` of a map with one system per member), then
+    updates them together. Globalisation is a trust region on the step: a step is at most ``max_step``
+    long (``inf``: plain Newton), and an iterate whose residual did not decrease (or whose trajectory
+    failed) is pulled half way back with the radius halved.
+
+    Parameters
+    ----------
+    ftol : convergence: ``|P^n(x) - x| <= ftol (1 + |x|)``.
+    patience : a seed stops after this many iterations without halving its residual (None: only
+        ``max_iter`` stops it).
+    coarse : iterate with a map 1e4 times less accurate until the residual is below :data:`COARSE_UNTIL`.
+    near : a seed whose iterate goes farther than this (max-norm) from the seed fails (the fixed point is
+        not the one the seed was near).
+    dedupe : a seed whose iterate reaches a point of an orbit found already stops as a duplicate.
+    same : the least period's resolution, absolute (per seed); default ``max(100 ftol, 1e-7) (1 + |x|)``.
+    cancel : polled between iterations.
+    """
+    m = seeds.shape[0]
+    numerics = pmap.numerics
+    loose = {"rtol": min(1e-6, numerics.rtol * 1e4), "atol": min(1e-6, numerics.atol * 1e4)}
+    rough = pmap.with_numerics(Numerics(**{**numerics.as_dict(), **loose}))
+    fine = np.full(m, not coarse)
+    x0 = seeds.astype(float)
+    x = x0.copy()
+    near = np.broadcast_to(np.asarray(near, dtype=float), (m,))
+    period = periods.astype(np.int64)
+    prev, prev_res = x.copy(), np.full(m, np.inf)
+    best, since = np.full(m, np.inf), np.zeros(m, np.int64)
+    radius = np.full(m, float(max_step))
+    iters, backtracks = np.zeros(m, np.int64), np.zeros(m, np.int64)
+    done = np.zeros(m, bool)
+    out = NewtonResult()
+    known: list[tuple[int, np.ndarray]] = []  # (period, its points) of the converged
+
+    def fail(idx: np.ndarray, reason: Callable[[int], str]) -> None:
+        for i in idx:
+            done[i] = True
+            out.failures.append(NewtonFailure(int(i), int(period[i]), reason(int(i)), int(iters[i])))
+
+    for _ in range(max_iter):
+        active = np.flatnonzero(~done)
+        if active.size == 0:
+            break
+        if cancel is not None and cancel():
+            out.cancelled = True
+            break
+        for n, accurate in sorted({(int(a), bool(b)) for a, b in zip(period[active], fine[active], strict=True)}):
+            idx = active[(period[active] == n) & (fine[active] == accurate)]
+            if dedupe:  # an iterate next to a point of an orbit found already (of a period dividing n)
+                dup = np.zeros(idx.size, bool)
+                for kn, pts in known:
+                    if n % kn == 0:
+                        d = np.linalg.norm(x[idx, None, :] - pts[None, :, :], axis=-1).min(axis=1)
+                        dup |= d <= DUPLICATE_TOL * (1.0 + np.linalg.norm(x[idx], axis=1))
+                done[idx[dup]] = True
+                out.duplicates += int(dup.sum())
+                idx = idx[~dup]
+                if idx.size == 0:
+                    continue
+            mono = (pmap if accurate else rough).derivative(x[idx], n, idx)
+            iters[idx] += 1
+            xi = x[idx]
+            bad = mono.status != Status.OK
+            res = np.where(bad, np.inf, np.linalg.norm(mono.end - xi, axis=1))
+            scale = 1.0 + np.linalg.norm(xi, axis=1)
+            ok = ~bad & (res <= ftol * scale) & accurate
+            for j in np.flatnonzero(ok):
+                i = int(idx[j])
+                done[i] = True
+                chain = np.vstack([xi[j][None, :], mono.points[j]])
+                tol = max(100.0 * ftol, 1e-7) * scale[j] if same is None else float(np.broadcast_to(same, (m,))[i])
+                least = least_period(chain, n, tol)
+                out.converged.append(Converged(i, xi[j].copy(), mono.member(j), int(iters[i]), least))
+                known.append((n, chain[:n]))
+            # No progress (or the trajectory failed): pull back half way, shrink the trust radius.
+            back = ~ok & ~(res < prev_res[idx]) & np.isfinite(prev_res[idx])
+            backtracks[idx[back]] += 1
+            radius[idx[back]] *= 0.5
+            stalled = back & (backtracks[idx] > (patience or 8))
+            fail(idx[stalled], lambda i: "Newton stalled: no decrease of the residual")
+            pull = back & ~stalled
+            x[idx[pull]] = 0.5 * (prev[idx[pull]] + xi[pull])
+            first_bad = ~ok & ~back & bad
+            for j in np.flatnonzero(first_bad):
+                fail(idx[j : j + 1], lambda i, c=int(mono.status[j]): f"the trajectory from the seed failed: "
+                                                                         f"{Status(c).label}")  # fmt: skip
+            step_ = ~ok & ~back & ~bad
+            sel = idx[step_]
+            if sel.size == 0:
+                continue
+            backtracks[sel] = 0
+            prev[sel] = xi[step_]
+            prev_res[sel] = res[step_]
+            improved = res[step_] < 0.5 * best[sel]
+            since[sel] = np.where(improved, 0, since[sel] + 1)
+            best[sel] = np.where(improved, res[step_], best[sel])
+            # Close enough for the accurate map (its residual is not comparable: the trust region starts over).
+            switch = (res[step_] <= COARSE_UNTIL * scale[step_]) & (not accurate)
+            fine[sel[switch]] = True
+            prev_res[sel[switch]] = np.inf
+            slow = since[sel] > (patience if patience is not None else max_iter)
+            fail(sel[slow], lambda i: f"no convergence: the residual stalled at {best[i]:.3g}")
+            jac = mono.matrix[step_] - np.eye(2)[None]
+            dx, det = _solve2(jac, -(mono.end[step_] - xi[step_]))
+            singular = ~np.isfinite(det) | (np.abs(det) < 1e-14 * np.maximum(1.0, np.abs(jac).max(axis=(1, 2)) ** 2))
+            fail(sel[~slow & singular], lambda i: "singular: a multiplier is 1 (det(DP^n - I) = 0)")
+            go = ~slow & ~singular
+            length = np.linalg.norm(dx, axis=1)
+            shrink = np.where(length > radius[sel], radius[sel] / np.maximum(length, 1e-300), 1.0)
+            new = xi[step_] + dx * shrink[:, None]
+            x[sel[go]] = new[go]
+            over = go & ~np.all(np.isfinite(new), axis=1)
+            fail(sel[over], lambda i: "the Newton step overflowed")
+            away = go & ~over & (np.abs(new - x0[sel]).max(axis=1) > near[sel])
+            fail(sel[away], lambda i: f"Newton left the seed's neighbourhood ({near[i]:.3g})")
+    if out.cancelled:
+        fail(np.flatnonzero(~done), lambda i: "cancelled before Newton converged")
+    fail(np.flatnonzero(~done), lambda i: f"no convergence in {int(iters[i])} iterations (residual {prev_res[i]:.3g})")
+    return out
