@@ -39,7 +39,7 @@ from app.state import (
 from app.views import SectionFigure, SeriesData
 from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, basin_spec, iter_basins
 from explorer_core.analyses.density import iter_density
-from explorer_core.analyses.equilibria import Cancelled, equilibrium_tracks
+from explorer_core.analyses.equilibria import equilibrium_tracks
 from explorer_core.analyses.manifolds import Manifolds, iter_manifolds, saddle_orbit
 from explorer_core.analyses.orbits import Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
 from explorer_core.analyses.reliability import assess
@@ -883,9 +883,8 @@ class ExplorerSession(param.Parameterized):
                 if not show_tracks:
                     emit(lambda: (self.fig.set_tracks([]), self.fig.set_equilibria([], [], ())))
                     return
-                try:
-                    tr = equilibrium_tracks(params, n_t=TRACK_SAMPLES, cancel=cancelled)
-                except Cancelled:  # a newer setting: its own tracks job is on the way
+                tr = equilibrium_tracks(params, n_t=TRACK_SAMPLES, cancel=cancelled)
+                if not tr.completed:  # a newer setting: its own tracks job is on the way
                     return
                 segments = _segments_by_type(tr.branches())
                 at_t0 = tr.section()

@@ -461,3 +461,17 @@ def test_tracks_speed() -> None:
     t0 = time.perf_counter()
     equilibrium_tracks(model, n_t=1000)
     assert time.perf_counter() - t0 < 2.0  # typically ~0.2 s
+
+
+def test_cancelled_tracks_return_what_was_computed_marked_incomplete() -> None:
+    # Cancelling never raises: the tracks of the start of the period come back, and the rest is a loss.
+    params = Params(inertia=(1.0, 2.0, 4.0, 0.0, 0.0, 0.0), alpha=0.1)
+    full = equilibrium_tracks(params, n_t=40)
+    assert full.completed and full.lost == ()
+    polls = []
+    part = equilibrium_tracks(params, n_t=40, cancel=lambda: polls.append(1) or len(polls) > 10)
+    assert not part.completed and len(part.lost) == 1
+    assert part.lost[0].count == 40 - 1 - 10 and "cancelled" in part.lost[0].why
+    assert part.t.size and part.t.max() < full.t.max()
+    early = full.t <= part.t.max()
+    np.testing.assert_allclose(np.sort(part.q), np.sort(full.q[early]))

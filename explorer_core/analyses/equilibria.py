@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from explorer_core.losses import Loss
 from explorer_core.system.model import ROW_Q, ROW_R, Model, coefficients_at
 from explorer_core.system.params import ParameterError, Params
 
@@ -62,10 +63,6 @@ _NOISE = 1e4 * _EPS
 _LOOSE_JUMP = 0.5
 # Length floor of the residual scale (units of q, r): only matters at an exact root at the origin.
 _L0 = 1e-12
-
-
-class Cancelled(Exception):
-    """Raised by :func:`equilibrium_tracks` when its ``cancel`` callback asks it to stop."""
 
 
 # ---------------------------------------------------------------------------
@@ -602,6 +599,9 @@ class Tracks:
     sample_t: np.ndarray
     sample_count: np.ndarray
     sample_degenerate: np.ndarray
+    #: False when cancelled: the tracks then cover only the start of the period (``lost`` says how much).
+    completed: bool = True
+    lost: tuple[Loss, ...] = ()
 
     @property
     def n_branches(self) -> int:
@@ -760,8 +760,8 @@ def equilibrium_tracks(
     inf_norm, rtol : float
         As in :func:`equilibria`.
     cancel : callable, optional
-        Polled between grid intervals; once it returns True the work stops and
-        :class:`Cancelled` is raised (the web app drops tracks of a stale setting).
+        Polled between grid intervals; once it returns True the work stops and the tracks
+        computed so far come back with ``completed=False`` and the rest of the period in ``lost``.
 
     Returns
     -------
@@ -797,9 +797,12 @@ def equilibrium_tracks(
     # links[(t, i)] = (t_next, j): point i at time t continues as point j at t_next.
     links: dict[tuple[float, int], tuple[float, int]] = {}
     budget = max_refine
+    lost: tuple[Loss, ...] = ()
     for k in range(n_t - 1):
         if cancel is not None and cancel():
-            raise Cancelled(f"equilibrium tracks stopped at sample {k} of {n_t}")
+            why = f"cancelled: the tracks cover t in [{grid[0]:.6g}, {grid[k]:.6g}] of [{grid[0]:.6g}, {grid[-1]:.6g}]"
+            lost = (Loss("grid intervals", n_t - 1 - k, why),)
+            break
         stack = [(grid[k], grid[k + 1], 0)]
         while stack:
             ta, tb, depth = stack.pop()
@@ -847,6 +850,8 @@ def equilibrium_tracks(
         sample_t=np.array(times),
         sample_count=np.array([len(cache[t]) for t in times], dtype=np.int64),
         sample_degenerate=np.array([cache[t].degenerate for t in times], dtype=bool),
+        completed=not lost,
+        lost=lost,
     )
 
 
