@@ -134,3 +134,35 @@ def test_orbits_csv_reads_back_as_numbers(tmp_path) -> None:
         assert np.all(np.isfinite(data[name].astype(float)))
     with open(path, newline="") as fh:
         assert len(list(csv.DictReader(fh))) == rows
+
+
+def test_every_long_analysis_reports_progress_in_one_shape() -> None:
+    from explorer_core.analyses.lyapunov import lyapunov_spectrum
+    from explorer_core.analyses.regimes import chart_spec, regime_chart
+    from explorer_core.progress import Progress
+
+    seen = []
+    for chunk in PoincareMap.of(FIG8B.params, NUM).iterate(np.array([[-0.04, -2.4]]), 6):
+        seen.append(chunk.progress)
+    assert [p.done for p in seen][-1] == 6 and all(p.unit == "periods" and p.total == 6 for p in seen)
+    lyap = []
+    lyapunov_spectrum(FIG8B.params, [(-0.5, -1.0)], 40, progress=lyap.append, workers=1)
+    assert lyap and isinstance(lyap[-1].progress, Progress) and lyap[-1].progress.total == lyap[-1].total_periods
+    spec = chart_spec(FIG8B.params, "alpha", (-0.6, -0.4), "I11", (1.0, 2.0), (3, 2), ics=[(-0.09, -2.0)],
+                      transient=10, periods=40)  # fmt: skip
+    ups = []
+    regime_chart(spec, workers=1, progress=ups.append)
+    assert ups[-1].progress.fraction == 1.0 and ups[-1].progress.unit == "tiles"
+    assert "6/6 periods (100 %" in seen[-1].line()
+
+
+def test_manifolds_say_what_they_lost() -> None:
+    from explorer_core.analyses.manifolds import manifolds, saddle_orbit
+
+    flip = saddle_orbit(FIG8B.params, (-0.04, -2.40), 1)
+    view = (*FIG8B.q_range, *FIG8B.r_range)
+    m = manifolds(FIG8B.params, flip, length=3.0, view=view, pixels=(200, 150), max_points=100)
+    # A point budget far too small: branches stop short of the length, and say so.
+    assert not m.complete and any("budget" in loss.why for loss in m.lost)
+    assert m.summary()["lost"] == [loss.as_dict() for loss in m.lost]
+    assert m.progress.fraction == 1.0  # the run is over: what it lacks is in lost

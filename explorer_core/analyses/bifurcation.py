@@ -48,10 +48,11 @@ from explorer_core.analyses.sweeps import (
     status_label,
 )
 from explorer_core.parallel.executor import Executor
-from explorer_core.solve.integrators import Batch, Status, advance, lockstep_groups, run
+from explorer_core.progress import Progress
+from explorer_core.solve.integrators import Status, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import FIELD
-from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
 SEEDINGS = ("continuation", "fixed")
@@ -108,6 +109,10 @@ class SweepProgress:
     done: int
     total: int
     elapsed_s: float
+
+    @property
+    def progress(self) -> Progress:
+        return Progress(self.done, self.total, "values", self.elapsed_s)
 
 
 def sweep_orbits(
@@ -356,20 +361,19 @@ def bilimovich_orbits(
 
     Returns ``(points (n, n_points, 2), npts (n,), status (n,), final (n, 2))``.
     """
-    model = Model(params)
-    batch = Batch.start(ics, params.t0, params.period)
-    kw = numerics.kernel_kwargs()
+    pmap = PoincareMap.of(params, numerics, workers=workers)
+    batch = pmap.start(ics)
     left = int(transient)
     while settle and left > SETTLE_CHUNK:
-        pts, npts_t = advance(model, batch, SETTLE_CHUNK, workers=workers, **kw)
+        pts, npts_t = pmap.advance(batch, SETTLE_CHUNK)
         left -= SETTLE_CHUNK
         p = settled_period(pts, npts_t, batch.status)
         if p:
             left %= p  # whole turns of the cycle change nothing but rounding
             break
     if left:
-        advance(model, batch, left, store=False, workers=workers, **kw)
-    pts, npts = advance(model, batch, n_points, workers=workers, **kw)
+        pmap.advance(batch, left, store=False)
+    pts, npts = pmap.advance(batch, n_points)
     pts[np.arange(n_points)[None, :] >= npts[:, None]] = 0.0  # not data (unset memory): make results reproducible
     return pts, npts, batch.status.copy(), batch.y.copy()
 

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.progress import Progress
 from explorer_core.scenes import plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
 from explorer_core.solve.rk import Status
@@ -57,6 +58,10 @@ class Density:
     elapsed_s: float
     completed: bool
     extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def progress(self) -> Progress:
+        return Progress(self.done_periods, self.total_periods, "periods", self.elapsed_s)
 
     @property
     def escaped(self) -> int:

@@ -43,9 +43,11 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.progress import Progress
 from explorer_core.solve import rk, tangent
-from explorer_core.solve.integrators import Batch, advance, tables
+from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
+from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import Status
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
@@ -113,6 +115,10 @@ class LyapunovProgress:
     running: np.ndarray  # (n, 2) current estimates per unit time (0 where none yet)
     status: np.ndarray
     elapsed_s: float
+
+    @property
+    def progress(self) -> Progress:
+        return Progress(self.done_periods, self.total_periods, f"periods ({self.phase})", self.elapsed_s)
 
 
 @dataclass(frozen=True)
@@ -291,8 +297,9 @@ def attractor_ensemble(
     start = check_ics(ic)
     transient = check_int("transient", transient, 0, config.MAX_PERIODS)
     if transient:
-        batch = Batch.start(start, params.t0, params.period)
-        advance(Model(params), batch, transient, store=False, workers=1, **numerics.kernel_kwargs())
+        pmap = PoincareMap.of(params, numerics, workers=1)
+        batch = pmap.start(start)
+        pmap.advance(batch, transient, store=False)
         if batch.status[0] == _OK:
             start = batch.y.copy()
     return ensemble_ics(start[0], m, offset=offset, seed=seed)

@@ -43,11 +43,12 @@ from numba import njit
 
 from explorer_core import config
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, Orbit, find_orbits
-from explorer_core.solve.integrators import Batch, advance
+from explorer_core.losses import Loss
+from explorer_core.progress import Progress
+from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
+from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import Status
-from explorer_core.solve.tangent import monodromy_at
-from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
 KINDS = ("unstable", "stable")
@@ -160,8 +161,36 @@ class Manifolds:
     completed: bool
     extra: dict[str, Any] = field(default_factory=dict)
 
+    @property
+    def progress(self) -> Progress:
+        """Arc length grown on the least grown branch, of the length asked."""
+        grown = [max((float(p[-1, 0]) for p in b.pieces if p.size), default=0.0) for b in self.branches]
+        done = self.length if self.completed else min(min(grown, default=0.0), self.length)
+        return Progress(done, self.length, "arc length", self.elapsed_s)
+
+    @property
+    def lost(self) -> list[Loss]:
+        """Branches that stopped short of the length for want of resources or by failure, and members lost."""
+        why = {"escaped": "every member escaped", "failed": "every member's integration failed",
+               "levels": "the level limit was reached before the length", "budget": "the point budget ran out",
+               "cancelled": "cancelled", "growing": "not grown to the end (a partial result)"}  # fmt: skip
+        out = [Loss(f"branch {b.label} ({b.kind})", 1, why[b.status]) for b in self.branches if b.status in why]
+        for attr, reason in (("escaped", "escaped: the branch is split there"),
+                             ("failed", "the integration failed: the branch is split there"),
+                             ("unresolved", "segments below the parameter resolution: a gap may remain")):  # fmt: skip
+            n = sum(int(getattr(b, attr)) for b in self.branches)
+            if n:
+                out.append(Loss(f"members ({attr})", n, reason))
+        return out
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
     def summary(self) -> dict[str, Any]:
         return {
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "orbit": self.orbit.as_dict(),
             "branches": [b.as_dict() for b in self.branches],
             "crossings": [c.as_dict() for c in self.crossings],
@@ -228,9 +257,8 @@ class _Growth:
         budget: list[int],
         workers: int | None,
     ) -> None:
-        self.params, self.kind, self.model = params, kind, Model(params)
-        self.kw = numerics.kernel_kwargs()
-        self.workers = workers
+        self.params, self.kind = params, kind
+        self.map = PoincareMap.of(params, numerics, workers=workers)
         lam = mus if kind == "unstable" else 1.0 / mus
         self.m = 2 if np.any(lam < 0) else 1  # a flip: G = F^2 keeps each branch on its side
         self.lam = np.abs(lam) ** self.m  # expansion of G along v, > 1
@@ -262,7 +290,7 @@ class _Growth:
         self.npts = np.ones(self.t.size, np.int64)
         start = self._start_points(self.t, self.br)
         self.pts[:, 0] = start
-        self.batch = Batch.start(start, params.t0, self.direction * params.period)
+        self.batch = self.map.start(start, self.direction)
         budget[0] -= self.t.size
 
     # -- members ------------------------------------------------------------------------------------
@@ -282,7 +310,7 @@ class _Growth:
         """Advance members ``idx`` (the whole of ``batch``) by ``levels`` levels from level ``first``."""
         if levels <= 0 or batch.n == 0:
             return
-        rec, npts = advance(self.model, batch, levels * self.periods, workers=self.workers, **self.kw)
+        rec, npts = self.map.advance(batch, levels * self.periods)
         for lv in range(1, levels + 1):
             ok = npts >= lv * self.periods
             self._store(idx[ok], first + lv, rec[ok, lv * self.periods - 1])
@@ -297,7 +325,7 @@ class _Growth:
         self.pts = np.concatenate([self.pts, np.zeros((t.size, self.pts.shape[1], 2))])
         self.npts = np.concatenate([self.npts, np.ones(t.size, np.int64)])
         self.pts[idx, 0] = start
-        part = Batch.start(start, self.params.t0, self.direction * self.params.period)
+        part = self.map.start(start, self.direction)
         self._advance(part, idx, self.level, 0)
         b = self.batch
         self.batch = Batch(np.concatenate([b.y, part.y]), np.concatenate([b.h, part.h]),
@@ -592,7 +620,7 @@ def iter_manifolds(
     numerics = numerics or MANIFOLD_NUMERICS
     n = orbit.period
     pts = orbit.points
-    mono = monodromy_at([params], pts, n, ORBIT_NUMERICS, workers=workers)
+    mono = PoincareMap.of(params, ORBIT_NUMERICS, workers=workers).derivative(pts, n)
     if not np.all(mono.ok):
         raise ParameterError("the monodromy matrix at a point of the orbit could not be computed")
     eig = [saddle_eigenvectors(mono.matrix[j]) for j in range(pts.shape[0])]

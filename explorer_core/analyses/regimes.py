@@ -45,6 +45,7 @@ from explorer_core import config
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
 from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor, local_executor
+from explorer_core.progress import Progress
 from explorer_core.solve import tangent
 from explorer_core.solve.integrators import Status, coefficients, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
@@ -815,6 +816,10 @@ class ChartUpdate:
     done_tiles: int
     total_tiles: int
     chart: Chart
+
+    @property
+    def progress(self) -> Progress:
+        return Progress(self.done_tiles, self.total_tiles, "tiles", self.chart.elapsed_s)
 
 
 def iter_chart(

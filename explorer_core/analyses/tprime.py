@@ -22,8 +22,9 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
-from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.integrators import Status
 from explorer_core.solve.numerics import Numerics
+from explorer_core.solve.poincare import PoincareMap
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -146,13 +147,13 @@ def energy_change_map(
     q, r = _grid(q_range, r_range, grid)
     qq, rr = np.meshgrid(q, r)
     ics = np.column_stack([qq.ravel(), rr.ravel()])
-    model = Model(params)
-    batch = Batch.start(ics, params.t0, params.period)
-    out, npts = advance(model, batch, 1, workers=workers, **numerics.kernel_kwargs())
+    pmap = PoincareMap.of(params, numerics, workers=workers)
+    batch = pmap.start(ics)
+    out, npts = pmap.advance(batch, 1)
     ok = npts == 1
     # g is T-periodic, so T at both ends uses the same g(t0).
-    e0 = model.energy(ics[:, 0], ics[:, 1], params.t0)
-    e1 = model.energy(out[:, 0, 0], out[:, 0, 1], params.t0)
+    e0 = pmap.model.energy(ics[:, 0], ics[:, 1], params.t0)
+    e1 = pmap.model.energy(out[:, 0, 0], out[:, 0, 1], params.t0)
     values = np.where(ok, e1 - e0, 0.0)
     shape = qq.shape
     return TPrimeMap(

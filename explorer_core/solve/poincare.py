@@ -6,6 +6,8 @@ system (one parameter set for every point, or one per member) and the numerics -
 verbs, as DynamicalSystemsBase's ``StroboscopicMap`` and ``TangentDynamicalSystem`` do:
 
 * :meth:`PoincareMap.iterate`: the section points of a batch, streamed in chunks (cancellable);
+* :meth:`PoincareMap.start` and :meth:`PoincareMap.advance`: a batch of trajectories at the section, moved
+  on by ``n`` iterates (section points, statuses), for analyses that keep their own loop;
 * :meth:`PoincareMap.derivative`: ``P^n(x)`` with ``DP^n(x)`` (the monodromy of the tangent system) and
   the members' statuses.
 
@@ -20,15 +22,18 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 
 from explorer_core.solve import rk
+from explorer_core.solve.integrators import Batch, coefficients, run
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.rk import Status
 from explorer_core.solve.section import SectionChunk, iter_section
 from explorer_core.solve.tangent import Monodromy, monodromy, monodromy_at
+from explorer_core.system.model import Model
 from explorer_core.system.params import Params
 
 
@@ -70,6 +75,26 @@ class PoincareMap:
 
     def with_numerics(self, numerics: Numerics) -> PoincareMap:
         return replace(self, numerics=numerics)
+
+    @cached_property
+    def model(self) -> Model:
+        """The coefficient tables of a shared map's system (built once)."""
+        if not self.shared:
+            raise ValueError("a map with one system per member has no single model")
+        return Model(self.params[0])
+
+    def start(self, ics: np.ndarray, direction: int = 1) -> Batch:
+        """Trajectories at ``ics`` (n, 2) on the section at ``t0`` (``direction=-1``: iterates of ``P^-1``)."""
+        p = self.params[0] if self.shared else None
+        if p is None:
+            raise ValueError("start a batch of a shared map (PoincareMap.of)")
+        return Batch.start(np.asarray(ics, dtype=float).reshape(-1, 2), p.t0, direction * p.period)
+
+    def advance(self, batch: Batch, n: int, *, store: bool = True, **kw: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Move the live members of ``batch`` on by ``n`` iterates: ``(points (m, n, 2), npts (m,))``; statuses in
+        ``batch.status``. ``kw`` overrides the map's numerics for this call (e.g. a tighter escape ``bound``)."""
+        kk = {**self.numerics.kernel_kwargs(), "workers": self.workers, **kw}
+        return run(rk.FIELD, coefficients(self.model, n=batch.n), batch, int(n), store=store, **kk)
 
     def derivative(self, x: np.ndarray, n: int, members: np.ndarray | None = None) -> Monodromy:
         """``P^n``, ``DP^n`` and ``int div dt`` at the rows of ``x`` (m, 2); point ``j`` under member ``members[j]``

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.progress import Progress
 from explorer_core.solve.integrators import Batch, Status, advance
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.system.model import Model
@@ -45,6 +46,10 @@ class SectionChunk:
     def long(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Valid points as flat columns ``(traj, k, q, r)``."""
         return _long(self.points, self.npts, self.k_first, self.k_step)
+
+    @property
+    def progress(self) -> Progress:
+        return Progress(self.done_periods, self.total_periods, "periods", self.elapsed_s)
 
     @property
     def k_step(self) -> int:
