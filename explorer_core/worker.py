@@ -271,8 +271,6 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
         while True:
             try:
                 kind, payload = _recv(sock)
-            except _Leave:
-                return cancelled(130)
             except (OSError, ConnectionError):
                 if received:
                     return cancelled(130)
@@ -288,6 +286,10 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
                 if os.environ.get("BILIMOVICH_WORKER_TRACE"):
                     sys.stderr.write(f"bilimovich: served by the worker at {path}\n")
                 return cancelled(int(payload)) if received else int(payload)
+    except _Leave:  # wherever the second signal found us
+        return cancelled(130)
+    except BrokenPipeError:  # our reader left (``| head``): closing the socket cancels the job
+        return 0
     finally:
         for s, handler in old.items():
             signal.signal(s, handler)
