@@ -220,6 +220,24 @@ def test_a_job_whose_caller_is_killed_stops(env: dict[str, str], fake_worker, tm
     assert "idle" in status_line(env)
 
 
+@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGKILL])
+def test_a_command_whose_client_is_killed_frees_the_worker(env: dict[str, str], how: int) -> None:
+    bilimovich(SMALL, env, ROOT)
+    wait_for_worker(env)
+    long = subprocess.Popen([sys.executable, "-m", "explorer_core.cli", "section", "--scene", "fig1C", "--periods",
+                             "100000", "--random", "20", "--quiet", "--json"], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    time.sleep(3.0)  # the worker is running it
+    long.send_signal(how)
+    long.communicate(timeout=60)
+    if how == signal.SIGTERM:
+        assert long.returncode == 128 + how
+    deadline = time.time() + 15  # the command stops at its next look at Ctrl-C's flag: the worker is free
+    while "served by the worker" not in bilimovich(SMALL, env, ROOT).stderr:
+        assert time.time() < deadline, "the job went on after its client was killed"
+        time.sleep(0.2)
+
+
 def test_ctrl_c_in_the_worker_is_honoured_within_a_second(env: dict[str, str], fake_worker, tmp_path: Path) -> None:
     side = tmp_path / "side.txt"
     client = subprocess.Popen([sys.executable, "-c", FAKE_CLIENT, "ignores", str(side)], env=env, cwd=ROOT,
@@ -292,16 +310,38 @@ while todo:
         if id(c) not in covered:
             covered.add(id(c))
             todo.append(c)
-print(json.dumps({"all": len(found), "missing": sorted(w for i, (d, w) in found.items() if i not in covered)}))
+missing = sorted(w for i, (d, w) in found.items() if i not in covered)
+
+# The analyses then meet only the signatures warmed (another argument type would compile again).
+import contextlib, io
+from explorer_core.cli import main
+before = {i: len(d.signatures) for i, (d, _) in found.items()}
+for argv in COMMANDS:
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(argv) == 0, argv
+recompiled = sorted(w for i, (d, w) in found.items() if len(d.signatures) != before[i])
+print(json.dumps({"all": len(found), "missing": missing, "recompiled": recompiled}))
 """
+#: Small commands over the engine's systems and block kinds, the tangent system and the model's kernels.
+COMMANDS = [
+    ["continue", "--scene", "fig10", "--param", "alpha", "--range=-0.35,-0.355", "--from=-0.0959,-1.962",
+     "--period", "1", "--switch", "--json"],
+    ["lyapunov", "--scene", "fig8B", "--ic", "0.1,0.2", "--transient", "10", "--periods", "20", "--json", "--quiet"],
+    ["orbits", "--scene", "fig10", "--period", "1", "--seed=-0.0959,-1.962", "--json", "--quiet"],
+    ["critical", "--scene", "fig1A", "--json"],
+    SMALL,
+]  # fmt: skip
 
 
 def test_warm_all_compiles_every_kernel() -> None:
-    """Every numba dispatcher of the package is compiled by warm_all (or inside one it compiles)."""
+    """Every numba dispatcher of the package is compiled by warm_all (or inside one it compiles), with the
+    argument types the analyses use."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "BILIMOVICH_WORKER": "0"}
-    proc = subprocess.run([sys.executable, "-c", FIND_KERNELS], env=env, cwd=ROOT, capture_output=True, text=True,
+    code = f"COMMANDS = {COMMANDS!r}\n{FIND_KERNELS}"
+    proc = subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True,
                           timeout=900)  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-2000:]
     report = json.loads(proc.stdout.strip().splitlines()[-1])
     assert report["all"] >= 30  # the walk finds the kernels (the engine's six among them)
     assert report["missing"] == [], f"kernels warm_all does not compile: {report['missing']}"
+    assert report["recompiled"] == [], f"kernels compiled again by the analyses: {report['recompiled']}"
