@@ -261,12 +261,11 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
         # The worker answers within its grace time, or exits (which closes the socket).
         sock.settimeout(CANCEL_GRACE_S + 10.0)
 
-    old = {s: signal.signal(s, forward) for s in FORWARDED}
-
     def cancelled(status: int) -> int:
         last = received[-1] if received else signal.SIGINT
         return 128 + int(last) if last != signal.SIGINT else status
 
+    old = {s: signal.signal(s, forward) for s in FORWARDED}
     try:
         while True:
             try:
@@ -318,7 +317,7 @@ def spawn(command: Sequence[str]) -> None:
     )
 
 
-class Status(NamedTuple):
+class WorkerStatus(NamedTuple):
     """What :func:`status` found at ``path``.
 
     ``state``: ``listening`` (it answered a ping), ``starting`` (its lock is held, no socket yet: it is
@@ -354,22 +353,22 @@ def ping(path: Path) -> dict[str, Any]:
     return json.loads(payload)
 
 
-def status(path: Path | None = None) -> Status:
+def status(path: Path | None = None) -> WorkerStatus:
     """The truth about the worker of this code and environment (or of socket ``path``): the socket is
     probed, a stale one removed."""
     path = socket_path() if path is None else path
     pid = holder(path)
     if not path.exists():
-        return Status("starting" if pid is not None else "none", path, pid)
+        return WorkerStatus("starting" if pid is not None else "none", path, pid)
     try:
         answer = ping(path)
-        return Status("listening", path, int(answer.get("pid") or 0) or pid, bool(answer.get("busy")))
+        return WorkerStatus("listening", path, int(answer.get("pid") or 0) or pid, bool(answer.get("busy")))
     except OSError as exc:
         if _refused(exc) and pid is None and _remove_if_stale(path):
-            return Status("stale", path)
-        return Status("not answering" if pid is not None or not _refused(exc) else "none", path, pid)
+            return WorkerStatus("stale", path)
+        return WorkerStatus("not answering" if pid is not None or not _refused(exc) else "none", path, pid)
     except (ConnectionError, ValueError):
-        return Status("not answering", path, pid)
+        return WorkerStatus("not answering", path, pid)
 
 
 def status_text() -> str:
@@ -460,8 +459,9 @@ class _Watchdog:
 
 def run_here(run: Callable[[list[str]], int], argv: Sequence[str]) -> int:
     """``run(argv)`` in this process with Ctrl-C honoured within :data:`CANCEL_GRACE_S`: the command's own
-    handler is told first (it returns what it computed so far); a command still inside the engine's
-    kernels after the grace time, or a second Ctrl-C, ends the process with status 130."""
+    handler is told first (it returns what it computed so far); a command still computing after the
+    grace time (:data:`CANCEL_HARD_S` while it writes its results), or a second Ctrl-C, ends the process
+    with status 130. For ``bilimovich``'s ``entry``: ``status = worker.run_here(main, argv)``."""
     if threading.current_thread() is not threading.main_thread():
         return run(list(argv))
     # The interpreter writes each signal's number to this socket the moment it arrives, whichever Python
@@ -506,6 +506,8 @@ def run_here(run: Callable[[list[str]], int], argv: Sequence[str]) -> int:
         dog.finish()
         signal.set_wakeup_fd(-1)
         writer.close()
+        with contextlib.suppress(OSError):
+            reader.shutdown(socket.SHUT_RDWR)  # wakes the listener (a close alone would not)
         reader.close()
 
 
@@ -623,6 +625,8 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
             conn, request = item
             try:
                 _run_one(conn, request, run, leave)
+            except KeyboardInterrupt:  # a cancel that arrived as the job ended: the worker goes on
+                pass
             finally:
                 conn.close()
                 busy.clear()
