@@ -6,18 +6,35 @@ job itself. After a command that loaded the kernels, ``bilimovich`` leaves a wor
 (one per user, per version of this package and per ``BILIMOVICH_*``/``NUMBA_*`` environment): later
 commands send it their arguments and working directory over a Unix socket (a 0700 directory of the
 user's) and print what it writes; the worker runs them one at a time in its main thread exactly as
-``bilimovich`` would (same parser, same outputs, files written relative to the caller's directory,
-Ctrl-C forwarded). A command that finds the worker busy runs by itself. The worker exits after
-:data:`IDLE_S` idle seconds, or on ``bilimovich worker stop``; ``BILIMOVICH_WORKER=0`` turns it off.
+``bilimovich`` would (same parser, same outputs, files written relative to the caller's directory).
+A command that finds the worker busy runs by itself. The worker exits after :data:`IDLE_S` idle
+seconds, or on ``bilimovich worker stop``; ``BILIMOVICH_WORKER=0`` turns it off.
+
+A job never outlives its caller: Ctrl-C, SIGTERM and SIGHUP of the client are forwarded (a second one
+leaves at once), and a client that disappears (its socket closed, or a write to it fails) cancels its
+job the same way. A cancelled job gets :data:`CANCEL_GRACE_S` to return (:data:`CANCEL_HARD_S` while
+it writes what it computed so far), then its caller gets exit status 130 at once; a job still computing
+:data:`CANCEL_STOP_S` after the cancel is abandoned (numba kernels run without the GIL and cannot be
+interrupted; an analysis polls its ``cancel`` only between them): the worker exits, which stops the
+kernels; the next command starts a new worker. :func:`run_here` gives a command run without the worker
+the same bound on Ctrl-C (there the process ends after the grace time).
+
+The worker holds an exclusive lock on ``worker-KEY.lock`` (beside its socket, holding its pid) from
+before it compiles until it exits; the system drops the lock when the process dies, even by SIGKILL.
+A socket nobody listens on whose lock is free is stale: the next command removes it and a new worker
+starts; :func:`status` probes the socket with a ping and reports the pid.
 
 Frames on the socket: a 1-byte kind and a 4-byte big-endian length, then the payload. The client sends
-``h`` (the request as JSON) and ``i`` (Ctrl-C); the worker sends ``o``/``e`` (stdout/stderr bytes),
-``x`` (the exit status as text) or ``b`` (busy: run it yourself).
+``h`` (the request as JSON: a command, ``{"ping": true}`` or ``{"stop": true}``) and ``i`` (cancel);
+the worker sends ``a`` (accepted) or ``b`` (busy: run it yourself), then ``o``/``e`` (stdout/stderr
+bytes) and ``x`` (the exit status as text); ``p`` answers a ping (JSON: ``pid``, ``busy``).
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
 import hashlib
 import io
 import json
@@ -29,9 +46,11 @@ import struct
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from types import FrameType
+from typing import Any, NamedTuple
 
 #: Seconds without a request after which the worker exits.
 IDLE_S = float(os.environ.get("BILIMOVICH_WORKER_IDLE", "900"))
@@ -39,6 +58,15 @@ IDLE_S = float(os.environ.get("BILIMOVICH_WORKER_IDLE", "900"))
 LOCAL = frozenset({"serve", "worker", "warmup"})
 #: How long a client waits for a worker to accept and say whether it is free.
 CONNECT_S = 0.5
+#: Seconds a cancelled command has to return before it is abandoned (unless it is writing its results).
+CANCEL_GRACE_S = 0.8
+#: Seconds a cancelled command may go on computing in the worker (its caller answered already) before the
+#: worker abandons it and exits.
+CANCEL_STOP_S = 10.0
+#: Seconds a cancelled command has to return whatever it is doing (writing what it computed so far).
+CANCEL_HARD_S = 30.0
+#: Signals of the client that cancel its job in the worker (as Ctrl-C does).
+FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 def enabled() -> bool:
@@ -65,6 +93,11 @@ def socket_dir() -> Path:
 
 def socket_path() -> Path:
     return socket_dir() / f"worker-{_key()}.sock"
+
+
+def lock_path(sock: Path) -> Path:
+    """The lock a live worker of socket ``sock`` holds (it contains the worker's pid)."""
+    return sock.with_suffix(".lock")
 
 
 def _private_dir() -> Path:
@@ -99,6 +132,84 @@ def _recv(sock: socket.socket) -> tuple[bytes, bytes]:
     return head[:1], _recv_exact(sock, n)
 
 
+# --- liveness: the worker's lock ------------------------------------------------------------------
+
+
+def _take_lock(sock: Path, tries: int = 10) -> int | None:
+    """An open descriptor holding ``sock``'s lock exclusively, or None if a live worker holds it.
+
+    Retried for a moment: a client that checks the lock holds it for microseconds.
+    """
+    fd = os.open(lock_path(sock), os.O_RDWR | os.O_CREAT, 0o600)
+    for i in range(tries):
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return fd
+        except BlockingIOError:
+            if i + 1 < tries:
+                time.sleep(0.05)
+    os.close(fd)
+    return None
+
+
+def holder(sock: Path) -> int | None:
+    """The pid of the live worker of socket ``sock`` (0 if it has not written it yet), or None if none lives."""
+    try:
+        fd = os.open(lock_path(sock), os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            text = os.read(fd, 32).decode(errors="replace").strip()
+            return int(text) if text.isdigit() else 0
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
+
+
+def _remove_if_stale(sock: Path) -> bool:
+    """Remove ``sock`` if no live worker holds its lock (under the lock: a worker starting now waits)."""
+    try:
+        fd = _take_lock(sock, tries=1)
+    except OSError:
+        return False
+    if fd is None:
+        return False
+    try:
+        sock.unlink(missing_ok=True)
+        return True
+    finally:
+        os.close(fd)
+
+
+def _connect(sock: Path) -> socket.socket:
+    conn = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    conn.settimeout(CONNECT_S)
+    try:
+        conn.connect(str(sock))
+    except BaseException:
+        conn.close()
+        raise
+    return conn
+
+
+def _refused(exc: OSError) -> bool:
+    # Nobody listens on the socket (ECONNREFUSED), or it vanished meanwhile.
+    return exc.errno in (errno.ECONNREFUSED, errno.ENOENT)
+
+
+def _owned(sock: Path) -> bool:
+    """Only a socket in a directory of this user's alone (nobody else could have put it there)."""
+    try:
+        st = sock.parent.stat()
+        return not (st.st_uid != os.getuid() or st.st_mode & 0o077 or sock.stat().st_uid != os.getuid())
+    except OSError:
+        return False
+
+
 # --- the client -----------------------------------------------------------------------------------
 
 
@@ -107,21 +218,28 @@ def command_of(argv: Sequence[str]) -> str | None:
     return next((a for a in argv if not a.startswith("-")), None)
 
 
+class _Leave(Exception):
+    """A second signal: the client leaves without waiting for the worker."""
+
+
 def run_in_worker(argv: Sequence[str]) -> int | None:
-    """Run ``bilimovich argv`` in the worker and return its exit status; None if no free worker answered."""
+    """Run ``bilimovich argv`` in the worker and return its exit status; None if no free worker answered.
+
+    A stale socket (a worker that died) is removed on the way, so the caller's run leaves a new worker.
+    SIGINT, SIGTERM and SIGHUP cancel the job (forwarded); a second one returns at once (the worker then
+    sees the socket close, which cancels the job too). Exit status after a forwarded SIGTERM/SIGHUP:
+    128 + the signal's number.
+    """
     path = socket_path()
-    if not path.exists():
+    if not path.exists() or not _owned(path):
         return None
-    try:  # only a worker in a directory of this user's alone (nobody else could have put a socket there)
-        st = path.parent.stat()
-        if st.st_uid != os.getuid() or st.st_mode & 0o077 or path.stat().st_uid != os.getuid():
-            return None
-    except OSError:
-        return None
-    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    sock.settimeout(CONNECT_S)
     try:
-        sock.connect(str(path))
+        sock = _connect(path)
+    except OSError as exc:
+        if _refused(exc):
+            _remove_if_stale(path)
+        return None
+    try:
         request = {"argv": list(argv), "cwd": os.getcwd(), "tty": [sys.stdout.isatty(), sys.stderr.isatty()]}
         _send(sock, b"h", json.dumps(request).encode())
         kind, payload = _recv(sock)  # "a" (accepted) or "b" (busy), at once
@@ -132,18 +250,29 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
         sock.close()
         return None
     sock.settimeout(None)
-    old = signal.getsignal(signal.SIGINT)
+    received: list[int] = []
 
-    def interrupt(signum: int, frame: Any) -> None:
+    def forward(signum: int, frame: FrameType | None) -> None:
+        received.append(signum)
+        if len(received) > 1:
+            raise _Leave
         with contextlib.suppress(OSError):
             _send(sock, b"i", b"")
+        # The worker answers within its grace time, or exits (which closes the socket).
+        sock.settimeout(CANCEL_GRACE_S + 10.0)
 
-    signal.signal(signal.SIGINT, interrupt)
+    def cancelled(status: int) -> int:
+        last = received[-1] if received else signal.SIGINT
+        return 128 + int(last) if last != signal.SIGINT else status
+
+    old = {s: signal.signal(s, forward) for s in FORWARDED}
     try:
         while True:
             try:
                 kind, payload = _recv(sock)
             except (OSError, ConnectionError):
+                if received:
+                    return cancelled(130)
                 sys.stderr.write("bilimovich: the worker stopped before the command ended\n")
                 return 1
             if kind == b"o":
@@ -155,20 +284,28 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
             elif kind == b"x":
                 if os.environ.get("BILIMOVICH_WORKER_TRACE"):
                     sys.stderr.write(f"bilimovich: served by the worker at {path}\n")
-                return int(payload)
+                return cancelled(int(payload)) if received else int(payload)
+    except _Leave:  # wherever the second signal found us
+        return cancelled(130)
+    except BrokenPipeError:  # our reader left (``| head``): closing the socket cancels the job
+        return 0
     finally:
-        signal.signal(signal.SIGINT, old)
+        for s, handler in old.items():
+            signal.signal(s, handler)
         sock.close()
 
 
 def spawn(command: Sequence[str]) -> None:
-    """Start ``command + [socket path]`` in the background as the worker (it warms up, then listens; a
-    second one finds the socket taken and exits)."""
+    """Start ``command + [socket path]`` in the background as the worker (it takes the lock, warms up,
+    then listens; a second one finds the lock taken and exits). Not while a worker lives or starts; a
+    stale socket is removed first."""
     try:
         path = _private_dir() / f"worker-{_key()}.sock"
     except OSError:
         return
-    if path.exists() or len(os.fsencode(path)) > 107:  # a Unix socket's path has at most 107 bytes
+    if len(os.fsencode(path)) > 107 or holder(path) is not None:  # a Unix socket's path has at most 107 bytes
+        return
+    if path.exists() and not _remove_if_stale(path):
         return
     subprocess.Popen(  # this interpreter and our own command line
         [*command, str(path)],
@@ -180,35 +317,218 @@ def spawn(command: Sequence[str]) -> None:
     )
 
 
+class WorkerStatus(NamedTuple):
+    """What :func:`status` found at ``path``.
+
+    ``state``: ``listening`` (it answered a ping), ``starting`` (its lock is held, no socket yet: it is
+    compiling), ``not answering`` (a live worker that did not answer within :data:`CONNECT_S`),
+    ``stale`` (the socket of a worker that died: removed now) or ``none``.
+    """
+
+    state: str
+    path: Path
+    pid: int | None = None
+    busy: bool | None = None
+
+    def describe(self) -> str:
+        pid = f"pid {self.pid}" if self.pid else "pid unknown"
+        if self.state == "listening":
+            return f"listening at {self.path} ({pid}, {'busy' if self.busy else 'idle'})"
+        if self.state == "starting":
+            return f"starting ({pid}, compiling the kernels; no socket yet at {self.path})"
+        if self.state == "not answering":
+            return f"not answering at {self.path} ({pid})"
+        if self.state == "stale":
+            return f"none running (removed the stale socket {self.path} of a worker that died)"
+        return "none running"
+
+
+def ping(path: Path) -> dict[str, Any]:
+    """The worker's answer to a ping at ``path`` (``pid``, ``busy``); raises OSError/ConnectionError."""
+    with _connect(path) as conn:
+        _send(conn, b"h", json.dumps({"ping": True}).encode())
+        kind, payload = _recv(conn)
+    if kind != b"p":
+        raise ConnectionError(f"the worker answered a ping with frame {kind!r}")
+    return json.loads(payload)
+
+
+def status(path: Path | None = None) -> WorkerStatus:
+    """The truth about the worker of this code and environment (or of socket ``path``): the socket is
+    probed, a stale one removed."""
+    path = socket_path() if path is None else path
+    pid = holder(path)
+    if not path.exists():
+        return WorkerStatus("starting" if pid is not None else "none", path, pid)
+    try:
+        answer = ping(path)
+        return WorkerStatus("listening", path, int(answer.get("pid") or 0) or pid, bool(answer.get("busy")))
+    except OSError as exc:
+        if _refused(exc) and pid is None and _remove_if_stale(path):
+            return WorkerStatus("stale", path)
+        return WorkerStatus("not answering" if pid is not None or not _refused(exc) else "none", path, pid)
+    except (ConnectionError, ValueError):
+        return WorkerStatus("not answering", path, pid)
+
+
+def status_text() -> str:
+    """The line ``bilimovich worker status`` prints."""
+    state = "on" if enabled() else "off (BILIMOVICH_WORKER=0)"
+    return f"worker: {state}; for this code and environment: {status().describe()}"
+
+
 def stop_all() -> list[str]:
-    """Ask every worker of this user to exit; returns the sockets that answered."""
+    """Ask every worker of this user to exit; returns the sockets that answered (stale ones are removed)."""
     stopped = []
     d = socket_dir()
     for path in sorted(d.glob("worker-*.sock")) if d.is_dir() else []:
-        with contextlib.suppress(OSError, ConnectionError), socket.socket(socket.AF_UNIX) as sock:
-            sock.settimeout(CONNECT_S)
-            sock.connect(str(path))
-            _send(sock, b"h", json.dumps({"stop": True}).encode())
-            _recv(sock)
-            stopped.append(str(path))
+        try:
+            with _connect(path) as sock:
+                _send(sock, b"h", json.dumps({"stop": True}).encode())
+                _recv(sock)
+                stopped.append(str(path))
+        except OSError as exc:
+            if _refused(exc):
+                _remove_if_stale(path)
+        except ConnectionError:
+            pass
     return stopped
+
+
+# --- cancelling: every job returns within a bound ---------------------------------------------------
+
+
+#: Functions that write results: a cancelled command inside one gets :data:`CANCEL_HARD_S` to finish it.
+_WRITERS = ("write", "to_csv", "to_npz", "save", "render", "dump")
+
+
+def _writing(thread_id: int) -> bool:
+    """Whether thread ``thread_id`` is writing results (a function of :data:`_WRITERS` or the reports on its
+    stack) rather than computing (kernels run without the GIL and cannot be interrupted)."""
+    frame = sys._current_frames().get(thread_id)
+    while frame is not None:
+        name = frame.f_code.co_name.lower()
+        if any(w in name for w in _WRITERS) or "/explorer_core/reports/" in frame.f_code.co_filename:
+            return True
+        frame = frame.f_back
+    return False
+
+
+class _Watchdog:
+    """After a cancel: ``late()`` once the job has not returned within :data:`CANCEL_GRACE_S`, then
+    ``abandon()`` once it is still computing ``stop_s`` after the cancel (or, while it writes what it
+    computed so far, :data:`CANCEL_HARD_S`)."""
+
+    def __init__(self, late: Callable[[str], None], abandon: Callable[[str], None], stop_s: float) -> None:
+        self._late, self._abandon, self._stop_s = late, abandon, stop_s
+        self._main = threading.main_thread().ident or 0
+        self.finished = threading.Event()
+        self._cancelled = threading.Event()
+        self._lock = threading.Lock()
+
+    @property
+    def cancelled(self) -> bool:
+        return self._cancelled.is_set()
+
+    def cancel(self) -> bool:
+        """Start the clock (once); True the first time."""
+        with self._lock:
+            if self._cancelled.is_set() or self.finished.is_set():
+                return False
+            self._cancelled.set()
+        threading.Thread(target=self._watch, daemon=True, name="bilimovich-cancel").start()
+        return True
+
+    def _watch(self) -> None:
+        start = time.monotonic()
+        told = False
+        while not self.finished.wait(0.05):
+            waited = time.monotonic() - start
+            why = f"the command did not stop within {waited:.1f} s of the cancel"
+            if not told and waited >= CANCEL_GRACE_S:
+                told = True
+                self._late(why)
+            if (waited >= self._stop_s and not _writing(self._main)) or waited >= CANCEL_HARD_S:
+                if not self.finished.is_set():
+                    self._abandon(why)
+                return
+
+    def finish(self) -> None:
+        self.finished.set()
+
+
+def run_here(run: Callable[[list[str]], int], argv: Sequence[str]) -> int:
+    """``run(argv)`` in this process with Ctrl-C honoured within :data:`CANCEL_GRACE_S`: the command's own
+    handler is told first (it returns what it computed so far); a command still computing after the
+    grace time (:data:`CANCEL_HARD_S` while it writes its results), or a second Ctrl-C, ends the process
+    with status 130. For ``bilimovich``'s ``entry``: ``status = worker.run_here(main, argv)``."""
+    if threading.current_thread() is not threading.main_thread():
+        return run(list(argv))
+    # The interpreter writes each signal's number to this socket the moment it arrives, whichever Python
+    # handler the command installs and even while the main thread is inside a kernel.
+    reader, writer = socket.socketpair()
+    writer.setblocking(False)
+    try:
+        previous = signal.set_wakeup_fd(writer.fileno(), warn_on_full_buffer=False)
+    except ValueError:
+        reader.close()
+        writer.close()
+        return run(list(argv))
+    if previous != -1:  # someone else's (an event loop's): leave it alone
+        signal.set_wakeup_fd(previous)
+        reader.close()
+        writer.close()
+        return run(list(argv))
+
+    def abandon(why: str) -> None:
+        with contextlib.suppress(Exception):
+            sys.stderr.flush()
+        os.write(2, f"\nbilimovich: interrupted; {why}: stopped, nothing more written\n".encode())
+        os._exit(130)
+
+    dog = _Watchdog(lambda why: None, abandon, CANCEL_GRACE_S)
+
+    def listen() -> None:
+        while True:
+            try:
+                data = reader.recv(64)
+            except OSError:
+                return
+            if not data:
+                return
+            if signal.SIGINT in data and not dog.finished.is_set() and not dog.cancel():
+                abandon("a second Ctrl-C")
+
+    threading.Thread(target=listen, daemon=True, name="bilimovich-signals").start()
+    try:
+        return run(list(argv))
+    finally:
+        dog.finish()
+        signal.set_wakeup_fd(-1)
+        writer.close()
+        with contextlib.suppress(OSError):
+            reader.shutdown(socket.SHUT_RDWR)  # wakes the listener (a close alone would not)
+        reader.close()
 
 
 # --- the worker -----------------------------------------------------------------------------------
 
 
 class _Stream(io.TextIOBase):
-    """A text stream that sends what is written to the client as frames of one kind."""
+    """A text stream that sends what is written to the client as frames of one kind; a failed write
+    means the client is gone (``gone`` is called)."""
 
-    def __init__(self, sock: socket.socket, kind: bytes, tty: bool) -> None:
-        self._sock, self._kind, self._tty = sock, kind, tty
+    def __init__(self, sock: socket.socket, kind: bytes, tty: bool, gone: Callable[[], None]) -> None:
+        self._sock, self._kind, self._tty, self._gone = sock, kind, tty, gone
         self.buffer = self  # type: ignore[assignment]  # for code that writes bytes
 
     def write(self, text: Any) -> int:
         data = text if isinstance(text, bytes) else str(text).encode()
         if data:
-            with contextlib.suppress(OSError):
+            try:
                 _send(self._sock, self._kind, data)
+            except OSError:
+                self._gone()
         return len(text)
 
     def isatty(self) -> bool:
@@ -219,23 +539,30 @@ class _Stream(io.TextIOBase):
 
 
 def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) -> None:
-    """The worker's loop: warm up, listen on ``path``, run each request with ``run(argv)`` (the command
-    line's ``main``), one at a time, until idle for ``idle_s`` seconds or asked to stop."""
+    """The worker's loop: take the lock, warm up, listen on ``path``, run each request with ``run(argv)``
+    (the command line's ``main``), one at a time, until idle for ``idle_s`` seconds or asked to stop."""
+    p = Path(path)
+    try:
+        lock = _take_lock(p)
+    except OSError:
+        return
+    if lock is None:
+        return  # another worker of this code lives (or is starting)
+    os.ftruncate(lock, 0)
+    os.write(lock, f"{os.getpid()}\n".encode())
+    # A stray SIGINT between jobs must not end the worker (a job installs its own handler).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     from explorer_core.warm import warm_all
 
     warm_all()
-    p = Path(path)
-    if p.exists():  # a worker that died left its socket: take it over unless one still answers
-        with contextlib.suppress(OSError), socket.socket(socket.AF_UNIX) as probe:
-            probe.settimeout(CONNECT_S)
-            probe.connect(path)
-            return
+    if p.exists():  # a worker that died left its socket (we hold the lock: nobody else listens on it)
         p.unlink(missing_ok=True)
     server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
         server.bind(path)
     except OSError:
-        return  # another worker just took it
+        os.close(lock)
+        return
     os.chmod(path, 0o600)
     server.listen(8)
     jobs: queue.Queue = queue.Queue(maxsize=1)
@@ -253,6 +580,10 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
                 conn.settimeout(CONNECT_S)
                 kind, payload = _recv(conn)
                 request = json.loads(payload)
+                if request.get("ping"):
+                    _send(conn, b"p", json.dumps({"pid": os.getpid(), "busy": busy.is_set()}).encode())
+                    conn.close()
+                    continue
                 if request.get("stop"):
                     _send(conn, b"x", b"0")
                     conn.close()
@@ -265,11 +596,22 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
                     conn.close()
                     continue
                 busy.set()
-                _send(conn, b"a", b"")
-                conn.settimeout(None)
+                try:
+                    _send(conn, b"a", b"")
+                    conn.settimeout(None)
+                except OSError:
+                    busy.clear()  # the client left before its job started
+                    raise
                 jobs.put((conn, request))
             except (OSError, ConnectionError, ValueError):
                 conn.close()
+
+    def leave() -> None:
+        # Abandoning a job: the socket goes first, so no client meets a worker about to vanish.
+        done.set()
+        with contextlib.suppress(OSError):
+            p.unlink()
+        server.close()
 
     threading.Thread(target=accept, daemon=True, name="worker-accept").start()
     try:
@@ -282,7 +624,9 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
                 return
             conn, request = item
             try:
-                _run_one(conn, request, run)
+                _run_one(conn, request, run, leave)
+            except KeyboardInterrupt:  # a cancel that arrived as the job ended: the worker goes on
+                pass
             finally:
                 conn.close()
                 busy.clear()
@@ -292,27 +636,71 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
         with contextlib.suppress(OSError):
             if p.exists():
                 p.unlink()
+        os.close(lock)
 
 
-def _run_one(conn: socket.socket, request: dict[str, Any], run: Callable[[list[str]], int]) -> None:
-    """One command, in this (the main) thread: its own streams and directory, Ctrl-C as SIGINT."""
+def _run_one(
+    conn: socket.socket, request: dict[str, Any], run: Callable[[list[str]], int], leave: Callable[[], None]
+) -> None:
+    """One command, in this (the main) thread: its own streams and directory; a cancel (Ctrl-C, SIGTERM or
+    SIGHUP of the client, or the client gone) is a SIGINT here, which the command's handler (or Python)
+    takes. A command that has not returned :data:`CANCEL_GRACE_S` after a cancel: the client gets status
+    130 at once (and the job's later output is dropped); one still computing :data:`CANCEL_STOP_S` after
+    it is abandoned: this process exits (``leave`` first withdraws the socket)."""
+    send_lock = threading.Lock()
+    client_gone = threading.Event()
+    answered = threading.Event()
+
+    def answer(message: str, status: int) -> None:
+        # The exit status goes to the client once; nothing after it.
+        with send_lock:
+            if answered.is_set() or client_gone.is_set():
+                return
+            answered.set()
+            with contextlib.suppress(OSError):
+                if message:
+                    _send(conn, b"e", message.encode())
+                _send(conn, b"x", str(status).encode())
+
+    def late(why: str) -> None:
+        answer(f"\nbilimovich: interrupted; {why}: it stops in the worker, writing what it computed so far\n", 130)
+
+    def abandon(why: str) -> None:
+        leave()
+        answer(f"\nbilimovich: interrupted; {why}: stopped, nothing more written\n", 130)
+        os._exit(130)
+
+    dog = _Watchdog(late, abandon, CANCEL_STOP_S)
+
+    def cancel() -> None:
+        if not dog.finished.is_set():
+            dog.cancel()
+            os.kill(os.getpid(), signal.SIGINT)
+
+    def gone() -> None:
+        client_gone.set()
+        if not dog.cancelled:
+            cancel()
+
     tty = request.get("tty", [False, False])
-    out, err = _Stream(conn, b"o", bool(tty[0])), _Stream(conn, b"e", bool(tty[1]))
-    finished = threading.Event()
+    out, err = _Stream(conn, b"o", bool(tty[0]), gone), _Stream(conn, b"e", bool(tty[1]), gone)
 
     def listen() -> None:
-        # Ctrl-C from the client: a SIGINT to this process, which the command's handler (or Python) takes.
-        while not finished.is_set():
+        # A cancel from the client, or its socket closing: the caller is gone, the job with it.
+        while not dog.finished.is_set():
             try:
                 kind, _ = _recv(conn)
             except (OSError, ConnectionError):
+                if not dog.finished.is_set():
+                    gone()
                 return
-            if kind == b"i" and not finished.is_set():
-                os.kill(os.getpid(), signal.SIGINT)
+            if kind == b"i":
+                cancel()
 
-    threading.Thread(target=listen, daemon=True, name="worker-listen").start()
     cwd = os.getcwd()
     status = 1
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a lone process
+    threading.Thread(target=listen, daemon=True, name="worker-listen").start()
     try:
         os.chdir(request["cwd"])
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):  # type: ignore[type-var]
@@ -322,10 +710,12 @@ def _run_one(conn: socket.socket, request: dict[str, Any], run: Callable[[list[s
                 status = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
             except KeyboardInterrupt:
                 status = 130
+    except KeyboardInterrupt:
+        status = 130
     except OSError as exc:
         err.write(f"bilimovich: {exc}\n")
     finally:
-        finished.set()
+        dog.finish()
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         os.chdir(cwd)
-    with contextlib.suppress(OSError):
-        _send(conn, b"x", str(int(status or 0)).encode())
+    answer("", int(status or 0))

@@ -1,7 +1,9 @@
-"""The command line's warm worker: same answers as a lone process, files where the caller is, busy and Ctrl-C."""
+"""The command line's warm worker: same answers as a lone process, files where the caller is, busy and Ctrl-C;
+a job stops with its caller, Ctrl-C within a second, a dead worker's socket recovered, every kernel warmed."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -85,3 +87,261 @@ def test_command_of_and_what_stays_local() -> None:
     assert worker.command_of(["--version"]) is None
     assert worker.command_of(["section", "--scene", "fig1A"]) == "section"
     assert {"serve", "worker", "warmup"} <= worker.LOCAL
+
+
+# --- a job never outlives its caller; a dead worker never blocks the next; every kernel warmed ---------------
+
+
+def status_line(env: dict[str, str]) -> str:
+    """What ``bilimovich worker status`` prints (``worker.status_text``), in the clients' environment."""
+    code = "from explorer_core import worker; print(worker.status_text())"
+    return subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True,
+                          timeout=60).stdout  # fmt: skip
+
+
+def wait_gone(pid: int, timeout: float = 30.0) -> None:
+    deadline = time.time() + timeout
+    while True:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return
+        assert time.time() < deadline, f"process {pid} still alive"
+        time.sleep(0.05)
+
+
+def test_a_stale_socket_is_recovered_and_status_tells_the_truth(env: dict[str, str]) -> None:
+    bilimovich(SMALL, env, ROOT)
+    wait_for_worker(env)
+    line = status_line(env)
+    assert "listening at" in line and "(pid " in line, line
+    pid = int(line.split("(pid ")[1].split(",")[0])
+    os.kill(pid, signal.SIGKILL)  # dies without a word: its socket stays
+    wait_gone(pid)
+    (sock,) = Path(env["BILIMOVICH_WORKER_DIR"]).glob("*/worker-*.sock")
+    assert sock.exists()
+    line = status_line(env)
+    assert "listening" not in line and "stale socket" in line, line
+    # A command after the death runs by itself and leaves a new worker, which then serves.
+    bilimovich(SMALL, env, ROOT)
+    wait_for_worker(env)
+    served = bilimovich(SMALL, env, ROOT)
+    assert served.returncode == 0 and "served by the worker" in served.stderr, served.stderr
+    new = status_line(env)
+    assert "listening at" in new and f"(pid {pid}," not in new
+
+
+def test_a_stale_socket_left_before_any_status_is_removed_by_the_next_command(env: dict[str, str]) -> None:
+    bilimovich(SMALL, env, ROOT)
+    wait_for_worker(env)
+    pid = int(status_line(env).split("(pid ")[1].split(",")[0])
+    os.kill(pid, signal.SIGKILL)
+    wait_gone(pid)
+    first = bilimovich(SMALL, env, ROOT)  # meets the dead socket: runs here, removes it, leaves a worker
+    assert first.returncode == 0 and "served by the worker" not in first.stderr
+    deadline = time.time() + 120
+    while "listening at" not in status_line(env):
+        assert time.time() < deadline, "no new worker after a stale socket"
+        time.sleep(0.5)
+    assert "served by the worker" in bilimovich(SMALL, env, ROOT).stderr
+
+
+# A job that writes a line every 0.1 s and stops when its Ctrl-C flag is set (as the commands' _Interrupt
+# does), served by the real worker loop: the side effect tells whether the job still runs.
+FAKE_SERVE = """
+import os, signal, sys, time
+from explorer_core import worker
+
+def run(argv):
+    mode, path = argv
+    flag = []
+    signal.signal(signal.SIGINT, lambda *a: flag.append(1))
+    with open(path, "a") as fh:
+        for _ in range(3000):
+            if flag and mode == "polls":
+                print("interrupted", file=sys.stderr)
+                return 130
+            fh.write("tick\\n")
+            fh.flush()
+            print("tick", flush=True)
+            time.sleep(0.1)
+    return 0
+
+worker.serve(str(worker._private_dir() / ("worker-" + worker._key() + ".sock")), run, idle_s=120)
+"""
+FAKE_CLIENT = "import sys; from explorer_core import worker; sys.exit(worker.run_in_worker(sys.argv[1:]))"
+FAKE_HERE = """
+import signal, sys, time
+from explorer_core import worker
+
+def run(argv):
+    signal.signal(signal.SIGINT, lambda *a: None)  # a command that never looks at its flag again
+    time.sleep(120)
+    return 0
+
+sys.exit(worker.run_here(run, []))
+"""
+
+
+@pytest.fixture
+def fake_worker(env: dict[str, str]):
+    proc = subprocess.Popen([sys.executable, "-c", FAKE_SERVE], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
+    try:
+        wait_for_worker(env)
+        yield proc
+    finally:
+        proc.kill()
+        proc.wait(timeout=30)
+
+
+def lines(path: Path) -> int:
+    return len(path.read_text().splitlines()) if path.exists() else 0
+
+
+@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGKILL, signal.SIGHUP])
+def test_a_job_whose_caller_is_killed_stops(env: dict[str, str], fake_worker, tmp_path: Path, how: int) -> None:
+    side = tmp_path / "side.txt"
+    client = subprocess.Popen([sys.executable, "-c", FAKE_CLIENT, "polls", str(side)], env=env, cwd=ROOT,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    deadline = time.time() + 60
+    while lines(side) < 5:
+        assert time.time() < deadline and client.poll() is None, "the job did not start in the worker"
+        time.sleep(0.05)
+    client.send_signal(how)
+    client.communicate(timeout=30)
+    if how != signal.SIGKILL:  # forwarded, answered: 128 + the signal, as a lone process
+        assert client.returncode == 128 + how
+    time.sleep(1.5)  # the cancel reaches the job within one tick
+    stopped_at = lines(side)
+    time.sleep(1.5)
+    assert lines(side) == stopped_at, "the job went on writing after its caller was killed"
+    assert fake_worker.poll() is None  # it stopped by itself: the worker lives on, free
+    assert "idle" in status_line(env)
+
+
+@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGKILL])
+def test_a_command_whose_client_is_killed_frees_the_worker(env: dict[str, str], how: int) -> None:
+    bilimovich(SMALL, env, ROOT)
+    wait_for_worker(env)
+    long = subprocess.Popen([sys.executable, "-m", "explorer_core.cli", "section", "--scene", "fig1C", "--periods",
+                             "100000", "--random", "20", "--quiet", "--json"], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    time.sleep(3.0)  # the worker is running it
+    long.send_signal(how)
+    long.communicate(timeout=60)
+    if how == signal.SIGTERM:
+        assert long.returncode == 128 + how
+    deadline = time.time() + 15  # the command stops at its next look at Ctrl-C's flag: the worker is free
+    while "served by the worker" not in bilimovich(SMALL, env, ROOT).stderr:
+        assert time.time() < deadline, "the job went on after its client was killed"
+        time.sleep(0.2)
+
+
+def test_ctrl_c_in_the_worker_is_honoured_within_a_second(env: dict[str, str], fake_worker, tmp_path: Path) -> None:
+    side = tmp_path / "side.txt"
+    client = subprocess.Popen([sys.executable, "-c", FAKE_CLIENT, "ignores", str(side)], env=env, cwd=ROOT,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    deadline = time.time() + 60
+    while lines(side) < 5:
+        assert time.time() < deadline and client.poll() is None, "the job did not start in the worker"
+        time.sleep(0.05)
+    start = time.monotonic()
+    client.send_signal(signal.SIGINT)  # the job never looks at its flag: it is abandoned
+    _, err = client.communicate(timeout=30)
+    took = time.monotonic() - start
+    assert client.returncode == 130 and "interrupted" in err, err
+    assert took < 1.5, f"Ctrl-C took {took:.2f} s"
+    # The worker lets the job go on a while (to write what it computed), then leaves with it (kernels cannot
+    # be stopped otherwise).
+    fake_worker.wait(timeout=worker.CANCEL_STOP_S + 10)
+    stopped_at = lines(side)
+    time.sleep(0.5)
+    assert lines(side) == stopped_at
+    assert "listening" not in status_line(env)  # no stale socket left behind
+
+
+def test_ctrl_c_in_a_lone_process_is_honoured_within_a_second() -> None:
+    proc = subprocess.Popen([sys.executable, "-c", FAKE_HERE], cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    time.sleep(3.0)  # imported and running
+    start = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=30)
+    took = time.monotonic() - start
+    assert proc.returncode == 130 and "interrupted" in err, err
+    assert took < 1.5, f"Ctrl-C took {took:.2f} s"
+
+
+FIND_KERNELS = """
+import importlib, json, pkgutil, sys
+import explorer_core
+from numba.core.dispatcher import Dispatcher
+from explorer_core.warm import warm_all
+
+warm_all()
+found = {}
+def visit(obj, where):
+    if isinstance(obj, Dispatcher):
+        found.setdefault(id(obj), (obj, where))
+    elif isinstance(obj, (tuple, list)):
+        for i, o in enumerate(obj):
+            visit(o, f"{where}[{i}]")
+for info in pkgutil.walk_packages(explorer_core.__path__, "explorer_core."):
+    mod = importlib.import_module(info.name)
+    for name, value in vars(mod).items():
+        visit(value, f"{info.name}.{name}")
+
+# A kernel compiled inside another (a leaf it calls, or one inlined) is loaded with its caller from the
+# cache and then has no signature of its own: covered are the kernels compiled and those they reach.
+def callees(d):
+    names, codes = set(), [d.py_func.__code__]
+    while codes:
+        code = codes.pop()
+        names.update(code.co_names)
+        codes.extend(c for c in code.co_consts if hasattr(c, "co_names"))
+    out = [d.py_func.__globals__.get(n) for n in names]
+    out += [c.cell_contents for c in d.py_func.__closure__ or ()]
+    return [o for o in out if isinstance(o, Dispatcher)]
+covered = {i for i, (d, _) in found.items() if d.signatures}
+todo = [d for d, _ in found.values() if d.signatures]
+while todo:
+    for c in callees(todo.pop()):
+        if id(c) not in covered:
+            covered.add(id(c))
+            todo.append(c)
+missing = sorted(w for i, (d, w) in found.items() if i not in covered)
+
+# The analyses then meet only the signatures warmed (another argument type would compile again).
+import contextlib, io
+from explorer_core.cli import main
+before = {i: len(d.signatures) for i, (d, _) in found.items()}
+for argv in COMMANDS:
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(argv) == 0, argv
+recompiled = sorted(w for i, (d, w) in found.items() if len(d.signatures) != before[i])
+print(json.dumps({"all": len(found), "missing": missing, "recompiled": recompiled}))
+"""
+#: Small commands over the engine's systems and block kinds, the tangent system and the model's kernels.
+COMMANDS = [
+    ["continue", "--scene", "fig10", "--param", "alpha", "--range=-0.35,-0.355", "--from=-0.0959,-1.962",
+     "--period", "1", "--switch", "--json"],
+    ["lyapunov", "--scene", "fig8B", "--ic", "0.1,0.2", "--transient", "10", "--periods", "20", "--json", "--quiet"],
+    ["orbits", "--scene", "fig10", "--period", "1", "--seed=-0.0959,-1.962", "--json", "--quiet"],
+    ["critical", "--scene", "fig1A", "--json"],
+    SMALL,
+]  # fmt: skip
+
+
+def test_warm_all_compiles_every_kernel() -> None:
+    """Every numba dispatcher of the package is compiled by warm_all (or inside one it compiles), with the
+    argument types the analyses use."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "BILIMOVICH_WORKER": "0"}
+    code = f"COMMANDS = {COMMANDS!r}\n{FIND_KERNELS}"
+    proc = subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True,
+                          timeout=900)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert report["all"] >= 30  # the walk finds the kernels (the engine's six among them)
+    assert report["missing"] == [], f"kernels warm_all does not compile: {report['missing']}"
+    assert report["recompiled"] == [], f"kernels compiled again by the analyses: {report['recompiled']}"
