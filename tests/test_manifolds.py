@@ -163,6 +163,10 @@ def test_partial_results_stream_and_cancel() -> None:
     stopped = manifolds(FIG8B, orbit, length=50.0, view=VIEW, cancel=lambda: calls.append(1) or len(calls) > 3)
     assert not stopped.completed or {b.status for b in stopped.branches} == {"cancelled"}
     assert "cancelled" in {b.status for b in stopped.branches}
+    # Cancelled: no crossings computed (they take seconds on a large run), and the result says so.
+    assert not stopped.complete and stopped.crossings == []
+    assert {loss.what for loss in stopped.lost} >= {"crossings"}
+    assert all(loss.why == "cancelled" for loss in stopped.lost if loss.what.startswith("branch"))
 
 
 def test_a_branch_that_ends_on_an_attractor_or_off_view() -> None:

@@ -181,6 +181,8 @@ class Manifolds:
             n = sum(int(getattr(b, attr)) for b in self.branches)
             if n:
                 out.append(Loss(f"members ({attr})", n, reason))
+        if self.extra.get("crossings_skipped"):
+            out.append(Loss("crossings", 1, "not computed: the growth was cancelled"))
         return out
 
     @property
@@ -430,6 +432,10 @@ class _Growth:
         self._advance(part, idx, 1, self.level)
         self.batch.put(idx, part)
         self.level += 1
+        if cancel is not None and cancel():  # within a level of the Ctrl-C: the pieces are cut where they are
+            for b in live_br:
+                self.status[b] = "cancelled"
+            return
         for _ in range(MAX_PASSES):
             if cancel is not None and cancel():
                 break
@@ -637,13 +643,16 @@ def iter_manifolds(
 
     def snapshot(done: bool) -> Manifolds:
         branches = [b for g in growth for b in g.branches(pts.shape[0])]
+        stopped = cancel is not None and cancel()
         mine = Manifolds(params, numerics, orbit, branches, [], box, px, float(length),  # type: ignore[arg-type]
                          time.perf_counter() - start, done)  # fmt: skip
         cross = [replace(c, unstable=c.unstable.removeprefix("A:"), stable=c.stable.removeprefix("A:"))
-                 for c in (crossings([mine, *others]) if done else [])]  # fmt: skip
+                 for c in (crossings([mine, *others]) if done and not stopped else [])]  # fmt: skip
+        extra = {"members_left": budget[0], "delta": float(delta)}
+        if done and stopped:
+            extra["crossings_skipped"] = True  # the crossings of a large run take seconds: not after a cancel
         return Manifolds(params, numerics, orbit, branches, cross, box, px, float(length),  # type: ignore[arg-type]
-                         time.perf_counter() - start, done,
-                         {"members_left": budget[0], "delta": float(delta)})  # fmt: skip
+                         time.perf_counter() - start, done, extra)  # fmt: skip
 
     while any(g.growing().size for g in growth):
         for g in growth:
