@@ -370,6 +370,13 @@ BY_NAME: dict[str, Control] = {c.name: c for c in CONTROLS}
 BY_URL: dict[str, Control] = {c.url: c for c in CONTROLS if c.url}
 
 
+def plain_label(name: str) -> str:
+    """The words a control shows for itself, without its parenthesised help: what messages call it
+    ("Random initial conditions", not the attribute ``n_random``)."""
+    c = BY_NAME.get(name)
+    return c.label.split(" (")[0].strip() if c is not None else name
+
+
 class ExplorerState(param.Parameterized):
     """Control values in use of one session (the URL carries all of them)."""
 
@@ -575,7 +582,9 @@ class ExplorerState(param.Parameterized):
         elif name == "render":
             self.check_work(max(1, self.n_trajectories()), self.periods, value)
         elif name == "selected" and value >= max(1, self.n_trajectories()):
-            raise ParameterError(f"selected must be a trajectory 0..{self.n_trajectories() - 1}, got {value}")
+            raise ParameterError(
+                f"{plain_label(name)} must be a trajectory 0..{self.n_trajectories() - 1}, got {value}"
+            )
         elif name in ("bif_range", "chart_xrange", "chart_yrange") and value:
             p = {"bif_range": self.bif_param, "chart_xrange": self.chart_x, "chart_yrange": self.chart_y}[name]
             for end in value:  # the set of valid values of one parameter is an interval: its ends suffice
@@ -695,15 +704,16 @@ def commit(state: ExplorerState, name: str, text: Any) -> str | None:
     """
     if name not in BY_NAME:
         return f"unknown control {str(name)[:40]!r}"
+    label = plain_label(name)
     try:
-        value = parse_control(name, text)
+        value = parse_control(name, text, label)
         if name == "scene":
             if value != "custom" and value != state.scene:
                 state.apply_scene(value)
             return None
         state.check(name, value)
     except ParameterError as exc:
-        return f"{exc} — still using {name} = {_shown(state.display(name))}"
+        return f"{exc} — still using {label} = {_shown(state.display(name))}"
     if getattr(state, name) != value:
         if name in SYSTEM_FIELDS:
             state.param.update(**{name: value, "scene": "custom"})
@@ -852,7 +862,7 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
                 state.check(name, value)
         except ParameterError as exc:
             kept = _shown(state.display(name)) if name in BY_NAME else "the scene's"
-            errors.append(f"URL parameter {key_of.get(name, name)}: {exc}; using {name} = {kept}")
+            errors.append(f"URL parameter {key_of.get(name, name)}: {exc}; using {plain_label(name)} = {kept}")
             continue
         changed_system |= name in SYSTEM_FIELDS and float(value) != float(getattr(state, name))
         setattr(state, name, value)
