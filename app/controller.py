@@ -91,7 +91,12 @@ VIEW_KEYS = ("qr", "rr")
 MANIFOLD_KEYS = (*SYSTEM_KEYS, "man_len", *VIEW_KEYS)
 BASIN_KEYS = (*SYSTEM_KEYS, "bas_n", *VIEW_KEYS)
 #: Words for the keys that are no control's (the view, the clicked initial conditions).
-KEY_WORDS = {"qr": "q range", "rr": "r range", "ics": "clicked initial conditions", "box": "random ICs box"}
+KEY_WORDS = {
+    "qr": "q range",
+    "rr": "r range",
+    "ics": "clicked initial conditions",
+    "box": "box of the random initial conditions",
+}
 #: Longest chunk streamed to the browser: bounds how long a cancel waits.
 MAX_CHUNK = 32
 #: Time between point updates sent to the browser: starts here, doubles up to the max (seconds).

@@ -541,7 +541,7 @@ class ExplorerState(param.Parameterized):
         params = self.system()
         ics = self.initial_conditions()
         if ics.shape[0] == 0:
-            raise ParameterError("no initial conditions: set 'random ICs' above 0 or click in the plot")
+            raise ParameterError("no initial conditions: set 'Random initial conditions' above 0 or click in the plot")
         self.check_work(ics.shape[0], self.periods)
         if not self.density_view(ics.shape[0]):
             return SectionRequest(params, ics, self.periods, self.transient, self.numerics())
@@ -870,4 +870,13 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
         state.scene = "custom"
     if state.selected >= max(1, state.n_trajectories()):
         state.selected = 0
-    return state, errors
+    return state, [_with_value_used(state, e) for e in errors]
+
+
+def _with_value_used(state: ExplorerState, message: str) -> str:
+    """A URL error that does not yet say which value is used instead, saying it (the scene's or the default)."""
+    key = message.removeprefix("URL parameter ").split(":", 1)[0]
+    c = BY_URL.get(key)
+    if c is None or "; using " in message:
+        return message
+    return f"{message}; using {plain_label(c.name)} = {_shown(state.display(c.name))}"
