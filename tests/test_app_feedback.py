@@ -88,3 +88,37 @@ def test_url_errors_of_an_analysis_tab_are_shown_on_that_tab() -> None:
     page.handle({"action": "tab", "tab": "section"})
     assert not any(e.startswith("URL parameter I12:") for e in page.ui.view["chart"]["errors"])
     assert any("I12" in e for e in page.ui.view["section"]["errors"])
+
+
+#: Values Panel's query parsing raised on (blank page, server traceback) or turned into other types.
+HOSTILE = {
+    "n": "²",  # str.isdigit() but not int()
+    "periods": "9" * 5000,  # beyond int()'s 4300 digits
+    "ics": "[1,2]",  # JSON: arrived as a list
+    "alpha": '{"a": 1}',  # literal_eval: arrived as a dict
+    "I11": "1e999999",
+    "seed": "\x00",
+}
+
+
+def test_the_app_reads_the_raw_query_itself_and_reports_every_hostile_value_by_its_key() -> None:
+    """Fails on the old code: ``pn.state.location.query_params`` raised on ``?n=²`` (a blank page)."""
+    from panel.io.location import Location
+
+    from app.main import AppLocation, raw_query
+
+    class Request:  # what Bokeh's request proxy gives the session: raw bytes per key
+        def __init__(self) -> None:
+            self.arguments = {k: [v.encode()] for k, v in HOSTILE.items()}
+
+    query = raw_query(Request())
+    assert query == {k: [v.encode()] for k, v in HOSTILE.items()}
+    page, jobs = _page(query)
+    errors = page.ui.view["section"]["errors"]
+    for key in HOSTILE:
+        assert any(e.startswith(f"URL parameter {key}:") for e in errors), (key, errors)
+    assert page.session.n_points > 0  # the page works with the values in use
+    # Panel's own Location parses every query it is given; the app's never does.
+    with pytest.raises(ValueError):
+        Location().search = "?n=%C2%B2"
+    AppLocation().search = "?n=%C2%B2&periods=" + "9" * 5000

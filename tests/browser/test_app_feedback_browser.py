@@ -81,3 +81,23 @@ def test_retyping_the_value_in_use_clears_its_refusal(page, app_url) -> None:
         set_number(page, field, kept)
         page.locator(f".ctl-{field} .ctl-msg").wait_for(state="hidden", timeout=30_000)
     page.locator(".main-error").wait_for(state="hidden", timeout=30_000)
+
+
+HOSTILE_QUERIES = (
+    "?n=%C2%B2&periods=5",
+    "?periods=" + "9" * 5000 + "&n=3",
+    "?ics=%5B1,2%5D&n=3&periods=5",
+    "?alpha=%7B%22a%22:1%7D&n=3&periods=5",
+)
+
+
+@pytest.mark.parametrize("query", HOSTILE_QUERIES)
+def test_a_hostile_url_value_gives_the_normal_page_and_names_its_key(page, app_url, query) -> None:
+    """Panel's query parsing raised on these (a blank page and a server traceback; the session fixture fails on
+    any traceback in the server's log) or changed their type (``[1,2]`` became a list)."""
+    key = query[1:].split("=", 1)[0]
+    open_app(page, app_url, query)
+    status = wait_finished(page)
+    assert "trajectories" in status
+    page.locator(".main-error").wait_for(state="visible", timeout=30_000)
+    assert f"URL parameter {key}:" in text(page, ".main-error")
