@@ -995,10 +995,10 @@ class ExplorerSession(param.Parameterized):
                 return
             if kind == "per-period":
                 m = energy_change_map(params, q_range, r_range, PER_PERIOD_GRID, numerics=numerics)
-                title = "T(t0+T) − T(t0) — red: energy gained over a period, blue: lost"
+                title = "ΔT over a period: red gain, blue loss"  # fits the plot's height at 1280x720
             else:
                 m = tprime_map(params, params.t0, q_range, r_range, TPRIME_GRID)
-                title = "T′ at the section phase — red: energy gain, blue: loss"
+                title = "T′ at t0: red energy gain, blue loss"
             emit(lambda: self._show_tprime(params, m, title))
 
         self.runner.start("tprime", tprime_job)
