@@ -662,7 +662,7 @@ _ID = re.compile(r"^[A-Za-z0-9_.-]{1,40}$")
 def parse_control(name: str, text: Any, label: str | None = None) -> Any:
     """A control's text as its value; ParameterError naming the value when it is malformed or out of range.
 
-    ``label`` names the value in messages (the URL key for URL values; the control's name otherwise).
+    ``label`` names the value in messages (the control's own words, :func:`plain_label`; its name by default).
     """
     c = BY_NAME[name]
     label = label or name
@@ -762,7 +762,7 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
     for key, c in BY_URL.items():
         if key in ("tracks", "orbits"):
             continue
-        attempt(key, lambda t, c=c: updates.__setitem__(c.name, parse_control(c.name, t, c.url)))
+        attempt(key, lambda t, c=c: updates.__setitem__(c.name, parse_control(c.name, t, plain_label(c.name))))
 
     def box(t: str) -> None:
         if len(t) > MAX_TEXT:

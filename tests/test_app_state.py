@@ -44,10 +44,10 @@ def test_query_round_trip() -> None:
 @pytest.mark.parametrize(
     ("query", "needle"),
     [
-        ({"alpha": "nan"}, "alpha must be finite"),
+        ({"alpha": "nan"}, "URL parameter alpha: α must be finite"),
         ({"I11": "<script>"}, "I11 must be a number"),
-        ({"periods": "99999999"}, "periods must be between"),
-        ({"n": "-1"}, "n must be between"),
+        ({"periods": "99999999"}, "URL parameter periods: Periods must be between"),
+        ({"n": "-1"}, "URL parameter n: Random initial conditions must be between"),
         ({"method": "euler"}, "must be one of dop853"),
         ({"box": "1,0,0,1"}, "qmin < qmax"),
         ({"qr": "2,1"}, "lo < hi"),

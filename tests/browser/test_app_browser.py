@@ -149,7 +149,8 @@ def test_bad_url_values_are_reported_as_text(page, app_url) -> None:
     page.on("dialog", lambda d: (dialogs.append(d.message), d.dismiss()))
     page.locator(".main-error").wait_for(state="visible", timeout=30_000)
     msg = text(page, ".main-error")
-    assert "alpha must be finite" in msg and "I11 must be a number" in msg and "not positive definite" in msg
+    assert "URL parameter alpha: α must be finite" in msg and "I11 must be a number" in msg
+    assert "not positive definite" in msg
     assert page.locator(".main-error img").count() == 0 and dialogs == []
     wait_points(page, 10)  # the rest of the URL applies
 
