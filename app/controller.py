@@ -1102,11 +1102,6 @@ class _Cadence:
         start()  # type: ignore[misc]
 
 
-def settings_text(query: dict[str, str], keys: tuple[str, ...]) -> str:
-    """The settings of ``keys`` as one header line (``key=value&...``), in the URL's form."""
-    return "&".join(f"{k}={query[k]}" for k in keys if k in query)
-
-
 def _key_words(key: str) -> str:
     c = BY_URL.get(key)
     return plain_label(c.name) if c is not None else KEY_WORDS.get(key, key)
