@@ -253,7 +253,9 @@ class BifurcationTab(AnalysisTab):
                 st.system(**{name: end})  # blank range: current ± 0.05 must be valid too
             ics = st.initial_conditions()[:4]
             if ics.shape[0] == 0:
-                raise ParameterError("no initial conditions: set random ICs above 0 or click in the section")
+                raise ParameterError(
+                    "no initial conditions: set 'Random initial conditions' above 0 or click in the section"
+                )
             scheduler = scheduler_from_env()  # BILIMOVICH_SCHEDULER: a Dask cluster runs the sweep
         except (ParameterError, SchedulerError) as exc:
             self.fail(str(exc))

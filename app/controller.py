@@ -24,6 +24,8 @@ import param
 
 from app.runner import Runner
 from app.state import (
+    BY_NAME,
+    BY_URL,
     CONTROLS,
     DENSITY_PIXELS,
     MAX_CLICKED,
@@ -35,6 +37,7 @@ from app.state import (
     ExplorerState,
     SectionRequest,
     commit,
+    plain_label,
 )
 from app.views import SectionFigure, SeriesData
 from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, basin_spec, iter_basins
@@ -75,6 +78,25 @@ ORBIT_GRID = (10, 10)
 #: Orbits listed in the table (all of them are drawn and in the CSV).
 ORBIT_ROWS = 40
 ANALYSIS_FIELDS = tuple(c.name for c in CONTROLS if c.area in TABS[1:])
+#: The URL keys (state.to_query) of the settings each result on screen depends on: what its export's header
+#: and a note on screen name when the result is not that of the controls (e.g. a Stop before the new points).
+SYSTEM_KEYS = tuple(BY_NAME[f].url for f in SYSTEM_FIELDS)
+SECTION_KEYS = (
+    *SYSTEM_KEYS,
+    *(BY_NAME[f].url if f in BY_NAME else f for f in SECTION_FIELDS[len(SYSTEM_FIELDS) :]),
+    "ics",
+)
+ORBIT_KEYS = (*SYSTEM_KEYS, "orb_n")
+VIEW_KEYS = ("qr", "rr")
+MANIFOLD_KEYS = (*SYSTEM_KEYS, "man_len", *VIEW_KEYS)
+BASIN_KEYS = (*SYSTEM_KEYS, "bas_n", *VIEW_KEYS)
+#: Words for the keys that are no control's (the view, the clicked initial conditions).
+KEY_WORDS = {
+    "qr": "q range",
+    "rr": "r range",
+    "ics": "clicked initial conditions",
+    "box": "box of the random initial conditions",
+}
 #: Longest chunk streamed to the browser: bounds how long a cancel waits.
 MAX_CHUNK = 32
 #: Time between point updates sent to the browser: starts here, doubles up to the max (seconds).
@@ -128,6 +150,16 @@ class ExplorerSession(param.Parameterized):
         self.series = series or SeriesData()
         self._on_query = on_query
         self._params: Params | None = None  # system of the data on screen
+        #: The settings (state.to_query()) each result on screen was computed with: its export's header, and
+        #: what the screen names when the controls have moved on (a Stop before the new result came).
+        self._shown_query: dict[str, str] | None = None  # the section
+        self._orbits_query: dict[str, str] | None = None
+        self._manifolds_query: dict[str, str] | None = None
+        self._basins_query: dict[str, str] | None = None
+        #: The systems of the frozen-field tracks and the T' map on screen (no text of their own: cleared
+        #: by a Stop that leaves them for another system).
+        self._tracks_params: Params | None = None
+        self._tprime_params: Params | None = None
         self._chunks: list[tuple[np.ndarray, ...]] = []
         self._n_traj = 0
         self._t_start = 0.0
@@ -263,6 +295,7 @@ class ExplorerSession(param.Parameterized):
         except ParameterError as exc:
             self.error = str(exc)
             self.runner.cancel("section")
+            self._refresh_status()  # the picture kept is of other settings: the status says which
             self._publish_query()
             return
         self.error = ""
@@ -293,8 +326,9 @@ class ExplorerSession(param.Parameterized):
         self._progress = (0, req.periods)
         self._outcome = ""
         self._run_n = req.ics.shape[0]
+        query = self.state.to_query()  # the settings of this run: its points' export header
         if req.density:
-            self._start_density(req, start_layers)
+            self._start_density(req, start_layers, query)
             return
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
@@ -307,7 +341,7 @@ class ExplorerSession(param.Parameterized):
                 cols = tuple(np.concatenate([p[i] for p in pending]) for i in range(4))
                 pending.clear()
                 replace = cadence.sent()
-                emit(lambda: self._apply_chunk(cols, status, done, total, req if replace else None))
+                emit(lambda: self._apply_chunk(cols, status, done, total, req if replace else None, query))
 
             for chunk in iter_section(
                 req.params,
@@ -332,7 +366,8 @@ class ExplorerSession(param.Parameterized):
         self.runner.start("section", job)
         self._update_reliability(req)  # a priori: the new numerics against the states on screen
 
-    def _start_density(self, req: SectionRequest, start_layers: Callable[[], None] | None) -> None:
+    def _start_density(self, req: SectionRequest, start_layers: Callable[[], None] | None,
+                       query: dict[str, str]) -> None:  # fmt: skip
         """The section as a density image of the view (binned as computed; only ``req.keep``'s points kept)."""
         self._density_req = req
 
@@ -348,7 +383,7 @@ class ExplorerSession(param.Parameterized):
                 counts = (img.points, img.in_view)
                 status, done, total = img.status.copy(), img.done_periods, img.total_periods
                 new_run = req if cadence.sent() else None
-                emit(lambda: self._apply_density(image, req.view, counts, cols, status, done, total, new_run))
+                emit(lambda: self._apply_density(image, req.view, counts, cols, status, done, total, new_run, query))
 
             for img, kept in iter_density(req.params, req.ics, req.periods, view=req.view, pixels=DENSITY_PIXELS,
                                           transient=req.transient, numerics=req.numerics, keep=req.keep,
@@ -373,11 +408,11 @@ class ExplorerSession(param.Parameterized):
 
     def _apply_density(self, image: np.ndarray, view: tuple[float, float, float, float], counts: tuple[int, int],
                        cols: tuple[np.ndarray, ...], status: np.ndarray, done: int, total: int,
-                       new_run: SectionRequest | None) -> None:  # fmt: skip
+                       new_run: SectionRequest | None, query: dict[str, str]) -> None:  # fmt: skip
         traj, k, q, r = cols
         drawn = traj < len(self.state.clicked)  # over the image only the clicked ones (the selected is ringed)
         if new_run is not None:
-            self._reset(new_run)
+            self._reset(new_run, query)
             self.fig.replace_points(traj[drawn], k[drawn], q[drawn], r[drawn])
         else:
             self.fig.stream_points(traj[drawn], k[drawn], q[drawn], r[drawn])
@@ -399,8 +434,10 @@ class ExplorerSession(param.Parameterized):
         return True
 
     def stop(self) -> None:
-        """Stop everything of the section view in flight; what was computed stays on screen."""
+        """Stop everything of the section view in flight; what was computed stays on screen, and says which
+        settings it belongs to when the controls have moved on (the new settings' results never came)."""
         stopped = self.runner.busy("section")
+        busy = {c for c in SECTION_CHANNELS if self.runner.busy(c)}
         self._layer_inputs.clear()  # a stopped layer is computed again next time
         for channel in SECTION_CHANNELS:
             self.runner.cancel(channel)
@@ -408,6 +445,35 @@ class ExplorerSession(param.Parameterized):
             self._outcome = "stopped"
             self._elapsed = time.perf_counter() - self._t_start
         self._refresh_status()
+        self._label_stopped_layers(busy)
+
+    def _label_stopped_layers(self, busy: set[str]) -> None:
+        """After a Stop: each layer's status says whether what it shows is of the controls' settings."""
+        now = self.state.to_query()
+        if self.state.show_orbits and (busy & {"orbit", "orbits"} or self._orbits):
+            note = stale_note(self._orbits_query, now, ORBIT_KEYS) if self._orbits else ""
+            if note:
+                self.orbit_status = f"stopped: the {len(self._orbits)} periodic orbits shown are for {note}"
+            elif busy & {"orbit", "orbits"}:
+                self.orbit_status = f"stopped: {len(self._orbits)} periodic orbits shown (the search did not end)"
+        if self.state.manifold_saddles:
+            note = stale_note(self._manifolds_query, now, MANIFOLD_KEYS) if self._manifolds else ""
+            if note:
+                self.manifold_status = f"stopped: the manifolds shown are for {note}"
+            elif "manifolds" in busy:
+                self.manifold_status = "stopped: " + self.manifold_status.removeprefix("growing… ")
+        if self.state.show_basins:
+            note = stale_note(self._basins_query, now, BASIN_KEYS)
+            if note:
+                self.basin_status = f"stopped: the basins shown are for {note}"
+            elif "basins" in busy:
+                shown = self._basins_query is not None
+                self.basin_status = "stopped: " + (self.basin_status if shown else "no basins computed yet")
+        system = self._system()
+        if self._tracks_params is not None and self._tracks_params != system:
+            self._show_tracks(None, [], None)  # no text says whose they are: not left under other settings
+        if self._tprime_params is not None and self._tprime_params != system:
+            self._show_tprime(None, None, "")
 
     def failed_job(self, channel: str, exc: BaseException) -> None:
         """A job of the section view raised (document thread): say so; nothing stays "computing"."""
@@ -418,8 +484,9 @@ class ExplorerSession(param.Parameterized):
             self._outcome = "failed"
             self._refresh_status()
 
-    def _reset(self, req: SectionRequest) -> None:
+    def _reset(self, req: SectionRequest, query: dict[str, str]) -> None:
         self._params = req.params
+        self._shown_query = query
         self._chunks = []
         if not req.density:
             self._density = None
@@ -434,14 +501,20 @@ class ExplorerSession(param.Parameterized):
         self.series.set(*(np.zeros(0),) * 4)
 
     def _apply_chunk(
-        self, cols: tuple[np.ndarray, ...], status: np.ndarray, done: int, total: int, new_run: SectionRequest | None
+        self,
+        cols: tuple[np.ndarray, ...],
+        status: np.ndarray,
+        done: int,
+        total: int,
+        new_run: SectionRequest | None,
+        query: dict[str, str],
     ) -> None:
         traj, k, q, r = cols
         if new_run is not None:
             # The old picture stays until the new run's first points replace it, in one
             # update: no blank plot, and the browser redraws once, not twice.
             self._trace("first chunk on the document thread")
-            self._reset(new_run)
+            self._reset(new_run, query)
             self._chunks.append(cols)
             self.fig.replace_points(traj, k, q, r)
         else:
@@ -507,6 +580,11 @@ class ExplorerSession(param.Parameterized):
             parts.append(f"{len(failed)} failed")
         if not running and self._outcome:
             parts.append(self._outcome)
+        if not running and (n_points or self._density is not None):
+            keys = (*SECTION_KEYS, *VIEW_KEYS) if self._density is not None else SECTION_KEYS
+            note = stale_note(self._shown_query, self.state.to_query(), keys)
+            if note:
+                parts.append(f"the picture is for {note}")
         shown = n_points or n_traj or running or self._outcome or self._density
         self.status = " · ".join(parts) if shown else ""
 
@@ -594,6 +672,7 @@ class ExplorerSession(param.Parameterized):
             return
         seed = (float(q), float(r))
         st.orbit_seeds = [*st.orbit_seeds, seed]
+        query = st.to_query()
         if not st.show_orbits:
             st.show_orbits = True  # recomputes every seed, this one included
             return
@@ -602,7 +681,7 @@ class ExplorerSession(param.Parameterized):
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
             res = find_orbits(params, [seed], periods, cancel=cancelled)
             if not cancelled():
-                emit(lambda: self._merge_orbits(params, res, f"from ({q:.4g}, {r:.4g})"))
+                emit(lambda: self._merge_orbits(params, res, f"from ({q:.4g}, {r:.4g})", query))
 
         # One job per click, all kept: a second click does not cancel the first.
         self.runner.start("orbit", job, bump=False)
@@ -625,6 +704,7 @@ class ExplorerSession(param.Parameterized):
         self.runner.cancel("orbits")
         self.state.param.update(orbit_seeds=[], orbit_view=False)
         self._orbits = []
+        self._orbits_query = None
         self.orbit_status = ""
         self._show_orbits()
         self._publish_query()
@@ -639,6 +719,7 @@ class ExplorerSession(param.Parameterized):
         if not st.show_orbits or not seeds:
             self.runner.cancel("orbits")
             self._orbits = []
+            self._orbits_query = None
             self.orbit_status = ""
             self._show_orbits()
             return
@@ -646,24 +727,28 @@ class ExplorerSession(param.Parameterized):
         if params is None:
             return
         periods = list(range(1, st.orbit_period + 1))
-        box = (*st.q_range, *st.r_range)
-        self.orbit_status = f"finding periodic orbits (periods 1..{st.orbit_period}) from {len(seeds)} seeds…"
+        query = st.to_query()
+        self.orbit_status = (f"finding periodic orbits (periods 1..{st.orbit_period}) from {len(seeds)} starting "
+                             "points…")  # fmt: skip
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
             res = find_orbits(params, seeds, periods, cancel=cancelled)
             if cancelled():
                 return
-            emit(lambda: self._set_orbits(params, res, box))
+            emit(lambda: self._set_orbits(params, res, query))
 
         self.runner.start("orbits", job)
 
-    def _set_orbits(self, params: Params, res: OrbitSearch, box: tuple[float, ...]) -> None:
+    def _set_orbits(self, params: Params, res: OrbitSearch, query: dict[str, str]) -> None:
         self._orbits = []
-        self._merge_orbits(params, res, "")
+        self._merge_orbits(params, res, "", query)
 
-    def _merge_orbits(self, params: Params, res: OrbitSearch, where: str) -> None:
+    def _merge_orbits(self, params: Params, res: OrbitSearch, where: str, query: dict[str, str]) -> None:
         if params != self._system():
             return  # found for a system no longer on screen
+        if stale_note(self._orbits_query, query, SYSTEM_KEYS):
+            self._orbits = []  # those on screen are another system's (a Stop kept them): never mixed
+        self._orbits_query = query
         new = [o for o in res.orbits if not any(same_orbit(o, k) for k in self._orbits)]
         self._orbits = sorted([*self._orbits, *new], key=lambda o: (o.period, float(o.points[0, 0])))
         self._show_orbits()
@@ -677,8 +762,11 @@ class ExplorerSession(param.Parameterized):
                 reason = res.failures[0].reason if res.failures else "nothing found"
                 self.orbit_status = f"{where}: no orbit of period ≤ {max(res.extra.get('periods', [0]))} ({reason})"
         else:
-            self.orbit_status = (f"{len(self._orbits)} periodic orbits; {len(res.failures)} seed-period pairs found "
-                                 f"none ({res.elapsed_s:.2f} s)")  # fmt: skip
+            periods = list(res.extra.get("periods", [])) or [0]
+            tries = res.seeds * len(periods)
+            self.orbit_status = (f"{len(self._orbits)} periodic orbits of period 1..{max(periods)} from {res.seeds} "
+                                 f"starting points ({len(res.failures)} of the {tries} Newton searches, one per "
+                                 f"starting point and period, found none; {res.elapsed_s:.2f} s)")  # fmt: skip
 
     def _show_orbits(self) -> None:
         rows = [orbit_row(o) for o in self._orbits]
@@ -688,14 +776,14 @@ class ExplorerSession(param.Parameterized):
     def orbits_csv(self) -> io.BytesIO:
         """The orbits on screen as CSV (one row per orbit point), the settings in a comment header."""
         buf = io.StringIO()
-        settings = "&".join(f"{a}={b}" for a, b in self.state.to_query().items())
+        settings = "&".join(f"{a}={b}" for a, b in (self._orbits_query or self.state.to_query()).items())
         buf.write("# Bilimovich Explorer periodic orbits; " + settings)
         buf.write("\norbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im,det,liouville,residual\n")
         for i, o in enumerate(self._orbits):
             m = o.multipliers
             for j, (q, r) in enumerate(o.points):
-                buf.write(f"{i},{o.period},{o.kind},{int(o.stable)},{j},{q!r},{r!r},{m[0].real!r},{m[0].imag!r},"
-                          f"{m[1].real!r},{m[1].imag!r},{o.det!r},{o.liouville!r},{o.residual!r}\n")  # fmt: skip
+                nums = (q, r, m[0].real, m[0].imag, m[1].real, m[1].imag, o.det, o.liouville, o.residual)
+                buf.write(f"{i},{int(o.period)},{o.kind},{int(o.stable)},{j},{','.join(_num(x) for x in nums)}\n")
         return io.BytesIO(buf.getvalue().encode())
 
     # --- stable and unstable manifolds of saddles ----------------------------------------------
@@ -745,12 +833,14 @@ class ExplorerSession(param.Parameterized):
         params = self._system()
         view = (*st.q_range, *st.r_range)
         length = float(st.manifold_length)
+        query = st.to_query()
         if not self._new_inputs("manifolds", (params, view, tuple(saddles), length) if saddles and params else None):
             return  # these manifolds are on screen or on their way (only the section's settings changed)
         self.runner.cancel("manifolds")
         if not saddles:
             self.n_manifolds = 0
             self._manifolds = []
+            self._manifolds_query = None
             self.manifold_status = ""
             self.fig.set_manifolds([], [])
             return
@@ -775,17 +865,18 @@ class ExplorerSession(param.Parameterized):
                     text = "; ".join([*(_manifold_text(x) for x in shown), *notes])
                     if not m.completed:
                         text = "growing… " + text
-                    emit(lambda s=shown, t=text: self._show_manifolds(params, s, t))
+                    emit(lambda s=shown, t=text: self._show_manifolds(params, s, t, query))
                 done.append(m)
             if not done:
-                emit(lambda: self._show_manifolds(params, [], "; ".join(notes)))
+                emit(lambda: self._show_manifolds(params, [], "; ".join(notes), query))
 
         self.runner.start("manifolds", job)
 
-    def _show_manifolds(self, params: Params, shown: list[Manifolds], text: str) -> None:
+    def _show_manifolds(self, params: Params, shown: list[Manifolds], text: str, query: dict[str, str]) -> None:
         if params != self._system():
             return  # grown for a system no longer on screen
         self._manifolds = shown
+        self._manifolds_query = query
         self.n_manifolds = len(shown)  # on screen (the CSV download offers exactly these)
         lines = [(p[:, 1], p[:, 2], b.kind) for m in shown for b in m.branches for p in b.pieces]
         marks = [(c.q, c.r, f"{c.kind}: unstable {c.unstable}, stable {c.stable}") for m in shown for c in m.crossings]
@@ -795,11 +886,12 @@ class ExplorerSession(param.Parameterized):
     def manifolds_csv(self) -> io.BytesIO:
         """The manifolds on screen as CSV ``saddle,branch,kind,s,q,r`` with the settings in a comment header."""
         buf = io.StringIO()
-        buf.write("# Bilimovich Explorer manifolds; " + "&".join(f"{a}={b}" for a, b in self.state.to_query().items()))
+        settings = self._manifolds_query or self.state.to_query()
+        buf.write("# Bilimovich Explorer manifolds; " + "&".join(f"{a}={b}" for a, b in settings.items()))
         buf.write("\nsaddle,branch,kind,s,q,r\n")
         for i, m in enumerate(self._manifolds):
             for label, kind, s_, q, r in m.rows():
-                buf.write(f"{i},{label},{kind},{s_!r},{q!r},{r!r}\n")
+                buf.write(f"{i},{label},{kind},{_num(s_)},{_num(q)},{_num(r)}\n")
         return io.BytesIO(buf.getvalue().encode())
 
     # --- basins of attraction over the view ----------------------------------------------------
@@ -810,12 +902,14 @@ class ExplorerSession(param.Parameterized):
         params = self._system()
         box = (*st.q_range, *st.r_range)
         n = st.basin_grid
+        query = st.to_query()
         if not self._new_inputs("basins", (params, box, n) if st.show_basins and params else None):
             return  # these basins are on screen or on their way (only the section's settings changed)
         self.runner.cancel("basins")
         if not st.show_basins:
             self.fig.set_basins(None)
             self.basin_status, self.basin_legend = "", []
+            self._basins_query = None
             return
         if params is None:
             return  # the error is already shown by recompute
@@ -832,13 +926,15 @@ class ExplorerSession(param.Parameterized):
                     return
                 b = upd.basins
                 done = f"{upd.done_pixels}/{upd.total_pixels}"
-                emit(lambda b=b, d=done: self._show_basins(params, box, b, d))
+                emit(lambda b=b, d=done: self._show_basins(params, box, b, d, query))
 
         self.runner.start("basins", job)
 
-    def _show_basins(self, params: Params, box: tuple[float, ...], b: Basins, done: str) -> None:
+    def _show_basins(self, params: Params, box: tuple[float, ...], b: Basins, done: str,
+                     query: dict[str, str]) -> None:  # fmt: skip
         if params != self._system() or box != (*self.state.q_range, *self.state.r_range):
             return  # for a system or a view no longer on screen
+        self._basins_query = query
         labels = b.filled()
         colours = {a.id: BASIN_COLOURS[i % len(BASIN_COLOURS)] for i, a in enumerate(b.attractors)}
         colours.update(OUTCOME_COLOURS)
@@ -881,30 +977,45 @@ class ExplorerSession(param.Parameterized):
 
             def tracks_job(cancelled, emit) -> None:
                 if not show_tracks:
-                    emit(lambda: (self.fig.set_tracks([]), self.fig.set_equilibria([], [], ())))
+                    emit(lambda: self._show_tracks(None, [], None))
                     return
                 tr = equilibrium_tracks(params, n_t=TRACK_SAMPLES, cancel=cancelled)
                 if not tr.completed:  # a newer setting: its own tracks job is on the way
                     return
                 segments = _segments_by_type(tr.branches())
                 at_t0 = tr.section()
-                emit(lambda: (self.fig.set_tracks(segments), self.fig.set_equilibria(at_t0.q, at_t0.r, at_t0.types)))
+                emit(lambda: self._show_tracks(params, segments, at_t0))
 
             self.runner.start("tracks", tracks_job)
 
         def tprime_job(cancelled, emit) -> None:
             if not show_tp:
-                emit(lambda: self.fig.set_tprime(None, np.zeros(0), np.zeros(0), ""))
+                emit(lambda: self._show_tprime(None, None, ""))
                 return
             if kind == "per-period":
                 m = energy_change_map(params, q_range, r_range, PER_PERIOD_GRID, numerics=numerics)
-                title = "T(t0+T) − T(t0) — red: energy gained over a period, blue: lost"
+                title = "ΔT over a period: red gain, blue loss"  # fits the plot's height at 1280x720
             else:
                 m = tprime_map(params, params.t0, q_range, r_range, TPRIME_GRID)
-                title = "T′ at the section phase — red: energy gain, blue: loss"
-            emit(lambda: self.fig.set_tprime(m.values, m.q, m.r, title))
+                title = "T′ at t0: red energy gain, blue loss"
+            emit(lambda: self._show_tprime(params, m, title))
 
         self.runner.start("tprime", tprime_job)
+
+    def _show_tracks(self, params: Params | None, segments: list, at_t0: Any) -> None:
+        self._tracks_params = params
+        self.fig.set_tracks(segments)
+        if at_t0 is None:
+            self.fig.set_equilibria([], [], ())
+        else:
+            self.fig.set_equilibria(at_t0.q, at_t0.r, at_t0.types)
+
+    def _show_tprime(self, params: Params | None, m: Any, title: str) -> None:
+        self._tprime_params = params
+        if m is None:
+            self.fig.set_tprime(None, np.zeros(0), np.zeros(0), "")
+        else:
+            self.fig.set_tprime(m.values, m.q, m.r, title)
 
     # --- data out ------------------------------------------------------------------------------
 
@@ -936,7 +1047,8 @@ class ExplorerSession(param.Parameterized):
         """The section on screen as CSV ``traj,k,q,r`` with the settings in a comment header."""
         traj, k, q, r = self.data()
         buf = io.StringIO()
-        buf.write("# Bilimovich Explorer section; " + "&".join(f"{a}={b}" for a, b in self.state.to_query().items()))
+        settings = self._shown_query or self.state.to_query()
+        buf.write("# Bilimovich Explorer section; " + "&".join(f"{a}={b}" for a, b in settings.items()))
         if self._density is not None:
             buf.write(f"\n# a density view: only the trajectories drawn as points (clicked, selected); the image "
                       f"holds {self._density[0]} points")  # fmt: skip
@@ -987,6 +1099,33 @@ class _Cadence:
     def _start_layers(self) -> None:
         start, self._layers = self._layers, None
         start()  # type: ignore[misc]
+
+
+def _key_words(key: str) -> str:
+    c = BY_URL.get(key)
+    return plain_label(c.name) if c is not None else KEY_WORDS.get(key, key)
+
+
+def stale_note(then: dict[str, str] | None, now: dict[str, str], keys: tuple[str, ...], most: int = 3) -> str:
+    """ "" when the settings ``keys`` of a result (``then``) are those in use (``now``); else what differs, in
+    the controls' words: "α = 0.1 (the controls: 0.3)"."""
+    if then is None:
+        return ""
+    diff = [k for k in keys if then.get(k) != now.get(k)]
+    parts = [f"{_key_words(k)} = {_short(then.get(k))} (the controls: {_short(now.get(k))})" for k in diff[:most]]
+    if len(diff) > most:
+        parts.append(f"and {len(diff) - most} more settings")
+    return ", ".join(parts)
+
+
+def _num(x: Any) -> str:
+    """A number for a CSV cell: the shortest text that reads back to the same float (never ``np.float64(…)``)."""
+    return repr(float(x))
+
+
+def _short(v: str | None, limit: int = 40) -> str:
+    v = v or "(none)"
+    return v if len(v) <= limit else v[: limit - 1] + "…"
 
 
 def _plain(exc: BaseException, limit: int = 300) -> str:

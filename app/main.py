@@ -12,6 +12,7 @@ import urllib.parse
 from typing import Any
 
 import panel as pn
+from panel.io.location import Location
 
 from app import pacing, warm
 from app.page import Page
@@ -22,12 +23,34 @@ from app.page import Page
 pn.extension(notifications=False)
 
 
-def create_app() -> Any:
-    """Build one session's page (its root component)."""
+class AppLocation(Location):
+    """The page's URL, written by the app (:func:`publish`) and never parsed by Panel.
+
+    Panel parses the query of every URL it is given (``panel.util.parse_query``): ``int()`` on any value
+    of digits (``?n=²`` or 5000 digits raise, the page is blank and the server logs a traceback), JSON or
+    ``literal_eval`` on ``[``/``{`` values (``?ics=[1,2]`` arrived as the list ``[1, 2]``). The app reads
+    the raw query itself (:func:`raw_query`, then :func:`app.state.parse_query`, which reports every bad
+    value by its key) and syncs no parameter through Panel, so nothing here needs Panel's parsing.
+    """
+
+    def _update_synced(self, event: Any = None) -> None:
+        if self._synced:  # nothing of the app is synced through Panel; kept for any other use
+            super()._update_synced(event)
+
+
+def raw_query(request: Any) -> dict[str, list[bytes]]:
+    """The URL's query as the server received it (key -> raw values), without Panel's parsing."""
+    args = getattr(request, "arguments", None) or {}
+    return {str(k): list(v) if isinstance(v, list | tuple) else [v] for k, v in args.items()}
+
+
+def create_app() -> tuple[Any, Location | None]:
+    """Build one session's page: its root component, and the location the app writes the URL to."""
     warm.start()
-    query = dict(pn.state.location.query_params) if pn.state.location else {}
     doc = pn.state.curdoc
-    location = pn.state.location
+    request = doc.session_context.request if doc is not None and doc.session_context is not None else None
+    query = raw_query(request)
+    location = AppLocation.from_request(request) if request is not None else None
 
     def deliver(fn) -> None:
         if doc is None:
@@ -60,7 +83,7 @@ def create_app() -> Any:
     # callbacks on its thread pool; the start changes models (e.g. clears the orbits layer), which
     # only the document's thread may do.
     pn.state.onload(lambda: deliver(page.start))
-    return page.ui
+    return page.ui, location
 
 
 def local_stylesheets(doc: Any) -> None:
@@ -80,7 +103,8 @@ def local_stylesheets(doc: Any) -> None:
 
 if __name__.startswith("bokeh_app") or __name__ == "__main__":
     try:
-        create_app().servable(title="Bilimovich Explorer")
+        ui, location = create_app()
+        ui.servable(title="Bilimovich Explorer", location=location if location is not None else True)
         if pn.state.curdoc is not None:
             local_stylesheets(pn.state.curdoc)
     finally:

@@ -25,7 +25,7 @@ from app.analyses import AnalysisTab, BifurcationTab, ChartTab, LyapunovTab
 from app.bench_tab import BenchTab
 from app.controller import SECTION_CHANNELS, ExplorerSession
 from app.runner import FairScheduler, Runner
-from app.state import BY_NAME, CONTROLS, TABS, state_from_query
+from app.state import BY_NAME, BY_URL, CONTROLS, TABS, state_from_query
 from app.ui import ExplorerUI
 from app.views import SectionFigure, SeriesData
 from explorer_core.scenes import get_scene
@@ -139,8 +139,9 @@ class Page:
             self.messages[name] = problem
         else:
             self.messages.pop(name, None)
-            if name == "scene":
+            if name == "scene":  # a new scene sets every control: no earlier refusal is about a value in use
                 self.messages.clear()
+                self.url_errors = []
             self.url_errors = [e for e in self.url_errors if not _about(e, name)]
         self.ui.param.update(messages=dict(self.messages), committed=name, revision=self.ui.revision + 1,
                              values=self._values())  # fmt: skip
@@ -219,6 +220,8 @@ class Page:
             self.ui.tab = self.state.tab
             if self.state.tab in TAB_CLASSES:
                 self._open_tab(self.state.tab)
+            else:
+                self._refresh_views()  # the section's URL errors leave the analysis tab's view
         if "presentation" in names:
             on = self.state.presentation
             self.ui.presentation = on
@@ -236,7 +239,7 @@ class Page:
 
     def _section_view(self) -> dict[str, Any]:
         s, st = self.session, self.state
-        errors = [m for m in (s.error, *self.url_errors) if m]
+        errors = [m for m in (s.error, *self._url_errors_of("section")) if m]
         errors += [m for n, m in self.messages.items() if BY_NAME[n].area not in TAB_CLASSES]
         status = s.status
         if s.escaped:
@@ -279,9 +282,18 @@ class Page:
         tab = self.tabs[name]
         v = dict(tab.view)
         errors = [v.pop("error", "")] + [m for n, m in self.messages.items() if BY_NAME[n].area == name]
+        # The URL's refusals of this tab's settings are shown here, where they matter (with the value used
+        # instead); those of the system it analyses too while the tab is the one open.
+        errors += self._url_errors_of(name)
+        if self.state.tab == name:
+            errors += self._url_errors_of("section")
         v["errors"] = [e for e in errors if e]
         v["running"] = self.runner.busy(name)
         return v
+
+    def _url_errors_of(self, tab: str) -> list[str]:
+        """The URL's errors about the settings of ``tab`` ("section": every one not about an analysis tab)."""
+        return [e for e in self.url_errors if _url_tab(e) == tab]
 
     def _refresh_views(self) -> None:
         view = {"section": self._section_view()}
@@ -296,6 +308,14 @@ class Page:
         if tab == "section":
             return any(self.runner.busy(c) for c in SECTION_CHANNELS)
         return self.runner.busy(tab)
+
+
+def _url_tab(message: str) -> str:
+    """The tab whose setting a URL error message is about (by the URL key it names): an analysis tab, or
+    "section" (the system, the numerics, the layers and the view)."""
+    key = message.removeprefix("URL parameter ").split(":", 1)[0]
+    c = BY_URL.get(key)
+    return c.area if c is not None and c.area in TAB_CLASSES else "section"
 
 
 def _about(message: str, name: str) -> bool:

@@ -370,6 +370,13 @@ BY_NAME: dict[str, Control] = {c.name: c for c in CONTROLS}
 BY_URL: dict[str, Control] = {c.url: c for c in CONTROLS if c.url}
 
 
+def plain_label(name: str) -> str:
+    """The words a control shows for itself, without its parenthesised help: what messages call it
+    ("Random initial conditions", not the attribute ``n_random``)."""
+    c = BY_NAME.get(name)
+    return c.label.split(" (")[0].strip() if c is not None else name
+
+
 class ExplorerState(param.Parameterized):
     """Control values in use of one session (the URL carries all of them)."""
 
@@ -534,7 +541,7 @@ class ExplorerState(param.Parameterized):
         params = self.system()
         ics = self.initial_conditions()
         if ics.shape[0] == 0:
-            raise ParameterError("no initial conditions: set 'random ICs' above 0 or click in the plot")
+            raise ParameterError("no initial conditions: set 'Random initial conditions' above 0 or click in the plot")
         self.check_work(ics.shape[0], self.periods)
         if not self.density_view(ics.shape[0]):
             return SectionRequest(params, ics, self.periods, self.transient, self.numerics())
@@ -575,7 +582,9 @@ class ExplorerState(param.Parameterized):
         elif name == "render":
             self.check_work(max(1, self.n_trajectories()), self.periods, value)
         elif name == "selected" and value >= max(1, self.n_trajectories()):
-            raise ParameterError(f"selected must be a trajectory 0..{self.n_trajectories() - 1}, got {value}")
+            raise ParameterError(
+                f"{plain_label(name)} must be a trajectory 0..{self.n_trajectories() - 1}, got {value}"
+            )
         elif name in ("bif_range", "chart_xrange", "chart_yrange") and value:
             p = {"bif_range": self.bif_param, "chart_xrange": self.chart_x, "chart_yrange": self.chart_y}[name]
             for end in value:  # the set of valid values of one parameter is an interval: its ends suffice
@@ -653,7 +662,7 @@ _ID = re.compile(r"^[A-Za-z0-9_.-]{1,40}$")
 def parse_control(name: str, text: Any, label: str | None = None) -> Any:
     """A control's text as its value; ParameterError naming the value when it is malformed or out of range.
 
-    ``label`` names the value in messages (the URL key for URL values; the control's name otherwise).
+    ``label`` names the value in messages (the control's own words, :func:`plain_label`; its name by default).
     """
     c = BY_NAME[name]
     label = label or name
@@ -695,15 +704,16 @@ def commit(state: ExplorerState, name: str, text: Any) -> str | None:
     """
     if name not in BY_NAME:
         return f"unknown control {str(name)[:40]!r}"
+    label = plain_label(name)
     try:
-        value = parse_control(name, text)
+        value = parse_control(name, text, label)
         if name == "scene":
             if value != "custom" and value != state.scene:
                 state.apply_scene(value)
             return None
         state.check(name, value)
     except ParameterError as exc:
-        return f"{exc} — still using {name} = {_shown(state.display(name))}"
+        return f"{exc} — still using {label} = {_shown(state.display(name))}"
     if getattr(state, name) != value:
         if name in SYSTEM_FIELDS:
             state.param.update(**{name: value, "scene": "custom"})
@@ -752,7 +762,7 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
     for key, c in BY_URL.items():
         if key in ("tracks", "orbits"):
             continue
-        attempt(key, lambda t, c=c: updates.__setitem__(c.name, parse_control(c.name, t, c.url)))
+        attempt(key, lambda t, c=c: updates.__setitem__(c.name, parse_control(c.name, t, plain_label(c.name))))
 
     def box(t: str) -> None:
         if len(t) > MAX_TEXT:
@@ -852,7 +862,7 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
                 state.check(name, value)
         except ParameterError as exc:
             kept = _shown(state.display(name)) if name in BY_NAME else "the scene's"
-            errors.append(f"URL parameter {key_of.get(name, name)}: {exc}; using {name} = {kept}")
+            errors.append(f"URL parameter {key_of.get(name, name)}: {exc}; using {plain_label(name)} = {kept}")
             continue
         changed_system |= name in SYSTEM_FIELDS and float(value) != float(getattr(state, name))
         setattr(state, name, value)
@@ -860,4 +870,13 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
         state.scene = "custom"
     if state.selected >= max(1, state.n_trajectories()):
         state.selected = 0
-    return state, errors
+    return state, [_with_value_used(state, e) for e in errors]
+
+
+def _with_value_used(state: ExplorerState, message: str) -> str:
+    """A URL error that does not yet say which value is used instead, saying it (the scene's or the default)."""
+    key = message.removeprefix("URL parameter ").split(":", 1)[0]
+    c = BY_URL.get(key)
+    if c is None or "; using " in message:
+        return message
+    return f"{message}; using {plain_label(c.name)} = {_shown(state.display(c.name))}"

@@ -57,7 +57,7 @@ button.act[hidden] { display: none; }
 .warn-box.level-error { color: #842029; background: #f8d7da; border-color: #f5c2c7; }
 .status-line { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: .95em; min-height: 1.3em;
   white-space: pre-wrap; flex: none; }
-.plots { flex: 1 1 auto; min-height: 380px; display: grid; grid-template-columns: minmax(0, 3fr) minmax(240px, 2fr);
+.plots { flex: 1 1 auto; min-height: 300px; display: grid; grid-template-columns: minmax(0, 3fr) minmax(240px, 2fr);
   gap: 10px; }
 .plot-section, .plot-series, .plot-analysis { min-height: 0; min-width: 0; position: relative; display: flex; }
 .plot-series { flex-direction: column; }
@@ -78,7 +78,7 @@ button.act[hidden] { display: none; }
 progress { width: 100%; height: 10px; }
 progress[hidden] { display: none; }
 .result div { margin: 1px 0; }
-.orbits { max-height: 9.5em; overflow-y: auto; border-top: 1px solid #d8dde5; }
+.orbits { flex: none; max-height: 6.6em; overflow: auto; border-top: 1px solid #d8dde5; }
 .orbits[hidden] { display: none; }
 .legend[hidden] { display: none; }
 .orbits table { border-collapse: collapse; font-size: .92em; width: 100%; }
@@ -154,7 +154,14 @@ export function render({model, el}) {
       entry.set = (v) => { box.checked = !!v }
     }
     for (const inp of entry.inputs || []) {
-      const go = () => { if (inp.value !== inp.dataset.sent) { inp.dataset.sent = inp.value; commit(spec.name, inp.value) } }
+      // Sent when changed, and always while the control shows a refusal: retyping the value in use answers it
+      // (the server clears the message), even though the box already showed that value.
+      const go = () => {
+        if (inp.value !== inp.dataset.sent || wrap.classList.contains("refused")) {
+          inp.dataset.sent = inp.value
+          commit(spec.name, inp.value)
+        }
+      }
       inp.addEventListener("change", go)
       inp.addEventListener("keydown", (e) => { if (e.key === "Enter") go() })
     }
@@ -284,6 +291,32 @@ export function render({model, el}) {
   }
   place(plotSection, "section_plot")
   place(plotAnalysis, "analysis_plot")
+
+  // The section plot gains hover tools when a layer (orbits, manifolds) is first drawn. BokehJS rebuilds the
+  // toolbar then without laying the plot out again: the toolbar lands below the page and the legend at the
+  // canvas corner (8 of 10 loads). Lay the plot out again after every change of its tools.
+  function relayoutOnNewTools(tries = 0) {
+    const doc = window.Bokeh && Bokeh.documents && Bokeh.documents[0]
+    const fig = doc && doc.get_model_by_name("section_figure")
+    if (!fig) {
+      if (tries < 600) setTimeout(() => relayoutOnNewTools(tries + 1), 100)
+      return
+    }
+    const views = (v, out) => {
+      if (v.model === fig) out.push(v)
+      for (const c of v.child_views || []) views(c, out)
+      return out
+    }
+    const relayout = () => requestAnimationFrame(() => {
+      for (const root of Object.values(Bokeh.index || {})) for (const v of views(root, [])) v.invalidate_layout()
+    })
+    fig.toolbar.properties.tools.change.connect(relayout)
+    fig.properties.toolbar.change.connect(() => {
+      fig.toolbar.properties.tools.change.connect(relayout)
+      relayout()
+    })
+  }
+  relayoutOnNewTools()
 
   // --- the k-series of the selected trajectory: three small SVG charts sharing the k axis -------------
   const SVG = "http://www.w3.org/2000/svg"

@@ -44,10 +44,10 @@ def test_query_round_trip() -> None:
 @pytest.mark.parametrize(
     ("query", "needle"),
     [
-        ({"alpha": "nan"}, "alpha must be finite"),
+        ({"alpha": "nan"}, "URL parameter alpha: α must be finite"),
         ({"I11": "<script>"}, "I11 must be a number"),
-        ({"periods": "99999999"}, "periods must be between"),
-        ({"n": "-1"}, "n must be between"),
+        ({"periods": "99999999"}, "URL parameter periods: Periods must be between"),
+        ({"n": "-1"}, "URL parameter n: Random initial conditions must be between"),
         ({"method": "euler"}, "must be one of dop853"),
         ({"box": "1,0,0,1"}, "qmin < qmax"),
         ({"qr": "2,1"}, "lo < hi"),
@@ -78,15 +78,15 @@ def test_typed_values_are_applied_or_refused_with_the_value_in_use_named() -> No
     for name, text, needle in [
         ("I11", "0", "not positive definite"),
         ("I11", "", "I11 is empty"),
-        ("alpha", "nan", "alpha must be finite"),
+        ("alpha", "nan", "α must be finite"),
         ("omega", "-1", "omega must be > 0"),
-        ("periods", "0", "periods must be between 1 and 100000"),
-        ("periods", "2.5", "periods must be a whole number"),
-        ("n_random", "20000", "n_random must be between 0 and 10000"),
-        ("method", "euler", "method must be one of dop853"),
-        ("chart_grid", "500,3", "chart_grid must be between 2 and 120"),
+        ("periods", "0", "Periods must be between 1 and 100000"),
+        ("periods", "2.5", "Periods must be a whole number"),
+        ("n_random", "20000", "Random initial conditions must be between 0 and 10000"),
+        ("method", "euler", "Method must be one of dop853"),
+        ("chart_grid", "500,3", "grid NX,NY must be between 2 and 120"),
         ("bif_range", "1e300,1e301", "within ±1e+06"),
-        ("lyap_ic", "a,b", "lyap_ic must be a number"),
+        ("lyap_ic", "a,b", "Initial condition q,r must be a number"),
     ]:
         before = getattr(sess.state, name)
         msg = sess.commit(name, text)

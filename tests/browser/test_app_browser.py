@@ -98,7 +98,7 @@ def test_a_refused_value_shows_the_value_in_use_and_why(page, app_url) -> None:
     assert "still using I12 = 0" in msg.inner_text()
     assert box_value(page, "I12") == "0"  # the box shows the value in use, not the refused one
     assert "not positive definite" in text(page, ".main-error")  # and the main area says it too
-    for field, typed, kept, needle in [("periods", "", "50", "periods is empty"), ("I11", "nan", "1", "finite"),
+    for field, typed, kept, needle in [("periods", "", "50", "Periods is empty"), ("I11", "nan", "1", "finite"),
                                        ("n_random", "20000", "4", "between 0 and 10000")]:  # fmt: skip
         set_number(page, field, typed)
         page.locator(f".ctl-{field} .ctl-msg").wait_for(state="visible", timeout=30_000)
@@ -149,7 +149,8 @@ def test_bad_url_values_are_reported_as_text(page, app_url) -> None:
     page.on("dialog", lambda d: (dialogs.append(d.message), d.dismiss()))
     page.locator(".main-error").wait_for(state="visible", timeout=30_000)
     msg = text(page, ".main-error")
-    assert "alpha must be finite" in msg and "I11 must be a number" in msg and "not positive definite" in msg
+    assert "URL parameter alpha: α must be finite" in msg and "I11 must be a number" in msg
+    assert "not positive definite" in msg
     assert page.locator(".main-error img").count() == 0 and dialogs == []
     wait_points(page, 10)  # the rest of the URL applies
 
