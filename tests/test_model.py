@@ -141,3 +141,18 @@ def test_tables_scaled_by_powers_of_alpha_equal_a_build_at_alpha(alpha: float) -
     p = Params(inertia=(1.3, 2.1, 4.2, 0.1, 0.5, 0.3), alpha=alpha)
     for fast, direct in zip(build_tables(p), tensor_tables(p), strict=True):
         np.testing.assert_allclose(fast, direct, rtol=1e-14, atol=1e-15 * np.abs(direct).max())
+
+
+@pytest.mark.parametrize(
+    ("inertia", "reason"),
+    [
+        ((1e13, 2, 4, 0, 0, 0), "too ill-conditioned"),  # positive definite: not "off-diagonal too large"
+        ((0, 2, 4, 0, 0, 0), "I11 <= 0"),
+        ((1, 2, -4, 0, 0, 0), "I33 <= 0"),
+        ((1, 2, 4, 3, 0, 0), "off-diagonal entries are too large"),
+    ],
+)
+def test_a_refused_tensor_gives_the_right_reason(inertia, reason) -> None:
+    with pytest.raises(ParameterError, match=reason) as err:
+        Params(inertia=inertia)
+    assert ("off-diagonal" in str(err.value)) == (reason.startswith("off-diagonal"))

@@ -150,11 +150,19 @@ def _check_positive_definite(m: np.ndarray, ent: tuple[float, ...]) -> None:
     eig = _eigenvalues(ent)
     # Relative threshold: a tensor this close to singular makes lambda's
     # denominator vanish and the reduced field meaningless.
-    if eig[0] <= 1e-12 * max(1.0, float(np.max(np.abs(eig)))):
+    top = max(1.0, float(np.max(np.abs(eig))))
+    if eig[0] <= 1e-12 * top:
         txt = ", ".join(f"{n}={v:g}" for n, v in zip(INERTIA_NAMES, ent, strict=True))
+        if eig[0] > 0:  # positive definite, but the smallest moment is lost in the rounding of the largest
+            why = f"its moments span more than 12 orders of magnitude (largest {top:.6g}): numerically singular"
+            raise ParameterError(
+                f"inertia tensor is too ill-conditioned ({txt}; smallest eigenvalue {eig[0]:.6g}); {why}"
+            )
+        bad = [n for n, v in zip(INERTIA_NAMES[:3], ent[:3], strict=True) if v <= 0]
+        why = (f"a principal moment must be positive: {', '.join(bad)} <= 0" if bad
+               else "off-diagonal entries are too large for the diagonal ones")  # fmt: skip
         raise ParameterError(
-            f"inertia tensor is not positive definite ({txt}; smallest eigenvalue {eig[0]:.6g}); "
-            "off-diagonal entries are too large for the diagonal ones"
+            f"inertia tensor is not positive definite ({txt}; smallest eigenvalue {eig[0]:.6g}); {why}"
         )
 
 
