@@ -49,9 +49,12 @@ Medians of ``repeat`` runs (one run when a run takes longer than 2 s). *single*:
 initial condition alone, one worker and ``block=1`` (one step sequence each), like the peers.
 *batch*: ``batch`` initial conditions in a small cloud around the case's one (measured members
 first), the default lock-step block kernel on every core. Peers: ``solve_ivp`` (RK45, DOP853,
-LSODA) with a numpy right-hand side on the model's coefficient tables, and ``numbalsoda`` (LSODA,
+LSODA) with a numpy right-hand side on the model's coefficient tables, ``numbalsoda`` (LSODA,
 DOP853) with a numba ``cfunc`` doing the same coefficient evaluation, both with ``t_eval`` at the
-section times; a peer's tolerance ladder stops once a run costs more than ``peer_budget_s`` per
+section times, and ``heyoka`` (Taylor's method, LLVM JIT; optional like numbalsoda), the same tables
+as runtime parameters, ``propagate_grid`` on the section times, one thread: ``heyoka:taylor`` one
+initial condition at a time, ``heyoka:batch`` the batch cloud in SIMD batches of :data:`HEYOKA_BATCH`;
+a peer's tolerance ladder stops once a run costs more than ``peer_budget_s`` per
 trajectory.
 
 No UI imports here; pictures are drawn by ``explorer_core.reports.render.render_work_precision``.
@@ -94,7 +97,18 @@ REF_TOL = 3e-14
 AMP_TOL = 1e-12
 CASE_NAMES = ("regular", "chaotic", "attractor", "drift")
 OUR_METHODS = ("rk4", "dp5", "dop853")
-PEERS = ("scipy:RK45", "scipy:DOP853", "scipy:LSODA", "numbalsoda:lsoda", "numbalsoda:dop853")
+PEERS = (
+    "scipy:RK45",
+    "scipy:DOP853",
+    "scipy:LSODA",
+    "numbalsoda:lsoda",
+    "numbalsoda:dop853",
+    "heyoka:taylor",
+    "heyoka:batch",
+)
+#: heyoka's batch mode: this many trajectories per SIMD integrator (8 doubles = one AVX-512 register; on
+#: narrower hardware heyoka splits the batch, so the width is the same for every machine's report).
+HEYOKA_BATCH = 8
 #: Perturbation used to measure the amplification of errors (the horizon).
 AMP_DELTA = 1e-8
 #: A run longer than this is timed once, not ``repeat`` times.
@@ -138,6 +152,7 @@ LINE_COLOURS = {
     ("scipy.solve_ivp", "LSODA"): "#8c564b",
     ("numbalsoda", "lsoda"): "#7f7f7f",
     ("numbalsoda", "dop853"): "#e377c2",
+    ("heyoka", "taylor"): "#17becf",
 }
 
 
@@ -379,6 +394,103 @@ def numbalsoda_status() -> tuple[Any, str]:
     except Exception:
         ver = "?"
     return numbalsoda, f"available ({ver})"
+
+
+def heyoka_status() -> tuple[Any, str]:
+    """``(module or None, description)``: heyoka is optional (``pip install heyoka`` has wheels)."""
+    try:
+        import heyoka  # type: ignore[import-not-found]
+    except Exception as exc:  # ImportError, or a broken shared library (LLVM)
+        reason = "not installed" if isinstance(exc, ImportError) else f"{type(exc).__name__}: {exc}"
+        return None, f"not available ({reason}; pip install heyoka)"
+    return heyoka, f"available ({getattr(heyoka, '__version__', '?')}, batch {HEYOKA_BATCH})"
+
+
+#: heyoka's runtime parameters: the tables of :func:`cfunc_data`'s rows Q and R (``num`` 60, ``gpc`` 4),
+#: ``den`` 3 and the forcing 4, so one compiled integrator per tolerance serves every case.
+_HY_NPARS = 2 * 6 * 5 + 2 * 2 + 3 + 4
+
+
+def heyoka_pars(model: Model) -> np.ndarray:
+    """The model as heyoka's parameter vector (layout of :func:`_heyoka_system`)."""
+    return np.concatenate([model.num[:2].ravel(), model.gpc[:2].ravel(), model.den.ravel(), model.forcing.ravel()])
+
+
+def _heyoka_system(hy: Any) -> list[tuple[Any, Any]]:
+    """The field as heyoka expressions: ``c_m = [N_m(g) + g' G_m(g)] / D(g)``, the model's own tables as parameters."""
+    q, r = hy.make_vars("q", "r")
+    par = hy.par
+    o_gpc, o_den, o_f = 60, 64, 67
+    w = par[o_f + 3]
+    cw, sw = hy.cos(w * hy.time), hy.sin(w * hy.time)
+    g = par[o_f] + par[o_f + 1] * cw + par[o_f + 2] * sw
+    gp = w * (par[o_f + 2] * cw - par[o_f + 1] * sw)
+    dinv = 1.0 / (par[o_den] + g * (par[o_den + 1] + g * par[o_den + 2]))
+    mono = (1.0, q, r, q * q, q * r, r * r)
+    rhs = []
+    for row in range(2):
+        total = 0.0
+        for m in range(6):
+            o = 30 * row + 5 * m
+            c = par[o] + g * (par[o + 1] + g * (par[o + 2] + g * (par[o + 3] + g * par[o + 4])))
+            if m == 1:
+                c = c + gp * (par[o_gpc + 2 * row] + g * par[o_gpc + 2 * row + 1])
+            total = total + c * mono[m]
+        rhs.append(total * dinv)
+    return [(q, rhs[0]), (r, rhs[1])]
+
+
+@cache
+def _heyoka_integrator(tol: float, batch: int) -> Any:
+    """One compiled heyoka integrator per tolerance and batch width (0: scalar); compiled outside the timings."""
+    hy, _ = heyoka_status()
+    sys_ = _heyoka_system(hy)
+    if batch == 0:
+        return hy.taylor_adaptive(sys_, [0.0, 0.0], tol=tol, pars=np.zeros(_HY_NPARS))
+    return hy.taylor_adaptive_batch(sys_, np.zeros((2, batch)), tol=tol, pars=np.zeros((_HY_NPARS, batch)))
+
+
+def _peer_heyoka(model: Model, ics: np.ndarray, periods: int, mode: str, tol: float):
+    """heyoka at ``tol``: each IC alone (``single``) or SIMD batches of :data:`HEYOKA_BATCH` (``batch``), one thread.
+
+    ``propagate_grid`` on the section times (heyoka's dense output lands on them); rhs from the model's tables.
+    """
+    p = model.params
+    grid = p.t0 + p.period * np.arange(0, periods + 1)
+    pars = heyoka_pars(model)
+    pts, ok, msgs = [], [], []
+    if mode == "single":
+        ta = _heyoka_integrator(float(tol), 0)
+        ta.pars[:] = pars
+        for ic in ics:
+            ta.time = p.t0
+            ta.state[:] = ic
+            oc, *_, states = ta.propagate_grid(grid)
+            good = "time_limit" in str(oc) and states.shape[0] == grid.size and bool(np.all(np.isfinite(states)))
+            ok.append(good)
+            if not good:
+                msgs.append(f"heyoka: {oc}")
+            pts.append(states[1:])
+        return pts, ok, None, msgs
+    nb_ = HEYOKA_BATCH
+    tb = _heyoka_integrator(float(tol), nb_)
+    tb.pars[:] = pars[:, None]
+    bgrid = np.ascontiguousarray(np.repeat(grid[:, None], nb_, axis=1))
+    for b0 in range(0, ics.shape[0], nb_):
+        chunk = ics[b0 : b0 + nb_]
+        state = np.repeat(chunk[-1:], nb_, axis=0)  # a partial last batch repeats its last member
+        state[: chunk.shape[0]] = chunk
+        tb.set_time(np.full(nb_, p.t0))
+        tb.state[:] = state.T
+        _, states = tb.propagate_grid(bgrid)
+        outcomes = [str(res[0]) for res in tb.propagate_res]
+        for i in range(chunk.shape[0]):
+            good = "time_limit" in outcomes[i] and bool(np.all(np.isfinite(states[:, :, i])))
+            ok.append(good)
+            if not good:
+                msgs.append(f"heyoka: {outcomes[i]}")
+            pts.append(states[1:, :, i])
+    return pts, ok, None, msgs
 
 
 # ---------------------------------------------------------------------------
@@ -794,6 +906,7 @@ def markdown_report(data: dict[str, Any], rows: bool = True) -> str:
     out = [f"# Work-precision benchmark ({cfg.get('label', '?')})", ""]
     out += [f"Machine: {mach.get('cpus')} cores, load average at start {mach.get('load_start')}, at end "
             f"{mach.get('load_end')}. numbalsoda: {data.get('peers', {}).get('numbalsoda', '?')}. "
+            f"heyoka: {data.get('peers', {}).get('heyoka', '?')}. "
             f"Total {data.get('elapsed_s', 0):.0f} s.", ""]  # fmt: skip
     out += ["| case | scene | IC | horizon K (periods) | amplification at K | reference bound | refs cached |",
             "|---|---|---|---|---|---|---|"]  # fmt: skip
@@ -945,8 +1058,10 @@ def run_bench(
                    "python": platform.python_version(), "numpy": np.__version__, "numba": nb.__version__,
                    "load_start": _load()}  # fmt: skip
     nbs, nbs_text = numbalsoda_status()
-    res.peers = {"numbalsoda": nbs_text}
-    peers = [p for p in cfg.peers if nbs is not None or not p.startswith("numbalsoda")]
+    hy, hy_text = heyoka_status()
+    res.peers = {"numbalsoda": nbs_text, "heyoka": hy_text}
+    peers = [p for p in cfg.peers if (nbs is not None or not p.startswith("numbalsoda"))
+             and (hy is not None or not p.startswith("heyoka"))]  # fmt: skip
     n_ours = len(cfg.modes) * (len(cfg.rk4_steps) + len(cfg.dp5_tols) + len(cfg.dop853_tols))
     total = len(cases) * (1 + n_ours + len(peers) * len(cfg.peer_tols)) + (3 if cfg.throughput else 0)
     done = [0]
@@ -961,14 +1076,15 @@ def run_bench(
     try:
         if progress is not None:
             progress(BenchProgress("warming up the kernels", 0, total, 0.0))
-        _warm(cfg, nbs if any(p.startswith("numbalsoda") for p in peers) else None)
+        _warm(cfg, nbs if any(p.startswith("numbalsoda") for p in peers) else None,
+              [p for p in peers if p.startswith("heyoka")])  # fmt: skip
         for case in cases:
             _run_case(res, case, cfg, peers, nbs, cache_dir_, tick)
         if cfg.throughput:
             _run_throughput(res, cfg, cache_dir_, tick)
     except _Cancelled:
         res.completed = False
-    res.ratios = _ratios(res, cfg, nbs is not None) if res.completed or res.rows else {}
+    res.ratios = _ratios(res, cfg, nbs is not None, hy is not None) if res.completed or res.rows else {}
     res.machine["load_end"] = _load()
     res.elapsed_s = time.perf_counter() - start
     return res
@@ -981,8 +1097,11 @@ def _load() -> list[float] | None:
         return None
 
 
-def _warm(cfg: BenchConfig, nbs: Any) -> None:
-    """Compile/load every kernel and start the thread pool, so no timing includes either."""
+def _warm(cfg: BenchConfig, nbs: Any, heyoka_peers: Sequence[str] = ()) -> None:
+    """Compile/load every kernel and start the thread pool, so no timing includes either.
+
+    heyoka compiles one integrator per tolerance (LLVM, ~0.2-1 s each): all of them here, outside the timings.
+    """
     model = Model(Params())
     ics = np.array([[0.1, 0.2], [0.3, 0.1], [0.2, 0.2]])
     for method in OUR_METHODS:
@@ -995,6 +1114,10 @@ def _warm(cfg: BenchConfig, nbs: Any) -> None:
         _cfunc_rhs()
         for method in ("lsoda", "dop853"):
             _peer_numbalsoda(nbs, model, ics[:1], 1, method, 1e-6)
+    for peer in heyoka_peers:  # heyoka compiles on first use: one short run per integrator
+        mode = "batch" if peer == "heyoka:batch" else "single"
+        for tol in cfg.peer_tols:
+            _peer_heyoka(model, ics[:1], 1, mode, tol)
 
 
 def _run_case(
@@ -1060,21 +1183,30 @@ def _run_case(
                     tick(f"{case.name}: {peer} skipped")
                 break
 
-            def run(lib: str = lib, method: str = method, tol: float = tol):
+            # heyoka's batch mode runs the case's batch cloud (like ours batch), everything else the measured ICs.
+            mode = "batch" if peer == "heyoka:batch" else "single"
+            ics = batch_ics if mode == "batch" else measured
+
+            def run(lib: str = lib, method: str = method, tol: float = tol, mode: str = mode, ics=ics):
                 if lib == "scipy":
-                    return _peer_scipy(model, measured, k, method, tol)
-                return _peer_numbalsoda(nbs, model, measured, k, method, tol)
+                    return _peer_scipy(model, ics, k, method, tol)
+                if lib == "heyoka":
+                    return _peer_heyoka(model, ics, k, mode, tol)
+                return _peer_numbalsoda(nbs, model, ics, k, method, tol)
 
             sec, (pts, ok, nfev, msgs) = _timed(run, cfg.repeat)
             errs = [_error(pts[i], k if ok[i] else 0, ref_pts[i]) for i in range(m)]
-            impl = "scipy.solve_ivp" if lib == "scipy" else "numbalsoda"
+            impl = {"scipy": "scipy.solve_ivp"}.get(lib, lib)
+            name = "taylor" if lib == "heyoka" else method
+            n = ics.shape[0]
             res.rows.append(
-                Row(case.name, method, impl, f"tol={tol:.0e}", "single", m, k,
-                    None if any(e is None for e in errs) else max(errs), sec / m, sec, None,
-                    None if nfev is None else round(nfev / m / k, 1), "ok" if all(ok) else "; ".join(msgs), tol, None)
+                Row(case.name, name, impl, f"tol={tol:.0e}", mode, n, k,
+                    None if any(e is None for e in errs) else max(errs), sec / n, sec, None,
+                    None if nfev is None else round(nfev / n / k, 1), "ok" if all(ok) else "; ".join(msgs[:3]), tol,
+                    None)
             )  # fmt: skip
-            last.append(sec / m)
-            tick(f"{case.name}: {impl} {method} tol={tol:.0e}")
+            last.append(sec / n)
+            tick(f"{case.name}: {impl} {name}{' batch' if mode == 'batch' else ''} tol={tol:.0e}")
 
 
 def _target_case() -> Case:
@@ -1195,7 +1327,7 @@ def _batch_run(
     return b, out, npts
 
 
-def _ratios(res: BenchResult, cfg: BenchConfig, have_nbs: bool) -> dict[str, Any]:
+def _ratios(res: BenchResult, cfg: BenchConfig, have_nbs: bool, have_hy: bool = False) -> dict[str, Any]:
     """Per-trajectory speed ratios at ``target_error`` on the regular case, from its diagram lines."""
     if "regular" not in res.cases:
         return {}
@@ -1221,5 +1353,8 @@ def _ratios(res: BenchResult, cfg: BenchConfig, have_nbs: bool) -> dict[str, Any
                      "numbalsoda lsoda"):  # fmt: skip
             if peer.startswith("numbalsoda") and not have_nbs:
                 continue
+            out[f"{peer} / {ours}"] = ratio(peer, ours)
+    if have_hy:
+        for peer, ours in (("heyoka taylor", "ours dop853"), ("heyoka taylor batch", "ours dop853 batch")):
             out[f"{peer} / {ours}"] = ratio(peer, ours)
     return out
