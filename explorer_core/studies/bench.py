@@ -96,7 +96,7 @@ REF_TOL = 3e-14
 #: Tolerance of the runs that measure the amplification of perturbations (the horizon).
 AMP_TOL = 1e-12
 CASE_NAMES = ("regular", "chaotic", "attractor", "drift")
-OUR_METHODS = ("rk4", "dp5", "dop853")
+OUR_METHODS = ("rk4", "dp5", "dop853", "taylor")
 PEERS = (
     "scipy:RK45",
     "scipy:DOP853",
@@ -147,6 +147,7 @@ LINE_COLOURS = {
     ("ours", "rk4"): "#9467bd",
     ("ours", "dp5"): "#2ca02c",
     ("ours", "dop853"): "#1f77b4",
+    ("ours", "taylor"): "#bcbd22",
     ("scipy.solve_ivp", "RK45"): "#ff7f0e",
     ("scipy.solve_ivp", "DOP853"): "#d62728",
     ("scipy.solve_ivp", "LSODA"): "#8c564b",
@@ -190,6 +191,7 @@ class BenchConfig:
     rk4_steps: tuple[int, ...] = (25, 50, 100, 200, 400, 800, 1600)
     dp5_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
     dop853_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
+    taylor_tols: tuple[float, ...] = tuple(10.0**-e for e in range(4, 16))
     modes: tuple[str, ...] = ("single", "batch")
     peers: tuple[str, ...] = PEERS
     peer_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
@@ -224,7 +226,7 @@ class BenchConfig:
         if not 1 <= self.k_max <= 100_000 or not 1 <= self.measured <= self.batch:
             raise ParameterError(f"need 1 <= k_max <= 100000 and 1 <= measured <= batch, got {self.k_max}, "
                                  f"{self.measured}, {self.batch}")  # fmt: skip
-        for name in ("dp5_tols", "dop853_tols", "peer_tols", "target_tols"):
+        for name in ("dp5_tols", "dop853_tols", "taylor_tols", "peer_tols", "target_tols"):
             if any(not (1e-15 <= t <= 1.0) for t in getattr(self, name)):
                 raise ParameterError(f"{name} must lie in [1e-15, 1], got {getattr(self, name)}")
         if any(not 1 <= n <= 10_000_000 for n in self.rk4_steps):
@@ -243,6 +245,7 @@ def quick_config() -> BenchConfig:
         rk4_steps=(50, 200, 800),
         dp5_tols=(1e-4, 1e-6, 1e-8),
         dop853_tols=(1e-4, 1e-6, 1e-8, 1e-10),
+        taylor_tols=(1e-6, 1e-10),
         peer_tols=(1e-4, 1e-6),
         peer_budget_s=2.0,
         measured=1,
@@ -263,6 +266,7 @@ def app_config() -> BenchConfig:
         rk4_steps=(50, 100, 200, 400),
         dp5_tols=(1e-4, 1e-6, 1e-8),
         dop853_tols=(1e-4, 1e-6, 1e-8, 1e-10),
+        taylor_tols=(1e-6, 1e-10),
         peers=("scipy:DOP853",),
         peer_tols=(1e-4, 1e-6, 1e-8),
         peer_budget_s=2.0,
@@ -705,7 +709,8 @@ def _status_text(codes: Sequence[int]) -> str:
     return ", ".join(f"{k} {v}" for k, v in counts.items())
 
 
-_STAGES = {"rk4": 4, "dp5": 6, "dop853": 12}
+#: Right-hand-side evaluations per step (Taylor's method has none: a step costs O(order^2) series products).
+_STAGES = {"rk4": 4, "dp5": 6, "dop853": 12, "taylor": None}
 
 
 def _ours(
@@ -1062,7 +1067,7 @@ def run_bench(
     res.peers = {"numbalsoda": nbs_text, "heyoka": hy_text}
     peers = [p for p in cfg.peers if (nbs is not None or not p.startswith("numbalsoda"))
              and (hy is not None or not p.startswith("heyoka"))]  # fmt: skip
-    n_ours = len(cfg.modes) * (len(cfg.rk4_steps) + len(cfg.dp5_tols) + len(cfg.dop853_tols))
+    n_ours = len(cfg.modes) * (len(cfg.rk4_steps) + len(cfg.dp5_tols) + len(cfg.dop853_tols) + len(cfg.taylor_tols))
     total = len(cases) * (1 + n_ours + len(peers) * len(cfg.peer_tols)) + (3 if cfg.throughput else 0)
     done = [0]
 
@@ -1157,7 +1162,8 @@ def _run_case(
     m = len(refs)
     for mode in cfg.modes:
         ics = measured if mode == "single" else batch_ics
-        for method, settings in (("rk4", cfg.rk4_steps), ("dp5", cfg.dp5_tols), ("dop853", cfg.dop853_tols)):
+        for method, settings in (("rk4", cfg.rk4_steps), ("dp5", cfg.dp5_tols), ("dop853", cfg.dop853_tols),
+                                 ("taylor", cfg.taylor_tols)):  # fmt: skip
             for s in settings:
                 sec, pts, npts, st, ns = _ours(model, ics, k, method, s, mode, cfg.repeat)
                 errs = [_error(pts[i], int(npts[i]), ref_pts[i]) for i in range(m)]
@@ -1166,7 +1172,7 @@ def _run_case(
                 res.rows.append(
                     Row(case.name, method, "ours", _fmt_setting(method, s), mode, n, k,
                         None if any(e is None for e in errs) else max(errs), sec / n, sec, round(spp, 2),
-                        round(spp * _STAGES[method], 1), _status_text(st),
+                        None if _STAGES[method] is None else round(spp * _STAGES[method], 1), _status_text(st),
                         None if method == "rk4" else float(s), int(s) if method == "rk4" else None)
                 )  # fmt: skip
                 tick(f"{case.name}: ours {method} {_fmt_setting(method, s)} {mode}")
@@ -1355,6 +1361,11 @@ def _ratios(res: BenchResult, cfg: BenchConfig, have_nbs: bool, have_hy: bool = 
                 continue
             out[f"{peer} / {ours}"] = ratio(peer, ours)
     if have_hy:
-        for peer, ours in (("heyoka taylor", "ours dop853"), ("heyoka taylor batch", "ours dop853 batch")):
+        for peer, ours in (
+            ("heyoka taylor", "ours dop853"),
+            ("heyoka taylor batch", "ours dop853 batch"),
+            ("heyoka taylor", "ours taylor"),
+            ("heyoka taylor batch", "ours taylor batch"),
+        ):
             out[f"{peer} / {ours}"] = ratio(peer, ours)
     return out
