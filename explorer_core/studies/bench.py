@@ -64,6 +64,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import hashlib
 import io
 import json
@@ -410,62 +411,71 @@ def heyoka_status() -> tuple[Any, str]:
     return heyoka, f"available ({getattr(heyoka, '__version__', '?')}, batch {HEYOKA_BATCH})"
 
 
-#: heyoka's runtime parameters: the tables of :func:`cfunc_data`'s rows Q and R (``num`` 60, ``gpc`` 4),
-#: ``den`` 3 and the forcing 4, so one compiled integrator per tolerance serves every case.
-_HY_NPARS = 2 * 6 * 5 + 2 * 2 + 3 + 4
+def _heyoka_system(hy: Any, model: Model) -> list[tuple[Any, Any]]:
+    """The field as heyoka expressions, ``c_m = [N_m(g) + g' G_m(g)] / D(g)`` on the model's own tables.
 
-
-def heyoka_pars(model: Model) -> np.ndarray:
-    """The model as heyoka's parameter vector (layout of :func:`_heyoka_system`)."""
-    return np.concatenate([model.num[:2].ravel(), model.gpc[:2].ravel(), model.den.ravel(), model.forcing.ravel()])
-
-
-def _heyoka_system(hy: Any) -> list[tuple[Any, Any]]:
-    """The field as heyoka expressions: ``c_m = [N_m(g) + g' G_m(g)] / D(g)``, the model's own tables as parameters."""
+    The table entries are numbers in the expressions (as a user writes a field for heyoka), so heyoka's
+    compiler folds the zero entries away: one compiled integrator per model, tolerance and batch width.
+    """
     q, r = hy.make_vars("q", "r")
-    par = hy.par
-    o_gpc, o_den, o_f = 60, 64, 67
-    w = par[o_f + 3]
+    f = [float(v) for v in model.forcing]
+    w = f[3]
     cw, sw = hy.cos(w * hy.time), hy.sin(w * hy.time)
-    g = par[o_f] + par[o_f + 1] * cw + par[o_f + 2] * sw
-    gp = w * (par[o_f + 2] * cw - par[o_f + 1] * sw)
-    dinv = 1.0 / (par[o_den] + g * (par[o_den + 1] + g * par[o_den + 2]))
-    mono = (1.0, q, r, q * q, q * r, r * r)
+
+    def lin(a: float, x: Any, b: float, y: Any) -> Any:
+        terms = [c * e for c, e in ((a, x), (b, y)) if c != 0.0]
+        return sum(terms[1:], terms[0]) if terms else None
+
+    g = lin(f[1], cw, f[2], sw)
+    g = f[0] if g is None else (g + f[0] if f[0] != 0.0 else g)
+    gp = lin(w * f[2], cw, -w * f[1], sw)
+
+    def poly(coefs: Sequence[float]) -> Any:
+        # sum_j coefs[j] g^j by Horner, zero coefficients skipped
+        out: Any = 0.0
+        for c in reversed([float(v) for v in coefs]):
+            out = out * g if not (isinstance(out, float) and out == 0.0) else out
+            if c != 0.0:
+                out = out + c if not (isinstance(out, float) and out == 0.0) else hy.expression(c)
+        return out
+
+    den = poly(model.den)
+    mono = (None, q, r, q * q, q * r, r * r)
     rhs = []
     for row in range(2):
-        total = 0.0
+        total: Any = 0.0
         for m in range(6):
-            o = 30 * row + 5 * m
-            c = par[o] + g * (par[o + 1] + g * (par[o + 2] + g * (par[o + 3] + g * par[o + 4])))
-            if m == 1:
-                c = c + gp * (par[o_gpc + 2 * row] + g * par[o_gpc + 2 * row + 1])
-            total = total + c * mono[m]
-        rhs.append(total * dinv)
+            c = poly(model.num[row, m])
+            if m == 1 and gp is not None and (model.gpc[row, 0] != 0.0 or model.gpc[row, 1] != 0.0):
+                c = c + gp * poly(model.gpc[row])
+            if isinstance(c, float) and c == 0.0:
+                continue
+            term = c if mono[m] is None else c * mono[m]
+            total = term if isinstance(total, float) else total + term
+        rhs.append(total / den)
     return [(q, rhs[0]), (r, rhs[1])]
 
 
-@cache
-def _heyoka_integrator(tol: float, batch: int) -> Any:
-    """One compiled heyoka integrator per tolerance and batch width (0: scalar); compiled outside the timings."""
+@functools.lru_cache(maxsize=128)
+def _heyoka_integrator(params: Params, tol: float, batch: int) -> Any:
+    """One compiled heyoka integrator per model, tolerance and batch width (0: scalar); compiled outside the timings."""
     hy, _ = heyoka_status()
-    sys_ = _heyoka_system(hy)
+    sys_ = _heyoka_system(hy, Model(params))
     if batch == 0:
-        return hy.taylor_adaptive(sys_, [0.0, 0.0], tol=tol, pars=np.zeros(_HY_NPARS))
-    return hy.taylor_adaptive_batch(sys_, np.zeros((2, batch)), tol=tol, pars=np.zeros((_HY_NPARS, batch)))
+        return hy.taylor_adaptive(sys_, [0.0, 0.0], tol=tol)
+    return hy.taylor_adaptive_batch(sys_, np.zeros((2, batch)), tol=tol)
 
 
 def _peer_heyoka(model: Model, ics: np.ndarray, periods: int, mode: str, tol: float):
     """heyoka at ``tol``: each IC alone (``single``) or SIMD batches of :data:`HEYOKA_BATCH` (``batch``), one thread.
 
-    ``propagate_grid`` on the section times (heyoka's dense output lands on them); rhs from the model's tables.
+    ``propagate_grid`` on the section times (heyoka's dense output lands on them); the rhs of :func:`_heyoka_system`.
     """
     p = model.params
     grid = p.t0 + p.period * np.arange(0, periods + 1)
-    pars = heyoka_pars(model)
     pts, ok, msgs = [], [], []
     if mode == "single":
-        ta = _heyoka_integrator(float(tol), 0)
-        ta.pars[:] = pars
+        ta = _heyoka_integrator(p, float(tol), 0)
         for ic in ics:
             ta.time = p.t0
             ta.state[:] = ic
@@ -477,8 +487,7 @@ def _peer_heyoka(model: Model, ics: np.ndarray, periods: int, mode: str, tol: fl
             pts.append(states[1:])
         return pts, ok, None, msgs
     nb_ = HEYOKA_BATCH
-    tb = _heyoka_integrator(float(tol), nb_)
-    tb.pars[:] = pars[:, None]
+    tb = _heyoka_integrator(p, float(tol), nb_)
     bgrid = np.ascontiguousarray(np.repeat(grid[:, None], nb_, axis=1))
     for b0 in range(0, ics.shape[0], nb_):
         chunk = ics[b0 : b0 + nb_]
@@ -1081,8 +1090,7 @@ def run_bench(
     try:
         if progress is not None:
             progress(BenchProgress("warming up the kernels", 0, total, 0.0))
-        _warm(cfg, nbs if any(p.startswith("numbalsoda") for p in peers) else None,
-              [p for p in peers if p.startswith("heyoka")])  # fmt: skip
+        _warm(cfg, nbs if any(p.startswith("numbalsoda") for p in peers) else None)
         for case in cases:
             _run_case(res, case, cfg, peers, nbs, cache_dir_, tick)
         if cfg.throughput:
@@ -1102,11 +1110,8 @@ def _load() -> list[float] | None:
         return None
 
 
-def _warm(cfg: BenchConfig, nbs: Any, heyoka_peers: Sequence[str] = ()) -> None:
-    """Compile/load every kernel and start the thread pool, so no timing includes either.
-
-    heyoka compiles one integrator per tolerance (LLVM, ~0.2-1 s each): all of them here, outside the timings.
-    """
+def _warm(cfg: BenchConfig, nbs: Any) -> None:
+    """Compile/load every kernel and start the thread pool, so no timing includes either (heyoka: per case)."""
     model = Model(Params())
     ics = np.array([[0.1, 0.2], [0.3, 0.1], [0.2, 0.2]])
     for method in OUR_METHODS:
@@ -1119,10 +1124,6 @@ def _warm(cfg: BenchConfig, nbs: Any, heyoka_peers: Sequence[str] = ()) -> None:
         _cfunc_rhs()
         for method in ("lsoda", "dop853"):
             _peer_numbalsoda(nbs, model, ics[:1], 1, method, 1e-6)
-    for peer in heyoka_peers:  # heyoka compiles on first use: one short run per integrator
-        mode = "batch" if peer == "heyoka:batch" else "single"
-        for tol in cfg.peer_tols:
-            _peer_heyoka(model, ics[:1], 1, mode, tol)
 
 
 def _run_case(
@@ -1200,6 +1201,8 @@ def _run_case(
                     return _peer_heyoka(model, ics, k, mode, tol)
                 return _peer_numbalsoda(nbs, model, ics, k, method, tol)
 
+            if lib == "heyoka":  # heyoka compiles per model and tolerance, on first use: outside the timing
+                _peer_heyoka(model, ics[:1], 1, mode, tol)
             sec, (pts, ok, nfev, msgs) = _timed(run, cfg.repeat)
             errs = [_error(pts[i], k if ok[i] else 0, ref_pts[i]) for i in range(m)]
             impl = {"scipy": "scipy.solve_ivp"}.get(lib, lib)
