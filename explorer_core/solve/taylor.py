@@ -8,8 +8,9 @@ products of series (automatic differentiation, Jorba & Zou 2005, *Experimental M
   ``cos(w t)``, ``sin(w t)`` (closed form), of ``g``, ``g'``, ``g^2 .. g^4`` (Cauchy products) and one
   division by the series of ``D(g)`` per coefficient. They depend on ``t`` only, so a lock-step block
   computes them **once per step** for all its members (one parameter set), or once per member;
-* the **state series** ``q[k + 1] = Q[k] / (k + 1)`` with ``Q[k] = sum_j c[j] (q^a r^b)[k - j]`` and the
-  monomials' series ``q^2, q r, r^2`` built order by order as the state's coefficients appear.
+* the **state series** ``q[k + 1] = Q[k] / (k + 1)`` with ``Q = c0 + q (c1 + c3 q + c4 r) + r (c2 + c5 r)``,
+  the factors' series built order by order as the state's coefficients appear (10 products of series
+  per order for both rows).
 
 Order and step from the tolerance as in Jorba & Zou (and heyoka, Biscani & Izzo 2021, MNRAS 504):
 order ``p = ceil(-ln(rtol) / 2 + 1)``; per member ``rho_k = (s / ||x[k]||_inf)^(1/k)`` for ``k = p - 1, p``
@@ -125,45 +126,50 @@ def coefficient_series(num, gpc, den, forcing, s, t, order, w, cs, o) -> None:
 def state_series(cs, shared, order, x, a, f, n) -> None:
     """The Taylor coefficients ``x[comp, k, p]`` (``k = 1..order``) of the ``n`` members from ``x[:, 0, p]``.
 
-    ``cs`` (1 or n, 2, 6, order + 1) the coefficient series (``shared``: row 0 for all); ``a`` (3, order + 1, n)
-    the series of ``q^2, q r, r^2``; ``f`` (2, n) scratch.
+    ``cs`` (1 or n, 2, 6, order + 1) the coefficient series (``shared``: row 0 for all); ``a`` (4, order + 1, n)
+    the series of ``c1 + c3 q + c4 r`` and ``c2 + c5 r`` of each row, so ``X = c0 + q (c1 + c3 q + c4 r) +
+    r (c2 + c5 r)`` costs 10 products of series per order (13 with the monomials ``q^2, q r, r^2``); ``f`` (2, n)
+    scratch. Members innermost: the loops run over contiguous members and vectorise.
     """
     for k in range(order):
+        # the factors' coefficient k (they need the state's up to k, known now)
         for p in range(n):
-            a[0, k, p] = 0.0
-            a[1, k, p] = 0.0
-            a[2, k, p] = 0.0
+            o = 0 if shared else p
+            a[0, k, p] = cs[o, 0, 1, k]
+            a[1, k, p] = cs[o, 0, 2, k]
+            a[2, k, p] = cs[o, 1, 1, k]
+            a[3, k, p] = cs[o, 1, 2, k]
         for j in range(k + 1):
-            for p in range(n):
-                qj = x[0, j, p]
-                rj = x[1, j, p]
-                qk = x[0, k - j, p]
-                rk = x[1, k - j, p]
-                a[0, k, p] += qj * qk
-                a[1, k, p] += qj * rk
-                a[2, k, p] += rj * rk
+            i = k - j
+            if shared:
+                a3, a4, a5 = cs[0, 0, 3, j], cs[0, 0, 4, j], cs[0, 0, 5, j]
+                b3, b4, b5 = cs[0, 1, 3, j], cs[0, 1, 4, j], cs[0, 1, 5, j]
+                for p in range(n):
+                    qi = x[0, i, p]
+                    ri = x[1, i, p]
+                    a[0, k, p] += a3 * qi + a4 * ri
+                    a[1, k, p] += a5 * ri
+                    a[2, k, p] += b3 * qi + b4 * ri
+                    a[3, k, p] += b5 * ri
+            else:
+                for p in range(n):
+                    qi = x[0, i, p]
+                    ri = x[1, i, p]
+                    a[0, k, p] += cs[p, 0, 3, j] * qi + cs[p, 0, 4, j] * ri
+                    a[1, k, p] += cs[p, 0, 5, j] * ri
+                    a[2, k, p] += cs[p, 1, 3, j] * qi + cs[p, 1, 4, j] * ri
+                    a[3, k, p] += cs[p, 1, 5, j] * ri
         for p in range(n):
             o = 0 if shared else p
             f[0, p] = cs[o, 0, 0, k]
             f[1, p] = cs[o, 1, 0, k]
         for j in range(k + 1):
             i = k - j
-            if shared:
-                a1, a2, a3, a4, a5 = cs[0, 0, 1, j], cs[0, 0, 2, j], cs[0, 0, 3, j], cs[0, 0, 4, j], cs[0, 0, 5, j]
-                b1, b2, b3, b4, b5 = cs[0, 1, 1, j], cs[0, 1, 2, j], cs[0, 1, 3, j], cs[0, 1, 4, j], cs[0, 1, 5, j]
-                for p in range(n):
-                    qi = x[0, i, p]
-                    ri = x[1, i, p]
-                    f[0, p] += a1 * qi + a2 * ri + a3 * a[0, i, p] + a4 * a[1, i, p] + a5 * a[2, i, p]
-                    f[1, p] += b1 * qi + b2 * ri + b3 * a[0, i, p] + b4 * a[1, i, p] + b5 * a[2, i, p]
-            else:
-                for p in range(n):
-                    qi = x[0, i, p]
-                    ri = x[1, i, p]
-                    f[0, p] += (cs[p, 0, 1, j] * qi + cs[p, 0, 2, j] * ri + cs[p, 0, 3, j] * a[0, i, p]
-                                + cs[p, 0, 4, j] * a[1, i, p] + cs[p, 0, 5, j] * a[2, i, p])  # fmt: skip
-                    f[1, p] += (cs[p, 1, 1, j] * qi + cs[p, 1, 2, j] * ri + cs[p, 1, 3, j] * a[0, i, p]
-                                + cs[p, 1, 4, j] * a[1, i, p] + cs[p, 1, 5, j] * a[2, i, p])  # fmt: skip
+            for p in range(n):
+                qj = x[0, j, p]
+                rj = x[1, j, p]
+                f[0, p] += qj * a[0, i, p] + rj * a[1, i, p]
+                f[1, p] += qj * a[2, i, p] + rj * a[3, i, p]
         inv = 1.0 / (k + 1)
         for p in range(n):
             x[0, k + 1, p] = f[0, p] * inv
@@ -212,7 +218,7 @@ def taylor_blocks(co, clock, ctl, arr, idx, block, order, w, cs, x, a, f, hp, sl
     The engine's structures (:mod:`explorer_core.solve.rk`: ``Coefficients``, ``Clock``, ``Control``,
     ``Arrays``); ``ctl.fixed_steps`` is ignored (the order and step come from ``rtol``/``atol``).
     Scratch: ``w`` (8, order + 2), ``cs`` (1 or block, 2, 6, order + 1), ``x`` (2, order + 1, block),
-    ``a`` (3, order + 1, block), ``f`` (2, block), ``hp`` (block,), ``slot`` (block,) int64.
+    ``a`` (4, order + 1, block), ``f`` (2, block), ``hp`` (block,), ``slot`` (block,) int64.
     """
     num, gpc, den, forcing, row = co.num, co.gpc, co.den, co.forcing, co.row
     y, h, status, nsteps, rec, npts = arr.y, arr.h, arr.status, arr.nsteps, arr.rec, arr.npts
@@ -335,7 +341,7 @@ def advance_blocks(system: int, co, clock, ctl, arr, idx: np.ndarray, block: int
     shared = co.num.shape[0] == 1
     taylor_blocks(co, clock, ctl, arr, idx, m, order, np.empty((8, order + 2)),
                   np.empty((1 if shared else m, 2, 6, order + 1)), np.empty((2, order + 1, m)),
-                  np.empty((3, order + 1, m)), np.empty((2, m)), np.empty(m), np.empty(m, dtype=np.int64))  # fmt: skip
+                  np.empty((4, order + 1, m)), np.empty((2, m)), np.empty(m), np.empty(m, dtype=np.int64))  # fmt: skip
 
 
 def series_at(co, s: int, t: float, q: float, r: float, order: int) -> np.ndarray:
@@ -347,5 +353,5 @@ def series_at(co, s: int, t: float, q: float, r: float, order: int) -> np.ndarra
     coefficient_series(co.num, co.gpc, co.den, co.forcing, int(s), float(t), order, np.empty((8, order + 2)), cs, 0)
     x = np.zeros((2, order + 1, 1))
     x[0, 0, 0], x[1, 0, 0] = q, r
-    state_series(cs, True, order, x, np.empty((3, order + 1, 1)), np.empty((2, 1)), 1)
+    state_series(cs, True, order, x, np.empty((4, order + 1, 1)), np.empty((2, 1)), 1)
     return x[:, :, 0]
