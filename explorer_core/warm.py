@@ -37,6 +37,7 @@ def _engine() -> None:
     numerics = Numerics()
     for block in (2, 1):  # lock-step blocks, then one trajectory per block
         advance(model, Batch.start(ics, 0.0, 2 * math.pi), 1, workers=1, block=block)
+        advance(model, Batch.start(ics, 0.0, 2 * math.pi), 1, workers=1, block=block, method="taylor")
         coefs = coefficients(model, n=ics.shape[0])
         tangent.monodromy(coefs, ics, 1, model.params.t0, model.params.period, numerics, workers=1, block=block)
         lyap = tangent.start(ics, model.params.t0, model.params.period)

@@ -268,3 +268,63 @@ def nearest_attractor(points: np.ndarray, escaped: bool, attractors: list[tuple[
         if d < dist:
             best, dist = ident, float(d)
     return best, dist
+
+
+# ---------------------------------------------------------------------------
+# Taylor coefficients (reference for explorer_core.solve.taylor).
+
+
+def sympy_taylor_coefficients(params: Params, t0: float, q0: float, r0: float, order: int) -> np.ndarray:
+    """``(2, order + 1)``: the Taylor coefficients in ``tau`` of the solution through ``(q0, r0)`` at ``t0``.
+
+    Picard iteration ``x <- x0 + int_0^tau f(x(s), t0 + s) ds`` on sympy series of the naive field (the
+    Lagrange-d'Alembert equations with 3x3 matrices, ``g`` and ``g'`` by sympy's own derivatives, the
+    multiplier's division by sympy's series; no coefficient tables): each iteration fixes one more
+    coefficient, so ``order`` iterations give them all, in 40-digit floats, rounded to doubles at the end.
+    """
+    import sympy as sp
+
+    tau = sp.Symbol("tau")
+    digits = 40
+
+    def num(v: float):
+        return sp.Float(float(v), digits)
+
+    p = params
+    inertia = sp.Matrix(3, 3, [num(v) for v in np.asarray(p.inertia_matrix).ravel()])
+    minv = inertia.inv()
+    ts = sp.Symbol("t")
+    g = num(p.g0) + num(p.g1) * sp.cos(num(p.omega) * ts) + num(p.g2) * sp.sin(num(p.omega) * ts)
+    # Taylor series of g and g' at t0 by sympy's derivatives, evaluated in 40 digits.
+    derivs = [g]
+    for _ in range(order + 1):
+        derivs.append(sp.diff(derivs[-1], ts))
+    at = [sp.N(d.subs(ts, num(t0)), digits) for d in derivs]
+    gs = sum(at[k] / sp.factorial(k) * tau**k for k in range(order + 1))
+    gps = sum(at[k + 1] / sp.factorial(k) * tau**k for k in range(order + 1))
+
+    def trunc(e):
+        e = sp.expand(e)
+        return sum(e.coeff(tau, k) * tau**k for k in range(order + 1))
+
+    def field(qs, rs):
+        om = sp.Matrix([num(p.alpha) + gs * qs, qs, rs])
+        a = sp.Matrix([1, -gs, 0])
+        euler = (minv * (inertia * om).cross(om)).applyfunc(trunc)
+        minv_a = (minv * a).applyfunc(trunc)
+        den = trunc((a.T * minv_a)[0])
+        lam_num = trunc(-(a.T * euler)[0] + gps * qs)
+        lam = trunc(sp.series(lam_num / den, tau, 0, order + 1).removeO())
+        wd = euler + lam * minv_a
+        return trunc(wd[1]), trunc(wd[2])
+
+    qs, rs = num(q0), num(r0)
+    for _ in range(order):
+        fq, fr = field(qs, rs)
+        qs = trunc(num(q0) + sp.integrate(fq, tau))
+        rs = trunc(num(r0) + sp.integrate(fr, tau))
+    out = np.empty((2, order + 1))
+    for k in range(order + 1):
+        out[0, k] = float(qs.coeff(tau, k))
+        out[1, k] = float(rs.coeff(tau, k))
+    return out

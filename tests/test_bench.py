@@ -42,6 +42,9 @@ def test_quick_run_has_finite_errors_for_every_method_and_case(quick: bench.Benc
     expected |= {f"scipy.solve_ivp {p.split(':')[1]}" for p in cfg.peers if p.startswith("scipy")}
     if have_nbs:
         expected |= {f"numbalsoda {p.split(':')[1]}" for p in cfg.peers if p.startswith("numbalsoda")}
+    if quick.peers["heyoka"].startswith("available"):
+        expected |= {{"heyoka:taylor": "heyoka taylor", "heyoka:batch": "heyoka taylor batch"}[p] for p in cfg.peers
+                     if p.startswith("heyoka")}  # fmt: skip
     assert quick.completed
     for case in cfg.cases:
         lines = quick.series(case)
@@ -154,6 +157,49 @@ def test_numbalsoda_absence_is_reported_and_skipped(monkeypatch, tmp_path) -> No
     assert res.peers["numbalsoda"] == "not available (no Fortran compiler)"
     assert {r.implementation for r in res.rows} == {"ours", "scipy.solve_ivp"}
     assert "numbalsoda: not available (no Fortran compiler)" in res.markdown()
+
+
+def test_heyoka_is_a_peer_single_and_batch(tmp_path) -> None:
+    pytest.importorskip("heyoka")
+    cfg = dataclasses.replace(bench.quick_config(), cases=("regular", "attractor"), k_max=5, rk4_steps=(), dp5_tols=(),
+                              dop853_tols=(1e-8,), modes=("single",), peers=("heyoka:taylor", "heyoka:batch"),
+                              peer_tols=(1e-6, 1e-10), batch=10, throughput=False)  # fmt: skip
+    res = bench.run_bench(cfg, cache_dir_=tmp_path)
+    assert res.peers["heyoka"].startswith("available")
+    for case in cfg.cases:
+        lines = res.series(case)
+        assert {"heyoka taylor", "heyoka taylor batch"} <= set(lines)
+        # The batch runs the case's cloud (10: one full SIMD batch of 8 and a partial one), single the measured IC.
+        assert [r.n_traj for r in lines["heyoka taylor batch"]] == [10, 10]
+        for single, batch in zip(lines["heyoka taylor"], lines["heyoka taylor batch"], strict=True):
+            assert single.status == batch.status == "ok"
+            # Against the independent reference, and the same integrator whether alone or in a SIMD batch.
+            assert single.error < 100 * single.tol and batch.error == pytest.approx(single.error, rel=1e-3, abs=1e-13)
+    assert "heyoka taylor / ours dop853" in res.ratios
+    assert "heyoka: available" in res.markdown()
+
+
+def test_heyoka_absence_is_reported_and_skipped(monkeypatch, tmp_path) -> None:
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_heyoka(name, *args, **kw):
+        if name == "heyoka" or name.startswith("heyoka."):
+            raise ImportError("No module named 'heyoka'")
+        return real_import(name, *args, **kw)
+
+    monkeypatch.setattr(builtins, "__import__", no_heyoka)
+    mod, text = bench.heyoka_status()
+    assert mod is None and text.startswith("not available (not installed")
+    cfg = dataclasses.replace(bench.quick_config(), cases=("regular",), k_max=3, rk4_steps=(50,), dp5_tols=(),
+                              dop853_tols=(1e-6,), modes=("single",), peers=("heyoka:taylor", "heyoka:batch",
+                              "scipy:DOP853"), peer_tols=(1e-6,), throughput=False)  # fmt: skip
+    res = bench.run_bench(cfg, cache_dir_=tmp_path)
+    assert res.peers["heyoka"] == text
+    assert {r.implementation for r in res.rows} == {"ours", "scipy.solve_ivp"}
+    assert f"heyoka: {text}" in res.markdown()
+    assert not any(k.startswith("heyoka") for k in res.ratios)
 
 
 def test_bad_settings_are_rejected() -> None:

@@ -12,6 +12,9 @@ Methods (:mod:`explorer_core.solve.tableaus`)
     Dormand-Prince 5(4) with FSAL and standard error control.
 ``dop853``
     Hairer's DOP853, 8th order with the combined 5th/3rd-order error estimate.
+``taylor``
+    Taylor's method (:mod:`explorer_core.solve.taylor`), order and step from the tolerance (Jorba & Zou);
+    the field (``FIELD``) only.
 
 The kernel releases the GIL (``nogil=True``); :func:`run` splits a batch across threads so both
 cores work at once. Failures are recorded per trajectory in ``status`` (see :class:`Status`); a
@@ -30,7 +33,7 @@ from functools import cache
 import numpy as np
 
 from explorer_core import config
-from explorer_core.solve import rk
+from explorer_core.solve import rk, taylor
 from explorer_core.solve.rk import FIELD, Status
 from explorer_core.solve.tableaus import METHODS, Method, get_method
 from explorer_core.system.model import Model
@@ -226,8 +229,11 @@ def run(
         raise ValueError(f"coefficient rows for {coefs.row.shape[0]} trajectories, the batch has {n}")
     # The horizon's end must still resolve the forcing phase (else the steps freeze: t + h == t).
     check_time("the horizon's end t", batch.t0 + (batch.k + n_periods) * batch.period, batch.period)
+    is_taylor = meth.kind == "taylor"
+    if is_taylor and not adaptive:
+        raise ValueError("the Taylor method has no fixed-step mode (its step follows the tolerance): adaptive=True")
     fixed = 0 if (adaptive and meth.adaptive) else int(steps_per_period)
-    tab = kernel_tableau(meth.name)
+    tab = None if is_taylor else kernel_tableau(meth.name)
     ctl = rk.Control(float(rtol), float(atol), int(max_steps), float(bound), fixed)
     clock = rk.Clock(batch.t0, batch.period, int(batch.k), n_periods, bool(store))
     arr = rk.Arrays(batch.y, batch.h, batch.status, batch.nsteps, rec, npts)
@@ -247,7 +253,10 @@ def run(
                     b = next(queue, None)
                 if b is None:
                     return
-                rk.advance_blocks(system, tab, coefs, clock, ctl, arr, b, b.shape[0])
+                if is_taylor:
+                    taylor.advance_blocks(system, coefs, clock, ctl, arr, b, b.shape[0])
+                else:
+                    rk.advance_blocks(system, tab, coefs, clock, ctl, arr, b, b.shape[0])
 
         run_threads(work, min(parts, len(blocks)))
     else:
@@ -260,7 +269,10 @@ def run(
         def work() -> None:
             with share_lock:
                 idx = next(shares)
-            rk.advance_blocks(system, tab, coefs, clock, ctl, arr, idx, size)
+            if is_taylor:
+                taylor.advance_blocks(system, coefs, clock, ctl, arr, idx, size)
+            else:
+                rk.advance_blocks(system, tab, coefs, clock, ctl, arr, idx, size)
 
         run_threads(work, parts)
     batch.k += n_periods

@@ -7,7 +7,8 @@ stages of the step (not the dense-output stages) are kept. Values as published (
 used by scipy.integrate, which the tests compare against).
 
 :data:`METHODS` holds each as a validated :class:`Method`; the engine
-(:mod:`explorer_core.solve.rk`) does the arithmetic for all of them.
+(:mod:`explorer_core.solve.rk`) does the arithmetic for all of them. ``taylor`` is Taylor's method
+(:mod:`explorer_core.solve.taylor`): no tableau, listed here so every boundary accepts its name.
 """
 
 from __future__ import annotations
@@ -236,8 +237,19 @@ class Method:
     e: np.ndarray | None = None
     e3: np.ndarray | None = None
     e5: np.ndarray | None = None
+    #: ``"rk"``: the tableau above, run by the engine (:mod:`explorer_core.solve.rk`); ``"taylor"``: Taylor's
+    #: method (:mod:`explorer_core.solve.taylor`), no tableau (empty ``a, b, c``), order and step from the tolerance.
+    kind: str = "rk"
 
     def __post_init__(self) -> None:
+        if self.kind not in ("rk", "taylor"):
+            raise ValueError(f"method {self.name!r}: kind must be 'rk' or 'taylor', got {self.kind!r}")
+        if self.kind == "taylor":
+            if self.b.size or self.a.size or self.c.size or not self.adaptive:
+                raise ValueError(f"method {self.name!r}: a Taylor method is adaptive and has no tableau")
+            for name in ("e", "e3", "e5"):
+                object.__setattr__(self, name, np.zeros(1))
+            return
         s = self.b.shape[0]
         a = np.zeros((s, s))
         a[: self.a.shape[0], : self.a.shape[1]] = self.a[:s, :s]
@@ -279,6 +291,8 @@ METHODS: dict[str, Method] = {
     "dop853": Method(
         "dop853", DOP853_ORDER, True, DOP853_A, DOP853_B, DOP853_C, DOP853_ERROR_ORDER, e3=DOP853_E3, e5=DOP853_E5
     ),
+    # Order 0: it follows the tolerance (explorer_core.solve.taylor.taylor_order).
+    "taylor": Method("taylor", 0, True, np.zeros((0, 0)), np.zeros(0), np.zeros(0), kind="taylor"),
 }
 
 

@@ -49,9 +49,12 @@ Medians of ``repeat`` runs (one run when a run takes longer than 2 s). *single*:
 initial condition alone, one worker and ``block=1`` (one step sequence each), like the peers.
 *batch*: ``batch`` initial conditions in a small cloud around the case's one (measured members
 first), the default lock-step block kernel on every core. Peers: ``solve_ivp`` (RK45, DOP853,
-LSODA) with a numpy right-hand side on the model's coefficient tables, and ``numbalsoda`` (LSODA,
+LSODA) with a numpy right-hand side on the model's coefficient tables, ``numbalsoda`` (LSODA,
 DOP853) with a numba ``cfunc`` doing the same coefficient evaluation, both with ``t_eval`` at the
-section times; a peer's tolerance ladder stops once a run costs more than ``peer_budget_s`` per
+section times, and ``heyoka`` (Taylor's method, LLVM JIT; optional like numbalsoda), the same tables
+as runtime parameters, ``propagate_grid`` on the section times, one thread: ``heyoka:taylor`` one
+initial condition at a time, ``heyoka:batch`` the batch cloud in SIMD batches of :data:`HEYOKA_BATCH`;
+a peer's tolerance ladder stops once a run costs more than ``peer_budget_s`` per
 trajectory.
 
 No UI imports here; pictures are drawn by ``explorer_core.reports.render.render_work_precision``.
@@ -61,6 +64,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import hashlib
 import io
 import json
@@ -93,8 +97,19 @@ REF_TOL = 3e-14
 #: Tolerance of the runs that measure the amplification of perturbations (the horizon).
 AMP_TOL = 1e-12
 CASE_NAMES = ("regular", "chaotic", "attractor", "drift")
-OUR_METHODS = ("rk4", "dp5", "dop853")
-PEERS = ("scipy:RK45", "scipy:DOP853", "scipy:LSODA", "numbalsoda:lsoda", "numbalsoda:dop853")
+OUR_METHODS = ("rk4", "dp5", "dop853", "taylor")
+PEERS = (
+    "scipy:RK45",
+    "scipy:DOP853",
+    "scipy:LSODA",
+    "numbalsoda:lsoda",
+    "numbalsoda:dop853",
+    "heyoka:taylor",
+    "heyoka:batch",
+)
+#: heyoka's batch mode: this many trajectories per SIMD integrator (8 doubles = one AVX-512 register; on
+#: narrower hardware heyoka splits the batch, so the width is the same for every machine's report).
+HEYOKA_BATCH = 8
 #: Perturbation used to measure the amplification of errors (the horizon).
 AMP_DELTA = 1e-8
 #: A run longer than this is timed once, not ``repeat`` times.
@@ -133,11 +148,13 @@ LINE_COLOURS = {
     ("ours", "rk4"): "#9467bd",
     ("ours", "dp5"): "#2ca02c",
     ("ours", "dop853"): "#1f77b4",
+    ("ours", "taylor"): "#bcbd22",
     ("scipy.solve_ivp", "RK45"): "#ff7f0e",
     ("scipy.solve_ivp", "DOP853"): "#d62728",
     ("scipy.solve_ivp", "LSODA"): "#8c564b",
     ("numbalsoda", "lsoda"): "#7f7f7f",
     ("numbalsoda", "dop853"): "#e377c2",
+    ("heyoka", "taylor"): "#17becf",
 }
 
 
@@ -175,6 +192,7 @@ class BenchConfig:
     rk4_steps: tuple[int, ...] = (25, 50, 100, 200, 400, 800, 1600)
     dp5_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
     dop853_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
+    taylor_tols: tuple[float, ...] = tuple(10.0**-e for e in range(4, 16))
     modes: tuple[str, ...] = ("single", "batch")
     peers: tuple[str, ...] = PEERS
     peer_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
@@ -209,7 +227,7 @@ class BenchConfig:
         if not 1 <= self.k_max <= 100_000 or not 1 <= self.measured <= self.batch:
             raise ParameterError(f"need 1 <= k_max <= 100000 and 1 <= measured <= batch, got {self.k_max}, "
                                  f"{self.measured}, {self.batch}")  # fmt: skip
-        for name in ("dp5_tols", "dop853_tols", "peer_tols", "target_tols"):
+        for name in ("dp5_tols", "dop853_tols", "taylor_tols", "peer_tols", "target_tols"):
             if any(not (1e-15 <= t <= 1.0) for t in getattr(self, name)):
                 raise ParameterError(f"{name} must lie in [1e-15, 1], got {getattr(self, name)}")
         if any(not 1 <= n <= 10_000_000 for n in self.rk4_steps):
@@ -228,6 +246,7 @@ def quick_config() -> BenchConfig:
         rk4_steps=(50, 200, 800),
         dp5_tols=(1e-4, 1e-6, 1e-8),
         dop853_tols=(1e-4, 1e-6, 1e-8, 1e-10),
+        taylor_tols=(1e-6, 1e-10),
         peer_tols=(1e-4, 1e-6),
         peer_budget_s=2.0,
         measured=1,
@@ -248,6 +267,7 @@ def app_config() -> BenchConfig:
         rk4_steps=(50, 100, 200, 400),
         dp5_tols=(1e-4, 1e-6, 1e-8),
         dop853_tols=(1e-4, 1e-6, 1e-8, 1e-10),
+        taylor_tols=(1e-6, 1e-10),
         peers=("scipy:DOP853",),
         peer_tols=(1e-4, 1e-6, 1e-8),
         peer_budget_s=2.0,
@@ -379,6 +399,111 @@ def numbalsoda_status() -> tuple[Any, str]:
     except Exception:
         ver = "?"
     return numbalsoda, f"available ({ver})"
+
+
+def heyoka_status() -> tuple[Any, str]:
+    """``(module or None, description)``: heyoka is optional (``pip install heyoka`` has wheels)."""
+    try:
+        import heyoka  # type: ignore[import-not-found]
+    except Exception as exc:  # ImportError, or a broken shared library (LLVM)
+        reason = "not installed" if isinstance(exc, ImportError) else f"{type(exc).__name__}: {exc}"
+        return None, f"not available ({reason}; pip install heyoka)"
+    return heyoka, f"available ({getattr(heyoka, '__version__', '?')}, batch {HEYOKA_BATCH})"
+
+
+def _heyoka_system(hy: Any, model: Model) -> list[tuple[Any, Any]]:
+    """The field as heyoka expressions, ``c_m = [N_m(g) + g' G_m(g)] / D(g)`` on the model's own tables.
+
+    The table entries are numbers in the expressions (as a user writes a field for heyoka), so heyoka's
+    compiler folds the zero entries away: one compiled integrator per model, tolerance and batch width.
+    """
+    q, r = hy.make_vars("q", "r")
+    f = [float(v) for v in model.forcing]
+    w = f[3]
+    cw, sw = hy.cos(w * hy.time), hy.sin(w * hy.time)
+
+    def lin(a: float, x: Any, b: float, y: Any) -> Any:
+        terms = [c * e for c, e in ((a, x), (b, y)) if c != 0.0]
+        return sum(terms[1:], terms[0]) if terms else None
+
+    g = lin(f[1], cw, f[2], sw)
+    g = f[0] if g is None else (g + f[0] if f[0] != 0.0 else g)
+    gp = lin(w * f[2], cw, -w * f[1], sw)
+
+    def poly(coefs: Sequence[float]) -> Any:
+        # sum_j coefs[j] g^j by Horner, zero coefficients skipped
+        out: Any = 0.0
+        for c in reversed([float(v) for v in coefs]):
+            out = out * g if not (isinstance(out, float) and out == 0.0) else out
+            if c != 0.0:
+                out = out + c if not (isinstance(out, float) and out == 0.0) else hy.expression(c)
+        return out
+
+    den = poly(model.den)
+    mono = (None, q, r, q * q, q * r, r * r)
+    rhs = []
+    for row in range(2):
+        total: Any = 0.0
+        for m in range(6):
+            c = poly(model.num[row, m])
+            if m == 1 and gp is not None and (model.gpc[row, 0] != 0.0 or model.gpc[row, 1] != 0.0):
+                c = c + gp * poly(model.gpc[row])
+            if isinstance(c, float) and c == 0.0:
+                continue
+            term = c if mono[m] is None else c * mono[m]
+            total = term if isinstance(total, float) else total + term
+        rhs.append(total / den)
+    return [(q, rhs[0]), (r, rhs[1])]
+
+
+@functools.lru_cache(maxsize=128)
+def _heyoka_integrator(params: Params, tol: float, batch: int) -> Any:
+    """One compiled heyoka integrator per model, tolerance and batch width (0: scalar); compiled outside the timings."""
+    hy, _ = heyoka_status()
+    sys_ = _heyoka_system(hy, Model(params))
+    if batch == 0:
+        return hy.taylor_adaptive(sys_, [0.0, 0.0], tol=tol)
+    return hy.taylor_adaptive_batch(sys_, np.zeros((2, batch)), tol=tol)
+
+
+def _peer_heyoka(model: Model, ics: np.ndarray, periods: int, mode: str, tol: float):
+    """heyoka at ``tol``: each IC alone (``single``) or SIMD batches of :data:`HEYOKA_BATCH` (``batch``), one thread.
+
+    ``propagate_grid`` on the section times (heyoka's dense output lands on them); the rhs of :func:`_heyoka_system`.
+    """
+    p = model.params
+    grid = p.t0 + p.period * np.arange(0, periods + 1)
+    pts, ok, msgs = [], [], []
+    if mode == "single":
+        ta = _heyoka_integrator(p, float(tol), 0)
+        for ic in ics:
+            ta.time = p.t0
+            ta.state[:] = ic
+            oc, *_, states = ta.propagate_grid(grid)
+            good = "time_limit" in str(oc) and states.shape[0] == grid.size and bool(np.all(np.isfinite(states)))
+            ok.append(good)
+            if not good:
+                msgs.append(f"heyoka: {oc}")
+            pts.append(states[1:])
+        return pts, ok, None, msgs
+    nb_ = HEYOKA_BATCH
+    tb = _heyoka_integrator(p, float(tol), nb_)
+    bgrid = np.ascontiguousarray(np.repeat(grid[:, None], nb_, axis=1))
+    for b0 in range(0, ics.shape[0], nb_):
+        chunk = ics[b0 : b0 + nb_]
+        state = np.repeat(chunk[-1:], nb_, axis=0)  # a partial last batch repeats its last member
+        state[: chunk.shape[0]] = chunk
+        tb.set_time(np.full(nb_, p.t0))
+        tb.state[:] = state.T
+        _, states = tb.propagate_grid(bgrid)
+        outcomes = [str(res[0]) for res in tb.propagate_res]
+        for i in range(chunk.shape[0]):
+            good = "time_limit" in outcomes[i] and bool(np.all(np.isfinite(states[:, :, i])))
+            ok.append(good)
+            if not good:
+                msgs.append(f"heyoka: {outcomes[i]}")
+            pts.append(states[1:, :, i])
+    return pts, ok, None, msgs
 
 
 # ---------------------------------------------------------------------------
@@ -593,7 +718,8 @@ def _status_text(codes: Sequence[int]) -> str:
     return ", ".join(f"{k} {v}" for k, v in counts.items())
 
 
-_STAGES = {"rk4": 4, "dp5": 6, "dop853": 12}
+#: Right-hand-side evaluations per step (Taylor's method has none: a step costs O(order^2) series products).
+_STAGES = {"rk4": 4, "dp5": 6, "dop853": 12, "taylor": None}
 
 
 def _ours(
@@ -794,6 +920,7 @@ def markdown_report(data: dict[str, Any], rows: bool = True) -> str:
     out = [f"# Work-precision benchmark ({cfg.get('label', '?')})", ""]
     out += [f"Machine: {mach.get('cpus')} cores, load average at start {mach.get('load_start')}, at end "
             f"{mach.get('load_end')}. numbalsoda: {data.get('peers', {}).get('numbalsoda', '?')}. "
+            f"heyoka: {data.get('peers', {}).get('heyoka', '?')}. "
             f"Total {data.get('elapsed_s', 0):.0f} s.", ""]  # fmt: skip
     out += ["| case | scene | IC | horizon K (periods) | amplification at K | reference bound | refs cached |",
             "|---|---|---|---|---|---|---|"]  # fmt: skip
@@ -945,9 +1072,11 @@ def run_bench(
                    "python": platform.python_version(), "numpy": np.__version__, "numba": nb.__version__,
                    "load_start": _load()}  # fmt: skip
     nbs, nbs_text = numbalsoda_status()
-    res.peers = {"numbalsoda": nbs_text}
-    peers = [p for p in cfg.peers if nbs is not None or not p.startswith("numbalsoda")]
-    n_ours = len(cfg.modes) * (len(cfg.rk4_steps) + len(cfg.dp5_tols) + len(cfg.dop853_tols))
+    hy, hy_text = heyoka_status()
+    res.peers = {"numbalsoda": nbs_text, "heyoka": hy_text}
+    peers = [p for p in cfg.peers if (nbs is not None or not p.startswith("numbalsoda"))
+             and (hy is not None or not p.startswith("heyoka"))]  # fmt: skip
+    n_ours = len(cfg.modes) * (len(cfg.rk4_steps) + len(cfg.dp5_tols) + len(cfg.dop853_tols) + len(cfg.taylor_tols))
     total = len(cases) * (1 + n_ours + len(peers) * len(cfg.peer_tols)) + (3 if cfg.throughput else 0)
     done = [0]
 
@@ -968,7 +1097,7 @@ def run_bench(
             _run_throughput(res, cfg, cache_dir_, tick)
     except _Cancelled:
         res.completed = False
-    res.ratios = _ratios(res, cfg, nbs is not None) if res.completed or res.rows else {}
+    res.ratios = _ratios(res, cfg, nbs is not None, hy is not None) if res.completed or res.rows else {}
     res.machine["load_end"] = _load()
     res.elapsed_s = time.perf_counter() - start
     return res
@@ -982,7 +1111,7 @@ def _load() -> list[float] | None:
 
 
 def _warm(cfg: BenchConfig, nbs: Any) -> None:
-    """Compile/load every kernel and start the thread pool, so no timing includes either."""
+    """Compile/load every kernel and start the thread pool, so no timing includes either (heyoka: per case)."""
     model = Model(Params())
     ics = np.array([[0.1, 0.2], [0.3, 0.1], [0.2, 0.2]])
     for method in OUR_METHODS:
@@ -1034,7 +1163,8 @@ def _run_case(
     m = len(refs)
     for mode in cfg.modes:
         ics = measured if mode == "single" else batch_ics
-        for method, settings in (("rk4", cfg.rk4_steps), ("dp5", cfg.dp5_tols), ("dop853", cfg.dop853_tols)):
+        for method, settings in (("rk4", cfg.rk4_steps), ("dp5", cfg.dp5_tols), ("dop853", cfg.dop853_tols),
+                                 ("taylor", cfg.taylor_tols)):  # fmt: skip
             for s in settings:
                 sec, pts, npts, st, ns = _ours(model, ics, k, method, s, mode, cfg.repeat)
                 errs = [_error(pts[i], int(npts[i]), ref_pts[i]) for i in range(m)]
@@ -1043,7 +1173,7 @@ def _run_case(
                 res.rows.append(
                     Row(case.name, method, "ours", _fmt_setting(method, s), mode, n, k,
                         None if any(e is None for e in errs) else max(errs), sec / n, sec, round(spp, 2),
-                        round(spp * _STAGES[method], 1), _status_text(st),
+                        None if _STAGES[method] is None else round(spp * _STAGES[method], 1), _status_text(st),
                         None if method == "rk4" else float(s), int(s) if method == "rk4" else None)
                 )  # fmt: skip
                 tick(f"{case.name}: ours {method} {_fmt_setting(method, s)} {mode}")
@@ -1060,21 +1190,32 @@ def _run_case(
                     tick(f"{case.name}: {peer} skipped")
                 break
 
-            def run(lib: str = lib, method: str = method, tol: float = tol):
-                if lib == "scipy":
-                    return _peer_scipy(model, measured, k, method, tol)
-                return _peer_numbalsoda(nbs, model, measured, k, method, tol)
+            # heyoka's batch mode runs the case's batch cloud (like ours batch), everything else the measured ICs.
+            mode = "batch" if peer == "heyoka:batch" else "single"
+            ics = batch_ics if mode == "batch" else measured
 
+            def run(lib: str = lib, method: str = method, tol: float = tol, mode: str = mode, ics=ics):
+                if lib == "scipy":
+                    return _peer_scipy(model, ics, k, method, tol)
+                if lib == "heyoka":
+                    return _peer_heyoka(model, ics, k, mode, tol)
+                return _peer_numbalsoda(nbs, model, ics, k, method, tol)
+
+            if lib == "heyoka":  # heyoka compiles per model and tolerance, on first use: outside the timing
+                _peer_heyoka(model, ics[:1], 1, mode, tol)
             sec, (pts, ok, nfev, msgs) = _timed(run, cfg.repeat)
             errs = [_error(pts[i], k if ok[i] else 0, ref_pts[i]) for i in range(m)]
-            impl = "scipy.solve_ivp" if lib == "scipy" else "numbalsoda"
+            impl = {"scipy": "scipy.solve_ivp"}.get(lib, lib)
+            name = "taylor" if lib == "heyoka" else method
+            n = ics.shape[0]
             res.rows.append(
-                Row(case.name, method, impl, f"tol={tol:.0e}", "single", m, k,
-                    None if any(e is None for e in errs) else max(errs), sec / m, sec, None,
-                    None if nfev is None else round(nfev / m / k, 1), "ok" if all(ok) else "; ".join(msgs), tol, None)
+                Row(case.name, name, impl, f"tol={tol:.0e}", mode, n, k,
+                    None if any(e is None for e in errs) else max(errs), sec / n, sec, None,
+                    None if nfev is None else round(nfev / n / k, 1), "ok" if all(ok) else "; ".join(msgs[:3]), tol,
+                    None)
             )  # fmt: skip
-            last.append(sec / m)
-            tick(f"{case.name}: {impl} {method} tol={tol:.0e}")
+            last.append(sec / n)
+            tick(f"{case.name}: {impl} {name}{' batch' if mode == 'batch' else ''} tol={tol:.0e}")
 
 
 def _target_case() -> Case:
@@ -1195,7 +1336,7 @@ def _batch_run(
     return b, out, npts
 
 
-def _ratios(res: BenchResult, cfg: BenchConfig, have_nbs: bool) -> dict[str, Any]:
+def _ratios(res: BenchResult, cfg: BenchConfig, have_nbs: bool, have_hy: bool = False) -> dict[str, Any]:
     """Per-trajectory speed ratios at ``target_error`` on the regular case, from its diagram lines."""
     if "regular" not in res.cases:
         return {}
@@ -1221,5 +1362,13 @@ def _ratios(res: BenchResult, cfg: BenchConfig, have_nbs: bool) -> dict[str, Any
                      "numbalsoda lsoda"):  # fmt: skip
             if peer.startswith("numbalsoda") and not have_nbs:
                 continue
+            out[f"{peer} / {ours}"] = ratio(peer, ours)
+    if have_hy:
+        for peer, ours in (
+            ("heyoka taylor", "ours dop853"),
+            ("heyoka taylor batch", "ours dop853 batch"),
+            ("heyoka taylor", "ours taylor"),
+            ("heyoka taylor batch", "ours taylor batch"),
+        ):
             out[f"{peer} / {ours}"] = ratio(peer, ours)
     return out
