@@ -16,7 +16,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 FLOORS = (
-    ("config", "losses"),
+    ("config", "losses", "export"),
     ("system",),
     ("solve",),
     ("scenes",),
