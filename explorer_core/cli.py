@@ -1207,7 +1207,7 @@ def build_parser() -> argparse.ArgumentParser:
             c.arguments(p)
         if c.out:
             dir_ = c.out == ("dir",)
-            metavar = "DIR" if dir_ else "FILE" + (c.out[0].upper() if len(c.out) == 1 else "")
+            metavar = "DIR" if dir_ else "FILE" + (c.out[0] if len(c.out) == 1 else "")
             p.add_argument("--out", required=dir_, action="append" if len(c.out) > 1 else "store", metavar=metavar,
                            help=c.out_help)  # fmt: skip
         for flag in c.flags:

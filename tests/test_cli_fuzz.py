@@ -82,6 +82,11 @@ REFUSED: list[list[str]] = [
     ["worker", "pause"],
     ["nosuchcommand"],
     [],
+    ["section", "--scene", "fig99", "--periods", "1"],  # an unknown scene
+    ["continue"],  # required options missing
+    ["chart", "--x-param"],  # an option without its value
+    ["orbits", "--scene", "fig8B", "--seed", "--period", "1"],
+    ["section", "--scene", "fig1C", "--periods", "1", "--ic", "1,2", "--unknown-option", "3"],
 ]
 
 #: Outputs that cannot hold what is written, each behind work that would not end within the timeout: they
