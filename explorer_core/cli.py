@@ -2,30 +2,40 @@
 
 Every command takes the system as ``--scene ID`` and/or explicit flags
 (``--inertia I11,I22,I33,I12,I13,I23 --alpha A --g0 --g1 --g2 --omega --t0``, or
-single entries ``--I13 0.2``); explicit flags override the scene. Bad input
-gives one line on stderr and exit status 2, never a traceback.
+single entries ``--I13 0.2``); explicit flags override the scene. Any option's value may start with a minus
+sign, written ``--from -0.1,-2`` or ``--from=-0.1,-2``.
+
+The commands are a table (:data:`COMMANDS`): each adds its arguments, builds the analysis' inputs from
+them, runs it with one progress line, and writes its outputs through :mod:`explorer_core.export`, at
+exactly the paths given, which are checked before the work starts. Bad input, an unusable output or a
+refused parameter gives one line ``bilimovich CMD: error: ...`` on stderr and exit status 2, never a
+traceback; Ctrl-C stops the work and exits 130 after writing what was computed. What a result lost
+(``result.lost``) is printed on stderr, one line per loss, and ``--json`` carries ``complete`` and ``lost``.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import os
 import re
 import signal
 import sys
 import time
+import warnings
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from explorer_core import __version__, config
+from explorer_core import __version__, config, export
 from explorer_core.scenes import Scene, get_scene, list_scenes
 from explorer_core.solve.numerics import Numerics, check_box, random_ics
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
+
+CSV, NPZ = (".csv",), (".npz",)
 
 
 class UsageError(Exception):
@@ -33,10 +43,20 @@ class UsageError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports a usage error in one line, not a usage block."""
+    """argparse that reports a usage error in one line, and lets any option's value start with a minus sign."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see --help)\n")
+
+    def _parse_optional(self, arg_string: str) -> Any:
+        # A word with one leading '-' that is no option of this parser is a value (-0.1,-2, -inf, -x): the
+        # commands have no short options but -h, so nothing else could be meant. One rule, no list of names.
+        if arg_string[:1] == "-" and arg_string[1:2] not in ("", "-") and arg_string not in self._option_string_actions:
+            return None
+        return super()._parse_optional(arg_string)
+
+
+# --- values ----------------------------------------------------------------------------------------------
 
 
 def _floats(text: str, n: int | None, name: str) -> list[float]:
@@ -47,13 +67,30 @@ def _floats(text: str, n: int | None, name: str) -> list[float]:
         raise UsageError(f"{name} must be comma-separated numbers, got {text!r}") from None
     if n is not None and len(vals) != n:
         raise UsageError(f"{name} needs {n} comma-separated numbers, got {len(vals)} in {text!r}")
-    for v in vals:
-        if not math.isfinite(v):
-            raise UsageError(f"{name} must be finite, got {text!r}")
+    if not all(math.isfinite(v) for v in vals):
+        raise UsageError(f"{name} must be finite, got {text!r}")
     return vals
 
 
-def _number(name: str):
+def _ints(text: str, name: str, metavar: str, lo: int | None = None, hi: int | None = None) -> list[int]:
+    """``NX,NY``-style whole numbers (as many as ``metavar`` has parts), optionally each in ``[lo, hi]``."""
+    n = metavar.count(",") + 1
+    vals = _floats(text, n, name)
+    within = f" in [{lo}, {hi}]" if lo is not None else ""
+    if not all(v.is_integer() and (lo is None or lo <= v <= hi) for v in vals):  # type: ignore[operator]
+        raise UsageError(f"{name} must be {['one', 'two'][n - 1]} whole numbers {metavar}{within}, got {text!r}")
+    return [int(v) for v in vals]
+
+
+def _span(text: str, name: str) -> list[float]:
+    """``A,B``: a parameter or coordinate range, either way round, whose width is a finite number."""
+    lo, hi = _floats(text, 2, name)
+    if not math.isfinite(hi - lo):
+        raise UsageError(f"{name} is too wide: its width overflows, got {text!r}")
+    return [lo, hi]
+
+
+def _number(name: str) -> Callable[[str], float]:
     def parse(text: str) -> float:
         try:
             v = float(text)
@@ -66,7 +103,7 @@ def _number(name: str):
     return parse
 
 
-def _count(name: str, lo: int, hi: int):
+def _count(name: str, lo: int, hi: int) -> Callable[[str], int]:
     def parse(text: str) -> int:
         try:
             v = int(text)
@@ -77,6 +114,24 @@ def _count(name: str, lo: int, hi: int):
         return v
 
     return parse
+
+
+SEED = _count("seed", 0, 2**63 - 1)
+
+
+def _box(text: str | None, name: str, default: Any) -> Any:
+    return check_box(_floats(text, 4, name), name) if text else default
+
+
+def _ics(args: argparse.Namespace, name: str = "--ic") -> np.ndarray | None:
+    return np.array([_floats(s, 2, name) for s in args.ic]) if args.ic else None
+
+
+def _scene_point(scene: Scene | None) -> np.ndarray:
+    return np.array(scene.points[:1]) if scene is not None and scene.points else np.array([[0.1, 0.1]])
+
+
+# --- the system and the numerics ---------------------------------------------------------------------------
 
 
 def _add_system_args(p: argparse.ArgumentParser) -> None:
@@ -109,10 +164,7 @@ def _params(args: argparse.Namespace) -> tuple[Params, Scene | None]:
     changes: dict[str, Any] = {}
     if args.inertia is not None:
         changes["inertia"] = tuple(_floats(args.inertia, 6, "--inertia"))
-    for n in INERTIA_NAMES:
-        if getattr(args, n) is not None:
-            changes[n] = getattr(args, n)
-    for f in ("alpha", "g0", "g1", "g2", "omega", "t0"):
+    for f in (*INERTIA_NAMES, "alpha", "g0", "g1", "g2", "omega", "t0"):
         if getattr(args, f) is not None:
             changes[f] = getattr(args, f)
     return base.with_(**changes), scene
@@ -122,19 +174,14 @@ def _numerics(args: argparse.Namespace, scene: Scene | None, periods: int, base:
     base = base or (scene.numerics(periods) if scene else Numerics())
     kw = base.as_dict()
     kw.pop("adaptive", None)
-    if args.method:
-        kw["method"] = args.method
     if args.rtol is not None:
         kw["rtol"] = args.rtol
         kw["atol"] = args.atol if args.atol is not None else args.rtol
     elif args.atol is not None:
         kw["atol"] = args.atol
-    if args.steps_per_period is not None:
-        kw["steps_per_period"] = args.steps_per_period
-    if args.bound is not None:
-        kw["bound"] = args.bound
-    if args.max_steps is not None:
-        kw["max_steps"] = args.max_steps
+    for name in ("method", "steps_per_period", "bound", "max_steps"):
+        if getattr(args, name) is not None:
+            kw[name] = getattr(args, name)
     return Numerics(**kw)
 
 
@@ -147,24 +194,89 @@ def _periods_transient(args: argparse.Namespace, scene: Scene | None) -> tuple[i
     return periods, transient
 
 
-def _write_json(obj: Any) -> None:
-    sys.stdout.write(json.dumps(obj, indent=None, separators=(",", ": ")) + "\n")
+# --- running and reporting ---------------------------------------------------------------------------------
+
+
+class _Run:
+    """One long computation: Ctrl-C sets a flag that the work polls (call the object: ``cancel=run``), and
+    one throttled ``\\r`` progress line on stderr (only on a terminal, never with ``--quiet``)."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.flag = False
+        self.show = not getattr(args, "quiet", False) and sys.stderr.isatty()
+        self._last = 0.0
+        self._shown = False
+        self._old: Any = None
+
+    def __enter__(self) -> _Run:
+        def on_signal(signum: int, frame: Any) -> None:
+            self.flag = True
+
+        self._old = signal.signal(signal.SIGINT, on_signal)
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        signal.signal(signal.SIGINT, self._old)
+        if self._shown:
+            sys.stderr.write("\n")
+
+    def __call__(self) -> bool:
+        return self.flag
+
+    def line(self, text: str) -> None:
+        now = time.perf_counter()
+        if self.show and now - self._last > 0.2:
+            self._last, self._shown = now, True
+            sys.stderr.write(f"\r{text} ")
+            sys.stderr.flush()
+
+
+def _print_json(obj: Any) -> None:
+    sys.stdout.write(export.dumps(obj) + "\n")
     sys.stdout.flush()
 
 
-def _check_out(path: str) -> None:
-    d = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(d):
-        raise UsageError(f"--out directory does not exist: {d}")
+def _finish(args: argparse.Namespace, summary: dict[str, Any], lines: Callable[[], list[str]], *, result: Any = None,
+            completed: bool | None = None, what: str = "results", notes: Sequence[str] = ()) -> int:  # fmt: skip
+    """The end of every command: the losses into the summary, JSON or ``lines()`` on stdout, the losses and
+    ``notes`` on stderr; exit 130 when the work was interrupted (what was computed has been written)."""
+    lost = getattr(result, "lost", None)
+    if lost is not None:  # results adopt losses.Loss one by one: report whichever has them
+        summary["complete"] = bool(getattr(result, "complete", not lost))
+        summary["lost"] = [loss.as_dict() for loss in lost]
+    if getattr(args, "json", False):
+        _print_json(summary)
+    elif not getattr(args, "quiet", False):
+        text = "\n".join(lines())
+        if text:
+            print(text)
+    for note in [*(loss.line() for loss in lost or ()), *notes]:
+        sys.stderr.write(f"bilimovich {args.command}: {note}\n")
+    if completed is None:
+        completed = bool(getattr(result, "completed", True))
+    if not completed:
+        sys.stderr.write(f"bilimovich {args.command}: interrupted; the {what} computed so far were written\n")
+        return 130
+    return 0
 
 
-# --- commands ------------------------------------------------------------------------
+def _with_scene(summary: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
+    if getattr(args, "scene", None):
+        summary["scene"] = args.scene
+    return summary
+
+
+# --- commands ----------------------------------------------------------------------------------------------
+
+
+def _scenes_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--json", action="store_true", help="full scene data as JSON")
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
     scenes = list_scenes()
     if args.json:
-        _write_json([s.as_dict() for s in scenes])
+        _print_json([s.as_dict() for s in scenes])
         return 0
     width = max(len(s.id) for s in scenes)
     for s in scenes:
@@ -173,86 +285,67 @@ def cmd_scenes(args: argparse.Namespace) -> int:
     return 0
 
 
+def _periods_args(p: argparse.ArgumentParser, periods_help: str = "section points per trajectory") -> None:
+    p.add_argument("--periods", type=_count("periods", 1, config.MAX_PERIODS), help=periods_help)
+    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), help="periods dropped first")
+
+
+def _section_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
+    p.add_argument("--random", type=_count("random", 1, config.MAX_TRAJECTORIES), metavar="N")
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for --random")
+    _periods_args(p)
+    p.add_argument("--backward", action="store_true", help="integrate backward in time (points at t0 - k T)")
+
+
 def cmd_section(args: argparse.Namespace) -> int:
-    from explorer_core.solve.section import SectionChunk, section
+    from explorer_core.solve.section import section
 
     params, scene = _params(args)
     periods, transient = _periods_transient(args, scene)
-    if args.ic:
-        ics = np.array([_floats(s, 2, "--ic") for s in args.ic])
-    elif args.random is not None:
-        box = check_box(_floats(args.box, 4, "--box")) if args.box else (scene.box if scene else (-2, 2, -2, 2))
-        ics = random_ics(args.random, box, seed=args.seed)
-    elif scene is not None:
+    ics = _ics(args)
+    if ics is None and args.random is not None:
+        ics = random_ics(args.random, _box(args.box, "--box", scene.box if scene else (-2, 2, -2, 2)), seed=args.seed)
+    elif ics is None and scene is not None:
         ics = scene.initial_conditions()
-    else:
+    elif ics is None:
         raise UsageError("give initial conditions: --ic Q,R (repeatable) or --random N")
     numerics = _numerics(args, scene, periods + transient)
+    with _Run(args) as run:
+        sec = section(params, ics, periods, transient=transient, numerics=numerics,
+                      direction=-1 if args.backward else 1, cancel=run,
+                      progress=lambda c: run.line(f"{c.done_periods}/{c.total_periods} periods, "
+                                                  f"{int(np.count_nonzero(c.status == 0))}/{c.status.size} running, "
+                                                  f"{c.elapsed_s:.1f} s"))  # fmt: skip
+    summary = _with_scene(sec.summary(), args)
     if args.out:
-        _check_out(args.out)
-
-    stop = {"flag": False}
-
-    def on_signal(signum: int, frame: Any) -> None:
-        stop["flag"] = True
-
-    old = signal.signal(signal.SIGINT, on_signal)
-    show = not args.quiet and sys.stderr.isatty()
-    last = [0.0]
-
-    def progress(chunk: SectionChunk) -> None:
-        now = time.perf_counter()
-        if show and (now - last[0] > 0.2 or chunk.done_periods == chunk.total_periods):
-            last[0] = now
-            alive = int(np.count_nonzero(chunk.status == 0))
-            sys.stderr.write(
-                f"\r{chunk.done_periods}/{chunk.total_periods} periods, {alive}/{chunk.status.size} running, "
-                f"{chunk.elapsed_s:.1f} s "
-            )
-            sys.stderr.flush()
-
-    try:
-        sec = section(
-            params,
-            ics,
-            periods,
-            transient=transient,
-            numerics=numerics,
-            direction=-1 if args.backward else 1,
-            progress=progress,
-            cancel=lambda: stop["flag"],
-        )
-    finally:
-        signal.signal(signal.SIGINT, old)
-        if show:
-            sys.stderr.write("\n")
-    rows = sec.to_csv(args.out) if args.out else None
-    summary = sec.summary()
-    if args.scene:
-        summary["scene"] = args.scene
-    if rows is not None:
-        summary["csv"] = {"path": args.out, "rows": rows}
+        summary["csv"] = {"path": args.out, "rows": sec.to_csv(args.out)}
     warnings = []
-    if args.json or not args.quiet:
+    if args.json or not args.quiet:  # when the method is unreliable for this run, say so (--quiet silences it)
         from explorer_core.analyses.reliability import assess_section
 
         window = (*scene.q_range, *scene.r_range) if scene else None
         warnings = assess_section(sec, pixel=scene.pixel_size() if scene else None, window=window)
         summary["reliability"] = [w.as_dict() for w in warnings]
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
+
+    def lines() -> list[str]:
         labels = sec.status_labels()
         counts = {lab: labels.count(lab) for lab in sorted(set(labels))}
-        print(f"{sec.n} trajectories, {int(sec.npts.sum())} points, {sec.elapsed_s:.3f} s, status {counts}")
-    if not args.quiet:
-        # When the method is unreliable for this run, say so (one line each; --quiet silences them).
-        for w in warnings:
-            sys.stderr.write(f"bilimovich section: {w.line()}\n")
-    if not sec.completed:
-        sys.stderr.write("bilimovich: interrupted; the points computed so far were written\n")
-        return 130
-    return 0
+        return [f"{sec.n} trajectories, {int(sec.npts.sum())} points, {sec.elapsed_s:.3f} s, status {counts}"]
+
+    notes = [] if args.quiet else [w.line() for w in warnings]
+    return _finish(args, summary, lines, result=sec, what="points", notes=notes)
+
+
+def _density_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--random", type=_count("random", 1, config.MAX_TRAJECTORIES), default=1000, metavar="N",
+                   help="random initial conditions in --box (default 1000)")  # fmt: skip
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--box", metavar="Q0,Q1,R0,R1", help="box of the initial conditions (default: the scene's)")
+    _periods_args(p)
+    p.add_argument("--view", metavar="Q0,Q1,R0,R1", help="the image's window (default: the scene's)")
+    p.add_argument("--pixels", metavar="W,H", help="the image's size (default 800,600; at most 4096 each)")
 
 
 def cmd_density(args: argparse.Namespace) -> int:
@@ -260,52 +353,39 @@ def cmd_density(args: argparse.Namespace) -> int:
 
     params, scene = _params(args)
     periods, transient = _periods_transient(args, scene)
-    box = check_box(_floats(args.box, 4, "--box"), "--box") if args.box else (scene.box if scene else None)
+    box = _box(args.box, "--box", scene.box if scene else None)
     if box is None:
         raise UsageError("give --box Q0,Q1,R0,R1 for the random initial conditions (no --scene to take it from)")
-    view = (
-        check_box(_floats(args.view, 4, "--view"), "--view")
-        if args.view
-        else ((*scene.q_range, *scene.r_range) if scene else box)
-    )
-    pixels = [int(v) for v in _floats(args.pixels, 2, "--pixels")] if args.pixels else [800, 600]
-    if args.pixels and not all(float(v).is_integer() and 1 <= v <= 4096 for v in _floats(args.pixels, 2, "--pixels")):
-        raise UsageError(f"--pixels W,H must be whole numbers in [1, 4096], got {args.pixels!r}")
+    view = _box(args.view, "--view", (*scene.q_range, *scene.r_range) if scene else box)
+    pixels = _ints(args.pixels, "--pixels", "W,H", 1, 4096) if args.pixels else [800, 600]
     if args.random * periods > MAX_DENSITY_POINTS:
         raise UsageError(f"--random {args.random} x --periods {periods} = {args.random * periods} points; "
                          f"at most {MAX_DENSITY_POINTS}")  # fmt: skip
     bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
     numerics = _numerics(args, None, 1, base=density_numerics(view, pixels, bound))
-    if args.out:
-        _check_out(args.out)
     ics = random_ics(args.random, box, seed=args.seed)
-    write, show = _progress_line(args.quiet)
     img = None
-    with _Interrupt() as stop:
+    with _Run(args) as run:
         for img, _ in iter_density(params, ics, periods, view=view, pixels=pixels, transient=transient,
-                                   numerics=numerics, max_chunk=64, cancel=stop):  # fmt: skip
-            write(f"{img.done_periods}/{periods} periods, {img.points:,} points, {img.elapsed_s:.1f} s")
-    if show:
-        sys.stderr.write("\n")
+                                   numerics=numerics, max_chunk=64, cancel=run):  # fmt: skip
+            run.line(f"{img.done_periods}/{periods} periods, {img.points:,} points, {img.elapsed_s:.1f} s")
     assert img is not None
     summary = {**img.summary(), "params": params.as_dict(), "numerics": numerics.as_dict(),
                "ics": {"random": args.random, "box": list(box), "seed": args.seed}, "transient": transient}  # fmt: skip
-    if scene is not None:
-        summary["scene"] = scene.id
+    _with_scene(summary, args)
     if args.out:
-        q = np.linspace(view[0], view[1], pixels[0] + 1)
-        r = np.linspace(view[2], view[3], pixels[1] + 1)
-        np.savez_compressed(args.out, counts=img.counts, q_edges=q, r_edges=r, summary=json.dumps(summary))
+        q_edges, r_edges = np.linspace(*view[:2], pixels[0] + 1), np.linspace(*view[2:], pixels[1] + 1)
+        export.write_npz(args.out, counts=img.counts, q_edges=q_edges, r_edges=r_edges, summary=export.dumps(summary))
         summary["npz"] = {"path": args.out}
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        print(f"{img.points:,} points, {img.in_view:,} in view, {img.escaped} escaped, {img.failed} failed, "
-              f"{img.elapsed_s:.2f} s")  # fmt: skip
-    if stop():
-        sys.stderr.write("bilimovich: interrupted; the image so far was written\n")
-        return 130
-    return 0
+    return _finish(args, summary, lambda: [f"{img.points:,} points, {img.in_view:,} in view, {img.escaped} escaped, "
+                                           f"{img.failed} failed, {img.elapsed_s:.2f} s"],
+                   result=img, completed=not run(), what="image's points")  # fmt: skip
+
+
+def _critical_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--t", type=_number("t"), help="frozen time (default t0)")
+    p.add_argument("--track", action="store_true", help="track them over one period")
+    p.add_argument("--n-t", type=_count("n-t", 2, 1_000_000), default=721, help="time samples for --track")
 
 
 def cmd_critical(args: argparse.Namespace) -> int:
@@ -317,96 +397,65 @@ def cmd_critical(args: argparse.Namespace) -> int:
             raise UsageError("--track needs --out FILE.csv (or --json)")
         tracks = equilibrium_tracks(params, n_t=args.n_t)
         if args.out:
-            _check_out(args.out)
             tracks.to_csv(args.out)
         if args.json:
-            _write_json(tracks.summary())
+            _print_json(tracks.summary())
         return 0
-    t = args.t if args.t is not None else params.t0
-    _write_json(equilibria(params, t).to_dict())
+    if args.out:
+        raise UsageError("--out is written by --track only (the equilibria at one time are printed as JSON)")
+    eq = equilibria(params, args.t if args.t is not None else params.t0)
+    out = eq.to_dict()
+    if eq.degenerate:  # a whole curve of equilibria: an empty list would say "none"
+        out.update(degenerate=True, message=eq.message)
+    _print_json(out)
     return 0
+
+
+def _tprime_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--t", type=_number("t"), help="frozen time (default t0)")
+    p.add_argument("--q-range", metavar="A,B")
+    p.add_argument("--r-range", metavar="C,D")
+    p.add_argument("--grid", type=_count("grid", 2, config.MAX_GRID), default=200)
+    p.add_argument("--per-period", action="store_true", help="energy change over one period from t0 instead")
 
 
 def cmd_tprime(args: argparse.Namespace) -> int:
     from explorer_core.analyses.tprime import energy_change_map, tprime_map
 
     params, scene = _params(args)
-    q_range = _floats(args.q_range, 2, "--q-range") if args.q_range else (scene.q_range if scene else (-3.0, 3.0))
-    r_range = _floats(args.r_range, 2, "--r-range") if args.r_range else (scene.r_range if scene else (-3.0, 3.0))
-    if args.out:
-        _check_out(args.out)
+    q_range = _span(args.q_range, "--q-range") if args.q_range else (scene.q_range if scene else (-3.0, 3.0))
+    r_range = _span(args.r_range, "--r-range") if args.r_range else (scene.r_range if scene else (-3.0, 3.0))
     if args.per_period:
         if args.t is not None:
             raise UsageError("--per-period integrates over one period from t0; use --t0, not --t")
         tmap = energy_change_map(params, q_range, r_range, args.grid, numerics=_numerics(args, None, 1))
     else:
-        t = args.t if args.t is not None else params.t0
-        tmap = tprime_map(params, t, q_range, r_range, args.grid)
+        tmap = tprime_map(params, args.t if args.t is not None else params.t0, q_range, r_range, args.grid)
     if args.out:
-        tmap.to_npz(args.out)
+        export.write_through(args.out, tmap.to_npz)
     if args.json or not args.out:
-        _write_json(
-            {
-                "kind": tmap.kind,
-                "t": tmap.t,
-                "grid": [int(tmap.q.size), int(tmap.r.size)],
-                "fractions": tmap.fractions(),
-                "min": float(tmap.values[tmap.ok].min()) if tmap.ok.any() else None,
-                "max": float(tmap.values[tmap.ok].max()) if tmap.ok.any() else None,
-                "elapsed_s": round(tmap.elapsed_s, 6),
-                "out": args.out,
-            }
-        )
+        ok = tmap.values[tmap.ok]
+        _print_json({"kind": tmap.kind, "t": tmap.t, "grid": [tmap.q.size, tmap.r.size], "fractions": tmap.fractions(),
+                     "min": ok.min() if ok.size else None, "max": ok.max() if ok.size else None,
+                     "elapsed_s": round(tmap.elapsed_s, 6), "out": args.out})  # fmt: skip
     return 0
 
 
-class _Interrupt:
-    """Ctrl-C sets a flag that long work polls (``cancel``); the previous handler is restored."""
-
-    def __init__(self) -> None:
-        self.flag = False
-        self._old: Any = None
-
-    def __enter__(self) -> _Interrupt:
-        def on_signal(signum: int, frame: Any) -> None:
-            self.flag = True
-
-        self._old = signal.signal(signal.SIGINT, on_signal)
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        signal.signal(signal.SIGINT, self._old)
-
-    def __call__(self) -> bool:
-        return self.flag
-
-
-def _progress_line(quiet: bool):
-    """A throttled ``\r``-progress writer for stderr (silent unless stderr is a terminal)."""
-    show = not quiet and sys.stderr.isatty()
-    last = [0.0]
-
-    def write(text: str, final: bool = False) -> None:
-        now = time.perf_counter()
-        if show and (final or now - last[0] > 0.2):
-            last[0] = now
-            sys.stderr.write(f"\r{text} ")
-            sys.stderr.flush()
-
-    return write, show
-
-
-def _ics_arg(args: argparse.Namespace, scene: Scene | None) -> np.ndarray | None:
-    if args.ic:
-        return np.array([_floats(s, 2, "--ic") for s in args.ic])
-    return None
+def _lyapunov_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable: one member each)")
+    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), help="periods dropped first")
+    p.add_argument("--periods", type=_count("periods", 1, config.MAX_PERIODS), default=2000, help="measured periods")
+    p.add_argument("--ensemble", type=_count("ensemble", 1, 10_000), default=1, metavar="M", help="members")
+    p.add_argument("--offset", type=_number("offset"), default=1e-6, help="relative offset of ensemble members")
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--history", metavar="FILE.csv", help="running estimates per period (member,k,L1,L2,...)")
 
 
 def cmd_lyapunov(args: argparse.Namespace) -> int:
     from explorer_core.analyses.lyapunov import attractor_ensemble, lyapunov_spectrum
 
     params, scene = _params(args)
-    ics = _ics_arg(args, scene)
+    ics = _ics(args)
     if ics is None:
         if scene is None or not scene.points:
             raise UsageError("give an initial condition: --ic Q,R")
@@ -414,274 +463,49 @@ def cmd_lyapunov(args: argparse.Namespace) -> int:
     transient = args.transient if args.transient is not None else (scene.transient if scene else 100)
     numerics = _numerics(args, None, args.periods)
     if args.ensemble > 1:
+        if not 0 < args.offset <= 1:  # relative to 1 + |x|: more than that is not "near the attractor"
+            raise UsageError(f"--offset must be in (0, 1], got {args.offset:g}")
         if ics.shape[0] > 1:
             raise UsageError("--ensemble M takes one --ic (the members are placed on its attractor)")
-        ics = attractor_ensemble(
-            params, ics[0], args.ensemble, transient=transient, offset=args.offset, seed=args.seed, numerics=numerics
-        )
-    write, show = _progress_line(args.quiet)
-    with _Interrupt() as stop:
-        res = lyapunov_spectrum(
-            params,
-            ics,
-            args.periods,
-            transient=transient,
-            numerics=numerics,
-            progress=lambda p: write(
-                f"{p.phase} {p.done_periods}/{p.total_periods} periods, "
-                f"L1 ~ {float(p.running[0, 0]):.5f}, {p.elapsed_s:.1f} s"
-            ),
-            cancel=stop,
-        )
-    if show:
-        sys.stderr.write("\n")
-    summary = res.summary()
-    if args.scene:
-        summary["scene"] = args.scene
+        ics = attractor_ensemble(params, ics[0], args.ensemble, transient=transient, offset=args.offset,
+                                 seed=args.seed, numerics=numerics)  # fmt: skip
+    with _Run(args) as run:
+
+        def progress(p: Any) -> None:
+            run.line(f"{p.phase} {p.done_periods}/{p.total_periods} periods, L1 ~ {p.running[0, 0]:.5f}, "
+                     f"{p.elapsed_s:.1f} s")  # fmt: skip
+
+        res = lyapunov_spectrum(params, ics, args.periods, transient=transient, numerics=numerics, cancel=run,
+                                progress=progress)  # fmt: skip
+    summary = _with_scene(res.summary(), args)
     if args.history:
-        _check_out(args.history)
-        with open(args.history, "w") as fh:
-            fh.write("member,k,L1,L2,divergence_mean\n")
+
+        def history() -> Any:
             for i in range(res.ics.shape[0]):
-                run = res.running(i)
-                m = run.shape[0]
+                est = res.running(i)
+                m = est.shape[0]
                 dmean = np.cumsum(res.divs[i, :m]) / (np.arange(1, m + 1) * res.period)
                 for k in range(m):
-                    fh.write(f"{i},{res.transient + k + 1},{run[k, 0]!r},{run[k, 1]!r},{dmean[k]!r}\n")
+                    yield i, res.transient + k + 1, est[k, 0], est[k, 1], dmean[k]
+
+        export.write_csv(args.history, ["member", "k", "L1", "L2", "divergence_mean"], history())
         summary["history_csv"] = args.history
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
+
+    def lines() -> list[str]:
         if summary["exponents"] is None:
-            print(f"status {summary['status']}: no member completed the measurement")
-        else:
-            l1, l2, _ = summary["exponents"]
-            s1, s2, _ = summary["spread"]
-            print(f"Lambda (per unit time) = {l1:.6f} +- {s1:.6f}, {l2:.6f} +- {s2:.6f}, 0")
-            it = summary["per_iteration"]
-            print(f"per iteration (x T = {res.period:.6g}): {it[0]:.6f}, {it[1]:.6f}")
-            print(
+            return [f"status {summary['status']}: no member completed the measurement"]
+        (l1, l2, _), (s1, s2, _), it = summary["exponents"], summary["spread"], summary["per_iteration"]
+        return [f"Lambda (per unit time) = {l1:.6f} +- {s1:.6f}, {l2:.6f} +- {s2:.6f}, 0",
+                f"per iteration (x T = {res.period:.6g}): {it[0]:.6f}, {it[1]:.6f}",
                 f"Kaplan-Yorke D = {summary['kaplan_yorke']:.6f}; L1 + L2 = {l1 + l2:.6e}, "
-                f"mean divergence = {summary['divergence_mean']:.6e}; status {summary['status']}"
-            )
-    if not res.completed:
-        sys.stderr.write("bilimovich: interrupted; the estimate covers the periods computed so far\n")
-        return 130
-    return 0
+                f"mean divergence = {summary['divergence_mean']:.6e}; status {summary['status']}"]  # fmt: skip
+
+    return _finish(args, summary, lines, result=res, what="periods' estimates")
 
 
-def _seed_list(args: argparse.Namespace, numerics: Numerics) -> list[tuple[float, float]]:
-    seeds = [tuple(_floats(v, 2, "--seed")) for v in (args.seed or [])]
-    for q, r in seeds:
-        if abs(q) > numerics.bound or abs(r) > numerics.bound:
-            raise UsageError(f"--seed {q:g},{r:g} is outside the escape bound {numerics.bound:g}")
-    return seeds  # type: ignore[return-value]
-
-
-def cmd_orbits(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.orbits import (
-        MAX_ITER,
-        MAX_PERIOD,
-        ORBIT_NUMERICS,
-        PATIENCE,
-        find_orbits,
-        grid_seeds,
-        return_seeds,
-    )
-
-    params, scene = _params(args)
-    if args.period is not None and args.max_period is not None:
-        raise UsageError("give --period N (that period only) or --max-period N (1..N), not both")
-    cap = args.period if args.period is not None else (args.max_period if args.max_period is not None else 1)
-    if not 1 <= cap <= MAX_PERIOD:
-        raise UsageError(f"the period must be in [1, {MAX_PERIOD}], got {cap}")
-    periods = [cap] if args.period is not None else list(range(1, cap + 1))
-    numerics = _numerics(args, None, 1, base=ORBIT_NUMERICS)
-    seeds = _seed_list(args, numerics)
-    box = check_box(_floats(args.box, 4, "--box")) if args.box else (scene.box if scene else (-2.0, 2.0, -2.0, 2.0))
-    grid = [int(v) for v in _floats(args.seeds, 2, "--seeds")] if args.seeds else None
-    if grid is not None and not all(1 <= v <= config.MAX_GRID for v in grid):
-        raise UsageError(f"--seeds NX,NY must be whole numbers in [1, {config.MAX_GRID}], got {args.seeds}")
-    pairs: list[tuple[tuple[float, float], list[int]]] = [(s_, periods) for s_ in seeds]
-    if grid is not None or not (seeds or args.returns):
-        nx, ny = grid or (10, 10)
-        pairs += [((float(q), float(r)), periods) for q, r in grid_seeds(box, nx, ny)]
-    if args.returns:
-        from explorer_core.solve.section import section
-
-        sec = section(params, random_ics(args.returns, box, seed=0), 200, transient=300, numerics=numerics)
-        tol = 0.02 * max(box[1] - box[0], box[3] - box[2])
-        pairs += [((float(x[0]), float(x[1])), [n]) for x, n in return_seeds(sec.points, sec.npts, cap, tol)
-                  if n in periods]  # fmt: skip
-    write, show = _progress_line(args.quiet)
-    with _Interrupt() as stop:
-        found: list = []
-        failures: list = []
-        by_periods: dict[tuple[int, ...], list] = {}
-        for seed_, per in pairs:
-            by_periods.setdefault(tuple(per), []).append(seed_)
-        elapsed = 0.0
-        for per, group in by_periods.items():
-            write(f"{len(group)} seeds x periods {per[0]}..{per[-1]}")
-            res = find_orbits(params, np.array(group), list(per), numerics=numerics, bound=box if args.in_box else None,
-                              patience=None if args.thorough else PATIENCE, max_iter=80 if args.thorough else MAX_ITER,
-                              cancel=stop)  # fmt: skip
-            elapsed += res.elapsed_s
-            failures += res.failures
-            for o in res.orbits:
-                if not any(_same(o, f) for f in found):
-                    found.append(o)
-            if not res.completed:
-                break
-    if show:
-        sys.stderr.write("\n")
-    found.sort(key=lambda o: (o.period, float(o.points[0, 0]), float(o.points[0, 1])))
-    summary = {
-        "orbits": [o.as_dict() for o in found],
-        "failures": [f.as_dict() for f in failures],
-        "seeds": len(pairs),
-        "periods": periods,
-        "completed": not stop(),
-        "elapsed_s": round(elapsed, 6),
-        "params": params.as_dict(),
-        "numerics": numerics.as_dict(),
-    }
-    if args.scene:
-        summary["scene"] = args.scene
-    if args.out:
-        _check_out(args.out)
-        from explorer_core.analyses.orbits import OrbitSearch
-
-        summary["csv"] = {"path": args.out, "rows": OrbitSearch(params, numerics, found, failures, len(pairs),
-                                                                elapsed).to_csv(args.out)}  # fmt: skip
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        for o in found:
-            mu = ", ".join(f"{m.real:.6g}{m.imag:+.6g}i" if m.imag else f"{m.real:.6g}" for m in o.multipliers)
-            print(f"period {o.period} {o.kind:15s} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g})  mu = {mu}")
-        print(f"{len(found)} orbits, {len(failures)} seeds without one, {elapsed:.2f} s")
-    if stop():
-        sys.stderr.write("bilimovich: interrupted; the orbits found so far were written\n")
-        return 130
-    return 0
-
-
-def _same(a: Any, b: Any) -> bool:
-    from explorer_core.analyses.orbits import same_orbit
-
-    return same_orbit(a, b)
-
-
-def cmd_continue(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.continuation import continue_orbit
-    from explorer_core.analyses.orbits import ORBIT_NUMERICS
-    from explorer_core.analyses.sweeps import check_param
-
-    params, _ = _params(args)
-    name = check_param(args.param)
-    lo, hi = _floats(args.range, 2, "--range")
-    for v in (lo, hi):  # positive-definite tensors are convex: both ends valid means the whole range is
-        try:
-            params.with_(**{name: v})
-        except ParameterError as exc:
-            raise UsageError(f"--range {args.range}: {name} = {v:g} is not a valid system ({exc})") from None
-    numerics = _numerics(args, None, 1, base=ORBIT_NUMERICS)
-    if args.from_ is None:
-        raise UsageError("give --from Q,R: a point near the period-N orbit at the range's first value")
-    q, r = _floats(args.from_, 2, "--from")
-    if abs(q) > numerics.bound or abs(r) > numerics.bound:
-        raise UsageError(f"--from {q:g},{r:g} is outside the escape bound {numerics.bound:g}")
-    if (args.param2 is None) != (args.range2 is None):
-        raise UsageError("--param2 and --range2 go together")
-    range2 = _floats(args.range2, 2, "--range2") if args.range2 else None
-    write, show = _progress_line(args.quiet)
-    with _Interrupt() as stop:
-        res = continue_orbit(params, name, (lo, hi), (q, r), args.period, switch=args.switch,
-                             max_period=args.max_period, numerics=numerics, param2=args.param2, range2=range2,
-                             max_points=args.max_points, progress=lambda n, v: write(f"{n} points, {name} = {v:.8g}"),
-                             cancel=stop)  # fmt: skip
-    if show:
-        sys.stderr.write("\n")
-    summary = res.summary()
-    if args.out:
-        _check_out(args.out)
-        with open(args.out, "w") as fh:
-            fh.write("branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable\n")
-            rows = 0
-            for i, br in enumerate(res.branches):
-                for v, x, mu, st in zip(br.values, br.states, br.mults, br.stable, strict=True):
-                    fh.write(f"{i},{br.period},{v!r},{x[0]!r},{x[1]!r},{mu[0].real!r},{mu[0].imag!r},"
-                             f"{mu[1].real!r},{mu[1].imag!r},{int(st)}\n")  # fmt: skip
-                    rows += 1
-        summary["csv"] = {"path": args.out, "rows": rows}
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        for i, br in enumerate(res.branches):
-            print(f"branch {i}: period {br.period}, {len(br.values)} points, {name} {br.values[0]:.10g} .. "
-                  f"{br.values[-1]:.10g} ({br.stop})")  # fmt: skip
-        for b in res.bifurcations:
-            print(f"{b.kind} of the period-{b.period} orbit at {name} = {b.value:.12g} +- {b.error:.1g}")
-        for m in res.messages:
-            print(m)
-    if not res.completed:
-        sys.stderr.write("bilimovich: interrupted; the branches computed so far were written\n")
-        return 130
-    return 0
-
-
-def cmd_manifolds(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.manifolds import KINDS, PIXELS, iter_manifolds, saddle_orbit
-
-    params, scene = _params(args)
-    bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
-    numerics = _numerics(args, None, 1, base=Numerics(method="dop853", rtol=1e-10, atol=1e-10, bound=bound))
-    point = _floats(args.orbit, 2, "--orbit")
-    kinds = [k.strip() for k in args.kinds.split(",")] if args.kinds else list(KINDS)
-    bad = [k for k in kinds if k not in KINDS]
-    if bad or not kinds:
-        raise UsageError(f"--kinds must be unstable, stable or both (comma-separated), got {args.kinds!r}")
-    view = check_box(_floats(args.view, 4, "--view"), "--view") if args.view else None
-    if view is None and scene is not None:
-        view = (*scene.q_range, *scene.r_range)
-    pixels = [int(v) for v in _floats(args.pixels, 2, "--pixels")] if args.pixels else list(PIXELS)
-    if args.pixels and not all(float(v).is_integer() for v in _floats(args.pixels, 2, "--pixels")):
-        raise UsageError(f"--pixels W,H must be whole numbers, got {args.pixels!r}")
-    write, show = _progress_line(args.quiet)
-    orbit = saddle_orbit(params, point, args.period)
-    result = None
-    with _Interrupt() as stop:
-        for result in iter_manifolds(params, orbit, kinds=kinds, length=args.length, view=view, pixels=pixels,
-                                     delta_px=args.delta_px, numerics=numerics, max_points=args.max_points,
-                                     cancel=stop):  # fmt: skip
-            grown = ", ".join(f"{b.kind[0]}{b.label} {b.length:.3g}" for b in result.branches)
-            write(f"{result.elapsed_s:.1f} s: {grown}")
-    if show:
-        sys.stderr.write("\n")
-    assert result is not None
-    summary = result.summary()
-    if scene is not None:
-        summary["scene"] = scene.id
-    if args.out:
-        _check_out(args.out)
-        summary["csv"] = {"path": args.out, "rows": result.to_csv(args.out)}
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        o = result.orbit
-        print(f"period {o.period} {o.kind} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g}), "
-              f"mu = {o.multipliers[0].real:.6g}, {o.multipliers[1].real:.6g}")  # fmt: skip
-        for b in result.branches:
-            npts = sum(p.shape[0] for p in b.pieces)
-            print(f"  {b.kind:8s} {b.label}: length {b.length:.4g}, {npts} points, {len(b.pieces)} piece(s), "
-                  f"{b.status}" + (f", {b.escaped} escaped" if b.escaped else ""))  # fmt: skip
-        print(f"{len(result.crossings)} crossings ({sum(c.kind == 'homoclinic' for c in result.crossings)} "
-              f"homoclinic), {result.elapsed_s:.2f} s")  # fmt: skip
-    if stop():
-        sys.stderr.write("bilimovich: interrupted; the manifolds grown so far were written\n")
-        return 130
-    return 0
+def _param_range_args(p: argparse.ArgumentParser, help_: str = "parameter range") -> None:
+    p.add_argument("--param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
+    p.add_argument("--range", required=True, metavar="A,B", help=help_)
 
 
 def _executor(args: argparse.Namespace) -> Any:
@@ -692,6 +516,21 @@ def _executor(args: argparse.Namespace) -> Any:
     return executor_for(args.scheduler, warm=warm_all)
 
 
+def _scheduler_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask cluster: tcp://HOST:PORT or local:N (docs/dask.md)")
+
+
+def _bifurcation_args(p: argparse.ArgumentParser) -> None:
+    _param_range_args(p)
+    p.add_argument("--n-values", type=_count("n-values", 1, 65536), default=200, metavar="N")
+    p.add_argument("--points", type=_count("points", 1, 1_000_000), default=200, help="section points per value")
+    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), default=500)
+    p.add_argument("--seeding", choices=["continuation", "fixed"], default="continuation")
+    p.add_argument("--sweeps", metavar="forward,backward", help="continuation sweeps (default both)")
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
+    _scheduler_arg(p)
+
+
 def cmd_bifurcation(args: argparse.Namespace) -> int:
     from explorer_core.analyses.bifurcation import bifurcation_diagram
     from explorer_core.analyses.sweeps import sweep_values
@@ -699,46 +538,241 @@ def cmd_bifurcation(args: argparse.Namespace) -> int:
     params, scene = _params(args)
     if not args.out and not args.json:
         raise UsageError("give --out FILE.csv and/or --json")
-    if args.out:
-        _check_out(args.out)
-    lo, hi = _floats(args.range, 2, "--range")
-    values = sweep_values((lo, hi), args.n_values)
-    ics = _ics_arg(args, scene)
-    if ics is None:
-        ics = np.array(scene.points[:1]) if scene is not None and scene.points else np.array([[0.1, 0.1]])
+    values = sweep_values(tuple(_span(args.range, "--range")), args.n_values)
+    ics = _ics(args)
     sweeps = tuple(s.strip() for s in args.sweeps.split(",")) if args.sweeps else ("forward", "backward")
-    write, show = _progress_line(args.quiet)
-    with _Interrupt() as stop:
-        diag = bifurcation_diagram(
-            params,
-            args.param,
-            values,
-            points=args.points,
-            transient=args.transient,
-            seeding=args.seeding,
-            ics=ics,
-            sweeps=sweeps,
-            numerics=_numerics(args, None, args.transient + args.points),
-            progress=lambda p: write(f"{p.done}/{p.total} values, {p.elapsed_s:.1f} s"),
-            cancel=stop,
-            executor=_executor(args),
-        )
-    if show:
-        sys.stderr.write("\n")
+    with _Run(args) as run:
+        diag = bifurcation_diagram(params, args.param, values, points=args.points, transient=args.transient,
+                                   seeding=args.seeding, ics=_scene_point(scene) if ics is None else ics, sweeps=sweeps,
+                                   numerics=_numerics(args, None, args.transient + args.points), cancel=run,
+                                   progress=lambda p: run.line(f"{p.done}/{p.total} values, {p.elapsed_s:.1f} s"),
+                                   executor=_executor(args))  # fmt: skip
     summary = diag.summary()
     if args.scheduler:
         summary["scheduler"] = args.scheduler
     if args.out:
         summary["csv"] = {"path": args.out, "rows": diag.to_csv(args.out)}
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        print(f"{diag.values.size} values x {diag.sweeps.size} sweeps, status {summary['status']}, "
-              f"{diag.elapsed_s:.2f} s")  # fmt: skip
-    if not diag.completed:
-        sys.stderr.write("bilimovich: interrupted; the values computed so far were written\n")
-        return 130
-    return 0
+    return _finish(args, summary, lambda: [f"{diag.values.size} values x {diag.sweeps.size} sweeps, status "
+                                           f"{summary['status']}, {diag.elapsed_s:.2f} s"],
+                   result=diag, what="values")  # fmt: skip
+
+
+def _orbits_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--period", type=_count("period", 1, 1_000_000), help="this period only")
+    p.add_argument("--max-period", type=_count("max-period", 1, 1_000_000), help="periods 1..N (default 1)")
+    p.add_argument("--seed", action="append", metavar="Q,R", help="a starting point (repeatable)")
+    p.add_argument("--box", help="Q0,Q1,R0,R1: the grid of seeds (default: the scene's box)")
+    p.add_argument("--seeds", metavar="NX,NY", help="a grid of NX x NY seeds over --box (default 10,10 without --seed)")
+    p.add_argument("--returns", type=_count("returns", 1, 10_000), metavar="N",
+                   help="also seed from near-returns of a section of N random trajectories in the box")  # fmt: skip
+    p.add_argument("--in-box", action="store_true", help="keep only orbits whose points are all in the box")
+    p.add_argument("--thorough", action="store_true", help="no early stop of slow seeds (slower, finds more)")
+
+
+def _point_in_bound(text: str, name: str, numerics: Numerics) -> tuple[float, float]:
+    q, r = _floats(text, 2, name)
+    if abs(q) > numerics.bound or abs(r) > numerics.bound:
+        raise UsageError(f"{name} {q:g},{r:g} is outside the escape bound {numerics.bound:g}")
+    return q, r
+
+
+def _multiplier_cells(mu: Any) -> list[float]:
+    return [float(mu[0].real), float(mu[0].imag), float(mu[1].real), float(mu[1].imag)]
+
+
+def cmd_orbits(args: argparse.Namespace) -> int:
+    from explorer_core.analyses import orbits as orb
+
+    params, scene = _params(args)
+    if args.period is not None and args.max_period is not None:
+        raise UsageError("give --period N (that period only) or --max-period N (1..N), not both")
+    cap = args.period or args.max_period or 1
+    if not 1 <= cap <= orb.MAX_PERIOD:
+        raise UsageError(f"the period must be in [1, {orb.MAX_PERIOD}], got {cap}")
+    periods = [cap] if args.period is not None else list(range(1, cap + 1))
+    numerics = _numerics(args, None, 1, base=orb.ORBIT_NUMERICS)
+    seeds = [_point_in_bound(v, "--seed", numerics) for v in args.seed or []]
+    box = _box(args.box, "--box", scene.box if scene else (-2.0, 2.0, -2.0, 2.0))
+    grid = _ints(args.seeds, "--seeds", "NX,NY", 1, config.MAX_GRID) if args.seeds else None
+    pairs: list[tuple[tuple[float, float], list[int]]] = [(s_, periods) for s_ in seeds]
+    if grid is not None or not (seeds or args.returns):
+        pairs += [((float(q), float(r)), periods) for q, r in orb.grid_seeds(box, *(grid or (10, 10)))]
+    if args.returns:
+        from explorer_core.solve.section import section
+
+        sec = section(params, random_ics(args.returns, box, seed=0), 200, transient=300, numerics=numerics)
+        tol = 0.02 * max(box[1] - box[0], box[3] - box[2])
+        pairs += [((float(x[0]), float(x[1])), [n]) for x, n in orb.return_seeds(sec.points, sec.npts, cap, tol)
+                  if n in periods]  # fmt: skip
+    by_periods: dict[tuple[int, ...], list] = {}
+    for seed_, per in pairs:
+        by_periods.setdefault(tuple(per), []).append(seed_)
+    found: list = []
+    failures: list = []
+    elapsed = 0.0
+    with _Run(args) as run:
+        for per, group in by_periods.items():
+            run.line(f"{len(group)} seeds x periods {per[0]}..{per[-1]}")
+            res = orb.find_orbits(params, np.array(group), list(per), numerics=numerics, cancel=run,
+                                  bound=box if args.in_box else None, patience=None if args.thorough else orb.PATIENCE,
+                                  max_iter=80 if args.thorough else orb.MAX_ITER)  # fmt: skip
+            elapsed += res.elapsed_s
+            failures += res.failures
+            for o in res.orbits:
+                if not any(orb.same_orbit(o, f) for f in found):
+                    found.append(o)
+            if not res.completed:
+                break
+    found.sort(key=lambda o: (o.period, float(o.points[0, 0]), float(o.points[0, 1])))
+    summary = {"orbits": [o.as_dict() for o in found], "failures": [f.as_dict() for f in failures],
+               "seeds": len(pairs), "periods": periods, "completed": not run(), "elapsed_s": round(elapsed, 6),
+               "params": params.as_dict(), "numerics": numerics.as_dict()}  # fmt: skip
+    _with_scene(summary, args)
+    if args.out:
+        rows = ([i, o.period, o.kind, o.stable, j, q, r, *_multiplier_cells(o.multipliers)]
+                for i, o in enumerate(found) for j, (q, r) in enumerate(o.points))  # fmt: skip
+        header = ["orbit", "period", "type", "stable", "j", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im"]
+        summary["csv"] = {"path": args.out, "rows": export.write_csv(args.out, header, rows)}
+
+    def lines() -> list[str]:
+        out = []
+        for o in found:
+            mu = ", ".join(f"{m.real:.6g}{m.imag:+.6g}i" if m.imag else f"{m.real:.6g}" for m in o.multipliers)
+            out.append(f"period {o.period} {o.kind:15s} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g})  mu = {mu}")
+        return [*out, f"{len(found)} orbits, {len(failures)} seeds without one, {elapsed:.2f} s"]
+
+    return _finish(args, summary, lines, completed=not run(), what="orbits")
+
+
+def _continue_args(p: argparse.ArgumentParser) -> None:
+    _param_range_args(p, "from A (where the orbit is seeded) to B")
+    p.add_argument("--from", dest="from_", metavar="Q,R", help="a point near the period-N orbit at A")
+    p.add_argument("--period", type=_count("period", 1, 1024), default=1)
+    p.add_argument("--switch", action="store_true", help="at each period doubling, follow the doubled orbit too")
+    p.add_argument("--max-period", type=_count("max-period", 1, 1024), default=16, help="cap of a cascade")
+    p.add_argument("--max-points", type=_count("max-points", 2, 1_000_000), default=5000, help="per branch")
+    p.add_argument("--ds", type=_number("ds"), help="first arclength step in (q, r, (p - A) / (B - A)) (default 0.02)")
+    p.add_argument("--ds-min", type=_number("ds-min"), help="smallest step before a branch gives up (default 1e-7)")
+    p.add_argument("--ds-max", type=_number("ds-max"), help="largest step (default 0.1)")
+    p.add_argument("--param2", help="also follow each fold / period doubling in (PARAM, PARAM2)")
+    p.add_argument("--range2", metavar="C,D", help="the range of PARAM2")
+
+
+def cmd_continue(args: argparse.Namespace) -> int:
+    from explorer_core.analyses.continuation import continue_orbit
+    from explorer_core.analyses.orbits import ORBIT_NUMERICS
+    from explorer_core.analyses.sweeps import check_param
+
+    params, _ = _params(args)
+    name = check_param(args.param)
+    lo, hi = _span(args.range, "--range")
+    for v in (lo, hi):  # positive-definite tensors are convex: both ends valid means the whole range is
+        try:
+            params.with_(**{name: v})
+        except ParameterError as exc:
+            raise UsageError(f"--range {args.range}: {name} = {v:g} is not a valid system ({exc})") from None
+    numerics = _numerics(args, None, 1, base=ORBIT_NUMERICS)
+    if args.from_ is None:
+        raise UsageError("give --from Q,R: a point near the period-N orbit at the range's first value")
+    q, r = _point_in_bound(args.from_, "--from", numerics)
+    if (args.param2 is None) != (args.range2 is None):
+        raise UsageError("--param2 and --range2 go together")
+    steps = {"ds": args.ds, "ds_min": args.ds_min, "ds_max": args.ds_max}
+    for key, v in steps.items():
+        if v is not None and v <= 0:
+            raise UsageError(f"--{key.replace('_', '-')} must be > 0, got {v:g}")
+    ds, ds_min, ds_max = (v if v is not None else d for v, d in zip(steps.values(), (0.02, 1e-7, 0.1), strict=True))
+    if not ds_min <= ds <= ds_max:
+        raise UsageError(f"the steps must have ds-min <= ds <= ds-max, got {ds_min:g}, {ds:g}, {ds_max:g}")
+    with _Run(args) as run:
+        res = continue_orbit(params, name, (lo, hi), (q, r), args.period, switch=args.switch,
+                             max_period=args.max_period, numerics=numerics, param2=args.param2, cancel=run,
+                             max_points=args.max_points,
+                             range2=_span(args.range2, "--range2") if args.range2 else None,
+                             progress=lambda n, v: run.line(f"{n} points, {name} = {v:.8g}"), **steps)  # fmt: skip
+    summary = res.summary()
+    if args.out:
+        header = ["branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable"]
+        rows = ([i, br.period, v, x[0], x[1], *_multiplier_cells(mu), st] for i, br in enumerate(res.branches)
+                for v, x, mu, st in zip(br.values, br.states, br.mults, br.stable, strict=True))  # fmt: skip
+        summary["csv"] = {"path": args.out, "rows": export.write_csv(args.out, header, rows)}
+
+    def lines() -> list[str]:
+        return [*(f"branch {i}: period {br.period}, {len(br.values)} points, {name} {br.values[0]:.10g} .. "
+                  f"{br.values[-1]:.10g} ({br.stop})" for i, br in enumerate(res.branches)),
+                *(f"{b.kind} of the period-{b.period} orbit at {name} = {b.value:.12g} +- {b.error:.1g}"
+                  for b in res.bifurcations), *res.messages]  # fmt: skip
+
+    return _finish(args, summary, lines, result=res, what="branches")
+
+
+def _manifolds_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--orbit", required=True, metavar="Q,R", help="a point near the saddle orbit (Newton finds it)")
+    p.add_argument("--period", type=_count("period", 1, 64), default=1, help="the orbit's period (default 1)")
+    p.add_argument("--length", type=_number("length"), default=10.0, help="arc length of each branch (default 10)")
+    p.add_argument("--kinds", metavar="K[,K]", help="unstable, stable or both (default both)")
+    p.add_argument("--view", metavar="Q0,Q1,R0,R1", help="the plot window the curves are refined for "
+                   "(default: the scene's, else around the orbit)")  # fmt: skip
+    p.add_argument("--pixels", metavar="W,H", help="the window's size in pixels (default 800,600)")
+    p.add_argument("--delta-px", type=_number("delta-px"), default=3.0, help="longest segment in pixels (default 3)")
+    p.add_argument("--max-points", type=_count("max-points", 100, 10_000_000), default=200_000,
+                   help="points computed over all branches (default 200000)")  # fmt: skip
+
+
+def cmd_manifolds(args: argparse.Namespace) -> int:
+    from explorer_core.analyses.manifolds import KINDS, PIXELS, iter_manifolds, saddle_orbit
+
+    params, scene = _params(args)
+    bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
+    numerics = _numerics(args, None, 1, base=Numerics(method="dop853", rtol=1e-10, atol=1e-10, bound=bound))
+    point = _floats(args.orbit, 2, "--orbit")
+    kinds = [k.strip() for k in args.kinds.split(",")] if args.kinds else list(KINDS)
+    if not kinds or any(k not in KINDS for k in kinds):
+        raise UsageError(f"--kinds must be unstable, stable or both (comma-separated), got {args.kinds!r}")
+    view = _box(args.view, "--view", (*scene.q_range, *scene.r_range) if scene else None)
+    pixels = _ints(args.pixels, "--pixels", "W,H") if args.pixels else list(PIXELS)
+    orbit = saddle_orbit(params, point, args.period)
+    result = None
+    with _Run(args) as run:
+        for result in iter_manifolds(params, orbit, kinds=kinds, length=args.length, view=view, pixels=pixels,
+                                     delta_px=args.delta_px, numerics=numerics, max_points=args.max_points,
+                                     cancel=run):  # fmt: skip
+            run.line(f"{result.elapsed_s:.1f} s: " + ", ".join(f"{b.kind[0]}{b.label} {b.length:.3g}"
+                                                              for b in result.branches))  # fmt: skip
+    assert result is not None
+    summary = _with_scene(result.summary(), args)
+    if args.out:
+        summary["csv"] = {"path": args.out, "rows": result.to_csv(args.out)}
+
+    def lines() -> list[str]:
+        o = result.orbit
+        out = [f"period {o.period} {o.kind} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g}), "
+               f"mu = {o.multipliers[0].real:.6g}, {o.multipliers[1].real:.6g}"]  # fmt: skip
+        for b in result.branches:
+            npts = sum(p.shape[0] for p in b.pieces)
+            out.append(f"  {b.kind:8s} {b.label}: length {b.length:.4g}, {npts} points, {len(b.pieces)} piece(s), "
+                       f"{b.status}" + (f", {b.escaped} escaped" if b.escaped else ""))  # fmt: skip
+        homoclinic = sum(c.kind == "homoclinic" for c in result.crossings)
+        return [*out, f"{len(result.crossings)} crossings ({homoclinic} homoclinic), {result.elapsed_s:.2f} s"]
+
+    return _finish(args, summary, lines, result=result, completed=not run(), what="manifolds' points")
+
+
+def _chart_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--x-param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
+    p.add_argument("--x-range", required=True, metavar="A,B")
+    p.add_argument("--y-param", required=True)
+    p.add_argument("--y-range", required=True, metavar="C,D")
+    p.add_argument("--grid", default="40,40", metavar="NX,NY", help="pixels (default 40,40)")
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition per pixel (repeatable)")
+    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), default=500)
+    p.add_argument("--periods", type=_count("periods", 4, 1_000_000), default=500, help="measured periods")
+    p.add_argument("--p-max", type=_count("p-max", 1, 1000), default=16, help="longest cycle detected")
+    p.add_argument("--tol", type=_number("tol"), default=1e-5, help="return tolerance (relative to 1 + |x|)")
+    p.add_argument("--lyap-threshold", type=_number("lyap-threshold"), default=5e-3, help="chaos above (per time)")
+    p.add_argument("--coarse", type=_count("coarse", 1, 1024), default=8, help="stride of the first coarse pass")
+    p.add_argument("--refine", action="store_true", help="finer levels only where neighbours differ (README)")
+    _scheduler_arg(p)
 
 
 def cmd_chart(args: argparse.Namespace) -> int:
@@ -746,198 +780,173 @@ def cmd_chart(args: argparse.Namespace) -> int:
 
     params, scene = _params(args)
     outs = args.out or []
-    for path in outs:
-        _check_out(path)
-        if not path.lower().endswith((".npz", ".csv", ".png")):
-            raise UsageError(f"--out must end in .npz, .csv or .png, got {path!r}")
     if not outs and not args.json:
         raise UsageError("give --out FILE(.npz/.csv/.png) (repeatable) and/or --json")
-    grid = [int(v) for v in _floats(args.grid, 2, "--grid")]
-    ics = _ics_arg(args, scene)
-    if ics is None:
-        ics = np.array(scene.points[:1]) if scene is not None and scene.points else np.array([[0.1, 0.1]])
+    ics = _ics(args)
     if args.rtol is None and args.atol is None:
         args.rtol = DEFAULT_CHART_TOL  # a chart needs the regime, not 1e-10 accuracy
-    spec = chart_spec(
-        params,
-        args.x_param,
-        _floats(args.x_range, 2, "--x-range"),
-        args.y_param,
-        _floats(args.y_range, 2, "--y-range"),
-        grid,
-        ics=ics,
-        transient=args.transient,
-        periods=args.periods,
-        p_max=args.p_max,
-        tol=args.tol,
-        lyap_threshold=args.lyap_threshold,
-        numerics=_numerics(args, None, args.transient + args.periods),
-    )
-    write, show = _progress_line(args.quiet)
-    with _Interrupt() as stop:
-        chart = regime_chart(
-            spec,
-            coarse=args.coarse,
-            progress=lambda u: write(
-                f"{int(u.chart.computed.sum())}/{u.chart.computed.size} pixels, {u.chart.elapsed_s:.1f} s"
-            ),
-            cancel=stop,
-            executor=_executor(args),
-            refine=args.refine,
-        )
-    if show:
-        sys.stderr.write("\n")
+    spec = chart_spec(params, args.x_param, _span(args.x_range, "--x-range"), args.y_param,
+                      _span(args.y_range, "--y-range"), _ints(args.grid, "--grid", "NX,NY"),
+                      ics=_scene_point(scene) if ics is None else ics, transient=args.transient, periods=args.periods,
+                      p_max=args.p_max, tol=args.tol, lyap_threshold=args.lyap_threshold,
+                      numerics=_numerics(args, None, args.transient + args.periods))  # fmt: skip
+    with _Run(args) as run:
+        chart = regime_chart(spec, coarse=args.coarse, cancel=run, executor=_executor(args), refine=args.refine,
+                             progress=lambda u: run.line(f"{int(u.chart.computed.sum())}/{u.chart.computed.size} "
+                                                         f"pixels, {u.chart.elapsed_s:.1f} s"))  # fmt: skip
     summary = chart.summary()
     if args.scheduler:
         summary["scheduler"] = args.scheduler
-    written = []
     for path in outs:
         low = path.lower()
         if low.endswith(".npz"):
-            chart.to_npz(path)
+            export.write_through(path, chart.to_npz)
         elif low.endswith(".csv"):
             chart.to_csv(path)
         else:
             from explorer_core.reports.render import render_chart  # matplotlib only when a picture is asked for
 
             render_chart(chart, path)
-        written.append(path)
-    summary["out"] = written
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        print(f"{summary['computed']}/{summary['pixels']} pixels, {summary['counts']}, {chart.elapsed_s:.1f} s")
-    if not chart.completed:
-        sys.stderr.write("bilimovich: interrupted; the pixels computed so far were written\n")
-        return 130
-    return 0
+    summary["out"] = outs
+    return _finish(args, summary, lambda: [f"{summary['computed']}/{summary['pixels']} pixels, {summary['counts']}, "
+                                           f"{chart.elapsed_s:.1f} s"], result=chart, what="pixels")  # fmt: skip
+
+
+def _basins_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--box", metavar="Q0,Q1,R0,R1", help="the initial conditions' window (default: the scene's box)")
+    p.add_argument("--grid", default="100,100", metavar="NX,NY", help="pixels (default 100,100)")
+    p.add_argument("--max-periods", type=_count("max-periods", 1, config.MAX_PERIODS), default=3000,
+                   help="a pixel with no fate after this many periods is undecided (label -3)")  # fmt: skip
+    p.add_argument("--cell-box", metavar="Q0,Q1,R0,R1", help="box of the recurrence cells (default: --box widened "
+                   "by its size on every side)")  # fmt: skip
+    p.add_argument("--cells", metavar="NQ,NR", help="recurrence cells per axis (default 64 across --box)")
 
 
 def cmd_basins(args: argparse.Namespace) -> int:
     from explorer_core.analyses.basins import basin_spec, iter_basins
 
     params, scene = _params(args)
-    if args.box:
-        box = check_box(_floats(args.box, 4, "--box"))
-    elif scene is not None:
-        box = scene.box
-    else:
+    box = _box(args.box, "--box", scene.box if scene else None)
+    if box is None:
         raise UsageError("give --box Q0,Q1,R0,R1 (no --scene to take it from)")
-    grid = _floats(args.grid, 2, "--grid")
-    if not all(v == int(v) for v in grid):
-        raise UsageError(f"--grid must be two whole numbers NX,NY, got {args.grid!r}")
-    if args.out:
-        _check_out(args.out)
-        if not args.out.lower().endswith(".npz"):
-            raise UsageError(f"--out must end in .npz, got {args.out!r}")
+    grid = _ints(args.grid, "--grid", "NX,NY")
     opts: dict[str, Any] = {"max_periods": args.max_periods}
     if args.cell_box:
-        opts["cell_box"] = check_box(_floats(args.cell_box, 4, "--cell-box"), "--cell-box")
+        opts["cell_box"] = _box(args.cell_box, "--cell-box", None)
     if args.cells:
-        opts["cells"] = [int(v) for v in _floats(args.cells, 2, "--cells")]
-    nx, ny = (int(v) for v in grid)
-    base = basin_spec(params, box, (nx, ny), **opts)
-    spec = basin_spec(params, box, (nx, ny), numerics=_numerics(args, None, 1, base=base.numerics), **opts)
-    write, show = _progress_line(args.quiet)
+        opts["cells"] = _ints(args.cells, "--cells", "NQ,NR")
+    base = basin_spec(params, box, grid, **opts)
+    spec = basin_spec(params, box, grid, numerics=_numerics(args, None, 1, base=base.numerics), **opts)
     result = None
-    with _Interrupt() as stop:
-        for upd in iter_basins(spec, cancel=stop):
+    with _Run(args) as run:
+        for upd in iter_basins(spec, cancel=run):
             result = upd.basins
-            write(f"every {upd.stride}th pixel: {upd.done_pixels}/{upd.total_pixels} pixels, "
-                  f"{len(result.attractors)} attractors, {result.elapsed_s:.1f} s")  # fmt: skip
-    if show:
-        sys.stderr.write("\n")
+            run.line(f"every {upd.stride}th pixel: {upd.done_pixels}/{upd.total_pixels} pixels, "
+                     f"{len(result.attractors)} attractors, {result.elapsed_s:.1f} s")  # fmt: skip
     if result is None:
-        sys.stderr.write("bilimovich: interrupted before any pixel was computed\n")
+        sys.stderr.write("bilimovich basins: interrupted before any pixel was computed\n")
         return 130
-    summary = result.summary()
-    if args.scene:
-        summary["scene"] = args.scene
+    summary = _with_scene(result.summary(), args)
     if args.out:
-        result.to_npz(args.out)
+        export.write_through(args.out, result.to_npz)
         summary["out"] = args.out
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
+
+    def lines() -> list[str]:
+        out = []
         for a in result.attractors:
             per = f" period {a.period}" if a.period else ""
             at = f" at ({a.points[0, 0]:.6g}, {a.points[0, 1]:.6g})" if a.points.shape[0] else ""
-            print(f"attractor {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%")
-        print(f"{summary['computed']}/{summary['pixels']} pixels, {summary['statuses']}, {result.elapsed_s:.2f} s")
-        if "note" in summary:
-            print(summary["note"])
-    if not result.completed:
-        sys.stderr.write("bilimovich: interrupted; the pixels computed so far were written\n")
-        return 130
-    return 0
+            out.append(f"attractor {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%")
+        out.append(f"{summary['computed']}/{summary['pixels']} pixels, {summary['statuses']}, {result.elapsed_s:.2f} s")
+        return out + ([summary["note"]] if "note" in summary else [])
+
+    return _finish(args, summary, lines, result=result, what="pixels")
+
+
+def _fit_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--window", required=True, metavar="K0,K1", help="inclusive k range (k = 0 is the IC)")
+    p.add_argument("--degree", default="1,2", metavar="DQ,DR", help="degrees of the q and r polynomials")
+    p.add_argument("--members", type=_count("members", 1, 10_000), default=10, help="drifting ICs to average")
+    p.add_argument("--ic", action="append", metavar="Q,R", help="explicit ICs instead of random ones")
+    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for random ICs (default: the scene's)")
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--criterion", choices=["on_curve", "leaves"], default="on_curve", help="which ICs count")
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
     from explorer_core.analyses.drift import drift_fit
 
     params, scene = _params(args)
-    k0, k1 = (int(v) for v in _floats(args.window, 2, "--window"))
-    dq, dr = (int(v) for v in _floats(args.degree, 2, "--degree"))
-    ics = _ics_arg(args, scene)
-    box = check_box(_floats(args.box, 4, "--box")) if args.box else (scene.box if scene else None)
+    k0, k1 = _ints(args.window, "--window", "K0,K1", 0, config.MAX_PERIODS)
+    degree = _ints(args.degree, "--degree", "DQ,DR", 0, 32)
+    ics = _ics(args)
+    box = _box(args.box, "--box", scene.box if scene else None)
     if ics is None and box is None:
         raise UsageError("give --ic Q,R (repeatable) or --box QMIN,QMAX,RMIN,RMAX for random members")
-    if args.out:
-        _check_out(args.out)
-    write, show = _progress_line(args.quiet)
-    with _Interrupt() as stop:
-        fit = drift_fit(
-            params,
-            (k0, k1),
-            degree=(dq, dr),
-            m=args.members,
-            ics=ics,
-            box=box,
-            seed=args.seed,
-            criterion=args.criterion,
-            numerics=_numerics(args, None, k1),
-            progress=lambda found, draws: write(f"{found}/{args.members} members on the drift, {draws} tried"),
-            cancel=stop,
-        )
-    if show:
-        sys.stderr.write("\n")
+    with _Run(args) as run:
+        fit = drift_fit(params, (k0, k1), degree=tuple(degree), m=args.members, ics=ics, box=box, seed=args.seed,
+                        criterion=args.criterion, numerics=_numerics(args, None, k1), cancel=run,
+                        progress=lambda found, draws: run.line(f"{found}/{args.members} members on the drift, "
+                                                               f"{draws} tried"))  # fmt: skip
     summary = fit.summary()
     if args.out:
-        with open(args.out, "w") as fh:
-            fh.write("member,k,q,r\n")
-            for i, x in enumerate(fit.series):
-                for k in range(x.shape[0]):
-                    fh.write(f"{i},{k},{x[k, 0]!r},{x[k, 1]!r}\n")
+        rows = ((i, k, x[k, 0], x[k, 1]) for i, x in enumerate(fit.series) for k in range(x.shape[0]))
+        export.write_csv(args.out, ["member", "k", "q", "r"], rows)
         summary["csv"] = args.out
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        print(f"{summary['members']} members (rejected {summary['rejected']}, failed {summary['failed']})")
-        print(f"q(k) = {summary['q']['formula']}")
-        print(f"r(k) = {summary['r']['formula']}")
-        print(f"residual RMS q {summary['residual_rms']['q']:.4g}, r {summary['residual_rms']['r']:.4g}")
-    return 0
+
+    def lines() -> list[str]:
+        s = summary
+        return [f"{s['members']} members (rejected {s['rejected']}, failed {s['failed']})",
+                f"q(k) = {s['q']['formula']}", f"r(k) = {s['r']['formula']}",
+                f"residual RMS q {s['residual_rms']['q']:.4g}, r {s['residual_rms']['r']:.4g}"]  # fmt: skip
+
+    return _finish(args, summary, lines, result=fit, completed=True)
+
+
+def _symmetry_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
+    p.add_argument("--random", type=_count("random", 1, 10_000), default=4, metavar="N", help="random ICs")
+    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for random ICs (default +-1)")
+    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--periods", type=_count("periods", 1, 100_000), default=10, help="compared section points")
+    p.add_argument("--centre", type=_number("centre"), help="centre s of t -> 2s - t (default t0)")
+    p.add_argument("--tol", type=_number("tol"), default=1e-6, help="largest distance counted as symmetric")
 
 
 def cmd_symmetry(args: argparse.Namespace) -> int:
     from explorer_core.analyses.symmetry import check_symmetry
 
-    params, scene = _params(args)
-    ics = _ics_arg(args, scene)
+    params, _ = _params(args)
+    ics = _ics(args)
     if ics is None:
-        box = check_box(_floats(args.box, 4, "--box")) if args.box else (-1.0, 1.0, -1.0, 1.0)
-        ics = random_ics(args.random, box, seed=args.seed)
+        ics = random_ics(args.random, _box(args.box, "--box", (-1.0, 1.0, -1.0, 1.0)), seed=args.seed)
     numerics = _numerics(args, None, args.periods) if (args.rtol or args.method) else None
     check = check_symmetry(params, ics, args.periods, centre=args.centre, tol=args.tol, numerics=numerics)
     summary = check.summary()
-    if args.json:
-        _write_json(summary)
-    else:
+
+    def lines() -> list[str]:
         verdict = "holds" if check.holds else "is broken"
-        print(f"involution t -> {2 * check.centre:g} - t, r -> -r {verdict}: max distance {check.max_distance:.3g}")
-        for reason in summary["broken_by"]:
-            print(f"  broken by: {reason}")
-    return 0
+        return [f"involution t -> {2 * check.centre:g} - t, r -> -r {verdict}: max distance {check.max_distance:.3g}",
+                *(f"  broken by: {reason}" for reason in summary["broken_by"])]  # fmt: skip
+
+    return _finish(args, summary, lines, result=check, completed=True)
+
+
+def _serve_args(p: argparse.ArgumentParser) -> None:
+    env = os.environ  # defaults from the environment, so a container (exec-form CMD) can be configured
+    p.add_argument("--port", type=_count("port", 1, 65535), default=env.get("BILIMOVICH_PORT", "5006"))
+    p.add_argument("--address", default=env.get("BILIMOVICH_ADDRESS", "127.0.0.1"),
+                   help="interface to listen on (0.0.0.0 for all); env BILIMOVICH_ADDRESS")  # fmt: skip
+    p.add_argument("--threads", type=_count("threads", 1, 64), default=env.get("BILIMOVICH_SESSION_THREADS", "4"),
+                   help="threads for session callbacks; env BILIMOVICH_SESSION_THREADS")  # fmt: skip
+    p.add_argument("--allow-websocket-origin", action="append", metavar="HOST[:PORT]",
+                   help="host names browsers may connect from (repeatable; default localhost); "
+                        "env BILIMOVICH_ALLOWED_ORIGINS, comma-separated")  # fmt: skip
+    p.add_argument("--session-lifetime", type=_count("session-lifetime", 1000, 3_600_000), default=15000,
+                   metavar="MS", help="discard a closed tab's session after this many ms (default 15000)")  # fmt: skip
+    p.add_argument("--procs", default=env.get("BILIMOVICH_PROCS", "1"), metavar="N|auto",
+                   help="server processes on one port ('auto': one per usable CPU); env BILIMOVICH_PROCS")  # fmt: skip
+    p.add_argument("--show", action="store_true", help="open a browser")
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
@@ -955,15 +964,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
     for origin in origins:
         if not re.fullmatch(r"[A-Za-z0-9.\-\[\]:]+", origin) or origin == "*":
             raise UsageError(f"--allow-websocket-origin must be HOST[:PORT] (never '*'), got {origin!r}")
-    try:
-        procs = config.resolve_procs(args.procs)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
+    procs = config.resolve_procs(args.procs)  # a ValueError is a usage error
     spec = {"port": args.port, "address": args.address, "threads": args.threads, "origins": origins,
             "session_lifetime": args.session_lifetime, "procs": procs, "show": bool(args.show)}  # fmt: skip
     sys.stderr.write(f"Bilimovich Explorer on http://{args.address}:{args.port}/main ({procs} process(es))\n")
     sys.stderr.flush()
-    os.execv(sys.executable, [sys.executable, "-m", "app.serve", "--launch", json.dumps(spec)])
+    os.execv(sys.executable, [sys.executable, "-m", "app.serve", "--launch", export.dumps(spec)])
     return 0  # not reached
 
 
@@ -973,20 +979,18 @@ def _out_dir(args: argparse.Namespace) -> str:
     parent = os.path.dirname(out)
     if not os.path.isdir(parent):
         raise UsageError(f"--out parent directory does not exist: {parent}")
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise UsageError(f"--out must be a directory, got the file {out}")
     os.makedirs(out, exist_ok=True)
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise UsageError(f"--out directory cannot be written: {out}")
     return out
 
 
-def _report(args: argparse.Namespace, summary: dict[str, Any], lines: list[str], completed: bool, what: str) -> int:
-    """End of a long batch command: JSON or ``lines`` on stdout; exit 130 if interrupted (``what`` was written)."""
-    if args.json:
-        _write_json(summary)
-    elif not args.quiet:
-        print("\n".join(lines))
-    if not completed:
-        sys.stderr.write(f"bilimovich: interrupted; what was {what} was written\n")
-        return 130
-    return 0
+def _staged_args(p: argparse.ArgumentParser, stages: str, quick: str) -> None:
+    p.add_argument("--quick", action="store_true", help=f"reduced sizes: {quick}")
+    p.add_argument("--size", choices=["tiny", "quick", "full"], help="explicit size (overrides --quick)")
+    p.add_argument("--stages", metavar="LIST", help=f"subset of {stages}")
 
 
 def _staged_run(args: argparse.Namespace) -> tuple[str, str, tuple[str, ...] | None, Callable[[str, float], None]]:
@@ -1008,24 +1012,27 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
 
     out, size, stages, progress = _staged_run(args)
     start = time.perf_counter()
-
-    with _Interrupt() as stop:
-        rep = reproduce(size, stages=stages, progress=progress, cancel=stop)
+    with _Run(args) as run:
+        rep = reproduce(size, stages=stages, progress=progress, cancel=run)
     from explorer_core.reports.render import render_reproduction  # matplotlib only here
 
     figures = render_reproduction(rep, out)
-    rep.write_table(os.path.join(out, "table.md"), os.path.join(out, "table.csv"))
-    summary = rep.summary()
-    summary["figures"] = figures
-    summary["table"] = [os.path.join(out, "table.md"), os.path.join(out, "table.csv")]
-    summary["elapsed_s"] = round(time.perf_counter() - start, 2)
-    with open(os.path.join(out, "reproduce.json"), "w") as fh:
-        json.dump(summary, fh, indent=1)
-    lines = [
-        rep.table_markdown(),
-        f"{len(figures)} figures and the table in {out} ({summary['elapsed_s']:.0f} s, size {size})",
-    ]
-    return _report(args, summary, lines, rep.completed, "computed")
+    table = [os.path.join(out, "table.md"), os.path.join(out, "table.csv")]
+    rep.write_table(*table)
+    summary = {**rep.summary(), "figures": figures, "table": table, "elapsed_s": round(time.perf_counter() - start, 2)}
+    export.write_json(os.path.join(out, "reproduce.json"), summary)
+    lines = [rep.table_markdown(),
+             f"{len(figures)} figures and the table in {out} ({summary['elapsed_s']:.0f} s, size {size})"]  # fmt: skip
+    return _finish(args, summary, lambda: lines, result=rep, what="results")
+
+
+def _bench_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quick", action="store_true", help="a small run (under a minute): short horizons, few settings")
+    p.add_argument("--cases", metavar="LIST", help="subset of regular,chaotic,attractor,drift")
+    p.add_argument("--repeat", type=_count("repeat", 1, 100), help="timing repeats (median; default 3, quick 1)")
+    p.add_argument("--no-peers", action="store_true", help="only this project's methods")
+    p.add_argument("--no-throughput", action="store_true", help="skip the throughput and target measurements")
+    p.add_argument("--cache-dir", metavar="DIR", help="reference cache (default $BILIMOVICH_CACHE_DIR/bench)")
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
@@ -1052,8 +1059,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
             sys.stderr.write(f"[{p.done}/{p.total} {p.elapsed_s:5.0f} s] {p.text}\n")
             sys.stderr.flush()
 
-    with _Interrupt() as stop:
-        res = bench.run_bench(cfg, cache_dir_=args.cache_dir, progress=progress, cancel=stop)
+    with _Run(args) as run:
+        res = bench.run_bench(cfg, cache_dir_=args.cache_dir, progress=progress, cancel=run)
     data = res.as_dict()
     files = res.write(out)
     from explorer_core.reports.render import render_work_precision  # matplotlib only here
@@ -1066,7 +1073,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
                "horizons": {k: c.horizon for k, c in res.cases.items()}, "peers": res.peers,
                "ratios": data["ratios"], "throughput": data["throughput"]}  # fmt: skip
     lines = [res.headline(), f"{len(res.rows)} rows; {', '.join(os.path.basename(f) for f in files)} in {out}"]
-    return _report(args, summary, lines, res.completed, "measured")
+    return _finish(args, summary, lambda: lines, result=res, what="measurements")
 
 
 def cmd_failures(args: argparse.Namespace) -> int:
@@ -1074,343 +1081,15 @@ def cmd_failures(args: argparse.Namespace) -> int:
 
     out, size, stages, progress = _staged_run(args)
     start = time.perf_counter()
-
-    with _Interrupt() as stop:
-        fm = failure_map(size, stages=stages, progress=progress, cancel=stop)
+    with _Run(args) as run:
+        fm = failure_map(size, stages=stages, progress=progress, cancel=run)
     from explorer_core.reports.failure_render import render_failures  # matplotlib only here
 
     figures = render_failures(fm, out)
-    summary = fm.summary()
-    summary["figures"] = figures
-    summary["elapsed_s"] = round(time.perf_counter() - start, 2)
-    with open(os.path.join(out, "failures.json"), "w") as fh:
-        json.dump(summary, fh, indent=1)
-    lines = [f"failures.json and {len(figures)} pictures in {out} ({summary['elapsed_s']:.0f} s, size {size})"]
-    return _report(args, summary, lines, fm.completed, "measured")
-
-
-def cmd_warmup(args: argparse.Namespace) -> int:
-    from explorer_core.warm import warm_all as warmup
-
-    start = time.perf_counter()
-    warmup()
-    print(f"kernels ready in {time.perf_counter() - start:.2f} s")
-    return 0
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
-        prog="bilimovich",
-        description="Inhomogeneous nonholonomic Bilimovich system: sections, equilibria, T' maps.",
-    )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
-
-    p = sub.add_parser("scenes", help="list the paper's scenes")
-    p.add_argument("--json", action="store_true", help="full scene data as JSON")
-    p.set_defaults(func=cmd_scenes)
-
-    p = sub.add_parser("section", help="stroboscopic (Poincare) section at t0 + k T")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
-    p.add_argument("--random", type=_count("random", 1, config.MAX_TRAJECTORIES), metavar="N")
-    p.add_argument("--seed", type=_count("seed", 0, 2**63 - 1), default=0)
-    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for --random")
-    p.add_argument("--periods", type=_count("periods", 1, config.MAX_PERIODS), help="section points per trajectory")
-    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), help="periods dropped first")
-    p.add_argument("--backward", action="store_true", help="integrate backward in time (points at t0 - k T)")
-    p.add_argument("--out", metavar="FILE.csv", help="CSV with columns traj,k,q,r")
-    p.add_argument("--json", action="store_true", help="print a JSON summary to stdout")
-    p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.set_defaults(func=cmd_section)
-
-    p = sub.add_parser("density", help="a long section (up to 10^7 points) as a density image of a window")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--random", type=_count("random", 1, config.MAX_TRAJECTORIES), default=1000, metavar="N",
-                   help="random initial conditions in --box (default 1000)")  # fmt: skip
-    p.add_argument("--seed", type=_count("seed", 0, 2**63 - 1), default=0)
-    p.add_argument("--box", metavar="Q0,Q1,R0,R1", help="box of the initial conditions (default: the scene's)")
-    p.add_argument("--periods", type=_count("periods", 1, config.MAX_PERIODS), help="section points per trajectory")
-    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), help="periods dropped first")
-    p.add_argument("--view", metavar="Q0,Q1,R0,R1", help="the image's window (default: the scene's)")
-    p.add_argument("--pixels", metavar="W,H", help="the image's size (default 800,600; at most 4096 each)")
-    p.add_argument("--out", metavar="FILE.npz", help="counts (H x W, row 0 at R0), q_edges, r_edges, summary")
-    p.add_argument("--json", action="store_true", help="print a JSON summary to stdout")
-    p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.set_defaults(func=cmd_density)
-
-    p = sub.add_parser("critical", help="equilibria ('critical points') of the frozen-time field")
-    _add_system_args(p)
-    p.add_argument("--t", type=_number("t"), help="frozen time (default t0)")
-    p.add_argument("--track", action="store_true", help="track them over one period")
-    p.add_argument("--n-t", type=_count("n-t", 2, 1_000_000), default=721, help="time samples for --track")
-    p.add_argument("--out", metavar="FILE.csv")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=cmd_critical)
-
-    p = sub.add_parser("tprime", help="sign and value of T' = dT/dt on a (q, r) grid")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--t", type=_number("t"), help="frozen time (default t0)")
-    p.add_argument("--q-range", metavar="A,B")
-    p.add_argument("--r-range", metavar="C,D")
-    p.add_argument("--grid", type=_count("grid", 2, config.MAX_GRID), default=200)
-    p.add_argument("--per-period", action="store_true", help="energy change over one period from t0 instead")
-    p.add_argument("--out", metavar="FILE.npz")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=cmd_tprime)
-
-    p = sub.add_parser("lyapunov", help="Lyapunov exponents, Kaplan-Yorke dimension, divergence check")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable: one member each)")
-    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), help="periods dropped first")
-    p.add_argument("--periods", type=_count("periods", 1, config.MAX_PERIODS), default=2000, help="measured periods")
-    p.add_argument("--ensemble", type=_count("ensemble", 1, 10_000), default=1, metavar="M", help="members")
-    p.add_argument("--offset", type=_number("offset"), default=1e-6, help="relative offset of ensemble members")
-    p.add_argument("--seed", type=_count("seed", 0, 2**63 - 1), default=0)
-    p.add_argument("--history", metavar="FILE.csv", help="running estimates per period (member,k,L1,L2,...)")
-    p.add_argument("--json", action="store_true", help="print the JSON summary")
-    p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.set_defaults(func=cmd_lyapunov)
-
-    p = sub.add_parser("bifurcation", help="orbit diagram of the Poincare map over one parameter")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
-    p.add_argument("--range", required=True, metavar="A,B", help="parameter range")
-    p.add_argument("--n-values", type=_count("n-values", 1, 65536), default=200, metavar="N")
-    p.add_argument("--points", type=_count("points", 1, 1_000_000), default=200, help="section points per value")
-    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), default=500)
-    p.add_argument("--seeding", choices=["continuation", "fixed"], default="continuation")
-    p.add_argument("--sweeps", metavar="forward,backward", help="continuation sweeps (default both)")
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
-    p.add_argument("--out", metavar="FILE.csv", help="CSV sweep,value_index,value,ic,k,q,r,status")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask cluster: tcp://HOST:PORT or local:N (docs/dask.md)")
-    p.add_argument("--json", action="store_true")
-    p.add_argument("--quiet", action="store_true")
-    p.set_defaults(func=cmd_bifurcation)
-
-    p = sub.add_parser("orbits", help="periodic orbits of the Poincare map: Newton on P^n(x) - x, multipliers, type")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--period", type=_count("period", 1, 1_000_000), help="this period only")
-    p.add_argument("--max-period", type=_count("max-period", 1, 1_000_000), help="periods 1..N (default 1)")
-    p.add_argument("--seed", action="append", metavar="Q,R", help="a starting point (repeatable)")
-    p.add_argument("--box", help="Q0,Q1,R0,R1: the grid of seeds (default: the scene's box)")
-    p.add_argument("--seeds", metavar="NX,NY", help="a grid of NX x NY seeds over --box (default 10,10 without --seed)")
-    p.add_argument("--returns", type=_count("returns", 1, 10_000), metavar="N",
-                   help="also seed from near-returns of a section of N random trajectories in the box")  # fmt: skip
-    p.add_argument("--in-box", action="store_true", help="keep only orbits whose points are all in the box")
-    p.add_argument("--thorough", action="store_true", help="no early stop of slow seeds (slower, finds more)")
-    p.add_argument("--out", metavar="FILE.csv", help="orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im")
-    p.add_argument("--json", action="store_true", help="print the JSON result")
-    p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.set_defaults(func=cmd_orbits)
-
-    p = sub.add_parser("manifolds", help="stable and unstable manifolds of a saddle orbit, homoclinic points")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--orbit", required=True, metavar="Q,R", help="a point near the saddle orbit (Newton finds it)")
-    p.add_argument("--period", type=_count("period", 1, 64), default=1, help="the orbit's period (default 1)")
-    p.add_argument("--length", type=_number("length"), default=10.0, help="arc length of each branch (default 10)")
-    p.add_argument("--kinds", metavar="K[,K]", help="unstable, stable or both (default both)")
-    p.add_argument(
-        "--view",
-        metavar="Q0,Q1,R0,R1",
-        help="the plot window the curves are refined for (default: the scene's, else around the orbit)",
-    )
-    p.add_argument("--pixels", metavar="W,H", help="the window's size in pixels (default 800,600)")
-    p.add_argument("--delta-px", type=_number("delta-px"), default=3.0, help="longest segment in pixels (default 3)")
-    p.add_argument("--max-points", type=_count("max-points", 100, 10_000_000), default=200_000,
-                   help="points computed over all branches (default 200000)")  # fmt: skip
-    p.add_argument("--out", metavar="FILE.csv", help="CSV branch,kind,s,q,r (s: arc length from the saddle)")
-    p.add_argument("--json", action="store_true", help="print the JSON result")
-    p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.set_defaults(func=cmd_manifolds)
-
-    p = sub.add_parser("continue", help="follow a periodic orbit in a parameter through folds and period doublings")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
-    p.add_argument("--range", required=True, metavar="A,B", help="from A (where the orbit is seeded) to B")
-    p.add_argument("--from", dest="from_", metavar="Q,R", help="a point near the period-N orbit at A")
-    p.add_argument("--period", type=_count("period", 1, 1024), default=1)
-    p.add_argument("--switch", action="store_true", help="at each period doubling, follow the doubled orbit too")
-    p.add_argument("--max-period", type=_count("max-period", 1, 1024), default=16, help="cap of a cascade")
-    p.add_argument("--max-points", type=_count("max-points", 2, 1_000_000), default=5000, help="per branch")
-    p.add_argument("--param2", help="also follow each fold / period doubling in (PARAM, PARAM2)")
-    p.add_argument("--range2", metavar="C,D", help="the range of PARAM2")
-    p.add_argument("--out", metavar="FILE.csv", help="branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable")
-    p.add_argument("--json", action="store_true", help="print the JSON result")
-    p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.set_defaults(func=cmd_continue)
-
-    p = sub.add_parser("chart", help="chart of dynamical regimes on a plane of two parameters")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--x-param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
-    p.add_argument("--x-range", required=True, metavar="A,B")
-    p.add_argument("--y-param", required=True)
-    p.add_argument("--y-range", required=True, metavar="C,D")
-    p.add_argument("--grid", default="40,40", metavar="NX,NY", help="pixels (default 40,40)")
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition per pixel (repeatable)")
-    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), default=500)
-    p.add_argument("--periods", type=_count("periods", 4, 1_000_000), default=500, help="measured periods")
-    p.add_argument("--p-max", type=_count("p-max", 1, 1000), default=16, help="longest cycle detected")
-    p.add_argument("--tol", type=_number("tol"), default=1e-5, help="return tolerance (relative to 1 + |x|)")
-    p.add_argument("--lyap-threshold", type=_number("lyap-threshold"), default=5e-3, help="chaos above (per time)")
-    p.add_argument("--coarse", type=_count("coarse", 1, 1024), default=8, help="stride of the first coarse pass")
-    p.add_argument("--refine", action="store_true", help="finer levels only where neighbours differ (README)")
-    p.add_argument("--out", action="append", metavar="FILE", help=".npz, .csv or .png (repeatable)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask cluster: tcp://HOST:PORT or local:N (docs/dask.md)")
-    p.add_argument("--json", action="store_true")
-    p.add_argument("--quiet", action="store_true")
-    p.set_defaults(func=cmd_chart)
-
-    p = sub.add_parser("basins", help="basins of attraction: which attractor each IC of a grid reaches")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--box", metavar="Q0,Q1,R0,R1", help="the initial conditions' window (default: the scene's box)")
-    p.add_argument("--grid", default="100,100", metavar="NX,NY", help="pixels (default 100,100)")
-    p.add_argument("--max-periods", type=_count("max-periods", 1, config.MAX_PERIODS), default=3000,
-                   help="a pixel with no fate after this many periods is undecided (label -3)")  # fmt: skip
-    p.add_argument("--cell-box", metavar="Q0,Q1,R0,R1", help="box of the recurrence cells (default: --box widened "
-                   "by its size on every side)")  # fmt: skip
-    p.add_argument("--cells", metavar="NQ,NR", help="recurrence cells per axis (default 64 across --box)")
-    p.add_argument("--out", metavar="FILE.npz", help="arrays q (NX), r (NY), label (NY x NX)")
-    p.add_argument("--json", action="store_true", help="print the JSON result")
-    p.add_argument("--quiet", action="store_true", help="no progress line")
-    p.set_defaults(func=cmd_basins)
-
-    p = sub.add_parser("fit", help="polynomial fits of the drift q_k, r_k over a window of k, and the implied map")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--window", required=True, metavar="K0,K1", help="inclusive k range (k = 0 is the IC)")
-    p.add_argument("--degree", default="1,2", metavar="DQ,DR", help="degrees of the q and r polynomials")
-    p.add_argument("--members", type=_count("members", 1, 10_000), default=10, help="drifting ICs to average")
-    p.add_argument("--ic", action="append", metavar="Q,R", help="explicit ICs instead of random ones")
-    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for random ICs (default: the scene's)")
-    p.add_argument("--seed", type=_count("seed", 0, 2**63 - 1), default=0)
-    p.add_argument("--criterion", choices=["on_curve", "leaves"], default="on_curve", help="which ICs count")
-    p.add_argument("--out", metavar="FILE.csv", help="the members' series member,k,q,r")
-    p.add_argument("--json", action="store_true")
-    p.add_argument("--quiet", action="store_true")
-    p.set_defaults(func=cmd_fit)
-
-    p = sub.add_parser("symmetry", help="check the involution t -> -t, q -> q, r -> -r on sections")
-    _add_system_args(p)
-    _add_numerics_args(p)
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
-    p.add_argument("--random", type=_count("random", 1, 10_000), default=4, metavar="N", help="random ICs")
-    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for random ICs (default +-1)")
-    p.add_argument("--seed", type=_count("seed", 0, 2**63 - 1), default=0)
-    p.add_argument("--periods", type=_count("periods", 1, 100_000), default=10, help="compared section points")
-    p.add_argument("--centre", type=_number("centre"), help="centre s of t -> 2s - t (default t0)")
-    p.add_argument("--tol", type=_number("tol"), default=1e-6, help="largest distance counted as symmetric")
-    p.add_argument("--json", action="store_true")
-    p.set_defaults(func=cmd_symmetry)
-
-    p = sub.add_parser("serve", help="run the web explorer (panel serve app/main.py)")
-    # Defaults come from the environment so a container (exec-form CMD) can be configured.
-    env = os.environ
-    p.add_argument("--port", type=_count("port", 1, 65535), default=env.get("BILIMOVICH_PORT", "5006"))
-    p.add_argument("--address", default=env.get("BILIMOVICH_ADDRESS", "127.0.0.1"),
-                   help="interface to listen on (0.0.0.0 for all); env BILIMOVICH_ADDRESS")  # fmt: skip
-    p.add_argument("--threads", type=_count("threads", 1, 64), default=env.get("BILIMOVICH_SESSION_THREADS", "4"),
-                   help="threads for session callbacks; env BILIMOVICH_SESSION_THREADS")  # fmt: skip
-    p.add_argument("--allow-websocket-origin", action="append", metavar="HOST[:PORT]",
-                   help="host names browsers may connect from (repeatable; default localhost); "
-                        "env BILIMOVICH_ALLOWED_ORIGINS, comma-separated")  # fmt: skip
-    p.add_argument("--session-lifetime", type=_count("session-lifetime", 1000, 3_600_000), default=15000,
-                   metavar="MS", help="discard a closed tab's session after this many ms (default 15000)")  # fmt: skip
-    p.add_argument("--procs", default=env.get("BILIMOVICH_PROCS", "1"), metavar="N|auto",
-                   help="server processes on one port ('auto': one per usable CPU); env BILIMOVICH_PROCS")  # fmt: skip
-    p.add_argument("--show", action="store_true", help="open a browser")
-    p.set_defaults(func=cmd_serve)
-
-    p = sub.add_parser("reproduce", help="every figure of the paper as PNG and the table of its numbers")
-    p.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
-    p.add_argument("--quick", action="store_true", help="reduced sizes: a few minutes on 2 cores")
-    p.add_argument("--size", choices=["tiny", "quick", "full"], help="explicit size (overrides --quick)")
-    p.add_argument("--stages", metavar="LIST", help="subset of sections,lyapunov,drift,bifurcation,chart")
-    p.add_argument("--json", action="store_true")
-    p.add_argument("--quiet", action="store_true")
-    p.set_defaults(func=cmd_reproduce)
-
-    p = sub.add_parser("bench", help="work-precision benchmark: error vs time, ours against solve_ivp/numbalsoda")
-    p.add_argument("--out", required=True, metavar="DIR", help="writes bench.json/.csv/.md, work_precision.png, ...")
-    p.add_argument("--quick", action="store_true", help="a small run (under a minute): short horizons, few settings")
-    p.add_argument("--cases", metavar="LIST", help="subset of regular,chaotic,attractor,drift")
-    p.add_argument("--repeat", type=_count("repeat", 1, 100), help="timing repeats (median; default 3, quick 1)")
-    p.add_argument("--no-peers", action="store_true", help="only this project's methods")
-    p.add_argument("--no-throughput", action="store_true", help="skip the throughput and target measurements")
-    p.add_argument("--cache-dir", metavar="DIR", help="reference cache (default $BILIMOVICH_CACHE_DIR/bench)")
-    p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
-    p.set_defaults(func=cmd_bench)
-
-    p = sub.add_parser("failures", help="where the methods fail: RK4 on the drift, costs, statuses, float32, Lyapunov")
-    p.add_argument("--out", required=True, metavar="DIR", help="output directory (created): failures.json, PNGs")
-    p.add_argument("--quick", action="store_true", help="reduced sizes: about 30 s on 2 cores")
-    p.add_argument("--size", choices=["tiny", "quick", "full"], help="explicit size (overrides --quick)")
-    p.add_argument("--stages", metavar="LIST", help="subset of rk4,cost,scenarios,floats,lyapunov")
-    p.add_argument("--json", action="store_true", help="print the JSON summary")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
-    p.set_defaults(func=cmd_failures)
-
-    p = sub.add_parser("worker", help="the warm worker that answers small commands at once: status or stop")
-    p.add_argument("action", choices=["status", "stop"])
-    p.set_defaults(func=cmd_worker)
-
-    p = sub.add_parser("warmup", help="compile the numba kernels into the on-disk cache")
-    p.set_defaults(func=cmd_warmup)
-    return parser
-
-
-#: Options whose value is a comma list that may start with a minus sign.
-_LIST_OPTIONS = {"--ic", "--box", "--inertia", "--q-range", "--r-range", "--orbit", "--view", "--pixels"}
-# Options of the analyses (bifurcation, chart, fit) whose values may start with a minus sign.
-_LIST_OPTIONS |= {"--range", "--x-range", "--y-range", "--window", "--ic-box"}
-_LIST_OPTIONS |= {"--cell-box"}  # basins
-
-
-def _glue_negative_lists(argv: list[str]) -> list[str]:
-    """Let ``--q-range -1,1`` mean ``--q-range=-1,1`` (argparse would take -1,1 for an option)."""
-    out: list[str] = []
-    i = 0
-    while i < len(argv):
-        a = argv[i]
-        if a in _LIST_OPTIONS and i + 1 < len(argv) and re.match(r"^-[0-9.]", argv[i + 1]):
-            out.append(f"{a}={argv[i + 1]}")
-            i += 2
-            continue
-        out.append(a)
-        i += 1
-    return out
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(_glue_negative_lists(list(sys.argv[1:] if argv is None else argv)))
-    try:
-        return args.func(args)
-    # ParameterError is a ValueError; SchedulerError (an unusable Dask cluster) a ConnectionError.
-    except (UsageError, ValueError, ConnectionError) as exc:
-        sys.stderr.write(f"bilimovich {args.command}: error: {exc}\n")
-        return 2
-    except OSError as exc:
-        sys.stderr.write(f"bilimovich {args.command}: error: {exc.strerror or exc}: {exc.filename or ''}\n")
-        return 2
-    except BrokenPipeError:
-        return 0
-    except Exception as exc:  # never a traceback for users; BILIMOVICH_DEBUG=1 shows it
-        if os.environ.get("BILIMOVICH_DEBUG"):
-            raise
-        sys.stderr.write(f"bilimovich {args.command}: internal error ({type(exc).__name__}): {exc}\n")
-        return 1
+    summary = {**fm.summary(), "figures": figures, "elapsed_s": round(time.perf_counter() - start, 2)}
+    export.write_json(os.path.join(out, "failures.json"), summary)
+    line = f"failures.json and {len(figures)} pictures in {out} ({summary['elapsed_s']:.0f} s, size {size})"
+    return _finish(args, summary, lambda: [line], result=fm, what="measurements")
 
 
 def cmd_worker(args: argparse.Namespace) -> int:
@@ -1421,12 +1100,169 @@ def cmd_worker(args: argparse.Namespace) -> int:
         print(f"stopped {len(stopped)} worker(s)" + "".join(f"\n  {p}" for p in stopped))
     else:
         path = worker.socket_path()
-        up = path.exists()
+        where = f"listening at {path}" if path.exists() else "none running"
         state = "on" if worker.enabled() else "off (BILIMOVICH_WORKER=0)"
-        print(
-            f"worker: {state}; for this code and environment: {'listening at ' + str(path) if up else 'none running'}"
-        )
+        print(f"worker: {state}; for this code and environment: {where}")
     return 0
+
+
+def cmd_warmup(args: argparse.Namespace) -> int:
+    from explorer_core.warm import warm_all
+
+    start = time.perf_counter()
+    warm_all()
+    print(f"kernels ready in {time.perf_counter() - start:.2f} s")
+    return 0
+
+
+# --- the table ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Command:
+    """One command: its arguments, its run (arguments -> inputs -> analysis -> outputs), its output files.
+
+    ``out``: the suffixes ``--out`` may end in (checked, with writability, before the run; ``"dir"``: a folder
+    the command creates; empty: no ``--out``); ``system``/``numerics``: the shared argument groups;
+    ``flags``: which of ``--json``/``--quiet`` it has.
+    """
+
+    help: str
+    arguments: Callable[[argparse.ArgumentParser], None] | None
+    run: Callable[[argparse.Namespace], int]
+    out: tuple[str, ...] = ()
+    out_help: str = ""
+    system: bool = True
+    numerics: bool = True
+    flags: tuple[str, ...] = ("json", "quiet")
+    files: dict[str, tuple[str, ...]] = field(default_factory=dict)  # other output options: dest -> suffixes
+
+
+def _no_args(p: argparse.ArgumentParser) -> None:
+    pass
+
+
+COMMANDS: dict[str, Command] = {
+    "scenes": Command("list the paper's scenes", _scenes_args, cmd_scenes, system=False, numerics=False, flags=()),
+    "section": Command("stroboscopic (Poincare) section at t0 + k T", _section_args, cmd_section, CSV,
+                       "CSV with columns traj,k,q,r"),
+    "density": Command("a long section (up to 10^7 points) as a density image of a window", _density_args,
+                       cmd_density, NPZ, "counts (H x W, row 0 at R0), q_edges, r_edges, summary"),
+    "critical": Command("equilibria ('critical points') of the frozen-time field", _critical_args, cmd_critical, CSV,
+                        "CSV branch,t,q,r,type,eig... of --track", numerics=False, flags=("json",)),
+    "tprime": Command("sign and value of T' = dT/dt on a (q, r) grid", _tprime_args, cmd_tprime, NPZ,
+                      "arrays kind,t,q,r,values,sign,ok,status,params", flags=("json",)),
+    "lyapunov": Command("Lyapunov exponents, Kaplan-Yorke dimension, divergence check", _lyapunov_args,
+                        cmd_lyapunov, files={"history": CSV}),
+    "bifurcation": Command("orbit diagram of the Poincare map over one parameter", _bifurcation_args,
+                           cmd_bifurcation, CSV, "CSV sweep,value_index,value,ic,k,q,r,status"),
+    "orbits": Command("periodic orbits of the Poincare map: Newton on P^n(x) - x, multipliers, type", _orbits_args,
+                      cmd_orbits, CSV, "orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im"),
+    "manifolds": Command("stable and unstable manifolds of a saddle orbit, homoclinic points", _manifolds_args,
+                         cmd_manifolds, CSV, "CSV branch,kind,s,q,r (s: arc length from the saddle)"),
+    "continue": Command("follow a periodic orbit in a parameter through folds and period doublings", _continue_args,
+                        cmd_continue, CSV, "branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable"),
+    "chart": Command("chart of dynamical regimes on a plane of two parameters", _chart_args, cmd_chart,
+                     (".npz", ".csv", ".png"), ".npz, .csv or .png (repeatable)"),
+    "basins": Command("basins of attraction: which attractor each IC of a grid reaches", _basins_args, cmd_basins,
+                      NPZ, "arrays q (NX), r (NY), label (NY x NX)"),
+    "fit": Command("polynomial fits of the drift q_k, r_k over a window of k, and the implied map", _fit_args,
+                   cmd_fit, CSV, "the members' series member,k,q,r"),
+    "symmetry": Command("check the involution t -> -t, q -> q, r -> -r on sections", _symmetry_args, cmd_symmetry,
+                        flags=("json",)),
+    "serve": Command("run the web explorer (panel serve app/main.py)", _serve_args, cmd_serve, system=False,
+                     numerics=False, flags=()),
+    "reproduce": Command("every figure of the paper as PNG and the table of its numbers",
+                         lambda p: _staged_args(p, "sections,lyapunov,drift,bifurcation,chart", "a few minutes"),
+                         cmd_reproduce, ("dir",), "output directory (created)", system=False, numerics=False),
+    "bench": Command("work-precision benchmark: error vs time, ours against solve_ivp/numbalsoda", _bench_args,
+                     cmd_bench, ("dir",), "writes bench.json/.csv/.md, work_precision.png, ...", system=False,
+                     numerics=False),
+    "failures": Command("where the methods fail: RK4 on the drift, costs, statuses, float32, Lyapunov",
+                        lambda p: _staged_args(p, "rk4,cost,scenarios,floats,lyapunov", "about 30 s on 2 cores"),
+                        cmd_failures, ("dir",), "output directory (created): failures.json, PNGs", system=False,
+                        numerics=False),
+    "worker": Command("the warm worker that answers small commands at once: status or stop",
+                      lambda p: p.add_argument("action", choices=["status", "stop"]), cmd_worker, system=False,
+                      numerics=False, flags=()),
+    "warmup": Command("compile the numba kernels into the on-disk cache", _no_args, cmd_warmup, system=False,
+                      numerics=False, flags=()),
+}  # fmt: skip
+
+_FLAG_HELP = {"json": "print the JSON result", "quiet": "no progress line"}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    description = "Inhomogeneous nonholonomic Bilimovich system: sections, equilibria, T' maps."
+    parser = _Parser(prog="bilimovich", description=description)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
+    for name, c in COMMANDS.items():
+        p = sub.add_parser(name, help=c.help)
+        if c.system:
+            _add_system_args(p)
+        if c.numerics:
+            _add_numerics_args(p)
+        if c.arguments is not None:
+            c.arguments(p)
+        if c.out:
+            dir_ = c.out == ("dir",)
+            metavar = "DIR" if dir_ else "FILE" + (c.out[0] if len(c.out) == 1 else "")
+            p.add_argument("--out", required=dir_, action="append" if len(c.out) > 1 else "store", metavar=metavar,
+                           help=c.out_help)  # fmt: skip
+        for flag in c.flags:
+            p.add_argument(f"--{flag}", action="store_true", help=_FLAG_HELP[flag])
+        p.set_defaults(func=c.run)
+    return parser
+
+
+def _check_outputs(args: argparse.Namespace, c: Command) -> None:
+    """Every output file's suffix and writability, before any work (a folder ``--out`` is made by the run)."""
+    options = dict(c.files)
+    if c.out and c.out != ("dir",):
+        options["out"] = c.out
+    for dest, suffixes in options.items():
+        paths = getattr(args, dest, None)
+        for path in paths if isinstance(paths, list) else [paths] if paths is not None else []:
+            export.check_output(path, suffixes, f"--{dest.replace('_', '-')}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
+    prefix = f"bilimovich {args.command}"
+    # Python warnings (numpy's overflow in a hostile input, say) are collected: one line each, in this
+    # command's words, after a run that succeeded; a failed run says only why it failed.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        status = _run(args, prefix)
+    if status == 0:
+        for text in dict.fromkeys(f"{w.category.__name__}: {' '.join(str(w.message).split())}" for w in caught):
+            sys.stderr.write(f"{prefix}: warning: {text}\n")
+    return status
+
+
+def _run(args: argparse.Namespace, prefix: str) -> int:
+    """The one error path: bad input or an unusable output is one line and exit 2, never a traceback."""
+    try:
+        _check_outputs(args, COMMANDS[args.command])
+        return args.func(args)
+    except BrokenPipeError:  # the reader went away (| head): nothing left to say
+        return 0
+    # ParameterError and export.OutputError are ValueErrors; SchedulerError (an unusable Dask cluster) a
+    # ConnectionError; an OSError is an output that failed after all.
+    except (UsageError, ValueError, ConnectionError, OSError) as exc:
+        text = f"{exc.strerror}: {exc.filename}" if isinstance(exc, OSError) and exc.strerror else str(exc)
+        sys.stderr.write(f"{prefix}: error: {' '.join(text.split())}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write(f"{prefix}: interrupted\n")
+        return 130
+    except Exception as exc:  # never a traceback for users; BILIMOVICH_DEBUG=1 shows it
+        if os.environ.get("BILIMOVICH_DEBUG"):
+            raise
+        sys.stderr.write(f"{prefix}: internal error ({type(exc).__name__}): {' '.join(str(exc).split())}\n")
+        return 1
 
 
 #: The hidden first argument of the worker process (``python -m explorer_core.cli _worker PATH``).

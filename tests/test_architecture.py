@@ -16,7 +16,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 FLOORS = (
-    ("config", "losses", "progress"),
+    ("config", "losses", "progress", "export"),
     ("system",),
     ("solve",),
     ("scenes",),

@@ -221,3 +221,162 @@ def test_basins_bad_input_one_line(args, needle) -> None:
 def test_basins_needs_a_box_without_a_scene() -> None:
     rc, _, err = run_cli("basins", "--grid", "4,4")
     assert rc == 2 and "give --box" in err
+
+
+# --- the one writer, the one error path, losses ------------------------------------------------------------
+
+
+def test_export_csv_numbers_read_back(tmp_path) -> None:
+    from explorer_core import export
+
+    path = tmp_path / "x.csv"
+    rows = [(np.int64(1), np.float64(-0.0959), np.float32(0.5), np.bool_(True), None, np.nan, -np.inf, "a b")]
+    assert export.write_csv(str(path), ["i", "x", "y", "ok", "none", "nan", "inf", "text"], rows) == 1
+    text = path.read_text()
+    assert "np." not in text
+    assert text.splitlines()[1] == "1,-0.0959,0.5,1,,nan,-inf,a b"
+    t = np.genfromtxt(path, delimiter=",", names=True, usecols=range(7))  # an empty field reads as NaN
+    assert float(t["x"]) == -0.0959 and np.isnan(t["none"]) and np.isnan(t["nan"]) and t["inf"] == -np.inf
+    with pytest.raises(TypeError, match="complex"):
+        export.write_csv(str(path), ["z"], [(np.complex128(1j),)])
+
+
+def test_export_json_is_strict_and_plain() -> None:
+    from dataclasses import dataclass
+
+    from explorer_core import export
+    from explorer_core.losses import Loss
+
+    @dataclass
+    class Point:
+        q: float
+        r: np.ndarray
+
+    doc = {"a": np.float64(1.5), "b": np.arange(3), "c": np.nan, "d": [np.inf, np.int32(2)],
+           "e": Point(0.5, np.ones(2)), "f": Loss("pixels", np.int64(3), "escaped"), "g": np.complex128(1 - 2j),
+           "h": (np.bool_(False),)}  # fmt: skip
+    back = json.loads(export.dumps(doc))
+    assert back == {"a": 1.5, "b": [0, 1, 2], "c": None, "d": [None, 2], "e": {"q": 0.5, "r": [1.0, 1.0]},
+                    "f": {"what": "pixels", "count": 3, "why": "escaped"}, "g": [1.0, -2.0], "h": [False]}  # fmt: skip
+
+
+def test_export_npz_at_exactly_the_path(tmp_path) -> None:
+    from explorer_core import export
+
+    export.write_npz(str(tmp_path / "image"), counts=np.ones((2, 3)))
+    export.write_npy(str(tmp_path / "a.bin"), np.arange(4))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bin", "image"]
+    with np.load(tmp_path / "image") as z:
+        assert z["counts"].shape == (2, 3)
+    assert np.load(tmp_path / "a.bin").tolist() == [0, 1, 2, 3]
+
+
+@pytest.mark.parametrize(
+    ("name", "suffixes", "needle"),
+    [
+        ("x.png", (".csv",), "must end in .csv, got"),
+        ("x", (".npz",), "must end in .npz"),
+        ("no/such/dir/x.csv", (".csv",), "does not exist"),
+        ("", (".csv",), "must be a file name"),
+        (".", (), "is a directory"),
+    ],
+)
+def test_check_output_refuses_with_the_path(tmp_path, monkeypatch, name, suffixes, needle) -> None:
+    from explorer_core import export
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(export.OutputError, match=needle) as info:
+        export.check_output(name, suffixes)
+    assert name in str(info.value) and "\n" not in str(info.value)
+
+
+def test_check_output_tries_writing_and_leaves_nothing(tmp_path) -> None:
+    from explorer_core import export
+
+    with pytest.raises(export.OutputError, match=r"cannot be written: /proc/x\.csv"):
+        export.check_output("/proc/x.csv", (".csv",))  # not writable even for root
+    kept = tmp_path / "kept.csv"
+    kept.write_text("old")
+    export.check_output(str(kept), (".CSV",))
+    export.check_output(str(tmp_path / "new.csv"), (".csv",))
+    assert kept.read_text() == "old" and sorted(p.name for p in tmp_path.iterdir()) == ["kept.csv"]
+
+
+class _FakeContinuation:
+    """What continue_orbit returns, with numpy values in its branches and the losses contract."""
+
+    def __init__(self) -> None:
+        from types import SimpleNamespace
+
+        from explorer_core.losses import Loss
+
+        self.branches = [SimpleNamespace(period=1, stop="range end", values=np.array([-0.35, -0.36]),
+                                         states=np.array([[-0.0959, -1.962], [-0.1, -1.9]]),
+                                         mults=np.array([[0.5 + 0.1j, 0.5 - 0.1j], [-0.9, -0.2]], dtype=complex),
+                                         stable=np.array([True, True]))]  # fmt: skip
+        self.bifurcations: list = []
+        self.messages: list = []
+        self.completed = True
+        self.complete = False
+        self.lost = [Loss("branch 1 (period 2)", 1, "the corrector did not converge at the smallest step")]
+
+    def summary(self) -> dict:
+        return {"branches": len(self.branches), "completed": self.completed}
+
+
+def test_continue_steps_csv_and_losses(tmp_path, monkeypatch) -> None:
+    """--ds/--ds-min/--ds-max reach continue_orbit; its CSV holds numbers; its losses are printed and in --json."""
+    from explorer_core.analyses import continuation
+
+    seen = {}
+
+    def fake(*args, **kwargs):
+        seen.update(kwargs)
+        return _FakeContinuation()
+
+    monkeypatch.setattr(continuation, "continue_orbit", fake)
+    out = tmp_path / "c.csv"
+    rc, stdout, err = run_cli("continue", "--scene", "fig10", "--param", "alpha", "--range", "-0.35,-0.36", "--from",
+                              "-0.0959,-1.962", "--ds", "0.01", "--ds-min", "1e-6", "--ds-max", "0.05", "--out",
+                              str(out), "--json")  # fmt: skip
+    assert rc == 0, err
+    assert (seen["ds"], seen["ds_min"], seen["ds_max"]) == (0.01, 1e-6, 0.05)
+    why = "the corrector did not converge at the smallest step"
+    assert err == f"bilimovich continue: lost: branch 1 (period 2): {why}\n"
+    d = json.loads(stdout)
+    assert d["complete"] is False and d["lost"] == [{"what": "branch 1 (period 2)", "count": 1, "why": why}]
+    assert "np." not in out.read_text()
+    t = np.genfromtxt(out, delimiter=",", names=True)
+    assert t["value"].tolist() == [-0.35, -0.36] and t["mu1_im"].tolist() == [0.1, 0.0]
+    assert t["stable"].tolist() == [1, 1]
+    rc, _, err = run_cli("continue", "--scene", "fig10", "--param", "alpha", "--range", "-0.35,-0.36", "--from",
+                         "-0.0959,-1.962", "--ds", "0.5")  # fmt: skip
+    assert rc == 2 and "ds-min <= ds <= ds-max" in err and err.count("\n") == 1
+
+
+def test_critical_says_when_the_equilibria_form_a_curve() -> None:
+    rc, stdout, err = run_cli("critical", "--inertia", "1,1,1,0,0,0", "--alpha", "0")
+    assert rc == 0, err
+    d = json.loads(stdout)
+    assert d["equilibria"] == [] and d["degenerate"] is True and "every point" in d["message"]
+    rc, stdout, _ = run_cli("critical", "--scene", "fig8B")
+    assert "degenerate" not in json.loads(stdout)
+
+
+def test_one_error_path(monkeypatch, tmp_path) -> None:
+    """Ctrl-C outside the work's own handler: 130 and one line; an output that fails after all: 2 and one line."""
+    from explorer_core import cli
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setitem(cli.COMMANDS, "scenes", cli.COMMANDS["scenes"].__class__("", None, interrupted))
+    rc, _, err = run_cli("scenes")
+    assert rc == 130 and err == "bilimovich scenes: interrupted\n"
+
+    def unwritable(args):
+        raise PermissionError(13, "Permission denied", "/x.csv")
+
+    monkeypatch.setitem(cli.COMMANDS, "scenes", cli.COMMANDS["scenes"].__class__("", None, unwritable))
+    rc, _, err = run_cli("scenes")
+    assert rc == 2 and err == "bilimovich scenes: error: Permission denied: /x.csv\n"
