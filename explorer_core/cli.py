@@ -150,7 +150,8 @@ def _add_system_args(p: argparse.ArgumentParser) -> None:
 
 def _add_numerics_args(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("numerics")
-    g.add_argument("--method", choices=["rk4", "dp5", "dop853"], help=f"default {config.DEFAULT_METHOD}")
+    g.add_argument("--method", choices=["rk4", "dp5", "dop853", "taylor"],
+                   help=f"default {config.DEFAULT_METHOD} (taylor: sections only, for now)")  # fmt: skip
     g.add_argument("--rtol", type=_number("rtol"), help=f"relative tolerance (default {config.DEFAULT_RTOL:g})")
     g.add_argument("--atol", type=_number("atol"), help="absolute tolerance (default: same as rtol)")
     g.add_argument("--steps-per-period", type=_count("steps-per-period", 1, 10_000_000), help="RK4 steps")
@@ -1099,10 +1100,7 @@ def cmd_worker(args: argparse.Namespace) -> int:
         stopped = worker.stop_all()
         print(f"stopped {len(stopped)} worker(s)" + "".join(f"\n  {p}" for p in stopped))
     else:
-        path = worker.socket_path()
-        where = f"listening at {path}" if path.exists() else "none running"
-        state = "on" if worker.enabled() else "off (BILIMOVICH_WORKER=0)"
-        print(f"worker: {state}; for this code and environment: {where}")
+        print(worker.status_text())  # pings the socket: a dead worker's file is not "listening"
     return 0
 
 
@@ -1284,7 +1282,7 @@ def entry() -> None:
         status = worker.run_in_worker(argv)
         if status is not None:
             sys.exit(status)
-    status = main(argv)
+    status = worker.run_here(main, argv)  # Ctrl-C ends this process within a second, even inside a kernel
     if use and "numba" in sys.modules:  # this run paid for the kernels: the next one need not
         with contextlib.suppress(OSError):
             worker.spawn([sys.executable, "-m", "explorer_core.cli", _WORKER])

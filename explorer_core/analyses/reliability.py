@@ -291,8 +291,9 @@ def assess(
         beta = stability_interval(numerics.method)
         floor = rho * period / beta
         if floor > numerics.max_steps:
+            steps = math.ceil(floor) if math.isfinite(floor) else "infinitely many"  # rho overflows at omega = 1e300
             out.append(ReliabilityWarning("error", "step_budget", (
-                f"{numerics.method} needs at least {math.ceil(floor)} steps per period at {where} "
+                f"{numerics.method} needs at least {steps} steps per period at {where} "
                 f"(stability: rho*T/beta = {_fmt(rho)}*{_fmt(period)}/{_fmt(beta)}), more than the budget "
                 f"max_steps = {numerics.max_steps}: expect 'too_many_steps'."
             )))  # fmt: skip
