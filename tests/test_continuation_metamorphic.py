@@ -22,9 +22,6 @@ DIAGRAM = (-0.375263, -0.406667, -0.411689, -0.412429)
 #: Range ends beyond the cascade's fifth doubling (16 -> 32 near alpha = -0.412576). Before this engine, the
 #: doubled branch's first step overshot -0.4126 and the branch was dropped (3 doublings instead of 5).
 ENDS = (-0.4126, -0.413, -0.42, -0.45)
-#: Far into the chaotic band the period-16 orbit's multipliers pass 1e3 and its branch needs short steps:
-#: the same cap for every end keeps the test short (the branch is then reported lost, not dropped).
-POINTS = 150
 
 
 def doublings(res) -> list[tuple[int, float]]:
@@ -34,8 +31,7 @@ def doublings(res) -> list[tuple[int, float]]:
 @pytest.fixture(scope="module")
 def cascades():
     return {
-        end: continue_orbit(FIG10, "alpha", (-0.35, end), FIXED_POINT_035, 1, switch=True, max_period=16,
-                            max_points=POINTS)
+        end: continue_orbit(FIG10, "alpha", (-0.35, end), FIXED_POINT_035, 1, switch=True, max_period=16)
         for end in ENDS
     }  # fmt: skip
 
@@ -46,17 +42,14 @@ def test_the_five_doublings_do_not_depend_on_where_the_range_ends(cascades) -> N
     np.testing.assert_allclose([v for _, v in ref][:4], DIAGRAM, atol=2e-4)
     for end, res in cascades.items():
         found = doublings(res)
-        assert [p for p, _ in found] == [1, 2, 4, 8, 16], (end, found, res.lost)
+        assert [p for p, _ in found] == [1, 2, 4, 8, 16], (end, found)
         np.testing.assert_allclose([v for _, v in found], [v for _, v in ref], rtol=0, atol=1e-8, err_msg=str(end))
         assert [b.kind for b in res.bifurcations] == ["period_doubling"] * 5, (end, res.bifurcations)
         assert [br.period for br in res.branches] == [1, 2, 4, 8, 16]
-        # Each branch reached the range's end, or (far into the chaos) is listed as lost, never dropped silently.
-        lost = {loss.what.split(" (")[0] for loss in res.lost}
-        for k, br in enumerate(res.branches):
-            assert br.stop == "range end" or f"branch {k}" in lost, (end, k, br.stop, res.lost)
-        assert res.complete == (not res.lost)
-    for end in (-0.4126, -0.413, -0.42):
-        assert cascades[end].complete, cascades[end].lost
+        # Every branch reaches the range's end (far into the chaotic band too, where the period-16 orbit's
+        # multipliers pass 1e5: its branch used to crawl there, 5000 points in 150 s, and stop at -0.4258).
+        assert [br.stop for br in res.branches] == ["range end"] * 5, (end, res.lost)
+        assert res.complete and not res.lost and res.completed
 
 
 def test_the_doublings_do_not_depend_on_the_first_step(cascades) -> None:

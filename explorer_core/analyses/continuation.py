@@ -59,7 +59,7 @@ from explorer_core.system.params import ParameterError, Params
 
 #: Bifurcation types and their test functions.
 KINDS = ("fold", "period_doubling", "neimark_sacker")
-#: Relative size of the parameter step of the finite differences.
+#: Relative size of the parameter step of the finite differences (divided by ``sqrt(|DP^n|)`` on a branch).
 FD_STEP = 1e-7
 #: Newton on a corrected point stops when ``|F| <= CORRECTOR_TOL (1 + |x|)``.
 CORRECTOR_TOL = 1e-10
@@ -318,8 +318,12 @@ class _System:
         except ParameterError as exc:
             raise _Stop(f"left the valid parameters ({exc})") from None
 
-    def delta(self, p: float) -> float:
-        return FD_STEP * (1.0 + abs(p))
+    def delta(self, p: float, amp: float = 1.0) -> float:
+        """The parameter step of ``F_p``. ``P^n`` bends in ``p`` on a scale that shrinks with the orbit's
+        instability ``amp = |DP^n|``: at ``|DP^16| ~ 4e3`` (Fig. 10, alpha = -0.423) ``FD_STEP`` alone puts
+        the tangent 20 degrees off the branch, and every step is refused. Lock-step members keep the
+        smaller difference smooth."""
+        return FD_STEP * (1.0 + abs(p)) / math.sqrt(max(1.0, amp))
 
     def orbit(self, x: np.ndarray, p: Sequence[float], n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``P^n(x)``, ``A = DP^n(x)`` and the points ``P(x) .. P^n(x)`` at the parameters ``p``."""
@@ -328,20 +332,20 @@ class _System:
             raise _Stop(f"the orbit's trajectory failed: {Status(int(mono.status[0])).label}")
         return mono.end[0], mono.matrix[0], mono.points[0]
 
-    def fp(self, x: np.ndarray, p: Sequence[float], n: int) -> np.ndarray:
+    def fp(self, x: np.ndarray, p: Sequence[float], n: int, amp: float = 1.0) -> np.ndarray:
         """``dP^n/dp_k`` (2, k): central differences, ``p_k +- delta`` in one lock-step batch (one step sequence)."""
         prs = []
         for k in range(len(p)):
             for sgn in (1.0, -1.0):
                 q = list(p)
-                q[k] += sgn * self.delta(p[k])
+                q[k] += sgn * self.delta(p[k], amp)
                 prs.append(self.params(q))
         y, _, status, _ = run_at(FIELD, prs, np.repeat(x[None, :], len(prs), axis=0), n, workers=1,
                                  block=len(prs), **self.numerics.kernel_kwargs())  # fmt: skip
         bad = np.flatnonzero(status != Status.OK)
         if bad.size:
             raise _Stop(f"the orbit's trajectory failed: {Status(int(status[bad[0]])).label}")
-        return np.column_stack([(y[2 * k] - y[2 * k + 1]) / (2 * self.delta(p[k])) for k in range(len(p))])
+        return np.column_stack([(y[2 * k] - y[2 * k + 1]) / (2 * self.delta(p[k], amp)) for k in range(len(p))])
 
     def evaluate(self, x: np.ndarray, p: Sequence[float], n: int, dx: bool = False):
         """``P^n(x)``, ``A = DP^n``, ``F_p`` (2, k) and, with ``dx``, ``A`` at ``x +- delta e_j`` and ``p +- delta``.
@@ -434,18 +438,19 @@ class _BranchProblem:
     def scaled(self, p: float) -> float:
         return (p - self.a) / (self.b - self.a)
 
-    def fs(self, X: np.ndarray) -> np.ndarray:
-        return self.sys.fp(X[:2], [self.p(X)], self.n)[:, 0] * (self.b - self.a)
+    def fs(self, X: np.ndarray, a: np.ndarray) -> np.ndarray:
+        amp = float(np.abs(a).max())
+        return self.sys.fp(X[:2], [self.p(X)], self.n, amp)[:, 0] * (self.b - self.a)
 
     def evaluate(self, X: np.ndarray, chord: np.ndarray | None = None):
         """``F``, its Jacobian ``[DP^n - I | F_s]``, ``DP^n``, the orbit; ``chord``: its last column is ``F_s``."""
         n = self.n
         end, a, pts = self.sys.orbit(X[:2], [self.p(X)], n)
-        fs = self.fs(X) if chord is None else chord[:, 2]
+        fs = self.fs(X, a) if chord is None else chord[:, 2]
         return end - X[:2], np.column_stack([a - np.eye(2), fs]), a, np.vstack([X[None, :2], pts[: n - 1]])
 
     def fresh(self, X: np.ndarray, jac: np.ndarray) -> np.ndarray:
-        return np.column_stack([jac[:, :2], self.fs(X)])
+        return np.column_stack([jac[:, :2], self.fs(X, jac[:, :2] + np.eye(2))])
 
     def converged(self, f: np.ndarray, g: float, dX: np.ndarray, X: np.ndarray, a: np.ndarray) -> bool:
         # P^n is computed to ~rtol |x| and its error grows with |DP^n|: ask no more of the residual.
@@ -607,6 +612,7 @@ class _Engine:
         o = self.opts
         h = min(o.ds, ds_max)
         count = 1
+        first_refusal = ""  # since the last accepted point: the longer step may have failed for a telling reason
         while True:
             if self.cancel is not None and self.cancel():
                 return "cancelled", True, pt
@@ -617,10 +623,15 @@ class _Engine:
                 verdict = accept(pt, new)
             except _Stop as exc:
                 used = exc.used if isinstance(exc, _Refused) else h
+                first_refusal = first_refusal or str(exc)
                 if used <= o.ds_min * (1 + 1e-9):
-                    return f"{exc} (at the minimum step ds_min = {o.ds_min:g})", True, pt
+                    why = f"{exc} (at the minimum step ds_min = {o.ds_min:g})"
+                    if first_refusal != str(exc):
+                        why += f"; with longer steps: {first_refusal}"
+                    return why, True, pt
                 h = max(o.ds_min, used * o.shrink)
                 continue
+            first_refusal = ""
             count += 1
             if verdict is not None:
                 return verdict, False, new
