@@ -106,7 +106,7 @@ class ContinuationOptions:
     curve_ds_max: float = 0.05
     growth: float = 1.5
     shrink: float = 0.5
-    contraction: float = 0.1
+    contraction: float = 0.3
     max_points: int = MAX_POINTS
     corrector_tol: float = CORRECTOR_TOL
     max_iter: int = 8
@@ -118,7 +118,7 @@ class ContinuationOptions:
         for f in fields(self):
             v = getattr(self, f.name)
             if f.name in ("max_points", "max_iter"):
-                check_int(f.name, v, 2, 1_000_000)
+                object.__setattr__(self, f.name, check_int(f.name, v, 2, 1_000_000))  # a plain int
                 continue
             if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
                 raise ParameterError(f"{f.name} must be a number, got {v!r}")
