@@ -137,3 +137,16 @@ def test_options_name_the_bad_value(bad: dict, name: str) -> None:
     if set(bad) <= {"ds", "ds_min", "ds_max", "max_points"}:  # the old keywords of continue_orbit build the options
         with pytest.raises(ParameterError, match=name):
             continue_orbit(FIG10, "alpha", (-0.35, -0.36), FIXED_POINT_035, 1, **bad)
+
+
+def test_a_two_parameter_curve_ends_on_the_box_even_when_it_starts_on_its_edge() -> None:
+    # Fig. 10 has I11 = 1: with range2 = (1, 1.3) the doubling point is on the box's lower edge, and the half
+    # of the curve that leaves the box must stop there (not run on outside it).
+    for range2 in ((1.0, 1.3), (0.9, 1.3)):
+        res = continue_orbit(FIG10, "alpha", (-0.35, -0.39), FIXED_POINT_035, 1, param2="I11", range2=range2)
+        (curve,) = res.curves
+        rows = np.array(curve.rows)
+        assert curve.stop == "range end; range end" and res.complete, (curve.stop, res.lost)
+        assert rows[:, 1].min() == range2[0] or rows[:, 0].min() == -0.39  # ends land exactly on an edge
+        assert range2[0] <= rows[:, 1].min() and rows[:, 1].max() <= range2[1]
+        assert -0.39 <= rows[:, 0].min() and rows[:, 0].max() <= -0.35

@@ -556,7 +556,8 @@ class _Engine:
         first = None
         for k, lo, hi in box:
             for bound in (lo, hi):
-                if (X1[k] - bound) * (X0[k] - bound) < 0 or (X1[k] == bound and X0[k] != bound):
+                outward = X1[k] < lo if bound == lo else X1[k] > hi
+                if (X1[k] - bound) * (X0[k] - bound) < 0 or (X1[k] == bound != X0[k]) or (X0[k] == bound and outward):
                     lam = (bound - X0[k]) / (X1[k] - X0[k])
                     if first is None or lam < first[2]:
                         first = (k, bound, float(lam))
@@ -582,6 +583,8 @@ class _Engine:
         ex = self._exit(prob.box, pt.X, X_pred)
         used = h
         try:
+            if ex is not None and ex[2] <= 0.0:
+                return pt, 0.0, True  # on an end already, and leaving the range: done
             if ex is not None:  # the step would pass the end: shortened to land on it
                 k, bound, lam = ex
                 used = lam * h
@@ -620,6 +623,8 @@ class _Engine:
                 return f"stopped after max_points = {o.max_points} points", True, pt
             try:
                 new, theta, at_end = self._trial(prob, pt, h)
+                if new is pt:
+                    return "range end", False, pt
                 verdict = accept(pt, new)
             except _Stop as exc:
                 used = exc.used if isinstance(exc, _Refused) else h
