@@ -114,6 +114,9 @@ def test_stops_are_reported() -> None:
     base = FIG10.with_(alpha=-0.35)
     res = continue_orbit(base, "I12", (0.0, 3.0), FIXED_POINT_035, 1, max_points=200)
     assert "left the valid parameters" in res.branches[0].stop or "failed" in res.branches[0].stop
+    # ... and it is a loss of the result, not a silent stop
+    assert not res.complete and [loss.what.split(",")[0] for loss in res.lost] == ["branch 0 (period 1"]
+    assert res.lost[0].why == res.branches[0].stop
     with pytest.raises(ParameterError, match="no period-1 orbit"):
         continue_orbit(base, "alpha", (-0.35, -0.3), (0.0, 8000.0), 1)
     with pytest.raises(ParameterError, match="cannot sweep"):

@@ -7,21 +7,35 @@ by Newton on ``F = 0, t . (X - X_pred) = 0``. ``DP^n`` is the exact monodromy ma
 ``F_p`` a central difference whose three members (``p``, ``p +- delta``) go in one lock-step batch, so
 they share one step sequence and the difference is smooth in ``p``.
 
+One engine (:class:`_Engine`) does the predictor, the corrector, the step control and the landing on
+the range's ends for every curve followed here: the branches of one-parameter continuation, the
+branches switched onto at period doublings, and the two-parameter curves of folds and doublings. Its
+settings are one :class:`ContinuationOptions`. A refused step (the corrector failed or went too far
+from the prediction, the tangent turned too much, the orbit lost its period) is retried shorter, down
+to ``ds_min``; the step grows again after corrections that contract fast (Deuflhard's rule on the
+Newton contraction, so a strongly unstable branch, whose corrector always needs a few iterations, is
+not slowed down step after step).
+
 Along a branch the test functions (Kuznetsov, *Elements of Applied Bifurcation Theory*, ch. 10; as in
 MatContM) are ``det(A - I)`` (fold, ``mu = +1``), ``det(A + I)`` (period doubling, ``mu = -1``) and
 ``det A - 1`` on a complex pair (Neimark-Sacker, ``|mu| = 1``), ``A = DP^n``. A sign change between two
-points is located by bracketed secant steps in the arclength (each trial point corrected onto the
-branch) to ``|delta p| <= 1e-12``; the error estimate adds the bracket to the shift of the located value
-when the orbit is integrated ten times less accurately.
+accepted points is located by bracketed secant steps in the arclength (each trial point corrected onto
+the branch) to ``|delta p| <= 1e-12``; the error estimate adds the bracket to the shift of the located
+value when the orbit is integrated ten times less accurately.
 
 At a period doubling the branch of period ``2n`` is switched onto (``switch=True``): it leaves the
 doubling point tangent to the eigenvector ``v`` of ``mu = -1`` (a pitchfork of ``P^2n``), so the
 corrector from ``x* + h v`` with ``v . (x - x*) = h`` fixed lands on it. Followed to the next doubling,
-this is the cascade ``1 -> 2 -> 4 -> 8 -> 16``.
+this is the cascade ``1 -> 2 -> 4 -> 8 -> 16``. Followed the other way, a period-``2n`` branch ends at
+its birth point, where it collapses onto the period-``n`` orbit (the parameter turns there, and the
+orbit's points ``x`` and ``P^n(x)`` meet): the branch stops there, it is not followed back through it.
 
 Two-parameter continuation follows a fold or period-doubling point in a second parameter: the curve of
 ``F = 0, phi = 0`` (``phi`` the test function) in ``(x, p1, p2)``, with ``phi``'s derivatives by central
 differences of the monodromy (nine members in one lock-step batch).
+
+Nothing is lost in silence: a branch or curve that stopped other than at a range end or at a located
+bifurcation where it was meant to stop is a :class:`~explorer_core.losses.Loss` of the result.
 """
 
 from __future__ import annotations
@@ -29,13 +43,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, UNIT_TOL, classify, minimal_period, multipliers, newton
 from explorer_core.analyses.sweeps import check_param
+from explorer_core.losses import Loss
 from explorer_core.solve.integrators import run_at
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.rk import FIELD, Status
@@ -44,7 +59,7 @@ from explorer_core.system.params import ParameterError, Params
 
 #: Bifurcation types and their test functions.
 KINDS = ("fold", "period_doubling", "neimark_sacker")
-#: Relative size of the parameter step of the finite differences.
+#: Relative size of the parameter step of the finite differences (divided by ``sqrt(|DP^n|)`` on a branch).
 FD_STEP = 1e-7
 #: Newton on a corrected point stops when ``|F| <= CORRECTOR_TOL (1 + |x|)``.
 CORRECTOR_TOL = 1e-10
@@ -53,28 +68,111 @@ LOCATE_TOL = 1e-12
 MAX_POINTS = 5000
 #: The longest period a cascade is followed to.
 DEFAULT_MAX_PERIOD = 16
+#: A branch's birth point: at the turn of the parameter, ``|P^d(x) - x|`` is below this fraction of its value
+#: at the neighbouring points (it vanishes like the square root of the distance to the birth).
+BIRTH_RATIO = 0.1
+
+
+@dataclass(frozen=True)
+class ContinuationOptions:
+    """The settings of the continuation engine (one set for branches, switched branches and curves).
+
+    Steps are arclengths in the scaled coordinates ``(q, r, s)``, ``s = (p - A) / (B - A)`` the
+    parameter as a fraction of its range (two-parameter curves: each parameter scaled to its range).
+
+    ds : the first step of every branch and curve.
+    ds_min : the minimum step. A refused step (the corrector did not converge, went further than
+        ``max_distance`` times the step from the prediction, the tangent turned by more than
+        ``max_turn``, the orbit lost its period, a bifurcation could not be located) is retried with the
+        step times ``shrink``, down to ``ds_min``; refused at ``ds_min``, the branch stops and is a loss.
+    ds_max : the longest step on a branch (a step moves the parameter by at most this fraction of the range).
+    curve_ds_max : the longest step on a two-parameter curve.
+    growth : the largest factor the step grows by after an accepted step.
+    shrink : the factor a refused step is shortened by.
+    contraction : the target Newton contraction ``|dX_k+1| / |dX_k|`` of the corrector; the next step is
+        scaled by ``sqrt(contraction / observed)``, within ``[shrink, growth]``.
+    max_points : the most points of one branch (of each half of a curve).
+    corrector_tol : Newton stops when ``|P^n(x) - x| <= corrector_tol (1 + |x|) max(1, |DP^n|)``.
+    max_iter : corrector iterations per step.
+    max_turn : the largest angle (radians) between the tangents at two successive points.
+    max_distance : the largest distance of the corrected point from the prediction, relative to the step.
+    period_tol : a point whose orbit has ``|P^d(x) - x| <= period_tol (1 + |x|)`` for a divisor ``d`` of
+        the period has collapsed onto a period-``d`` orbit.
+    """
+
+    ds: float = 0.02
+    ds_min: float = 1e-7
+    ds_max: float = 0.1
+    curve_ds_max: float = 0.05
+    growth: float = 1.5
+    shrink: float = 0.5
+    contraction: float = 0.3
+    max_points: int = MAX_POINTS
+    corrector_tol: float = CORRECTOR_TOL
+    max_iter: int = 8
+    max_turn: float = 0.45
+    max_distance: float = 0.5
+    period_tol: float = 1e-6
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in ("max_points", "max_iter"):
+                object.__setattr__(self, f.name, check_int(f.name, v, 2, 1_000_000))  # a plain int
+                continue
+            if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
+                raise ParameterError(f"{f.name} must be a number, got {v!r}")
+            v = float(v)
+            object.__setattr__(self, f.name, v)  # plain floats (JSON, repr)
+            if not (math.isfinite(v) and v > 0):
+                raise ParameterError(f"{f.name} must be a positive finite number, got {v!r}")
+        if not self.ds_min <= self.ds <= self.ds_max:
+            raise ParameterError(
+                f"the steps must satisfy ds_min <= ds <= ds_max, got ds_min = {self.ds_min!r}, ds = {self.ds!r}, "
+                f"ds_max = {self.ds_max!r}"
+            )
+        if self.curve_ds_max < self.ds_min:
+            raise ParameterError(f"curve_ds_max must be at least ds_min = {self.ds_min!r}, got {self.curve_ds_max!r}")
+        if self.growth < 1.0:
+            raise ParameterError(f"growth must be at least 1, got {self.growth!r}")
+        for name in ("shrink", "contraction", "max_distance"):
+            if getattr(self, name) >= 1.0:
+                raise ParameterError(f"{name} must be below 1, got {getattr(self, name)!r}")
+        if self.max_turn >= math.pi / 2:
+            raise ParameterError(f"max_turn must be below pi/2 (radians), got {self.max_turn!r}")
+        if self.corrector_tol >= 1e-3 or self.period_tol >= 1e-2:
+            raise ParameterError(
+                f"corrector_tol must be below 1e-3 and period_tol below 1e-2, got {self.corrector_tol!r}, "
+                f"{self.period_tol!r}"
+            )
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
 
 
 class _Stop(Exception):
-    """A branch ends here, for the reason given."""
+    """A step is refused (or a branch ends) for the reason given."""
 
 
 @dataclass
 class Branch:
-    """Points of one branch: ``values`` (m,), ``states`` (m, 2), ``multipliers`` (m, 2) complex."""
+    """Points of one branch: ``values`` (m,), ``states`` (m,) of ``(q, r)``, ``mults`` (m,) of 2 complex numbers.
+
+    Plain Python numbers throughout (written to CSV and JSON as they are).
+    """
 
     period: int
     values: list[float] = field(default_factory=list)
-    states: list[np.ndarray] = field(default_factory=list)
-    mults: list[np.ndarray] = field(default_factory=list)
+    states: list[tuple[float, float]] = field(default_factory=list)
+    mults: list[tuple[complex, complex]] = field(default_factory=list)
     orbits: list[np.ndarray] = field(default_factory=list)  # (n, 2) each: x, P(x), ..., P^(n-1)(x)
     stop: str = ""
     parent: int | None = None
 
     def add(self, p: float, pt: _Point) -> None:
         self.values.append(float(p))
-        self.states.append(np.array(pt.X[:2], dtype=float))
-        self.mults.append(multipliers(pt.A))
+        self.states.append((float(pt.X[0]), float(pt.X[1])))
+        self.mults.append(tuple(complex(m) for m in multipliers(pt.A)))
         self.orbits.append(np.array(pt.pts, dtype=float))
 
     @property
@@ -87,8 +185,8 @@ class Branch:
             "stop": self.stop,
             "parent": self.parent,
             "points": [
-                {"value": v, "q": float(x[0]), "r": float(x[1]),
-                 "multipliers": [[float(m.real), float(m.imag)] for m in mu],
+                {"value": v, "q": x[0], "r": x[1],
+                 "multipliers": [[m.real, m.imag] for m in mu],
                  "stable": bool(np.all(np.abs(mu) < 1.0 - UNIT_TOL))}
                 for v, x, mu in zip(self.values, self.states, self.mults, strict=True)
             ],
@@ -112,10 +210,10 @@ class Bifurcation:
             "type": self.kind,
             "value": float(self.value),
             "error": float(self.error),
-            "period": self.period,
+            "period": int(self.period),
             "point": [float(self.point[0]), float(self.point[1])],
             "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
-            "branch": self.branch,
+            "branch": int(self.branch),
         }
 
 
@@ -139,7 +237,11 @@ class Curve:
 
 @dataclass
 class Continuation:
-    """Branches, the bifurcations on them and (two-parameter) curves."""
+    """Branches, the bifurcations on them and (two-parameter) curves.
+
+    ``completed`` is False when the run was cancelled; ``complete`` is False when anything was lost
+    (cancellation included): ``lost`` says what and why.
+    """
 
     params: Params
     param: str
@@ -153,6 +255,12 @@ class Continuation:
     elapsed_s: float = 0.0
     completed: bool = True
     messages: list[str] = field(default_factory=list)
+    lost: list[Loss] = field(default_factory=list)
+    options: ContinuationOptions = field(default_factory=ContinuationOptions)
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
 
     @property
     def n_points(self) -> int:
@@ -161,21 +269,34 @@ class Continuation:
     def summary(self) -> dict[str, Any]:
         out: dict[str, Any] = {
             "param": self.param,
-            "range": list(self.range),
+            "range": [float(v) for v in self.range],
             "branches": [b.as_dict() for b in self.branches],
             "bifurcations": [b.as_dict() for b in self.bifurcations],
             "points": self.n_points,
-            "messages": self.messages,
+            "messages": list(self.messages),
             "completed": self.completed,
-            "elapsed_s": round(self.elapsed_s, 6),
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
+            "elapsed_s": round(float(self.elapsed_s), 6),
+            "options": self.options.as_dict(),
             "params": self.params.as_dict(),
             "numerics": self.numerics.as_dict(),
         }
         if self.param2 is not None:
             out["param2"] = self.param2
-            out["range2"] = list(self.range2 or ())
+            out["range2"] = [float(v) for v in self.range2 or ()]
             out["curves"] = [c.as_dict(self.param, self.param2) for c in self.curves]
         return out
+
+    as_dict = summary
+
+    def csv_rows(self) -> list[tuple[int, int, float, float, float, float, float, float, float, int]]:
+        """``branch, period, value, q, r, mu1_re, mu1_im, mu2_re, mu2_im, stable`` per point, plain numbers."""
+        rows = []
+        for i, br in enumerate(self.branches):
+            for v, x, mu, st in zip(br.values, br.states, br.mults, br.stable, strict=True):
+                rows.append((i, br.period, v, x[0], x[1], mu[0].real, mu[0].imag, mu[1].real, mu[1].imag, int(st)))
+        return rows
 
 
 # ---------------------------------------------------------------------------
@@ -197,8 +318,12 @@ class _System:
         except ParameterError as exc:
             raise _Stop(f"left the valid parameters ({exc})") from None
 
-    def delta(self, p: float) -> float:
-        return FD_STEP * (1.0 + abs(p))
+    def delta(self, p: float, amp: float = 1.0) -> float:
+        """The parameter step of ``F_p``. ``P^n`` bends in ``p`` on a scale that shrinks with the orbit's
+        instability ``amp = |DP^n|``: at ``|DP^16| ~ 4e3`` (Fig. 10, alpha = -0.423) ``FD_STEP`` alone puts
+        the tangent 20 degrees off the branch, and every step is refused. Lock-step members keep the
+        smaller difference smooth."""
+        return FD_STEP * (1.0 + abs(p)) / math.sqrt(max(1.0, amp))
 
     def orbit(self, x: np.ndarray, p: Sequence[float], n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``P^n(x)``, ``A = DP^n(x)`` and the points ``P(x) .. P^n(x)`` at the parameters ``p``."""
@@ -207,20 +332,20 @@ class _System:
             raise _Stop(f"the orbit's trajectory failed: {Status(int(mono.status[0])).label}")
         return mono.end[0], mono.matrix[0], mono.points[0]
 
-    def fp(self, x: np.ndarray, p: Sequence[float], n: int) -> np.ndarray:
+    def fp(self, x: np.ndarray, p: Sequence[float], n: int, amp: float = 1.0) -> np.ndarray:
         """``dP^n/dp_k`` (2, k): central differences, ``p_k +- delta`` in one lock-step batch (one step sequence)."""
         prs = []
         for k in range(len(p)):
             for sgn in (1.0, -1.0):
                 q = list(p)
-                q[k] += sgn * self.delta(p[k])
+                q[k] += sgn * self.delta(p[k], amp)
                 prs.append(self.params(q))
         y, _, status, _ = run_at(FIELD, prs, np.repeat(x[None, :], len(prs), axis=0), n, workers=1,
                                  block=len(prs), **self.numerics.kernel_kwargs())  # fmt: skip
         bad = np.flatnonzero(status != Status.OK)
         if bad.size:
             raise _Stop(f"the orbit's trajectory failed: {Status(int(status[bad[0]])).label}")
-        return np.column_stack([(y[2 * k] - y[2 * k + 1]) / (2 * self.delta(p[k])) for k in range(len(p))])
+        return np.column_stack([(y[2 * k] - y[2 * k + 1]) / (2 * self.delta(p[k], amp)) for k in range(len(p))])
 
     def evaluate(self, x: np.ndarray, p: Sequence[float], n: int, dx: bool = False):
         """``P^n(x)``, ``A = DP^n``, ``F_p`` (2, k) and, with ``dx``, ``A`` at ``x +- delta e_j`` and ``p +- delta``.
@@ -280,92 +405,251 @@ def _null(j: np.ndarray) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------
-# One-parameter continuation.
+# The engine: predictor, corrector, step control, landing on the range's ends.
 
 
 @dataclass
 class _Point:
-    X: np.ndarray  # (3,) q, r and s = (p - A) / (B - A): the range is s in [0, 1]
+    """A point of a curve in its scaled coordinates, with what the corrector computed there."""
+
+    X: np.ndarray  # branch: (q, r, s); curve: (q, r, s1, s2); each s a parameter scaled to its range
     A: np.ndarray  # DP^n
-    fs: np.ndarray  # (2,) dP^n/ds
-    t: np.ndarray  # unit tangent (3,)
-    pts: np.ndarray  # (n, 2) the orbit: x, P(x), ..., P^(n-1)(x)
+    J: np.ndarray  # (k, k+1): the Jacobian of the defining equations (its null vector is the tangent)
+    t: np.ndarray  # unit tangent
+    pts: np.ndarray | None  # branch: (n, 2) the orbit x, P(x), ..., P^(n-1)(x)
+    err: float = 0.0  # the corrector's last step: how far the point may be from the curve
 
 
-class _Follower:
-    """Pseudo-arclength steps along one branch in ``(q, r, s)``, ``s`` the parameter scaled to the range.
+class _BranchProblem:
+    """``P^n(x) - x = 0`` in ``(q, r, s)``, ``s = (p - A) / (B - A)``: the range is ``s`` in ``[0, 1]``.
 
     The scaling makes one arclength unit comparable in state and parameter, so a step of ``ds_max``
     moves the parameter by at most ``ds_max`` of the range however fast the orbit moves.
     """
 
-    def __init__(self, sys: _System, rng: tuple[float, float], ds: float, ds_min: float, ds_max: float,
-                 max_points: int) -> None:  # fmt: skip
-        self.sys = sys
+    def __init__(self, sys: _System, rng: tuple[float, float], n: int, tol: float) -> None:
+        self.sys, self.n, self.tol = sys, n, tol
         self.a, self.b = rng
-        self.ds0, self.ds_min, self.ds_max = ds, ds_min, ds_max
-        self.max_points = max_points
+        self.box = ((2, 0.0, 1.0),)
 
     def p(self, X: np.ndarray) -> float:
         return self.a + float(X[2]) * (self.b - self.a)
 
-    def correct(self, n: int, X_pred: np.ndarray, t: np.ndarray, fs: np.ndarray | None, max_iter: int = 8):
-        """Newton on ``F = 0, t . (X - X_pred) = 0`` with the exact ``DP^n``; ``F_s`` is ``fs`` throughout (a chord
-        method: one trajectory per iteration) or, with ``fs=None``, recomputed at every iterate.
+    def scaled(self, p: float) -> float:
+        return (p - self.a) / (self.b - self.a)
 
-        Returns the point, ``A``, ``F_s`` there (fresh) and the iterations.
+    def fs(self, X: np.ndarray, a: np.ndarray) -> np.ndarray:
+        amp = float(np.abs(a).max())
+        return self.sys.fp(X[:2], [self.p(X)], self.n, amp)[:, 0] * (self.b - self.a)
+
+    def evaluate(self, X: np.ndarray, chord: np.ndarray | None = None):
+        """``F``, its Jacobian ``[DP^n - I | F_s]``, ``DP^n``, the orbit; ``chord``: its last column is ``F_s``."""
+        n = self.n
+        end, a, pts = self.sys.orbit(X[:2], [self.p(X)], n)
+        fs = self.fs(X, a) if chord is None else chord[:, 2]
+        return end - X[:2], np.column_stack([a - np.eye(2), fs]), a, np.vstack([X[None, :2], pts[: n - 1]])
+
+    def fresh(self, X: np.ndarray, jac: np.ndarray) -> np.ndarray:
+        return np.column_stack([jac[:, :2], self.fs(X, jac[:, :2] + np.eye(2))])
+
+    def converged(self, f: np.ndarray, g: float, dX: np.ndarray, X: np.ndarray, a: np.ndarray) -> bool:
+        # P^n is computed to ~rtol |x| and its error grows with |DP^n|: ask no more of the residual.
+        scale = (1.0 + float(np.abs(X[:2]).max())) * max(1.0, float(np.abs(a).max()))
+        return bool(np.linalg.norm(f) <= self.tol * scale and abs(g) <= self.tol)
+
+
+class _CurveProblem:
+    """A bifurcation's defining system ``(P^n(x) - x, phi(DP^n)) = 0`` in ``(q, r, s1, s2)``, each parameter
+    scaled to its range: a step of ``curve_ds_max`` moves each parameter by at most that fraction of its range."""
+
+    def __init__(self, sys: _System, kind: str, n: int, origin: np.ndarray, width: np.ndarray, tol: float) -> None:
+        self.sys, self.kind, self.n, self.o, self.w, self.tol = sys, kind, n, origin, width, tol
+        self.box = ((2, 0.0, 1.0), (3, 0.0, 1.0))
+
+    def unscaled(self, Z: np.ndarray) -> np.ndarray:
+        return self.o + self.w * Z
+
+    def evaluate(self, Z: np.ndarray, chord: np.ndarray | None = None):
+        g, jac, a = _defining(self.sys, self.kind, self.n, self.unscaled(Z))
+        return g, jac * self.w[None, :], a, None
+
+    def fresh(self, Z: np.ndarray, jac: np.ndarray) -> np.ndarray:
+        return jac
+
+    def converged(self, f: np.ndarray, g: float, dX: np.ndarray, Z: np.ndarray, a: np.ndarray) -> bool:
+        # Converged when the Newton step is at the accuracy of the map (the test function's own
+        # scale grows with the multipliers: no absolute bound on it means anything).
+        scale = 1.0 + float(np.abs(Z[:2]).max())
+        return bool(np.linalg.norm(f[:2]) <= self.tol * scale * 10 and np.abs(dX).max() <= 1e-9 * scale)
+
+
+class _Refused(_Stop):
+    """A trial step refused; ``used`` is the step it took (the next one is shorter than that)."""
+
+    def __init__(self, why: str, used: float) -> None:
+        super().__init__(why)
+        self.used = used
+
+
+class _Engine:
+    """Pseudo-arclength continuation of the zeros of a problem (:class:`_BranchProblem`, :class:`_CurveProblem`)."""
+
+    def __init__(self, options: ContinuationOptions, cancel: Callable[[], bool] | None) -> None:
+        self.opts = options
+        self.cancel = cancel
+        self.min_cos = math.cos(options.max_turn)
+
+    def first(self, prob: Any, X: np.ndarray, orient: np.ndarray) -> _Point:
+        """The point ``X`` (on the curve already) and its tangent, oriented along ``orient``."""
+        f, jac, a, pts = prob.evaluate(X)
+        t = _null(jac)
+        return _Point(X, a, jac, t if t @ orient >= 0 else -t, pts)
+
+    def correct(self, prob: Any, X_pred: np.ndarray, c: np.ndarray, orient: np.ndarray,
+                chord: np.ndarray | None = None, max_iter: int | None = None) -> tuple[_Point, float]:  # fmt: skip
+        """Newton on ``F = 0, c . (X - X_pred) = 0``; the point and the worst contraction ``|dX_k+1| / |dX_k|``.
+
+        ``chord``: a Jacobian whose parameter columns are kept throughout (one trajectory less per
+        iteration), refreshed at the solution for its tangent.
         """
+        max_iter = self.opts.max_iter if max_iter is None else max_iter
         X = X_pred.copy()
-        for it in range(1, max_iter + 1):
-            end, a, pts = self.sys.orbit(X[:2], [self.p(X)], n)
-            fs_it = self.sys.fp(X[:2], [self.p(X)], n)[:, 0] * (self.b - self.a) if fs is None else fs
-            f = end - X[:2]
-            g = float(t @ (X - X_pred))
-            # P^n is computed to ~rtol |x| and its error grows with |DP^n|: ask no more of the residual.
-            scale = (1.0 + float(np.abs(X[:2]).max())) * max(1.0, float(np.abs(a).max()))
-            if np.linalg.norm(f) <= CORRECTOR_TOL * scale and abs(g) <= CORRECTOR_TOL:
-                fs_new = self.sys.fp(X[:2], [self.p(X)], n)[:, 0] * (self.b - self.a)
-                return X, a, fs_new, it, np.vstack([X[None, :2], pts[: n - 1]])
-            jac = np.vstack([np.column_stack([a - np.eye(2), fs_it]), t[None, :]])
+        norms: list[float] = []
+        for _ in range(max_iter):
+            f, jac, a, pts = prob.evaluate(X, chord)
+            g = float(c @ (X - X_pred))
             try:
-                step = np.linalg.solve(jac, -np.concatenate([f, [g]]))
+                dX = np.linalg.solve(np.vstack([jac, c[None, :]]), -np.concatenate([f, [g]]))
             except np.linalg.LinAlgError:
                 raise _Stop("singular corrector") from None
-            X = X + step
+            if prob.converged(f, g, dX, X, a):
+                if chord is not None:
+                    jac = prob.fresh(X, jac)
+                t = _null(jac)
+                err = float(np.linalg.norm(dX))
+                # Newton's first contraction, unless its second step is already at the accuracy of the map
+                # (then the ratio measures rounding, not the predictor's error).
+                theta = norms[1] / norms[0] if len(norms) > 1 and norms[1] > 10 * err else 0.0
+                return _Point(X, a, jac, t if t @ orient >= 0 else -t, pts, err), theta
+            norms.append(float(np.linalg.norm(dX)))
+            X = X + dX
             if not np.all(np.isfinite(X)):
                 raise _Stop("the corrector overflowed")
         raise _Stop(f"the corrector did not converge in {max_iter} iterations")
 
-    def tangent(self, a: np.ndarray, fs: np.ndarray, prev: np.ndarray | None, direction: float) -> np.ndarray:
-        t = _null(np.column_stack([a - np.eye(2), fs]))
-        if prev is not None:
-            return t if t @ prev >= 0 else -t
-        return t if t[2] * direction >= 0 else -t
+    def at(self, prob: Any, pt: _Point, sigma: float) -> _Point:
+        """The point at arclength ``sigma`` from ``pt`` along its tangent (chord Newton: locating bifurcations)."""
+        return self.correct(prob, pt.X + sigma * pt.t, pt.t, pt.t, chord=pt.J, max_iter=self.opts.max_iter + 4)[0]
 
-    def first(self, n: int, x: np.ndarray, p: float, direction: float) -> _Point:
-        _, a, pts = self.sys.orbit(x, [p], n)
-        fs = self.sys.fp(x, [p], n)[:, 0] * (self.b - self.a)
-        X = np.array([x[0], x[1], (p - self.a) / (self.b - self.a)])
-        return _Point(X, a, fs, self.tangent(a, fs, None, direction), np.vstack([x[None, :], pts[: n - 1]]))
+    def _check(self, pt: _Point, new: _Point, X_pred: np.ndarray, h: float) -> None:
+        d = float(np.linalg.norm(new.X - X_pred))
+        # The points are on the curve to the corrector's accuracy only (large with |DP^n|).
+        if d > self.opts.max_distance * h + 4.0 * (pt.err + new.err):
+            raise _Stop(f"the corrector went {d:.3g} from the prediction, more than {self.opts.max_distance:g} "
+                        f"times the step {h:.3g}")  # fmt: skip
+        if float(new.t @ pt.t) < self.min_cos and h > self.opts.ds_min * (1 + 1e-9):
+            raise _Stop(f"the tangent turned by {math.degrees(math.acos(max(-1.0, float(new.t @ pt.t)))):.3g} deg")
 
-    def step(self, n: int, pt: _Point, ds: float) -> tuple[_Point, int]:
-        X_pred = pt.X + ds * pt.t
-        X, a, fs, it, pts = self.correct(n, X_pred, pt.t, None)
-        return _Point(X, a, fs, self.tangent(a, fs, pt.t, 1.0), pts), it
+    @staticmethod
+    def _exit(box: Sequence[tuple[int, float, float]], X0: np.ndarray, X1: np.ndarray):
+        """The first bound of ``box`` the segment ``X0 -> X1`` crosses: ``(coordinate, bound, fraction)`` or None."""
+        first = None
+        for k, lo, hi in box:
+            for bound in (lo, hi):
+                outward = X1[k] < lo if bound == lo else X1[k] > hi
+                if (X1[k] - bound) * (X0[k] - bound) < 0 or (X1[k] == bound != X0[k]) or (X0[k] == bound and outward):
+                    lam = (bound - X0[k]) / (X1[k] - X0[k])
+                    if first is None or lam < first[2]:
+                        first = (k, bound, float(lam))
+        return first
 
-    def end(self, n: int, pt: _Point, s_end: float) -> _Point | None:
-        """The branch point at ``s = s_end`` (an end of the range) from ``pt``; None if the branch turns before it."""
-        if (s_end - pt.X[2]) * pt.t[2] <= 0.0:
-            return None
-        X_pred = pt.X + ((s_end - pt.X[2]) / pt.t[2]) * pt.t
-        X, a, fs, _, pts = self.correct(n, X_pred, np.array([0.0, 0.0, 1.0]), None, max_iter=12)
-        return _Point(X, a, fs, self.tangent(a, fs, pt.t, 1.0), pts)
+    def _land(self, prob: Any, pt: _Point, X_pred: np.ndarray, k: int, bound: float) -> tuple[_Point, float]:
+        """The point of the curve on ``X_k = bound`` near ``X_pred`` (an end of a range)."""
+        X_pred = X_pred.copy()
+        X_pred[k] = bound
+        c = np.zeros_like(X_pred)
+        c[k] = 1.0
+        new, theta = self.correct(prob, X_pred, c, pt.t, max_iter=self.opts.max_iter + 4)
+        new.X[k] = bound  # exact: the constraint is linear
+        self._check(pt, new, X_pred, float(np.linalg.norm(X_pred - pt.X)))
+        for j, lo, hi in prob.box:
+            if not lo - 1e-12 <= new.X[j] <= hi + 1e-12:
+                raise _Stop("the end point is outside the other range")
+        return new, theta
 
-    def at(self, n: int, pt: _Point, sigma: float) -> _Point:
-        """The branch point at arclength ``sigma`` from ``pt`` along its tangent (predictor-corrector)."""
-        X_pred = pt.X + sigma * pt.t
-        X, a, fs, _, pts = self.correct(n, X_pred, pt.t, pt.fs, max_iter=12)
-        return _Point(X, a, fs, pt.t, pts)
+    def _trial(self, prob: Any, pt: _Point, h: float) -> tuple[_Point, float, bool]:
+        """One step of length ``h`` from ``pt``: the new point, the contraction, and whether it is on an end."""
+        X_pred = pt.X + h * pt.t
+        ex = self._exit(prob.box, pt.X, X_pred)
+        used = h
+        try:
+            if ex is not None and ex[2] <= 0.0:
+                return pt, 0.0, True  # on an end already, and leaving the range: done
+            if ex is not None:  # the step would pass the end: shortened to land on it
+                k, bound, lam = ex
+                used = lam * h
+                new, theta = self._land(prob, pt, pt.X + used * pt.t, k, bound)
+                return new, theta, True
+            new, theta = self.correct(prob, X_pred, pt.t, pt.t)
+            self._check(pt, new, X_pred, h)
+            ex = self._exit(prob.box, pt.X, new.X)
+            if ex is not None:  # corrected beyond the end: the end point along the chord
+                k, bound, lam = ex
+                used = lam * h
+                new, theta = self._land(prob, pt, pt.X + lam * (new.X - pt.X), k, bound)
+                return new, theta, True
+            return new, theta, False
+        except _Refused:
+            raise
+        except _Stop as exc:
+            raise _Refused(str(exc), used) from None
+
+    def follow(self, prob: Any, pt: _Point, accept: Callable[[_Point, _Point], str | None],
+               ds_max: float) -> tuple[str, bool, _Point]:  # fmt: skip
+        """Steps from ``pt`` until an end, a stop ``accept`` returns, or a refusal at ``ds_min``.
+
+        ``accept(pt, new)`` records an accepted point; it raises :class:`_Stop` to refuse it, or returns a
+        reason to stop there. Returns ``(reason, lost, last point)``: ``lost`` unless the curve reached an
+        end of its range or a stop ``accept`` meant.
+        """
+        o = self.opts
+        h = min(o.ds, ds_max)
+        count = 1
+        first_refusal = ""  # since the last accepted point: the longer step may have failed for a telling reason
+        while True:
+            if self.cancel is not None and self.cancel():
+                return "cancelled", True, pt
+            if count >= o.max_points:
+                return f"stopped after max_points = {o.max_points} points", True, pt
+            try:
+                new, theta, at_end = self._trial(prob, pt, h)
+                if new is pt:
+                    return "range end", False, pt
+                verdict = accept(pt, new)
+            except _Stop as exc:
+                used = exc.used if isinstance(exc, _Refused) else h
+                first_refusal = first_refusal or str(exc)
+                if used <= o.ds_min * (1 + 1e-9):
+                    why = f"{exc} (at the minimum step ds_min = {o.ds_min:g})"
+                    if first_refusal != str(exc):
+                        why += f"; with longer steps: {first_refusal}"
+                    return why, True, pt
+                h = max(o.ds_min, used * o.shrink)
+                continue
+            first_refusal = ""
+            count += 1
+            if verdict is not None:
+                return verdict, False, new
+            if at_end:
+                return "range end", False, new
+            pt = new
+            # Deuflhard's rule: the predictor's error, hence the corrector's contraction, goes as h^2.
+            factor = o.growth if theta <= 0.0 else min(o.growth, max(o.shrink, math.sqrt(o.contraction / theta)))
+            h = min(ds_max, max(o.ds_min, h * factor))
+
+
+# ---------------------------------------------------------------------------
+# One-parameter continuation.
 
 
 def _crossed(p0: _Point, p1: _Point) -> list[str]:
@@ -381,41 +665,88 @@ def _crossed(p0: _Point, p1: _Point) -> list[str]:
     return out
 
 
-def _locate(fol: _Follower, n: int, kind: str, p0: _Point, p1: _Point) -> tuple[_Point, float, float]:
-    """The zero of the test function between ``p0`` and ``p1``: the point, its bracket in p, and d(test)/dp."""
+def _locate(eng: _Engine, prob: _BranchProblem, fn: Callable[[_Point], float], p0: _Point, p1: _Point,
+            sigma_tol: float = 0.0) -> tuple[_Point, float]:  # fmt: skip
+    """The zero of ``fn`` between ``p0`` and ``p1``: the point and its bracket in p.
+
+    Stops when the bracket is below ``LOCATE_TOL`` in the parameter or ``sigma_tol`` in the arclength (at a
+    turn of the parameter the parameter's bracket says nothing about the point's).
+    """
     lo, hi = 0.0, float(p0.t @ (p1.X - p0.X))
-    flo, fhi = test_function(kind, p0.A), test_function(kind, p1.A)
-    plo, phi_ = fol.p(p0.X), fol.p(p1.X)
-    slope = (fhi - flo) / (phi_ - plo) if phi_ != plo else math.inf
+    flo, fhi = fn(p0), fn(p1)
+    plo, phi_ = prob.p(p0.X), prob.p(p1.X)
     best = p1 if abs(fhi) < abs(flo) else p0
     side = 0
     for _ in range(60):
-        if abs(phi_ - plo) <= LOCATE_TOL * (1.0 + abs(plo)):
+        if abs(phi_ - plo) <= LOCATE_TOL * (1.0 + abs(plo)) and abs(hi - lo) <= sigma_tol:
             break
         # Illinois regula falsi: secant steps that keep the bracket
         s = hi - fhi * (hi - lo) / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
         if not (lo < s < hi):
             s = 0.5 * (lo + hi)
-        mid = fol.at(n, p0, s)
-        fm = test_function(kind, mid.A)
+        mid = eng.at(prob, p0, s)
+        fm = fn(mid)
         best = mid
         if fm == 0.0:
-            return mid, 0.0, slope
+            return mid, 0.0
         if (fm > 0) == (fhi > 0):
-            hi, fhi, phi_ = s, fm, fol.p(mid.X)
+            hi, fhi, phi_ = s, fm, prob.p(mid.X)
             if side == 1:
                 flo *= 0.5
             side = 1
         else:
-            lo, flo, plo = s, fm, fol.p(mid.X)
+            lo, flo, plo = s, fm, prob.p(mid.X)
             if side == -1:
                 fhi *= 0.5
             side = -1
-    return best, abs(phi_ - plo), slope
+    return best, abs(phi_ - plo)
 
 
-def _switch(fol: _Follower, n: int, at: _Point) -> tuple[np.ndarray, float]:
-    """A point of the period-``2n`` branch born at the period doubling ``at``."""
+def _separation(pt: _Point, d: int) -> float:
+    """``|P^d(x) - x|`` relative to ``1 + |x|``."""
+    x = pt.pts[0]
+    return float(np.linalg.norm(pt.pts[d] - x) / (1.0 + np.linalg.norm(x)))
+
+
+def _birth(eng: _Engine, prob: _BranchProblem, p0: _Point, p1: _Point) -> tuple[_Point, int] | None:
+    """The birth point of a period-``n`` branch between ``p0`` and ``p1``, where the parameter turns, if there is one.
+
+    At its birth (the period doubling of the period-``d`` orbit, ``n = 2d``) the branch is a parabola in the
+    parameter through the period-``d`` orbit: the parameter turns there and ``|P^d(x) - x|`` vanishes like
+    the square root of the distance. A fold of the period-``n`` orbit turns the parameter too, with the
+    orbit's points apart.
+    """
+    n = prob.n
+    divisors = [d for d in range(1, n) if n % d == 0]
+    if not divisors or p0.t[2] * p1.t[2] >= 0:
+        return None
+    at, _ = _locate(eng, prob, lambda q: float(q.t[2]), p0, p1, sigma_tol=1e-9)
+    for d in divisors:
+        if _separation(at, d) <= BIRTH_RATIO * max(_separation(p0, d), _separation(p1, d)):
+            return _birth_point(prob, at, d), d
+    return None
+
+
+def _birth_point(prob: _BranchProblem, at: _Point, d: int) -> _Point:
+    """The birth point to the accuracy of the map: the period doubling of the period-``d`` orbit near ``at``.
+
+    The branch's own points near it are ill-conditioned (its Jacobian is singular there, a pitchfork of
+    ``P^n``); the doubling's defining system is regular. Falls back to ``at`` if its refinement fails.
+    """
+    Y0 = np.array([at.X[0], at.X[1], prob.p(at.X)])
+    try:
+        Y, _ = _refine(prob.sys, "period_doubling", d, Y0)
+        if abs(Y[2] - Y0[2]) > 1e-4 * (1.0 + abs(Y0[2])) or np.linalg.norm(Y[:2] - Y0[:2]) > 1e-3:
+            return at  # went elsewhere
+        X = np.array([Y[0], Y[1], prob.scaled(Y[2])])
+        _, jac, a, pts = prob.evaluate(X)
+    except (_Stop, np.linalg.LinAlgError):
+        return at
+    return _Point(X, a, jac, at.t, pts, at.err)
+
+
+def _switch(eng: _Engine, prob2: _BranchProblem, at: _Point) -> tuple[np.ndarray, float]:
+    """A point of the period-``2n`` branch born at the period doubling ``at`` (a point of the period-``n`` branch)."""
     mu, vecs = np.linalg.eig(at.A)
     v = np.real(vecs[:, int(np.argmin(np.abs(mu + 1.0)))])
     v /= np.linalg.norm(v)
@@ -423,17 +754,15 @@ def _switch(fol: _Follower, n: int, at: _Point) -> tuple[np.ndarray, float]:
     for h in (1e-3, 3e-3, 1e-2, 3e-2):
         hh = h * (1.0 + float(np.abs(x_star).max()))
         X_pred = np.array([*(x_star + hh * v), s_star])
-        t = np.array([v[0], v[1], 0.0])
+        c = np.array([v[0], v[1], 0.0])
         try:
             # Full Newton: at the pitchfork of P^2n the bordered Jacobian is singular, so F_s must be
             # taken at each iterate (off the doubling point), not frozen at it.
-            X, _, _, _, _ = fol.correct(2 * n, X_pred, t, None, max_iter=15)
+            new, _ = eng.correct(prob2, X_pred, c, c, max_iter=15)
         except _Stop:
             continue
-        end, _, pts = fol.sys.orbit(X[:2], [fol.p(X)], 2 * n)
-        chain = np.vstack([X[None, :2], pts])
-        if minimal_period(chain, end, 2 * n, 1e-6) == 2 * n:
-            return X[:2], fol.p(X)
+        if minimal_period(new.pts, new.pts[0], prob2.n, 1e-6) == prob2.n:
+            return new.X[:2], prob2.p(new.X)
     raise _Stop("could not switch onto the doubled branch")
 
 
@@ -446,10 +775,11 @@ def continue_orbit(
     *,
     switch: bool = False,
     max_period: int = DEFAULT_MAX_PERIOD,
+    options: ContinuationOptions | None = None,
     ds: float | None = None,
     ds_min: float | None = None,
     ds_max: float | None = None,
-    max_points: int = MAX_POINTS,
+    max_points: int | None = None,
     numerics: Numerics | None = None,
     param2: str | None = None,
     range2: Sequence[float] | None = None,
@@ -466,15 +796,17 @@ def continue_orbit(
     param : ``alpha``, an inertia entry, ``g0``, ``g1``, ``g2`` or ``omega``.
     seed : a point near the orbit at the first value (Newton converges from it).
     switch : at each period doubling, also follow the doubled branch (up to ``max_period``).
-    ds, ds_min, ds_max : arclength steps in ``(q, r, (p - A) / (B - A))`` (default 0.02, 1e-7, 0.1: at
-        least ten points over the range).
+    options : the engine's settings (:class:`ContinuationOptions`); ``ds``, ``ds_min``, ``ds_max`` and
+        ``max_points``, when given, replace theirs.
     param2, range2 : also follow every fold and period doubling found as a curve in ``(param, param2)``
         with ``param2`` over ``range2`` and ``param`` over ``window1`` (default: the range).
-    progress : called with (points so far, current value); cancel: polled at every point.
+    progress : called with (points so far, current value); cancel: polled at every point. A cancelled run
+        returns what it computed, with ``completed`` False and the rest in ``lost``.
 
-    Every branch stops at the range's end, on escape or integration failure, on leaving the valid
-    parameters (e.g. a tensor that is not positive definite), after ``max_points``, or where the step
-    falls below ``ds_min``; its ``stop`` says which.
+    Every branch stops at the range's end, at its birth point (a doubled orbit collapsing onto the orbit it
+    was born from), on escape or integration failure, on leaving the valid parameters (e.g. a tensor
+    that is not positive definite), after ``max_points``, or where a step is refused at ``ds_min``; its
+    ``stop`` says which, and every stop but the first two is in ``lost``.
     """
     start = time.perf_counter()
     param = check_param(param)
@@ -486,21 +818,22 @@ def continue_orbit(
         raise ParameterError(f"range must be two different finite numbers, got {value_range!r}")
     period = check_int("period", period, 1, 1024)
     max_period = check_int("max_period", max_period, period, 1024)
-    check_int("max_points", max_points, 2, 1_000_000)
+    given = {k: v for k, v in (("ds", ds), ("ds_min", ds_min), ("ds_max", ds_max), ("max_points", max_points))
+             if v is not None}  # fmt: skip
+    opts = options or ContinuationOptions()
+    if given:
+        base_opts = asdict(opts)
+        if "ds" not in given and "ds_max" in given:  # an old-style ds_max alone bounds the default first step
+            given["ds"] = min(float(opts.ds), float(given["ds_max"]))
+        opts = ContinuationOptions(**{**base_opts, **given})
     x0 = check_ics(seed)[0]
     numerics = numerics or ORBIT_NUMERICS
-    ds = 0.02 if ds is None else float(ds)
-    ds_min = 1e-7 if ds_min is None else float(ds_min)
-    ds_max = 0.1 if ds_max is None else float(ds_max)
-    for name, v in (("ds", ds), ("ds_min", ds_min), ("ds_max", ds_max)):
-        if not (math.isfinite(v) and v > 0):
-            raise ParameterError(f"{name} must be a positive number, got {v!r}")
     try:
         base = params.with_(**{param: a})
     except ParameterError as exc:
         raise ParameterError(f"the range's first value {param} = {a} is not a valid system: {exc}") from None
     sys = _System(base, [param], numerics, workers)
-    fol = _Follower(sys, (a, b), ds, ds_min, ds_max, max_points)
+    eng = _Engine(opts, cancel)
 
     conv, failures = newton(base, x0[None, :], np.array([period]), numerics=numerics, workers=workers)
     if not conv:
@@ -513,7 +846,7 @@ def continue_orbit(
         d = minimal_period(chain, mono.end[0], period, 1e-6)
         raise ParameterError(f"the orbit found from {x0.tolist()} has period {d}, not {period}: ask for --period {d}")
 
-    res = Continuation(params, param, (a, b), numerics, [], [])
+    res = Continuation(params, param, (a, b), numerics, [], [], options=opts)
     queue: list[tuple[int, np.ndarray, float, int | None]] = [(period, x_start, a, None)]
     stopped = False
     while queue and not stopped:
@@ -521,64 +854,62 @@ def continue_orbit(
         br = Branch(n, parent=parent)
         res.branches.append(br)
         k = len(res.branches) - 1
+        prob = _BranchProblem(sys, (a, b), n, opts.corrector_tol)
+        what = f"branch {k} (period {n}, from {param} = {p:.12g})"
+
+        def accept(pt: _Point, new: _Point, prob: _BranchProblem = prob, br: Branch = br, k: int = k) -> str | None:
+            n = prob.n
+            d = minimal_period(new.pts, new.pts[0], n, opts.period_tol)
+            birth = _birth(eng, prob, pt, new)
+            if d < n and birth is None:
+                raise _Stop(f"the corrector converged onto a period-{d} orbit")
+            found = [(kind, *_located(eng, prob, kind, pt, new, k)) for kind in _crossed(pt, new)]
+            # In branch order, each bifurcation is a point of the branch (where its stability changes).
+            along = lambda q: float(pt.t @ (q.X - pt.X))  # noqa: E731
+            found.sort(key=lambda f: along(f[2]))
+            if birth is not None:  # what lies beyond the birth point is the same orbit again
+                found = [f for f in found if along(f[2]) < along(birth[0]) and f[0] != "fold"]
+            for kind, bif, at in found:
+                res.bifurcations.append(bif)
+                br.add(bif.value, at)
+                if kind == "period_doubling" and switch and 2 * n <= max_period:
+                    try:
+                        xs, ps = _switch(eng, _BranchProblem(sys, (a, b), 2 * n, opts.corrector_tol), at)
+                        queue.append((2 * n, xs, ps, len(res.bifurcations) - 1))
+                    except _Stop as exc:
+                        res.messages.append(f"period doubling at {param} = {bif.value:.12g}: {exc}")
+                        res.lost.append(Loss(f"the period-{2 * n} branch born at {param} = {bif.value:.12g}", 1,
+                                             str(exc)))  # fmt: skip
+            last = new if birth is None else birth[0]
+            br.add(prob.p(last.X), last)
+            if progress is not None:
+                progress(res.n_points, prob.p(last.X))
+            if birth is not None:
+                return (f"the period-{n} orbit collapsed onto a period-{birth[1]} orbit at {param} = "
+                        f"{prob.p(birth[0].X):.12g} (its birth point)")  # fmt: skip
+            return None
+
         try:
             # A doubled branch leaves its doubling point on the side where it exists.
             away = p - res.bifurcations[parent].value if parent is not None else 0.0
-            pt = fol.first(n, x, p, math.copysign(1.0, away / (b - a)) if abs(away) > 1e-14 * (1 + abs(p)) else 1.0)
-            br.add(fol.p(pt.X), pt)
-            h = ds
-            while True:
-                if cancel is not None and cancel():
-                    br.stop = "cancelled"
-                    stopped = True
-                    break
-                if len(br.values) >= max_points:
-                    raise _Stop(f"{max_points} points")
-                try:
-                    new, it = fol.step(n, pt, h)
-                except _Stop:
-                    h *= 0.5
-                    if h < ds_min:
-                        raise
-                    continue
-                # a big turn of the tangent: the step was too long for the curvature
-                if float(new.t @ pt.t) < 0.9 and h > ds_min:
-                    h *= 0.5
-                    continue
-                end = not 0.0 <= new.X[2] <= 1.0
-                if end:  # the last point lands on the range's end (or, after a fold, its start) exactly
-                    new = fol.end(n, pt, 1.0 if new.X[2] > 1.0 else 0.0)
-                    if new is None:
-                        br.stop = "range end"
-                        break
-                try:
-                    found = [(kind, *_located(fol, n, kind, pt, new, k)) for kind in _crossed(pt, new)]
-                except _Stop:
-                    if h > 4 * ds_min:  # locating failed in a long step: take a shorter one
-                        h *= 0.5
-                        continue
-                    raise
-                # In branch order, each bifurcation is a point of the branch (where its stability changes).
-                found.sort(key=lambda f: float(pt.t @ (f[2].X - pt.X)))
-                for kind, bif, at in found:
-                    res.bifurcations.append(bif)
-                    br.add(bif.value, at)
-                    if kind == "period_doubling" and switch and 2 * n <= max_period:
-                        try:
-                            xs, ps = _switch(fol, n, at)
-                            queue.append((2 * n, xs, ps, len(res.bifurcations) - 1))
-                        except _Stop as exc:
-                            res.messages.append(f"period doubling at {param} = {bif.value:.12g}: {exc}")
-                br.add(fol.p(new.X), new)
-                if progress is not None:
-                    progress(res.n_points, fol.p(new.X))
-                if end:
-                    br.stop = "range end" if new.X[2] >= 0.5 else "back at the range's start (after a fold)"
-                    break
-                pt = new
-                h = min(ds_max, h * 1.5) if it <= 3 else (h * 0.6 if it >= 6 else h)
+            direction = math.copysign(1.0, away / (b - a)) if abs(away) > 1e-14 * (1 + abs(p)) else 1.0
+            pt = eng.first(prob, np.array([x[0], x[1], prob.scaled(p)]), np.array([0.0, 0.0, direction]))
+            br.add(p, pt)
+            reason, lost, last = eng.follow(prob, pt, accept, opts.ds_max)
+            if reason == "range end":
+                reason = "range end" if last.X[2] >= 0.5 else "back at the range's start (after a fold)"
         except _Stop as exc:
-            br.stop = (br.stop + str(exc)).strip()
+            reason, lost = str(exc), True
+        br.stop = reason
+        if lost:
+            res.lost.append(Loss(what, 1, reason))
+        if reason == "cancelled":
+            stopped = True
+    if stopped:
+        if queue:
+            res.lost.append(Loss("branches not started", len(queue), "cancelled"))
+        if param2 is not None:
+            res.lost.append(Loss("two-parameter curves", 1, "cancelled before they were followed"))
     if param2 is not None and not stopped:
         res.param2 = check_param(param2)
         if res.param2 == param:
@@ -592,9 +923,15 @@ def continue_orbit(
         res.range2 = (c, d)
         for bif in list(res.bifurcations):
             if bif.kind in ("fold", "period_doubling"):
+                if cancel is not None and cancel():
+                    stopped = True
+                    res.lost.append(Loss(f"the {bif.kind} curve from {param} = {bif.value:.12g}", 1, "cancelled"))
+                    continue
                 w1 = (a, b) if window1 is None else (float(min(window1)), float(max(window1)))
-                res.curves.append(_follow_curve(base, param, res.param2, bif, w1, (c, d), numerics, max_points,
-                                                cancel, workers))  # fmt: skip
+                curve, losses = _follow_curve(eng, base, param, res.param2, bif, w1, (c, d), numerics, workers)
+                res.curves.append(curve)
+                res.lost += losses
+                stopped = stopped or "cancelled" in curve.stop
     res.elapsed_s = time.perf_counter() - start
     res.completed = not stopped
     return res
@@ -628,7 +965,8 @@ def _refine(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray,
     return Y, a
 
 
-def _located(fol: _Follower, n: int, kind: str, p0: _Point, p1: _Point, branch: int) -> tuple[Bifurcation, _Point]:
+def _located(eng: _Engine, prob: _BranchProblem, kind: str, p0: _Point, p1: _Point,
+             branch: int) -> tuple[Bifurcation, _Point]:  # fmt: skip
     """Locate the bifurcation between two points of a branch.
 
     Bracketed secant steps along the branch find the test function's zero; Newton on the defining system
@@ -636,20 +974,21 @@ def _located(fol: _Follower, n: int, kind: str, p0: _Point, p1: _Point, branch: 
     estimate is the shift of the refined value when ``P^n`` is integrated ten times less accurately
     (plus the secant bracket, if the refinement failed).
     """
-    at, bracket, _ = _locate(fol, n, kind, p0, p1)
-    Y0 = np.array([at.X[0], at.X[1], fol.p(at.X)])
-    loose = Numerics(**{**fol.sys.numerics.as_dict(), "rtol": fol.sys.numerics.rtol * 10,
-                        "atol": fol.sys.numerics.atol * 10})  # fmt: skip
+    at, bracket = _locate(eng, prob, lambda q: test_function(kind, q.A), p0, p1, sigma_tol=math.inf)
+    n, sys = prob.n, prob.sys
+    Y0 = np.array([at.X[0], at.X[1], prob.p(at.X)])
+    loose = Numerics(**{**sys.numerics.as_dict(), "rtol": sys.numerics.rtol * 10,
+                        "atol": sys.numerics.atol * 10})  # fmt: skip
     try:
-        Y, a = _refine(fol.sys, kind, n, Y0)
-        Y2, _ = _refine(_System(fol.sys.base, fol.sys.names, loose, 1), kind, n, Y)
+        Y, a = _refine(sys, kind, n, Y0)
+        Y2, _ = _refine(_System(sys.base, sys.names, loose, 1), kind, n, Y)
         error = abs(Y2[2] - Y[2])
         if abs(Y[2] - Y0[2]) > 1e3 * (bracket + 1e-9 * (1 + abs(Y0[2]))):
             raise _Stop("the refinement went elsewhere")  # keep the bracketed value
     except (_Stop, np.linalg.LinAlgError):
         Y, a, error = Y0, at.A, bracket
-    X = np.array([Y[0], Y[1], (Y[2] - fol.a) / (fol.b - fol.a)])
-    at = _Point(X, a, at.fs, at.t, at.pts)
+    X = np.array([Y[0], Y[1], prob.scaled(Y[2])])
+    at = _Point(X, a, at.J, at.t, at.pts)
     bif = Bifurcation(kind, float(Y[2]), float(error), n, Y[:2].copy(), multipliers(a), branch)
     return bif, at
 
@@ -658,95 +997,55 @@ def _located(fol: _Follower, n: int, kind: str, p0: _Point, p1: _Point, branch: 
 # Two-parameter continuation of a fold or period-doubling point.
 
 
-def _follow_curve(base: Params, name1: str, name2: str, bif: Bifurcation, rng1: tuple[float, float],
-                  rng2: tuple[float, float], numerics: Numerics, max_points: int, cancel: Callable[[], bool] | None,
-                  workers: int | None) -> Curve:  # fmt: skip
+def _follow_curve(eng: _Engine, base: Params, name1: str, name2: str, bif: Bifurcation, rng1: tuple[float, float],
+                  rng2: tuple[float, float], numerics: Numerics,
+                  workers: int | None) -> tuple[Curve, list[Loss]]:  # fmt: skip
     """The curve of ``F = 0, phi = 0`` through ``bif`` in ``(name1, name2)``, both ways, within ``rng1 x rng2``.
 
     Pseudo-arclength in ``(q, r, s1, s2)`` with each parameter scaled to its range (``rng1``: the window of the
-    first parameter, ``rng2``): a step moves each parameter by at most ``0.05`` of its range.
+    first parameter, ``rng2``), by the same engine as the branches; each half ends on the box's edge.
     """
     p2_0 = float(getattr(base, name2) if name2 not in ("I11", "I22", "I33", "I12", "I13", "I23")
                  else base.inertia[("I11", "I22", "I33", "I12", "I13", "I23").index(name2)])  # fmt: skip
     sys = _System(base, [name1, name2], numerics, workers)
     n, kind = bif.period, bif.kind
     curve = Curve(kind, n)
+    what = f"the {kind} curve of the period-{n} orbit from {name1} = {bif.value:.12g}"
     lo, hi = rng2
     if not lo <= p2_0 <= hi:
         curve.stop = f"{name2} = {p2_0} at the bifurcation is outside the range"
-        return curve
-    # Scaled coordinates Z = (q, r, (p1 - o1) / w1, (p2 - o2) / w2).
-    o = np.array([0.0, 0.0, min(rng1), lo])
-    w = np.array([1.0, 1.0, abs(rng1[1] - rng1[0]), hi - lo])
-
-    def unscaled(Z: np.ndarray) -> np.ndarray:
-        return o + w * Z
-
-    def residual_and_jac(Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        g, jac, _ = _defining(sys, kind, n, unscaled(Z))
-        return g, jac * w[None, :]
-
-    def correct(Z_pred: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-        Z = Z_pred.copy()
-        for it in range(1, 11):
-            g, jac = residual_and_jac(Z)
-            c = float(t @ (Z - Z_pred))
-            scale = 1.0 + float(np.abs(Z[:2]).max())
-            try:
-                step = np.linalg.solve(np.vstack([jac, t[None, :]]), -np.concatenate([g, [c]]))
-            except np.linalg.LinAlgError:
-                raise _Stop("singular corrector") from None
-            # Converged when the Newton step is at the accuracy of the map (the test function's own
-            # scale grows with the multipliers: no absolute bound on it means anything).
-            if np.linalg.norm(g[:2]) <= CORRECTOR_TOL * scale * 10 and np.abs(step).max() <= 1e-9 * scale:
-                return Z, jac, it
-            Z = Z + step
-            if not np.all(np.isfinite(Z)):
-                raise _Stop("the corrector overflowed")
-        raise _Stop("the corrector did not converge")
-
-    Z0 = (np.array([bif.point[0], bif.point[1], bif.value, p2_0]) - o) / w
+        return curve, [Loss(what, 1, curve.stop)]
+    origin = np.array([0.0, 0.0, min(rng1), lo])
+    width = np.array([1.0, 1.0, abs(rng1[1] - rng1[0]), hi - lo])
+    prob = _CurveProblem(sys, kind, n, origin, width, eng.opts.corrector_tol)
+    Z0 = (np.array([bif.point[0], bif.point[1], bif.value, p2_0]) - origin) / width
     try:
-        _, jac0 = residual_and_jac(Z0)
+        pt0 = eng.first(prob, Z0, np.zeros(4))
     except _Stop as exc:
         curve.stop = str(exc)
-        return curve
-    t0 = _null(jac0)
+        return curve, [Loss(what, 1, curve.stop)]
     halves: list[list[tuple[float, float, float, float]]] = []
-    reasons = []
-    for sgn in (1.0, -1.0):
+    reasons, losses = [], []
+    for sgn, way in ((1.0, "one way"), (-1.0, "the other way")):
         rows: list[tuple[float, float, float, float]] = []
-        Z, t, h = Z0.copy(), sgn * t0, 0.01
-        reason = f"{max_points} points"
+
+        def accept(pt: _Point, new: _Point, rows: list = rows) -> None:
+            Y = prob.unscaled(new.X)
+            rows.append((float(Y[2]), float(Y[3]), float(Y[0]), float(Y[1])))
+
         try:
-            while len(rows) < max_points:
-                if cancel is not None and cancel():
-                    reason = "cancelled"
-                    break
-                try:
-                    Z_new, jac, it = correct(Z + h * t, t)
-                except _Stop:
-                    h *= 0.5
-                    if h < 1e-7:
-                        raise
-                    continue
-                t_new = _null(jac)
-                t_new = t_new if t_new @ t >= 0 else -t_new
-                Y = unscaled(Z_new)
-                if not (lo <= Y[3] <= hi and min(rng1) <= Y[2] <= max(rng1)):
-                    reason = "range end"
-                    break
-                rows.append((float(Y[2]), float(Y[3]), float(Y[0]), float(Y[1])))
-                Z, t = Z_new, t_new
-                h = min(0.05, h * 1.5) if it <= 3 else (h * 0.6 if it >= 6 else h)
+            reason, lost, _ = eng.follow(prob, _Point(Z0, pt0.A, pt0.J, sgn * pt0.t, None), accept,
+                                         eng.opts.curve_ds_max)  # fmt: skip
         except _Stop as exc:
-            reason = str(exc)
+            reason, lost = str(exc), True
+        if lost:
+            losses.append(Loss(f"{what} ({way})", 1, reason))
         halves.append(rows)
         reasons.append(reason)
-    Y0 = unscaled(Z0)
+    Y0 = prob.unscaled(Z0)
     curve.rows = [*reversed(halves[1]), (float(Y0[2]), float(Y0[3]), float(Y0[0]), float(Y0[1])), *halves[0]]
     curve.stop = "; ".join(reasons)
-    return curve
+    return curve, losses
 
 
 def classify_branch(br: Branch) -> list[str]:
@@ -768,6 +1067,7 @@ def continue_from_seeds(
     param2: str | None = None,
     range2: Sequence[float] | None = None,
     window1: Sequence[float] | None = None,
+    options: ContinuationOptions | None = None,
     progress: Callable[[int, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
@@ -790,6 +1090,7 @@ def continue_from_seeds(
     for orb in found:
         if cancel is not None and cancel():
             out.completed = False
+            out.lost.append(Loss("orbits found but not continued", len(found) - found.index(orb), "cancelled"))
             break
         if _on_a_branch(out, orb, a):
             continue  # already followed: the orbit is a point of a branch computed for an earlier seed
@@ -797,7 +1098,8 @@ def continue_from_seeds(
         step = None if progress is None else (lambda n, v, d=done: progress(d + n, v))
         res = continue_orbit(params, param, value_range, orb.points[0], orb.period, switch=switch,
                              max_period=max(max_period, orb.period), numerics=numerics, cancel=cancel, workers=workers,
-                             progress=step, param2=param2, range2=range2, window1=window1)  # fmt: skip
+                             progress=step, param2=param2, range2=range2, window1=window1,
+                             options=options)  # fmt: skip
         shift = len(out.branches)
         nb = len(out.bifurcations)
         out.branches += res.branches
@@ -807,6 +1109,7 @@ def continue_from_seeds(
             if br.parent is not None:
                 br.parent += nb
         out.messages += res.messages
+        out.lost += res.lost
         out.curves += res.curves
         out.param2, out.range2 = res.param2, res.range2
         out.completed = out.completed and res.completed
