@@ -317,6 +317,7 @@ class BifurcationTab(AnalysisTab):
         lines += [f"{b.kind.replace('_', ' ')} of the period-{b.period} orbit at {cont.param} = {b.value:.12g} "
                   f"(± {b.error:.1g})" for b in bifs[:12]]  # fmt: skip
         lines += cont.messages[:3]
+        lines += [loss.line() for loss in cont.lost[:4]]  # a branch that stopped short says so on screen
         head = self.view["message"].replace("; continuing the orbits…", "")
         self.set_view(result=lines, message=head)
 
@@ -487,6 +488,7 @@ class ChartTab(AnalysisTab):
         lines.append(f"boundaries: {len(xs)} curves (period doubling: black, fold: magenta) from {n_bif} "
                      "bifurcations of the stable cycles of periods 1-3 of the chart")  # fmt: skip
         lines += [m for cont in parts for m in cont.messages][:2]
+        lines += [loss.line() for cont in parts for loss in cont.lost][:3]
         self.set_view(result=lines, message=self.view["message"].replace("; following the boundaries…", ""))
 
     def _mark(self) -> None:
