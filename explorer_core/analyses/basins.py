@@ -15,6 +15,12 @@ as its fate is known:
   *classified* attractors label trajectories, and a cycle's cells are its points' cells only: 100
   recurrences can be a long chaotic transient, whose cells would otherwise capture other basins'
   pixels (see :meth:`_Run.add_periodic`).
+  The cells must resolve the attractors (Attractors.jl warns so): a cell wider than the gap between two
+  attractors hands one's pixels to the other. The default cells (64 across the box) are therefore
+  checked against the attractors' own length scale whenever one is classified
+  (:func:`attractor_scale`: their mutual distances, a cycle's spacing, a chaotic attractor's extent) and,
+  when too coarse, replaced by cells sized from the attractors and local to them
+  (:func:`refined_cells`): a pixel's label does not depend on the box around it;
   Attractors.jl also labels a trajectory that crosses ``hit_basin`` cells in a row that earlier
   trajectories of one basin crossed; here that is off by default (``hit_basin=None``): on Fig. 11's
   tensor at ``alpha = -0.5, I11 = 1.6`` it mislabelled 35 of 10^4 pixels next to basin boundaries (a
@@ -27,12 +33,20 @@ as its fate is known:
   points and its multipliers; the attractor is periodic when every multiplier is inside the unit circle.
   An attractor that is no such cycle is ``chaotic`` when its largest Lyapunov exponent is above
   ``lyap_threshold`` and ``quasi_periodic`` (an attracting invariant curve, or a longer cycle) otherwise;
+* **conservative islands** are no attractors: a recurrent set whose area ``|det DP^k|`` (the divergence
+  integrated over ``k`` periods, from the same Lyapunov run) has no trend is an invariant curve (or a
+  chaotic layer) of an island where the map preserves area (Fig. 5A; Fig. 4A around its elliptic point).
+  All such sets are one entry of kind ``conservative`` (``attracting`` False), with a warning: neighbouring
+  invariant curves are never reported as separate attractors;
 * **escape** (label :data:`ESCAPE` = -1): the engine's status ESCAPED, ``|q|`` or ``|r|`` above the
   escape bound (by default ``max(100, 10 x`` the largest coordinate of the cell box), much below the
   sections' 1e4: along the noncompact curves the steps per period grow with ``|x|``, and a trajectory
   that far out has not been seen to come back; the bound is in the result);
 * **failure** (label :data:`FAILED` = -2): any other engine status (step collapse, step budget,
-  non-finite values); :data:`UNDECIDED` = -3: no fate within ``max_periods`` periods.
+  non-finite values); :data:`UNDECIDED` = -3: no fate within ``max_periods`` periods. Nothing is lost in
+  silence: the result's ``lost`` counts the pixels failed (by the engine's reason), undecided, not
+  computed (cancelled) or still locating, and a grid of cells that does not resolve the attractors;
+  ``complete`` is True only when it is empty.
 
 Pixels are computed coarse to fine (:func:`iter_basins`: every 4th pixel, then every 2nd, then all);
 the finer levels reuse the attractors (and their cells) already found. The work is not split into
@@ -73,10 +87,11 @@ DEFAULT_BASIN_TOL = 1e-8
 LYAP_PERIODS, LYAP_MIN_PERIODS = 300, 50
 #: Refinement levels: every 4th pixel, then every 2nd, then all.
 LEVELS = (4, 2, 1)
-#: A set whose area ``|det DP^k|`` stays within ``exp(+-CONSERVATIVE_LOG_DET)`` for every ``k`` of the
-#: Lyapunov run (``LYAP_PERIODS``) attracts nothing measurable: nested invariant curves of a conservative
-#: island (Fig. 5A; Fig. 4A around its elliptic point: ``|log det| <= 0.5`` over 300 periods), not an
-#: attractor. Fig. 4's quasi-attractor contracts area by ``exp(-0.05)`` a period (``-15`` over 300).
+#: A set whose area ``|det DP^k|`` has a secular part (the least-squares trend of ``log |det DP^k|``, the
+#: integrated divergence, over the ``LYAP_PERIODS`` of the Lyapunov run) within ``exp(+-CONSERVATIVE_LOG_DET)``
+#: attracts nothing measurable: invariant curves (or a chaotic layer) of a conservative island, not an
+#: attractor. On Fig. 4A's and Fig. 5A's invariant curves the trend is below 0.1 over 300 periods (the
+#: oscillation about it up to 3); an attractor contracting area by ``exp(-0.05)`` a period gives -15.
 CONSERVATIVE_LOG_DET = 1.0
 #: The recurrence cells resolve the attractors when a cell's diagonal is at most ``1/RESOLVE`` of the
 #: attractors' length scale (:func:`attractor_scale`): the smallest distance between points of two
@@ -128,9 +143,9 @@ class Attractor:
     conservative island, whose area ``|det DP^k|`` stays within ``exp(+-CONSERVATIVE_LOG_DET)``
     (``attracting`` False). Every such set of one computation is this one entry: neighbouring invariant
     curves are not told apart (each is its own invariant set; none has a basin). ``log_det``: the
-    largest ``|log |det DP^k||`` over the ``measured`` periods of the Lyapunov run (chaotic,
-    quasi-periodic and conservative), i.e. ``|integral of the divergence|``; ``attracting``: True for
-    attractors, False for a conservative set, None for escape.
+    secular part of ``log |det DP^k|`` (the integrated divergence) over the ``measured`` periods of the
+    Lyapunov run (chaotic, quasi-periodic and conservative): ~0 on a conservative set, negative on an
+    attractor; ``attracting``: True for attractors, False for a conservative set, None for escape.
     """
 
     id: int
@@ -886,10 +901,12 @@ class _Run:
             measured = int(res.npts[0])
             if measured >= LYAP_MIN_PERIODS:
                 lyap = float(res.exponents[0, 0])
-                # log |det DP^k| = the divergence integrated over k periods: its largest size over the run
-                log_det = float(np.abs(np.cumsum(res.divs[0, :measured])).max())
+                # log |det DP^k| is the divergence integrated over k periods; on invariant curves of an island it
+                # oscillates (by up to ~3 on Fig. 4A) about 0, on an attractor it falls: its secular part
+                k = np.arange(1, measured + 1)
+                log_det = float(np.polyfit(k, np.cumsum(res.divs[0, :measured]), 1)[0] * measured)
         kind = "chaotic" if lyap is not None and lyap > spec.lyap_threshold else "quasi_periodic"
-        if log_det is not None and log_det <= CONSERVATIVE_LOG_DET:
+        if log_det is not None and abs(log_det) <= CONSERVATIVE_LOG_DET:
             kind = "conservative"  # area kept: invariant curves (or a chaotic layer) of an island, no attractor
         found = _Found(ident, kind, None, pts, None, lyap, seed, None, log_det, measured)  # type: ignore[arg-type]
         self.found[ident] = found
@@ -901,7 +918,7 @@ class _Run:
                 if f.kind == "conservative" and f.internal != ident and self.find(f.internal) == f.internal:
                     self.merge(ident, f.internal)
                     f.points = np.vstack([f.points, pts])[-512:]
-                    f.log_det = max(f.log_det or 0.0, log_det or 0.0)
+                    f.log_det = max(f.log_det, log_det, key=abs)  # type: ignore[arg-type]
                     f.measured = min(f.measured, measured)
                     break
 
@@ -930,7 +947,7 @@ class _Run:
                 f.lyapunov = max(exps) if exps else None
                 f.kind = "chaotic" if "chaotic" in (f.kind, g.kind) else f.kind
                 f.points = np.vstack([f.points, g.points])[-256:]
-                f.log_det = max((v for v in (f.log_det, g.log_det) if v is not None), default=None)
+                f.log_det = max((v for v in (f.log_det, g.log_det) if v is not None), default=None, key=abs)
 
     # -- members ---------------------------------------------------------------
 
@@ -1106,10 +1123,12 @@ class _Run:
         cons = [f for i, f in self.found.items() if f.kind == "conservative" and self.find(i) == i]
         if cons:
             n = int(sum(np.count_nonzero(lab == self.public.get(f.internal, -99)) for f in cons))
-            warnings.append(f"{n} pixels lie on conservative invariant curves (|log det DP^k| <= "
-                            f"{max(f.log_det or 0.0 for f in cons):.2g} over {min(f.measured for f in cons)} periods: "
-                            "area kept, nothing attracted): they are in no basin, and neighbouring curves are one "
-                            "label (kind 'conservative'), not separate attractors")  # fmt: skip
+            worst = max(abs(f.log_det or 0.0) for f in cons)
+            warnings.append(f"{n} pixels lie on conservative invariant curves (the area |det DP^k| has no trend: "
+                            f"|log det| {worst:.2g} over {min(f.measured for f in cons)} periods, nothing attracted): "
+                            "they are in no basin, and neighbouring curves are one label (kind 'conservative'), "
+                            "not separate attractors; an attractor contracting area by less than "
+                            f"exp(-{CONSERVATIVE_LOG_DET:g}) over those periods would look the same")  # fmt: skip
         return lost, warnings
 
 
