@@ -67,7 +67,7 @@ def _check_box_independence(pixels: list[tuple[float, float]]) -> None:
         a, b = _identity(small, 5, 5), _identity(large, 15, 15)
         assert _same(a, b), (x, a[:2], b[:2])
         # and it is the attractor an independent solve_ivp run (DOP853 at 1e-10) ends on
-        pts, escaped = ivp_fate(FIG11, x, 150, bound=300.0)
+        pts, escaped = ivp_fate(FIG11, x, 100, bound=300.0)
         k, dist = nearest_attractor(pts, escaped, atts)
         assert dist < 1e-2 and a[0] == "periodic" and a[1] == cycles[k].period, x
         for res in (small, large):
@@ -179,3 +179,25 @@ def test_labels_do_not_depend_on_the_order_pixels_are_processed(monkeypatch) -> 
     assert ahead.complete and behind.complete
     for j, i in np.ndindex(ahead.label.shape):
         assert _same(_identity(ahead, j, i), _identity(behind, j, i)), (j, i)
+
+
+def test_fig4a_box_is_one_island_and_one_chaotic_attractor() -> None:
+    # Fig. 4A's box: invariant curves of islands (no trend in log|det DP^k|) and a chaotic set that
+    # contracts area. Before: 4 "quasi_periodic" attractors (separate invariant curves) beside the chaotic one.
+    params = get_scene("fig4A").params
+    b = basins(params, (-3.0, 3.0, -2.5, 2.5), (16, 16))
+    assert sorted(a.kind for a in b.attractors) == ["chaotic", "conservative"]
+    (chaos,) = [a for a in b.attractors if a.kind == "chaotic"]
+    (island,) = [a for a in b.attractors if a.kind == "conservative"]
+    assert chaos.attracting and chaos.log_det < -1.0 and chaos.lyapunov > 5e-3
+    assert island.attracting is False and abs(island.log_det) < 1.0
+    assert b.complete and island.fraction + chaos.fraction == pytest.approx(1.0)
+    # a separate 1000-period Lyapunov run from the pixels themselves: the island's are ~0, the chaotic ones not
+    from explorer_core.analyses.lyapunov import lyapunov_spectrum
+
+    rng = np.random.default_rng(0)
+    picks = {a.id: np.argwhere(b.label == a.id) for a in (chaos, island)}
+    picks = {k: v[rng.choice(len(v), 3, replace=False)] for k, v in picks.items()}
+    ics = np.array([[b.q[i], b.r[j]] for k in (chaos.id, island.id) for j, i in picks[k]])
+    lam = lyapunov_spectrum(params, ics, 1000).exponents[:, 0]
+    assert (lam[:3] > 2e-3).all() and (np.abs(lam[3:]) < 2e-3).all(), lam

@@ -692,37 +692,39 @@ def _min_distance(a: np.ndarray, b: np.ndarray | None = None) -> float:
 def attractor_scale(found: Sequence[_Found]) -> float | None:
     """The length the recurrence cells must resolve (a cell's diagonal at most ``1 / RESOLVE`` of it).
 
-    The smallest of: the distance between points of two sets (not two conservative ones: they are one
-    label anyway), between two points of one cycle, half the extent of a chaotic or quasi-periodic
-    attractor's points, and ``1 + |x|`` of a cycle's points (a lone fixed point has no length of its own:
-    the size of the state stands in, as in the tolerances). None while nothing is classified.
+    The smallest of: the distance between points of two attractors, between two points of one cycle,
+    half the extent of a chaotic or quasi-periodic attractor's points, and ``1 + |x|`` of a cycle's
+    points (a lone fixed point has no length of its own: the size of the state stands in, as in the
+    tolerances). Conservative sets do not count: a chaotic sea comes arbitrarily close to the islands in
+    it (on Fig. 4A's box the distance fell to 0.4 and then below each new grid, and the finest cells
+    left a chaotic layer's pixels undecided). None while no attractor is classified.
     """
     scale = math.inf
     sets = []
     for f in found:
         pts = np.asarray(f.points, float).reshape(-1, 2)
         pts = pts[np.isfinite(pts).all(axis=1)]
-        if pts.shape[0] == 0:
+        if pts.shape[0] == 0 or f.kind == "conservative":
             continue
-        sets.append((pts, f.kind == "conservative"))
+        sets.append(pts)
         if f.kind == "periodic":
             scale = min(scale, _min_distance(pts), 1.0 + float(np.linalg.norm(pts, axis=1).min()))
-        elif f.kind != "conservative":
+        else:
             ext = float(np.hypot(*np.ptp(pts, axis=0)))
             if ext > 0:
                 scale = min(scale, ext / 2)
-    for i, (a, ca) in enumerate(sets):
-        for b, cb in sets[i + 1 :]:
-            if not (ca and cb):
-                scale = min(scale, _min_distance(a, b))
+    for i, a in enumerate(sets):
+        for b in sets[i + 1 :]:
+            scale = min(scale, _min_distance(a, b))
     return scale if math.isfinite(scale) and scale > 0 else None
 
 
 def refined_cells(found: Sequence[_Found], scale: float) -> tuple[tuple[float, float, float, float], tuple[int, int]]:
     """A recurrence grid sized from the attractors, not from the box: square cells whose diagonal is
-    ``scale / (1.25 RESOLVE)`` over the attractors' points widened on every side by the larger of their
-    extent and ``4 scale`` (at most :data:`MAX_REFINED_CELLS` per axis: coarser cells if it would be more)."""
-    pts = np.vstack([np.asarray(f.points, float).reshape(-1, 2) for f in found])
+    ``scale / (1.25 RESOLVE)`` over the attractors' points (conservative sets aside) widened on every side
+    by the larger of their extent and ``4 scale`` (at most :data:`MAX_REFINED_CELLS` per axis: coarser
+    cells if it would be more)."""
+    pts = np.vstack([np.asarray(f.points, float).reshape(-1, 2) for f in found if f.kind != "conservative"])
     pts = pts[np.isfinite(pts).all(axis=1)]
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     margin = max(float((hi - lo).max()), 4.0 * scale)
