@@ -57,7 +57,7 @@ def _centred(x: tuple[float, float], half: float, n: int) -> Basins:
     return basins(FIG11, (x[0] - half, x[0] + half, x[1] - half, x[1] + half), (n, n))
 
 
-def _check_box_independence(pixels: list[tuple[float, float]]) -> None:
+def _check_box_independence(pixels: list[tuple[float, float]], ivp: bool = True) -> None:
     cycles = [o for o in find_orbits(FIG11, np.array([FOCUS, CYCLE3]), [1, 3]).orbits if o.stable]
     atts = [(k, o.points) for k, o in enumerate(cycles)]
     for x in pixels:
@@ -66,17 +66,19 @@ def _check_box_independence(pixels: list[tuple[float, float]]) -> None:
         assert small.r[5] == pytest.approx(x[1]) and large.r[15] == pytest.approx(x[1])
         a, b = _identity(small, 5, 5), _identity(large, 15, 15)
         assert _same(a, b), (x, a[:2], b[:2])
+        for res in (small, large):
+            assert res.complete and res.lost == [] and res.computed.all()
+        if not ivp:
+            continue
         # and it is the attractor an independent solve_ivp run (DOP853 at 1e-10) ends on
         pts, escaped = ivp_fate(FIG11, x, 100, bound=300.0)
         k, dist = nearest_attractor(pts, escaped, atts)
         assert dist < 1e-2 and a[0] == "periodic" and a[1] == cycles[k].period, x
-        for res in (small, large):
-            assert res.complete and res.lost == [] and res.computed.all()
 
 
 def test_a_pixels_attractor_does_not_depend_on_the_box_around_it() -> None:
     # Two pixels next to the period-1 focus and one next to a point of the period-3 cycle, each the centre
-    # of a +-5 and a +-500 box. Before: the +-500 box labelled all three with the period-3 cycle.
+    # of a +-5 and a +-500 box. Before: in the +-500 box the pixels next to the focus got the period-3 cycle.
     _check_box_independence([(FOCUS[0] + 0.04, FOCUS[1] - 0.03), (FOCUS[0] - 0.06, FOCUS[1] + 0.05),
                              (CYCLE3[0] + 0.05, CYCLE3[1] - 0.04)])  # fmt: skip
 
@@ -84,7 +86,10 @@ def test_a_pixels_attractor_does_not_depend_on_the_box_around_it() -> None:
 @pytest.mark.slow
 def test_a_5x5_patch_around_each_attractor_does_not_depend_on_the_box() -> None:
     offsets = np.linspace(-0.1, 0.1, 5)
-    _check_box_independence([(c[0] + dq, c[1] + dr) for c in (FOCUS, CYCLE3) for dq in offsets for dr in offsets])
+    # (the attractor each ends on is checked against solve_ivp at the three pixels of the test above)
+    _check_box_independence(
+        [(c[0] + dq, c[1] + dr) for c in (FOCUS, CYCLE3) for dq in offsets for dr in offsets], ivp=False
+    )
 
 
 def test_the_tester_s_500_box_finds_both_attractors_with_their_basins() -> None:
@@ -201,3 +206,26 @@ def test_fig4a_box_is_one_island_and_one_chaotic_attractor() -> None:
     ics = np.array([[b.q[i], b.r[j]] for k in (chaos.id, island.id) for j, i in picks[k]])
     lam = lyapunov_spectrum(params, ics, 1000).exponents[:, 0]
     assert (lam[:3] > 2e-3).all() and (np.abs(lam[3:]) < 2e-3).all(), lam
+
+
+def test_the_cells_length_scale_comes_from_the_attractors() -> None:
+    from explorer_core.analyses.basins import RESOLVE, _Found, attractor_scale, refined_cells
+
+    def found(kind: str, pts: list) -> _Found:
+        return _Found(0, kind, len(pts) if kind == "periodic" else None, np.array(pts, float), None, None, (0, 0))
+
+    focus = found("periodic", [FOCUS])
+    cycle = found("periodic", [CYCLE3, (-1.8459, -1.258), (1.0469, -3.15)])
+    # the gap between the two cycles (0.85) sets it; a lone fixed point has 1 + |x|
+    assert attractor_scale([focus, cycle]) == pytest.approx(np.hypot(0.2099, 0.8202), rel=1e-3)
+    assert attractor_scale([focus]) == pytest.approx(1 + np.hypot(*FOCUS))
+    # conservative sets (invariant curves) do not count; nothing classified: no scale
+    curve = found("conservative", [(FOCUS[0] + 1e-3, FOCUS[1])])
+    assert attractor_scale([focus, cycle, curve]) == attractor_scale([focus, cycle])
+    assert attractor_scale([curve]) is None and attractor_scale([]) is None
+    # the refined grid resolves it, covers the attractors, and does not depend on any box
+    scale = attractor_scale([focus, cycle])
+    box, cells = refined_cells([focus, cycle], scale)
+    h = ((box[1] - box[0]) / cells[0], (box[3] - box[2]) / cells[1])
+    assert np.hypot(*h) <= scale / RESOLVE and h[0] == pytest.approx(h[1])
+    assert box[0] < -1.8459 and box[1] > 1.0469 and box[2] < -3.15 and box[3] > -1.258

@@ -1186,9 +1186,12 @@ def iter_basins(
             if run.version != checked:
                 checked = run.version
                 if not _resolved(run) and spec.adapt_cells and refinements < MAX_REFINES:
-                    restart = replace(spec, **dict(zip(("cell_box", "cells"), refined_cells(run.roots(), run.scale),
-                                                       strict=True)))  # type: ignore[arg-type]  # fmt: skip
-                    break
+                    cell_box, cells = refined_cells(run.roots(), run.scale)  # type: ignore[arg-type]
+                    finer = replace(spec, cell_box=cell_box, cells=cells)
+                    # (capped at MAX_REFINED_CELLS the new cells may be no finer: keep these, reported as a loss)
+                    if math.hypot(*finer.cell_size) < 0.99 * math.hypot(*spec.cell_size):
+                        restart = finer
+                        break
             done = total - len(queue) - int(np.count_nonzero(run.pixel >= 0))
             # a level is done when all its pixels are (the queue is level-ordered; slots may hold later ones)
             while level < len(levels) and np.all(run.label[levels[level][1]] != NOT_COMPUTED):
