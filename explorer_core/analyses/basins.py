@@ -18,7 +18,7 @@ as its fate is known:
   The cells must resolve the attractors (Attractors.jl warns so): a cell wider than the gap between two
   attractors hands one's pixels to the other. The default cells (64 across the box) are therefore
   checked against the attractors' own length scale whenever one is classified
-  (:func:`attractor_scale`: their mutual distances, a cycle's spacing, a chaotic attractor's extent) and,
+  (:func:`attractor_scale`: the spacing of a cycle's points, their distance to other attractors) and,
   when too coarse, replaced by cells sized from the attractors and local to them
   (:func:`refined_cells`): a pixel's label does not depend on the box around it;
   Attractors.jl also labels a trajectory that crosses ``hit_basin`` cells in a row that earlier
@@ -88,14 +88,16 @@ LYAP_PERIODS, LYAP_MIN_PERIODS = 300, 50
 #: Refinement levels: every 4th pixel, then every 2nd, then all.
 LEVELS = (4, 2, 1)
 #: A set whose area ``|det DP^k|`` has a secular part (the least-squares trend of ``log |det DP^k|``, the
-#: integrated divergence, over the ``LYAP_PERIODS`` of the Lyapunov run) within ``exp(+-CONSERVATIVE_LOG_DET)``
-#: attracts nothing measurable: invariant curves (or a chaotic layer) of a conservative island, not an
-#: attractor. On Fig. 4A's and Fig. 5A's invariant curves the trend is below 0.1 over 300 periods (the
-#: oscillation about it up to 3); an attractor contracting area by ``exp(-0.05)`` a period gives -15.
+#: integrated divergence, over the ``LYAP_PERIODS`` of the Lyapunov run) above ``exp(-CONSERVATIVE_LOG_DET)``
+#: attracts nothing measurable: invariant curves (or a chaotic layer, whose finite-time trend wanders
+#: either way) of a conservative island, not an attractor. On Fig. 4A's and Fig. 5A's invariant curves the
+#: trend is below 0.1 over 300 periods (the oscillation about it up to 3); an attractor contracting area by
+#: ``exp(-0.05)`` a period gives -15. A trend between minus it and minus a quarter of it is measured again
+#: over five times the periods.
 CONSERVATIVE_LOG_DET = 1.0
 #: The recurrence cells resolve the attractors when a cell's diagonal is at most ``1/RESOLVE`` of the
-#: attractors' length scale (:func:`attractor_scale`): the smallest distance between points of two
-#: attractors or of one cycle, half a non-periodic attractor's extent, ``1 + |x|`` of a lone fixed point.
+#: attractors' length scale (:func:`attractor_scale`, set by the cycles: the spacing of a cycle's points,
+#: their distance to other attractors, ``1 + |x|`` of a lone fixed point).
 RESOLVE = 8
 #: Times the default cells may be refined (the run restarted on a grid sized from the attractors) before
 #: the result says the attractors are not resolved; most cells per axis of a refined grid.
@@ -140,12 +142,13 @@ class Attractor:
     initial condition whose trajectory found it.
 
     ``kind == "conservative"`` is no attractor: the invariant curves (or a chaotic layer) of a
-    conservative island, whose area ``|det DP^k|`` stays within ``exp(+-CONSERVATIVE_LOG_DET)``
-    (``attracting`` False). Every such set of one computation is this one entry: neighbouring invariant
-    curves are not told apart (each is its own invariant set; none has a basin). ``log_det``: the
-    secular part of ``log |det DP^k|`` (the integrated divergence) over the ``measured`` periods of the
-    Lyapunov run (chaotic, quasi-periodic and conservative): ~0 on a conservative set, negative on an
-    attractor; ``attracting``: True for attractors, False for a conservative set, None for escape.
+    conservative island, whose area ``|det DP^k|`` does not contract (its trend stays above
+    ``exp(-CONSERVATIVE_LOG_DET)``, ``attracting`` False). Every such set of one computation is this one
+    entry: neighbouring invariant curves are not told apart (each is its own invariant set; none has a
+    basin). ``log_det``: the secular part of ``log |det DP^k|`` (the integrated divergence) over the
+    ``measured`` periods of the Lyapunov run (chaotic, quasi-periodic and conservative): not below
+    ``-CONSERVATIVE_LOG_DET`` on a conservative set, below it on an attractor; ``attracting``: True for
+    attractors, False for a conservative set, None for escape.
     """
 
     id: int
@@ -677,6 +680,14 @@ class _Found:
     measured: int = 0
 
 
+def _area_trend(divs: np.ndarray) -> float:
+    """The secular part of ``log |det DP^k|`` over ``k = 1..n`` (``divs``: the divergence integrated over
+    each period): the least-squares slope times ``n``. On invariant curves of an island ``log |det|``
+    oscillates (by up to ~3 on Fig. 4A) about a constant; on an attractor it falls."""
+    k = np.arange(1, divs.shape[0] + 1)
+    return float(np.polyfit(k, np.cumsum(divs), 1)[0] * divs.shape[0])
+
+
 def _min_distance(a: np.ndarray, b: np.ndarray | None = None) -> float:
     """Smallest distance between a point of ``a`` and one of ``b`` (or between two points of ``a``)."""
     if b is None:
@@ -692,44 +703,54 @@ def _min_distance(a: np.ndarray, b: np.ndarray | None = None) -> float:
 def attractor_scale(found: Sequence[_Found]) -> float | None:
     """The length the recurrence cells must resolve (a cell's diagonal at most ``1 / RESOLVE`` of it).
 
-    The smallest of: the distance between points of two attractors, between two points of one cycle,
-    half the extent of a chaotic or quasi-periodic attractor's points, and ``1 + |x|`` of a cycle's
+    Set by the cycles, whose points Newton makes exact: the smallest of the distances between two points
+    of one cycle, between a cycle's points and another attractor's points, and ``1 + |x|`` of a cycle's
     points (a lone fixed point has no length of its own: the size of the state stands in, as in the
-    tolerances). Conservative sets do not count: a chaotic sea comes arbitrarily close to the islands in
-    it (on Fig. 4A's box the distance fell to 0.4 and then below each new grid, and the finest cells
-    left a chaotic layer's pixels undecided). None while no attractor is classified.
+    tolerances). The sampled points of chaotic and quasi-periodic attractors do not set it among
+    themselves: 256 located points may be an arc of a slow invariant curve (Fig. 7A: 0.05 x 0.005), and
+    two samples of one chaotic attractor not merged yet lie close (Fig. 1C: 0.45); on both, cells that
+    fine left most pixels undecided. Conservative sets never count (a chaotic sea comes arbitrarily close
+    to its islands). None while no cycle is classified.
     """
     scale = math.inf
-    sets = []
+    cycles, others = [], []
     for f in found:
         pts = np.asarray(f.points, float).reshape(-1, 2)
         pts = pts[np.isfinite(pts).all(axis=1)]
         if pts.shape[0] == 0 or f.kind == "conservative":
             continue
-        sets.append(pts)
         if f.kind == "periodic":
             scale = min(scale, _min_distance(pts), 1.0 + float(np.linalg.norm(pts, axis=1).min()))
+            cycles.append(pts)
         else:
-            ext = float(np.hypot(*np.ptp(pts, axis=0)))
-            if ext > 0:
-                scale = min(scale, ext / 2)
-    for i, a in enumerate(sets):
-        for b in sets[i + 1 :]:
+            others.append(pts)
+    for i, a in enumerate(cycles):
+        for b in cycles[i + 1 :] + others:
             scale = min(scale, _min_distance(a, b))
     return scale if math.isfinite(scale) and scale > 0 else None
 
 
-def refined_cells(found: Sequence[_Found], scale: float) -> tuple[tuple[float, float, float, float], tuple[int, int]]:
-    """A recurrence grid sized from the attractors, not from the box: square cells whose diagonal is
-    ``scale / (1.25 RESOLVE)`` over the attractors' points (conservative sets aside) widened on every side
-    by the larger of their extent and ``4 scale`` (at most :data:`MAX_REFINED_CELLS` per axis: coarser
-    cells if it would be more)."""
+def refined_cells(
+    found: Sequence[_Found], scale: float, within: Sequence[float] | None = None
+) -> tuple[tuple[float, float, float, float], tuple[int, int]]:
+    """A recurrence grid whose cells are sized from the attractors, not from the box: square, diagonal
+    ``scale / (1.25 RESOLVE)``. It covers ``within`` (the default cell box) and the attractors' points
+    (conservative sets aside) widened on every side by the larger of their extent and ``4 scale``, when
+    that takes at most :data:`MAX_REFINED_CELLS` per axis (attractors not found yet are found by their
+    recurrences there as before); else the attractors' region alone (a +-500 box), with cells coarsened
+    only if even that needs more."""
     pts = np.vstack([np.asarray(f.points, float).reshape(-1, 2) for f in found if f.kind != "conservative"])
     pts = pts[np.isfinite(pts).all(axis=1)]
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     margin = max(float((hi - lo).max()), 4.0 * scale)
     lo, hi = lo - margin, hi + margin
-    h = max(scale / (1.25 * RESOLVE * math.sqrt(2.0)), float((hi - lo).max()) / MAX_REFINED_CELLS)
+    h = scale / (1.25 * RESOLVE * math.sqrt(2.0))
+    if within is not None:
+        wlo = np.minimum(lo, [within[0], within[2]])
+        whi = np.maximum(hi, [within[1], within[3]])
+        if float((whi - wlo).max()) / h <= MAX_REFINED_CELLS:
+            lo, hi = wlo, whi
+    h = max(h, float((hi - lo).max()) / MAX_REFINED_CELLS)
     cells = (max(1, math.ceil((hi[0] - lo[0]) / h)), max(1, math.ceil((hi[1] - lo[1]) / h)))
     box = (float(lo[0]), float(lo[0] + cells[0] * h), float(lo[1]), float(lo[1] + cells[1] * h))
     return box, cells
@@ -903,13 +924,19 @@ class _Run:
             measured = int(res.npts[0])
             if measured >= LYAP_MIN_PERIODS:
                 lyap = float(res.exponents[0, 0])
-                # log |det DP^k| is the divergence integrated over k periods; on invariant curves of an island it
-                # oscillates (by up to ~3 on Fig. 4A) about 0, on an attractor it falls: its secular part
-                k = np.arange(1, measured + 1)
-                log_det = float(np.polyfit(k, np.cumsum(res.divs[0, :measured]), 1)[0] * measured)
+                log_det = _area_trend(res.divs[0, :measured])
+                if -CONSERVATIVE_LOG_DET < log_det < -CONSERVATIVE_LOG_DET / 4:
+                    # 300 periods cannot tell a weak contraction from the oscillation: five times longer
+                    more = lyapunov_spectrum(spec.params, pts[-1:], 5 * LYAP_PERIODS, transient=20,
+                                             numerics=spec.numerics, workers=1)  # fmt: skip
+                    if int(more.npts[0]) >= 5 * LYAP_PERIODS:
+                        measured = int(more.npts[0])
+                        log_det = _area_trend(more.divs[0, :measured])
         kind = "chaotic" if lyap is not None and lyap > spec.lyap_threshold else "quasi_periodic"
-        if log_det is not None and abs(log_det) <= CONSERVATIVE_LOG_DET:
-            kind = "conservative"  # area kept: invariant curves (or a chaotic layer) of an island, no attractor
+        if log_det is not None and log_det > -CONSERVATIVE_LOG_DET:
+            # area not contracted: invariant curves (or a chaotic layer, whose finite-time trend wanders either
+            # way: +5.9 over 300 periods in Fig. 2C's merged island) of an island, no attractor
+            kind = "conservative"
         found = _Found(ident, kind, None, pts, None, lyap, seed, None, log_det, measured)  # type: ignore[arg-type]
         self.found[ident] = found
         self.ready[ident] = 1
@@ -1165,6 +1192,7 @@ def iter_basins(
     """
     start = time.perf_counter()
     refinements, earlier = 0, (0, 0)
+    default_box = spec.cell_box
     while True:
         run = _Run(spec)
         run.refinements, run.earlier = refinements, earlier
@@ -1186,7 +1214,7 @@ def iter_basins(
             if run.version != checked:
                 checked = run.version
                 if not _resolved(run) and spec.adapt_cells and refinements < MAX_REFINES:
-                    cell_box, cells = refined_cells(run.roots(), run.scale)  # type: ignore[arg-type]
+                    cell_box, cells = refined_cells(run.roots(), run.scale, default_box)  # type: ignore[arg-type]
                     finer = replace(spec, cell_box=cell_box, cells=cells)
                     # (capped at MAX_REFINED_CELLS the new cells may be no finer: keep these, reported as a loss)
                     if math.hypot(*finer.cell_size) < 0.99 * math.hypot(*spec.cell_size):
