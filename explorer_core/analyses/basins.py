@@ -15,6 +15,12 @@ as its fate is known:
   *classified* attractors label trajectories, and a cycle's cells are its points' cells only: 100
   recurrences can be a long chaotic transient, whose cells would otherwise capture other basins'
   pixels (see :meth:`_Run.add_periodic`).
+  The cells must resolve the attractors (Attractors.jl warns so): a cell wider than the gap between two
+  attractors hands one's pixels to the other. The default cells (64 across the box) are therefore
+  checked against the attractors' own length scale whenever one is classified
+  (:func:`attractor_scale`: the spacing of a cycle's points, their distance to other attractors) and,
+  when too coarse, replaced by cells sized from the attractors and local to them
+  (:func:`refined_cells`): a pixel's label does not depend on the box around it;
   Attractors.jl also labels a trajectory that crosses ``hit_basin`` cells in a row that earlier
   trajectories of one basin crossed; here that is off by default (``hit_basin=None``): on Fig. 11's
   tensor at ``alpha = -0.5, I11 = 1.6`` it mislabelled 35 of 10^4 pixels next to basin boundaries (a
@@ -27,12 +33,20 @@ as its fate is known:
   points and its multipliers; the attractor is periodic when every multiplier is inside the unit circle.
   An attractor that is no such cycle is ``chaotic`` when its largest Lyapunov exponent is above
   ``lyap_threshold`` and ``quasi_periodic`` (an attracting invariant curve, or a longer cycle) otherwise;
+* **conservative islands** are no attractors: a recurrent set whose area ``|det DP^k|`` (the divergence
+  integrated over ``k`` periods, from the same Lyapunov run) has no trend is an invariant curve (or a
+  chaotic layer) of an island where the map preserves area (Fig. 5A; Fig. 4A around its elliptic point).
+  All such sets are one entry of kind ``conservative`` (``attracting`` False), with a warning: neighbouring
+  invariant curves are never reported as separate attractors;
 * **escape** (label :data:`ESCAPE` = -1): the engine's status ESCAPED, ``|q|`` or ``|r|`` above the
   escape bound (by default ``max(100, 10 x`` the largest coordinate of the cell box), much below the
   sections' 1e4: along the noncompact curves the steps per period grow with ``|x|``, and a trajectory
   that far out has not been seen to come back; the bound is in the result);
 * **failure** (label :data:`FAILED` = -2): any other engine status (step collapse, step budget,
-  non-finite values); :data:`UNDECIDED` = -3: no fate within ``max_periods`` periods.
+  non-finite values); :data:`UNDECIDED` = -3: no fate within ``max_periods`` periods. Nothing is lost in
+  silence: the result's ``lost`` counts the pixels failed (by the engine's reason), undecided, not
+  computed (cancelled) or still locating, and a grid of cells that does not resolve the attractors;
+  ``complete`` is True only when it is empty.
 
 Pixels are computed coarse to fine (:func:`iter_basins`: every 4th pixel, then every 2nd, then all);
 the finer levels reuse the attractors (and their cells) already found. The work is not split into
@@ -45,7 +59,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -55,6 +69,7 @@ from explorer_core import config
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
 from explorer_core.analyses.sweeps import detect_period
+from explorer_core.losses import Loss
 from explorer_core.solve.integrators import Batch, Status, advance
 from explorer_core.solve.numerics import Numerics, check_box, check_int
 from explorer_core.system.model import Model
@@ -64,7 +79,7 @@ from explorer_core.system.params import ParameterError, Params
 ESCAPE, FAILED, UNDECIDED, NOT_COMPUTED, LOCATING = -1, -2, -3, -4, -5
 OUTCOMES = {ESCAPE: "escape", FAILED: "failed", UNDECIDED: "undecided", NOT_COMPUTED: "not_computed",
             LOCATING: "locating"}  # fmt: skip
-KINDS = ("periodic", "chaotic", "quasi_periodic", "escape")
+KINDS = ("periodic", "chaotic", "quasi_periodic", "conservative", "escape")
 #: Integration tolerance: basins need the attractor, not 1e-10 accuracy (as the chart of regimes).
 DEFAULT_BASIN_TOL = 1e-8
 #: Periods of the Lyapunov exponent that tells a chaotic attractor from a quasi-periodic one, and the
@@ -72,6 +87,21 @@ DEFAULT_BASIN_TOL = 1e-8
 LYAP_PERIODS, LYAP_MIN_PERIODS = 300, 50
 #: Refinement levels: every 4th pixel, then every 2nd, then all.
 LEVELS = (4, 2, 1)
+#: A set whose area ``|det DP^k|`` has a secular part (the least-squares trend of ``log |det DP^k|``, the
+#: integrated divergence, over the ``LYAP_PERIODS`` of the Lyapunov run) above ``exp(-CONSERVATIVE_LOG_DET)``
+#: attracts nothing measurable: invariant curves (or a chaotic layer, whose finite-time trend wanders
+#: either way) of a conservative island, not an attractor. On Fig. 4A's and Fig. 5A's invariant curves the
+#: trend is below 0.1 over 300 periods (the oscillation about it up to 3); an attractor contracting area by
+#: ``exp(-0.05)`` a period gives -15. A trend between minus it and minus a quarter of it is measured again
+#: over five times the periods.
+CONSERVATIVE_LOG_DET = 1.0
+#: The recurrence cells resolve the attractors when a cell's diagonal is at most ``1/RESOLVE`` of the
+#: attractors' length scale (:func:`attractor_scale`, set by the cycles: the spacing of a cycle's points,
+#: their distance to other attractors, ``1 + |x|`` of a lone fixed point).
+RESOLVE = 8
+#: Times the default cells may be refined (the run restarted on a grid sized from the attractors) before
+#: the result says the attractors are not resolved; most cells per axis of a refined grid.
+MAX_REFINES, MAX_REFINED_CELLS = 4, 1024
 
 # Member phases in the cell bookkeeping.
 _SEARCH, _LOCATE, _LOCATED, _LABELLED, _FULL = 0, 1, 2, 3, 4
@@ -110,6 +140,15 @@ class Attractor:
     (periodic only), largest modulus first; ``lyapunov``: the largest exponent per unit time (chaotic,
     quasi-periodic only); ``fraction``: the share of the computed pixels in its basin; ``seed``: the
     initial condition whose trajectory found it.
+
+    ``kind == "conservative"`` is no attractor: the invariant curves (or a chaotic layer) of a
+    conservative island, whose area ``|det DP^k|`` does not contract (its trend stays above
+    ``exp(-CONSERVATIVE_LOG_DET)``, ``attracting`` False). Every such set of one computation is this one
+    entry: neighbouring invariant curves are not told apart (each is its own invariant set; none has a
+    basin). ``log_det``: the secular part of ``log |det DP^k|`` (the integrated divergence) over the
+    ``measured`` periods of the Lyapunov run (chaotic, quasi-periodic and conservative): not below
+    ``-CONSERVATIVE_LOG_DET`` on a conservative set, below it on an attractor; ``attracting``: True for
+    attractors, False for a conservative set, None for escape.
     """
 
     id: int
@@ -121,6 +160,9 @@ class Attractor:
     fraction: float = 0.0
     seed: tuple[float, float] = (math.nan, math.nan)
     orbit_type: str | None = None
+    attracting: bool | None = None
+    log_det: float | None = None
+    measured: int = 0
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -135,6 +177,10 @@ class Attractor:
             out["type"] = self.orbit_type
         if self.lyapunov is not None:
             out["lyapunov"] = float(self.lyapunov)
+        out["attracting"] = self.attracting
+        if self.log_det is not None:
+            out["log_det"] = float(self.log_det)
+            out["measured_periods"] = int(self.measured)
         if self.kind != "escape":
             out["seed"] = [float(self.seed[0]), float(self.seed[1])]
         return out
@@ -161,6 +207,9 @@ class BasinSpec:
     tol: float = 1e-5
     lyap_threshold: float = 5e-3
     inflight: int = 512
+    #: True: ``cells``/``cell_box`` are the defaults, refined from the attractors when they do not resolve
+    #: them (:func:`iter_basins`); False: the caller's, kept (an unresolved grid is reported as a loss).
+    adapt_cells: bool = True
 
     @property
     def q(self) -> np.ndarray:
@@ -194,6 +243,7 @@ class BasinSpec:
             "p_max": self.p_max,
             "tol": self.tol,
             "lyap_threshold": self.lyap_threshold,
+            "adapt_cells": self.adapt_cells,
         }
 
 
@@ -211,6 +261,11 @@ class Basins:
     (``attractor``: reached one; the engine statuses of the trajectories that ended there: ``escaped``
     is the engine's bound; ``escape_by_cells``: escape told by basin cells, only with ``hit_basin``;
     ``undecided``); ``periods`` and ``steps`` are the work done (member-periods, RK steps).
+
+    ``complete``: ``completed`` and nothing lost; ``lost``: the :class:`~explorer_core.losses.Loss` es
+    (pixels undecided, failed, not computed or cancelled, still locating; attractors the recurrence
+    cells may not resolve), with counts and reasons; ``warnings``: what the labels mean beyond the
+    attractors (pixels on conservative invariant curves, which are in no basin).
     """
 
     spec: BasinSpec
@@ -227,6 +282,9 @@ class Basins:
     periods: int = 0
     steps: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
+    complete: bool = False
+    lost: list[Loss] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     def attractor(self, ident: int) -> Attractor:
         for a in self.attractors:
@@ -255,7 +313,7 @@ class Basins:
         if computed and not any(self.fraction.get(k, 0.0) for k in self.fraction if k >= ESCAPE):
             note = "every computed pixel failed or was undecided: no attractor to report"
         else:
-            note = None
+            note = "; ".join(self.warnings) or None
         out: dict[str, Any] = {
             "attractors": [a.as_dict() for a in self.attractors],
             "failed_fraction": float(self.fraction.get(FAILED, 0.0)),
@@ -264,6 +322,9 @@ class Basins:
             "pixels": int(self.computed.size),
             "computed": computed,
             "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
+            "warnings": list(self.warnings),
             "elapsed_s": round(self.elapsed_s, 6),
             "periods": int(self.periods),
             "steps": int(self.steps),
@@ -326,6 +387,9 @@ def basin_spec(
         ``max(100, 10 max |cell_box|)``, at most the sections' 1e4 unless the cell box reaches beyond it).
     cell_box : the box of the recurrence cells (default: ``box`` widened by its size on every side).
     cells : cells per axis of ``cell_box`` (default: 64 across ``box``, so 192 across the default cell box).
+        With both defaults the grid is refined from the attractors found when it does not resolve them
+        (:func:`iter_basins`), so a pixel's label does not depend on the box around it; a grid the caller
+        gives is kept, and the result reports it as a loss if it does not resolve the attractors.
     chunk : periods per engine call; ``max_periods``: a pixel still undecided then is :data:`UNDECIDED`.
     recurrences, locate, hit_attractor, hit_basin : the recurrence algorithm's counts (module docstring;
         Attractors.jl's ``consecutive_recurrences``, ``attractor_locate_steps``,
@@ -380,7 +444,8 @@ def basin_spec(
     if not (isinstance(lyap_threshold, int | float) and math.isfinite(lyap_threshold)):
         raise ParameterError(f"lyap_threshold must be a finite number, got {lyap_threshold!r}")
     return BasinSpec(params, b, nx, ny, numerics, cb, cl, chunk, max_periods, recurrences, locate, hit_attractor,
-                     hit_basin, p_max, float(tol), float(lyap_threshold), inflight)  # fmt: skip
+                     hit_basin, p_max, float(tol), float(lyap_threshold), inflight,
+                     cells is None and cell_box is None)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------
@@ -611,6 +676,84 @@ class _Found:
     lyapunov: float | None
     seed: tuple[float, float]
     orbit: Orbit | None = None
+    log_det: float | None = None
+    measured: int = 0
+
+
+def _area_trend(divs: np.ndarray) -> float:
+    """The secular part of ``log |det DP^k|`` over ``k = 1..n`` (``divs``: the divergence integrated over
+    each period): the least-squares slope times ``n``. On invariant curves of an island ``log |det|``
+    oscillates (by up to ~3 on Fig. 4A) about a constant; on an attractor it falls."""
+    k = np.arange(1, divs.shape[0] + 1)
+    return float(np.polyfit(k, np.cumsum(divs), 1)[0] * divs.shape[0])
+
+
+def _min_distance(a: np.ndarray, b: np.ndarray | None = None) -> float:
+    """Smallest distance between a point of ``a`` and one of ``b`` (or between two points of ``a``)."""
+    if b is None:
+        if a.shape[0] < 2:
+            return math.inf
+        d = np.linalg.norm(a[:, None] - a[None], axis=-1)
+        return float(d[np.triu_indices(a.shape[0], 1)].min())
+    if a.shape[0] == 0 or b.shape[0] == 0:
+        return math.inf
+    return float(np.linalg.norm(a[:, None] - b[None], axis=-1).min())
+
+
+def attractor_scale(found: Sequence[_Found]) -> float | None:
+    """The length the recurrence cells must resolve (a cell's diagonal at most ``1 / RESOLVE`` of it).
+
+    Set by the cycles, whose points Newton makes exact: the smallest of the distances between two points
+    of one cycle, between a cycle's points and another attractor's points, and ``1 + |x|`` of a cycle's
+    points (a lone fixed point has no length of its own: the size of the state stands in, as in the
+    tolerances). The sampled points of chaotic and quasi-periodic attractors do not set it among
+    themselves: 256 located points may be an arc of a slow invariant curve (Fig. 7A: 0.05 x 0.005), and
+    two samples of one chaotic attractor not merged yet lie close (Fig. 1C: 0.45); on both, cells that
+    fine left most pixels undecided. Conservative sets never count (a chaotic sea comes arbitrarily close
+    to its islands). None while no cycle is classified.
+    """
+    scale = math.inf
+    cycles, others = [], []
+    for f in found:
+        pts = np.asarray(f.points, float).reshape(-1, 2)
+        pts = pts[np.isfinite(pts).all(axis=1)]
+        if pts.shape[0] == 0 or f.kind == "conservative":
+            continue
+        if f.kind == "periodic":
+            scale = min(scale, _min_distance(pts), 1.0 + float(np.linalg.norm(pts, axis=1).min()))
+            cycles.append(pts)
+        else:
+            others.append(pts)
+    for i, a in enumerate(cycles):
+        for b in cycles[i + 1 :] + others:
+            scale = min(scale, _min_distance(a, b))
+    return scale if math.isfinite(scale) and scale > 0 else None
+
+
+def refined_cells(
+    found: Sequence[_Found], scale: float, within: Sequence[float] | None = None
+) -> tuple[tuple[float, float, float, float], tuple[int, int]]:
+    """A recurrence grid whose cells are sized from the attractors, not from the box: square, diagonal
+    ``scale / (1.25 RESOLVE)``. It covers ``within`` (the default cell box) and the attractors' points
+    (conservative sets aside) widened on every side by the larger of their extent and ``4 scale``, when
+    that takes at most :data:`MAX_REFINED_CELLS` per axis (attractors not found yet are found by their
+    recurrences there as before); else the attractors' region alone (a +-500 box), with cells coarsened
+    only if even that needs more."""
+    pts = np.vstack([np.asarray(f.points, float).reshape(-1, 2) for f in found if f.kind != "conservative"])
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    margin = max(float((hi - lo).max()), 4.0 * scale)
+    lo, hi = lo - margin, hi + margin
+    h = scale / (1.25 * RESOLVE * math.sqrt(2.0))
+    if within is not None:
+        wlo = np.minimum(lo, [within[0], within[2]])
+        whi = np.maximum(hi, [within[1], within[3]])
+        if float((whi - wlo).max()) / h <= MAX_REFINED_CELLS:
+            lo, hi = wlo, whi
+    h = max(h, float((hi - lo).max()) / MAX_REFINED_CELLS)
+    cells = (max(1, math.ceil((hi[0] - lo[0]) / h)), max(1, math.ceil((hi[1] - lo[1]) / h)))
+    box = (float(lo[0]), float(lo[0] + cells[0] * h), float(lo[1]), float(lo[1] + cells[1] * h))
+    return box, cells
 
 
 def _levels(ny: int, nx: int) -> list[tuple[int, np.ndarray]]:
@@ -666,6 +809,14 @@ class _Run:
         self.touch: set[tuple[int, int]] = set()  # attractors whose located cells touch, to merge once classified
         self.periods = 0
         self.steps = 0
+        self.version = 0  # bumped when an attractor is classified or merged (the grid's resolution is checked)
+        self.scale: float | None = None  # the attractors' length scale (attractor_scale), when last checked
+        self.refinements = 0  # runs restarted on cells sized from the attractors before this one
+        self.earlier = (0, 0)  # periods and steps of those runs
+
+    def roots(self) -> list[_Found]:
+        """The classified attractors (roots of the merges)."""
+        return [f for i, f in sorted(self.found.items()) if self.find(i) == i]
 
     # -- attractors ----------------------------------------------------------
 
@@ -737,6 +888,7 @@ class _Run:
                                    orbit)  # fmt: skip
         self.mark_cells(ident, orbit.points)
         self.ready[ident] = 1
+        self.version += 1
         return ident
 
     def ring_points(self, s: int) -> np.ndarray:
@@ -762,16 +914,42 @@ class _Run:
                     if d <= 2 * math.hypot(cq, cr):
                         self.add_periodic(ident, orbit, seed)  # type: ignore[arg-type]
                         return
-        lyap = None
+        lyap = log_det = None
+        measured = 0
         if pts.shape[0]:
             res = lyapunov_spectrum(
                 spec.params, pts[-1:], LYAP_PERIODS, transient=20, numerics=spec.numerics, workers=1
             )
             # a leaky set (the run escapes) still has an exponent over the periods it completed
-            lyap = float(res.exponents[0, 0]) if int(res.npts[0]) >= LYAP_MIN_PERIODS else None
+            measured = int(res.npts[0])
+            if measured >= LYAP_MIN_PERIODS:
+                lyap = float(res.exponents[0, 0])
+                log_det = _area_trend(res.divs[0, :measured])
+                if -CONSERVATIVE_LOG_DET < log_det < -CONSERVATIVE_LOG_DET / 4:
+                    # 300 periods cannot tell a weak contraction from the oscillation: five times longer
+                    more = lyapunov_spectrum(spec.params, pts[-1:], 5 * LYAP_PERIODS, transient=20,
+                                             numerics=spec.numerics, workers=1)  # fmt: skip
+                    if int(more.npts[0]) >= 5 * LYAP_PERIODS:
+                        measured = int(more.npts[0])
+                        log_det = _area_trend(more.divs[0, :measured])
         kind = "chaotic" if lyap is not None and lyap > spec.lyap_threshold else "quasi_periodic"
-        self.found[ident] = _Found(ident, kind, None, pts, None, lyap, seed)  # type: ignore[arg-type]
+        if log_det is not None and log_det > -CONSERVATIVE_LOG_DET:
+            # area not contracted: invariant curves (or a chaotic layer, whose finite-time trend wanders either
+            # way: +5.9 over 300 periods in Fig. 2C's merged island) of an island, no attractor
+            kind = "conservative"
+        found = _Found(ident, kind, None, pts, None, lyap, seed, None, log_det, measured)  # type: ignore[arg-type]
+        self.found[ident] = found
         self.ready[ident] = 1
+        self.version += 1
+        if kind == "conservative":
+            # one entry for every conservative set: neighbouring invariant curves are not separate attractors
+            for f in self.found.values():
+                if f.kind == "conservative" and f.internal != ident and self.find(f.internal) == f.internal:
+                    self.merge(ident, f.internal)
+                    f.points = np.vstack([f.points, pts])[-512:]
+                    f.log_det = max(f.log_det, log_det, key=abs)  # type: ignore[arg-type]
+                    f.measured = min(f.measured, measured)
+                    break
 
     def merge_overlaps(self) -> None:
         """Attractors whose located cells touch are one (both classified and not periodic: a cycle is exact)."""
@@ -784,7 +962,13 @@ class _Run:
             if ra != rb and (fa is None or fb is None):
                 continue  # one is still being located
             self.touch.discard((a, b))
-            if ra != rb and fa.kind != "periodic" and fb.kind != "periodic":
+            # (a conservative island next to an attractor stays apart: it is in no basin)
+            if (
+                ra != rb
+                and "periodic" not in (fa.kind, fb.kind)
+                and (fa.kind == "conservative") == (fb.kind == "conservative")
+            ):
+                self.version += 1
                 lo, hi = sorted((ra, rb))
                 self.merge(hi, lo)
                 f, g = self.found[lo], self.found[hi]
@@ -792,6 +976,7 @@ class _Run:
                 f.lyapunov = max(exps) if exps else None
                 f.kind = "chaotic" if "chaotic" in (f.kind, g.kind) else f.kind
                 f.points = np.vstack([f.points, g.points])[-256:]
+                f.log_det = max((v for v in (f.log_det, g.log_det) if v is not None), default=None, key=abs)
 
     # -- members ---------------------------------------------------------------
 
@@ -892,7 +1077,7 @@ class _Run:
 
     # -- results -----------------------------------------------------------------
 
-    def snapshot(self, start: float, completed: bool, stride: int) -> Basins:
+    def snapshot(self, start: float, completed: bool, stride: int, cancelled: bool = False) -> Basins:
         spec = self.spec
         lab = self.label.copy()
         pos = lab >= 0
@@ -918,7 +1103,8 @@ class _Run:
                 continue
             attractors.append(Attractor(self.public[ident], f.kind, f.period, f.points, f.multipliers, f.lyapunov,
                                         fraction.get(self.public[ident], 0.0), f.seed,
-                                        f.orbit.kind if f.orbit is not None else None))  # fmt: skip
+                                        f.orbit.kind if f.orbit is not None else None, f.kind != "conservative",
+                                        f.log_det, f.measured))  # fmt: skip
         attractors.sort(key=lambda a: a.id)
         if fraction.get(ESCAPE):
             attractors.append(Attractor(ESCAPE, "escape", None, np.zeros((0, 2)), fraction=fraction[ESCAPE]))
@@ -927,9 +1113,58 @@ class _Run:
         for code in np.unique(fates):
             key = _FATES.get(int(code)) or Status(int(code)).label
             statuses[key] = int(np.count_nonzero(fates == code))
+        lost, warnings = self.losses(lab, completed, cancelled)
+        extra = {"escape_bound": spec.numerics.bound, "cell_refinements": self.refinements,
+                 "attractor_scale": self.scale}  # fmt: skip
         return Basins(spec, spec.q, spec.r, lab.reshape(spec.ny, spec.nx), computed.reshape(spec.ny, spec.nx),
                       attractors, fraction, statuses, time.perf_counter() - start, completed, stride,
-                      self.periods, self.steps, {"escape_bound": spec.numerics.bound})  # fmt: skip
+                      self.periods + self.earlier[0], self.steps + self.earlier[1], extra, completed and not lost,
+                      lost, warnings)  # fmt: skip
+
+    def losses(self, lab: np.ndarray, completed: bool, cancelled: bool) -> tuple[list[Loss], list[str]]:
+        """What the labels ``lab`` (public) lost, and what they mean beyond attractors."""
+        spec = self.spec
+        lost = []
+        n = int(np.count_nonzero(lab == NOT_COMPUTED))
+        if n:
+            why = "cancelled before their fate was known" if cancelled else "not computed yet (still running)"
+            lost.append(Loss("pixels not computed", n, why))
+        n = int(np.count_nonzero(lab == LOCATING))
+        if n:
+            lost.append(Loss("pixels", n, "their attractor was still being located when the result was taken"))
+        n = int(np.count_nonzero(lab == UNDECIDED))
+        if n:
+            cap = int(0.7 * self.table.shape[1])
+            lost.append(Loss("pixels undecided", n, f"no attractor, escape or failure within {spec.max_periods} "
+                             f"periods (or more than {cap} recurrence cells visited)"))  # fmt: skip
+        failed = self.fate[lab == FAILED]
+        for code in np.unique(failed):
+            lost.append(Loss("pixels failed", int(np.count_nonzero(failed == code)),
+                             f"the integrator stopped: {Status(int(code)).label}"))  # fmt: skip
+        if self.scale is not None:
+            cq, cr = spec.cell_size
+            if math.hypot(cq, cr) > self.scale / RESOLVE:
+                lost.append(Loss("attractors possibly merged", 1,
+                                 f"the recurrence cells ({cq:.3g} x {cr:.3g}) are wider than 1/{RESOLVE} of the "
+                                 f"attractors' length scale {self.scale:.3g} (the smallest distance between them): "
+                                 "attractors closer than a cell may be taken as one; give finer cells"))  # fmt: skip
+        warnings = []
+        cons = [f for i, f in self.found.items() if f.kind == "conservative" and self.find(i) == i]
+        if cons:
+            n = int(sum(np.count_nonzero(lab == self.public.get(f.internal, -99)) for f in cons))
+            worst = max(abs(f.log_det or 0.0) for f in cons)
+            warnings.append(f"{n} pixels lie on conservative invariant curves (the area |det DP^k| has no trend: "
+                            f"|log det| {worst:.2g} over {min(f.measured for f in cons)} periods, nothing attracted): "
+                            "they are in no basin, and neighbouring curves are one label (kind 'conservative'), "
+                            "not separate attractors; an attractor contracting area by less than "
+                            f"exp(-{CONSERVATIVE_LOG_DET:g}) over those periods would look the same")  # fmt: skip
+        return lost, warnings
+
+
+def _resolved(run: _Run) -> bool:
+    """Measure the attractors' length scale (``run.scale``); False if the cells are too coarse for it."""
+    run.scale = attractor_scale(run.roots())
+    return run.scale is None or math.hypot(*run.spec.cell_size) <= run.scale / RESOLVE
 
 
 def iter_basins(
@@ -944,36 +1179,67 @@ def iter_basins(
     (``level_done``), and in between at most every ``update_s`` seconds. ``cancel`` is polled after
     every chunk of periods; once it returns True the last update has ``completed=False`` and the
     pixels still running are :data:`NOT_COMPUTED`.
+
+    The recurrence cells must resolve the attractors (Attractors.jl's warning): cells wider than the gap
+    between two attractors label one's pixels with the other (Fig. 11's tensor at ``alpha = -0.5,
+    I11 = 1.6`` in a +-500 box: 64 cells across it, one period-3 attractor over 100 %, while 281 of 900
+    pixels end on the period-1 focus). Whenever an attractor is classified, the cells are checked
+    against the attractors' length scale (:func:`attractor_scale`); with the default cells
+    (``spec.adapt_cells``) a grid that does not resolve it is replaced by one sized from the attractors
+    (:func:`refined_cells`) and the computation starts again (levels from the coarsest; at most
+    :data:`MAX_REFINES` times), so a pixel's label does not depend on the box around it. The result's
+    ``spec`` holds the cells used; a grid still too coarse is a loss of the result.
     """
     start = time.perf_counter()
-    run = _Run(spec)
-    levels = _levels(spec.ny, spec.nx)
-    queue = [int(p) for _, pix in levels for p in pix]
-    total = len(queue)
-    level = 0
-    last = start
+    refinements, earlier = 0, (0, 0)
+    default_box = spec.cell_box
     while True:
-        cancelled = cancel is not None and cancel()
-        if cancelled:
+        run = _Run(spec)
+        run.refinements, run.earlier = refinements, earlier
+        restart = None
+        levels = _levels(spec.ny, spec.nx)
+        queue = [int(p) for _, pix in levels for p in pix]
+        total = len(queue)
+        level = 0
+        last = start
+        checked = 0
+        cancelled = False
+        while True:
+            cancelled = cancel is not None and cancel()
+            if cancelled:
+                break
+            if not queue and not (run.pixel >= 0).any():
+                break
+            run.step(queue)
+            if run.version != checked:
+                checked = run.version
+                if not _resolved(run) and spec.adapt_cells and refinements < MAX_REFINES:
+                    cell_box, cells = refined_cells(run.roots(), run.scale, default_box)  # type: ignore[arg-type]
+                    finer = replace(spec, cell_box=cell_box, cells=cells)
+                    # (capped at MAX_REFINED_CELLS the new cells may be no finer: keep these, reported as a loss)
+                    if math.hypot(*finer.cell_size) < 0.99 * math.hypot(*spec.cell_size):
+                        restart = finer
+                        break
+            done = total - len(queue) - int(np.count_nonzero(run.pixel >= 0))
+            # a level is done when all its pixels are (the queue is level-ordered; slots may hold later ones)
+            while level < len(levels) and np.all(run.label[levels[level][1]] != NOT_COMPUTED):
+                level += 1
+                last = time.perf_counter()
+                yield BasinsUpdate(levels[level - 1][0], True, done, total,
+                                   run.snapshot(start, level == len(levels), levels[level - 1][0]))  # fmt: skip
+            if level < len(levels) and time.perf_counter() - last > update_s:
+                last = time.perf_counter()
+                stride = levels[level - 1][0] if level else LEVELS[0]
+                yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride))
+        if restart is None:
             break
-        if not queue and not (run.pixel >= 0).any():
-            break
-        run.step(queue)
-        done = total - len(queue) - int(np.count_nonzero(run.pixel >= 0))
-        # a level is done when all its pixels are (the queue is level-ordered; slots may hold later ones)
-        while level < len(levels) and np.all(run.label[levels[level][1]] != NOT_COMPUTED):
-            level += 1
-            last = time.perf_counter()
-            yield BasinsUpdate(levels[level - 1][0], True, done, total,
-                               run.snapshot(start, level == len(levels), levels[level - 1][0]))  # fmt: skip
-        if level < len(levels) and time.perf_counter() - last > update_s:
-            last = time.perf_counter()
-            stride = levels[level - 1][0] if level else LEVELS[0]
-            yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride))
+        refinements += 1
+        earlier = (earlier[0] + run.periods, earlier[1] + run.steps)
+        spec = restart
     if level < len(levels):
         stride = levels[level - 1][0] if level else LEVELS[0]
         done = int(np.count_nonzero(run.label != NOT_COMPUTED))
-        yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride))
+        yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride, cancelled))
 
 
 def basins(
@@ -1012,5 +1278,5 @@ def basins(
         if progress is not None:
             progress(upd)
     if result is None:  # cancelled before anything ran
-        result = _Run(spec).snapshot(time.perf_counter(), False, LEVELS[0])
+        result = _Run(spec).snapshot(time.perf_counter(), False, LEVELS[0], cancelled=True)
     return result
