@@ -943,7 +943,12 @@ class ExplorerSession(param.Parameterized):
         for a in b.attractors:
             if a.kind == "escape":
                 continue
-            what = f"period-{a.period} cycle" if a.kind == "periodic" else a.kind.replace("_", "-") + " attractor"
+            if not a.attracting:  # invariant curves of a conservative island: no attractor
+                what = "conservative island (not an attractor)"
+            elif a.kind == "periodic":
+                what = f"period-{a.period} cycle"
+            else:
+                what = a.kind.replace("_", "-") + " attractor"
             if a.orbit_type:
                 what += f" ({a.orbit_type})"
             if len(a.points):
@@ -953,12 +958,13 @@ class ExplorerSession(param.Parameterized):
             if b.fraction.get(code, 0.0) > 0:
                 legend.append([OUTCOME_COLOURS[code], f"{name}: {100 * b.fraction[code]:.1f}%"])
         self.basin_legend = legend
-        n_att = sum(a.kind != "escape" for a in b.attractors)
+        n_att = sum(a.kind != "escape" and a.attracting for a in b.attractors)
         if b.completed:
             head = f"basins on {b.label.shape[1]} x {b.label.shape[0]} initial conditions: {n_att} attractor(s)"
             if not n_att:
                 head += " (none found: every pixel escaped, failed or was undecided)"
-            self.basin_status = f"{head}, {b.elapsed_s:.2f} s"
+            said = [*b.warnings, *(loss.line() for loss in b.lost)]
+            self.basin_status = f"{head}, {b.elapsed_s:.2f} s" + "".join(f"; {w}" for w in said[:3])
         else:
             self.basin_status = f"basins: {done} pixels, {n_att} attractor(s) so far…"
 
