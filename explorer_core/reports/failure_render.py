@@ -21,13 +21,14 @@ from matplotlib.ticker import MaxNLocator
 
 from explorer_core.reports.render import _DPI, period_colours
 
-#: Status colours (ok, escaped, step_collapsed, too_many_steps, nonfinite).
+#: Status colours (ok, escaped, step_collapsed, too_many_steps, nonfinite; refused: a time the doubles cannot resolve).
 STATUS_COLOURS = {
     "ok": "#2ca02c",
     "escaped": "#ff7f0e",
     "step_collapsed": "#9467bd",
     "too_many_steps": "#8c564b",
     "nonfinite": "#d62728",
+    "refused": "#7f7f7f",
 }
 
 

@@ -46,7 +46,7 @@ from explorer_core.solve.section import section
 from explorer_core.solve.stability import relative_error, spectral_rate, stability_interval
 from explorer_core.studies.reproduce import check_stages, run_stages
 from explorer_core.system.model import Model, rhs
-from explorer_core.system.params import ParameterError, Params
+from explorer_core.system.params import TIME_RESOLUTION, ParameterError, Params
 
 #: The drift scene: Fig. 1A (the same system as Fig. 3), whose curve has q -> -0.3.
 DRIFT_SCENE = "fig1A"
@@ -757,14 +757,24 @@ def status_scenarios(cancel: Cancel | None = None) -> list[Scenario]:
 def collapse_onset(
     tols: Sequence[float] = (1e-6, 1e-10, 1e-13), exponents: Sequence[int] = tuple(range(4, 17))
 ) -> dict[str, Any]:
-    """Smallest ``t0 = 10^e`` at which one period of DOP853 on Fig. 1C reports ``step_collapsed``."""
+    """Smallest ``t0 = 10^e`` at which one period of DOP853 on Fig. 1C reports ``step_collapsed``.
+
+    From the ``t0`` whose doubles no longer resolve the forcing phase (:data:`TIME_RESOLUTION` of a period)
+    the system is refused before any work: those exponents are labelled ``refused``.
+    """
     base = get_scene("fig1C").params
-    out: dict[str, Any] = {"scene": "fig1C", "ic": [0.5, 0.5], "t0_exponents": list(exponents), "by_tol": {}}
+    out: dict[str, Any] = {"scene": "fig1C", "ic": [0.5, 0.5], "t0_exponents": list(exponents), "by_tol": {},
+                           "time_resolution": TIME_RESOLUTION}  # fmt: skip
     for tol in tols:
         first = None
         labels = []
         for e in exponents:
-            sec = section(base.with_(t0=10.0**e), [(0.5, 0.5)], 1, numerics=Numerics(rtol=tol, atol=tol))
+            try:
+                params = base.with_(t0=10.0**e)
+            except ParameterError:
+                labels.append("refused")
+                continue
+            sec = section(params, [(0.5, 0.5)], 1, numerics=Numerics(rtol=tol, atol=tol))
             lab = Status(int(sec.status[0])).label
             labels.append(lab)
             if first is None and lab == "step_collapsed":

@@ -23,8 +23,10 @@ class ParameterError(ValueError):
 
 
 #: The forcing phase must be resolved to this fraction of a period: beyond, doubles near ``t`` are so far
-#: apart that the forcing is a staircase, and far beyond, ``t + h == t`` and the integration freezes.
-TIME_RESOLUTION = 1e-6
+#: apart that the forcing is a staircase (a fixed-step or loose run returns it with status ok), and far
+#: beyond, ``t + h == t`` and the integration freezes (t0 = 1e20: every point the initial one, status ok).
+#: Below it an adaptive run that needs a step under the round-off floor says so (``step_collapsed``).
+TIME_RESOLUTION = 1e-4
 
 
 def check_time(name: str, t: float, period: float) -> None:
