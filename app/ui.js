@@ -235,11 +235,12 @@ export function render({model, el}) {
   for (const [t, c] of model.spec.eq_colors) {
     eqLegend.append(h("span", {text: "◆", style: `color:${c};margin-left:8px`}), document.createTextNode(" " + t))
   }
-  eqLegend.prepend(document.createTextNode("Equilibria of the frozen field (t fixed at t0; tracks over one period; " +
-                                          "a heuristic for slow forcing, not orbits of the map):"))
+  eqLegend.prepend(document.createTextNode("◆ Frozen-field equilibria (t fixed at t0; dashed tracks over one " +
+                                          "period; a heuristic for slow forcing, not orbits of the map):"))
   const orbLegend = h("div", {class: "legend orbit-legend",
-    text: "Periodic orbits of the Poincaré map P (fixed points of P^n, found by Newton): ● stable, ○ unstable, " +
-          "◎ elliptic or neutral, ✕ saddle (flip saddle: the expanding multiplier is negative). Hover for the multipliers."})
+    text: "Periodic orbits of the Poincaré map P (fixed points of P^n, found by Newton; magenta rings, not " +
+          "diamonds): ● stable orbit, ○ unstable or elliptic orbit, ✕ saddle orbit of the map (flip saddle: the " +
+          "expanding multiplier is negative). Hover a mark for its multipliers."})
   const manLegend = h("div", {class: "legend manifold-legend"},
     document.createTextNode("Manifolds of a saddle (click its ✕ with 'draws a saddle's manifolds'): "),
     h("span", {text: "━", style: "color:#e8590c"}), document.createTextNode(" unstable, "),

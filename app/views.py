@@ -75,6 +75,8 @@ ORBIT_COLOUR = "#c2006b"
 #: Invariant manifolds of saddles: unstable and stable (apart from the T' map's red and blue).
 MANIFOLD_COLOURS = {"unstable": "#e8590c", "stable": "#0b7285"}
 N_COLORS = 20
+#: Section points described by a hover at most (the rest under the cursor are the same kind of thing).
+POINT_TIPS = 3
 #: Bokeh output backend of the point plots ("webgl" or "canvas"); see README (performance).
 BACKEND = os.environ.get("BILIMOVICH_BACKEND", "webgl")
 #: Palettes built once per process (every session's figures refer to the same lists).
@@ -98,7 +100,17 @@ def _image_data(image: np.ndarray | None = None, q0: float = 0, q1: float = 0, r
 
 
 def _empty_orbits() -> dict[str, list]:
-    return {"q": [], "r": [], "period": [], "type": [], "mu": []}
+    return {"q": [], "r": [], "period": [], "type": [], "mu": [], "label": []}
+
+
+def orbit_label(kind: str) -> str:
+    """The legend's words for a periodic orbit of the map ("saddle orbit of the map")."""
+    return f"{kind} orbit of the map"
+
+
+def equilibrium_label(kind: str) -> str:
+    """The legend's words for an equilibrium of the frozen field ("frozen-field saddle")."""
+    return f"frozen-field {kind}"
 
 
 def _axes(plot: Plot, x_label: str, y_label: str, *, grid: bool = True) -> list[LinearAxis]:
@@ -183,9 +195,9 @@ class SectionFigure:
         self.selected = source({"q": [], "r": []}, "selected_source")
         sel = _renderer(self.selected, Scatter(x="q", y="r", size=6, line_color="black", line_width=0.8, line_alpha=0.7,
                                                fill_color=None), name="selected_points")  # fmt: skip
-        self.equilibria = source({"q": [], "r": [], "color": [], "type": []}, "equilibria_source")
+        self.equilibria = source({"q": [], "r": [], "color": [], "type": [], "label": []}, "equilibria_source")
         eq = _renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
-                                                line_color="black"))  # fmt: skip
+                                                line_color="black"), name="frozen_field_equilibria")  # fmt: skip
         self.ics = source({"q": [], "r": []}, "ics_source")
         ics = _renderer(self.ics, Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2))
         self._source = source
@@ -196,12 +208,17 @@ class SectionFigure:
         self._built: dict[str, list[GlyphRenderer]] = {}
         self._shown: set[str] = set()
         fig.renderers.extend([r for r in self._order if not isinstance(r, str)])
-        fig.add_layout(
-            Legend(items=[LegendItem(label={"field": "type"}, renderers=[eq])], location="top_left",
-                   background_fill_alpha=0.7, label_text_font_size="9pt"),
-        )  # fmt: skip
-        hover = HoverTool(renderers=[pts, eq], tooltips=[("trajectory", "@traj"), ("k", "@k"), ("q, r", "@q, @r"),
-                                                         ("frozen-field equilibrium", "@type")])  # fmt: skip
+        # The frozen field's equilibria and the map's periodic orbits share words (saddle, focus): the legend
+        # names them apart ("frozen-field saddle" vs "saddle orbit of the map").
+        self.legend = Legend(items=[LegendItem(label={"field": "label"}, renderers=[eq])], location="top_left",
+                             background_fill_alpha=0.7, label_text_font_size="9pt")  # fmt: skip
+        fig.add_layout(self.legend)
+        # One hover per kind of mark, each with that mark's fields only (one tool over the points and the
+        # diamonds showed "frozen-field equilibrium: ???" on every point). A few point entries at most: dozens
+        # of them under a flip saddle buried its multipliers.
+        hover = HoverTool(renderers=[pts], tooltips=[("trajectory", "@traj"), ("k", "@k"), ("q, r", "@q, @r")],
+                          limit=POINT_TIPS)  # fmt: skip
+        self._eq_renderer = eq
         self._hovers: dict[str, HoverTool] = {}
         # No active scroll tool: the wheel scrolls the page until the user picks the zoom tool.
         fig.toolbar = Toolbar(tools=[PanTool(), WheelZoomTool(), BoxZoomTool(), ResetTool(), SaveTool(), hover],
@@ -253,9 +270,19 @@ class SectionFigure:
             orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
                                               line_width=2.5, fill_color=fill, fill_alpha=alpha),
                                  name=f"orbit_points_{kind}"))  # fmt: skip
-        tips = [("periodic orbit", "period @period, @type"), ("multipliers", "@mu"), ("q, r", "@q, @r")]
-        self._hovers["orbits"] = HoverTool(renderers=orb[1::2], tooltips=tips)
+        # The multipliers first: they are what tells the kind of orbit; one orbit point described at a time.
+        tips = [("multipliers", "@mu"), ("periodic orbit of the map", "period @period, @type"), ("q, r", "@q, @r")]
+        self._hovers["orbits"] = HoverTool(renderers=orb[1::2], tooltips=tips, limit=1)
+        # Legend entries of the orbits drawn ("saddle orbit of the map"), beside the frozen field's.
+        self.legend.items = [*self.legend.items, *(LegendItem(label={"field": "label"}, renderers=[r])
+                                                   for r in orb[1::2])]  # fmt: skip
         return orb
+
+    def _build_equilibria_hover(self) -> list[GlyphRenderer]:
+        # Joins the toolbar with the first equilibria drawn (not a model of the new page).
+        tips = [("frozen-field equilibrium", "@type"), ("q, r", "@q, @r")]
+        self._hovers["equilibria_hover"] = HoverTool(renderers=[self._eq_renderer], tooltips=tips)
+        return []
 
     # Models of the layers built on first use (reading one builds its layer, not showing it).
     density = _OfLayer("density")
@@ -271,13 +298,17 @@ class SectionFigure:
             return
         self._build(layer)
         self._shown.add(layer)
+        if layer in self._order:
+            self._place_renderers()
+        if layer in self._hovers:
+            self.fig.toolbar.tools = [*self.fig.toolbar.tools, self._hovers[layer]]
+
+    def _place_renderers(self) -> None:
         self.fig.renderers = [
             r
             for x in self._order
             for r in ((self._built[x] if x in self._shown else []) if isinstance(x, str) else [x])
         ]
-        if layer in self._hovers:
-            self.fig.toolbar.tools = [*self.fig.toolbar.tools, self._hovers[layer]]
 
     # --- updates (always called on the document's thread) ------------------------------
 
@@ -342,6 +373,7 @@ class SectionFigure:
                 d["period"].append(o["period"])
                 d["type"].append(o["type"])
                 d["mu"].append(o["mu"])
+                d["label"].append(orbit_label(o["type"]))
         for k, src in self.orbit_sources.items():
             src.data = data[k]
 
@@ -375,11 +407,14 @@ class SectionFigure:
         }
 
     def set_equilibria(self, q: np.ndarray, r: np.ndarray, types: tuple[str, ...]) -> None:
+        if len(types):
+            self._activate("equilibria_hover")
         self.equilibria.data = {
             "q": list(q),
             "r": list(r),
             "color": [TYPE_COLORS.get(t, "#000000") for t in types],
             "type": list(types),
+            "label": [equilibrium_label(t) for t in types],
         }
 
     def set_tprime(self, values: np.ndarray | None, q: np.ndarray, r: np.ndarray, title: str) -> None:
