@@ -39,7 +39,7 @@ from app.state import (
     commit,
     plain_label,
 )
-from app.views import SectionFigure, SeriesData
+from app.views import SectionFigure, SeriesData, as_drawn
 from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, basin_spec, iter_basins
 from explorer_core.analyses.density import iter_density
 from explorer_core.analyses.equilibria import equilibrium_tracks
@@ -67,8 +67,10 @@ BASIN_FIELDS = ("show_basins", "basin_grid")
 SECTION_CHANNELS = ("section", "tracks", "tprime", "reliability", "orbit", "orbits", "manifolds", "basins")
 #: Basins: a colour per attractor id (cycled), and the pixels that reach none.
 BASIN_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#1f78b4")
-OUTCOME_COLOURS = {ESCAPE: "#9e9e9e", FAILED: "#3d3d3d", UNDECIDED: "#ffffff"}
-OUTCOME_NAMES = {ESCAPE: "escape (noncompact drift)", FAILED: "integration failed", UNDECIDED: "undecided"}
+#: Escaped pixels mid grey, failed ones dark grey (the old light grey at half opacity looked like the page's white);
+#: undecided ones are left blank, and the legend says so.
+OUTCOME_COLOURS = {ESCAPE: "#555555", FAILED: "#000000", UNDECIDED: "#ffffff"}
+OUTCOME_NAMES = {ESCAPE: "escape (noncompact drift)", FAILED: "integration failed", UNDECIDED: "undecided (blank)"}
 #: The plot's size in pixels as the manifolds' refinement assumes it (segments of at most 3 of them).
 MANIFOLD_PIXELS = (800, 600)
 #: A click picks the saddle whose point is nearest, within this fraction of the view's width and height.
@@ -948,10 +950,10 @@ class ExplorerSession(param.Parameterized):
                 what += f" ({a.orbit_type})"
             if len(a.points):
                 what += f" at ({a.points[0, 0]:.4g}, {a.points[0, 1]:.4g})"
-            legend.append([colours[a.id], f"{what}: {100 * b.fraction.get(a.id, 0.0):.1f}%"])
+            legend.append([as_drawn(colours[a.id]), f"{what}: {100 * b.fraction.get(a.id, 0.0):.1f}%"])
         for code, name in OUTCOME_NAMES.items():
             if b.fraction.get(code, 0.0) > 0:
-                legend.append([OUTCOME_COLOURS[code], f"{name}: {100 * b.fraction[code]:.1f}%"])
+                legend.append([as_drawn(OUTCOME_COLOURS[code]), f"{name}: {100 * b.fraction[code]:.1f}%"])
         self.basin_legend = legend
         n_att = sum(a.kind != "escape" for a in b.attractors)
         if b.completed:

@@ -276,6 +276,7 @@ class Page:
             "basin_status": s.basin_status,
             "density": s.density_shown,
             "basin_legend": s.basin_legend,
+            "colour_note": _colour_note(self.fig.tprime_hidden_by),
         }
 
     def _tab_view(self, name: str) -> dict[str, Any]:
@@ -308,6 +309,11 @@ class Page:
         if tab == "section":
             return any(self.runner.busy(c) for c in SECTION_CHANNELS)
         return self.runner.busy(tab)
+
+
+def _colour_note(hidden_by: str) -> str:
+    """Why the T' map is not drawn although it is on (its colours would tint those of the layer over it)."""
+    return f"The T′ map is hidden while {hidden_by} is shown (its colours would mix with theirs)." if hidden_by else ""
 
 
 def _url_tab(message: str) -> str:

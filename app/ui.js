@@ -249,14 +249,15 @@ export function render({model, el}) {
   const manStatus = h("div", {class: "orbit-status manifold-status", "aria-live": "polite"})
   const basStatus = h("div", {class: "orbit-status basin-status", "aria-live": "polite"})
   const densLegend = h("div", {class: "legend density-legend", hidden: true,
-    text: "Density image: section points per pixel of the view, log scale from light (a few) to dark (many); " +
-          "recomputed for the view when you pan or zoom."})
+    text: "Density image: section points per pixel of the view, log scale from light (a few) to dark (many; " +
+          "the colour bar right of the plot); recomputed for the view when you pan or zoom."})
   const basLegend = h("div", {class: "legend basin-legend"})
+  const colourNote = h("div", {class: "legend colour-note", hidden: true})
   const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
   const orbTable = h("div", {class: "orbits", hidden: true})
   const paneSection = h("section", {class: "pane pane-section"}, secBar, secErrors, warnings, status,
                         h("div", {class: "plots"}, plotSection, plotSeries), eqLegend, orbLegend, orbStatus, orbTable,
-                        densLegend, manLegend, manStatus, basStatus, basLegend)
+                        densLegend, manLegend, manStatus, basStatus, basLegend, colourNote)
 
   // Analysis pane (one for every analysis tab; its form is the open tab's controls).
   const aHelp = h("p", {class: "help analysis-help"})
@@ -427,6 +428,8 @@ export function render({model, el}) {
     manStatus.textContent = s.manifold_status || ""
     basStatus.textContent = s.basin_status || ""
     densLegend.hidden = !s.density
+    colourNote.textContent = s.colour_note || ""
+    colourNote.hidden = !s.colour_note
     basLegend.replaceChildren(...(s.basin_legend || []).map(([c, t]) =>
       h("span", {class: "basin-item"}, h("span", {class: "sw", style: `background:${c}`}), document.createTextNode(t))))
     const rows = s.orbits || []

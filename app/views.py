@@ -84,6 +84,8 @@ TPRIME_PALETTE = interp_palette(RdBu11, 255)  # blue (loss) .. white .. red (gai
 TRAJ_PALETTE = Category20[N_COLORS]
 #: Density images: light (few points) to dark (many), empty pixels transparent over the T' map.
 DENSITY_PALETTE = tuple(reversed(Inferno256))
+#: Opacity of the basins image (over the page's white: the T' map is hidden under it).
+BASIN_ALPHA = 0.5
 #: Font sizes (points) of axis labels and ticks: normal and presentation mode.
 FONTS = {False: ("11pt", "9pt"), True: ("16pt", "13pt")}
 
@@ -101,6 +103,12 @@ def _image_data(image: np.ndarray | None = None, q0: float = 0, q1: float = 0, r
 
 def _empty_orbits() -> dict[str, list]:
     return {"q": [], "r": [], "period": [], "type": [], "mu": [], "label": []}
+
+
+def as_drawn(colour: str, alpha: float = BASIN_ALPHA) -> str:
+    """The colour ``#rrggbb`` seen when drawn with opacity ``alpha`` over white (a legend swatch that matches)."""
+    rgb = [round(255 - alpha * (255 - int(colour[i : i + 2], 16))) for i in (1, 3, 5)]
+    return "#" + "".join(f"{v:02x}" for v in rgb)
 
 
 def orbit_label(kind: str) -> str:
@@ -173,13 +181,15 @@ class SectionFigure:
         self.tprime_mapper = LinearColorMapper(palette=TPRIME_PALETTE, low=-1, high=1)
         self.tprime = source(_image_data(), "tprime_source")
         image = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.tprime_mapper, global_alpha=0.55)
-        tp = _renderer(self.tprime, image, level="image")
+        tp = _renderer(self.tprime, image, level="image", name="tprime_image")
+        self._tprime_renderer = tp
         self.colorbar = ColorBar(
             color_mapper=self.tprime_mapper,
             title="T′ — red: energy gain (body spins up), blue: loss",
             title_text_font_size="10pt",
             width=10,
             location=(0, 0),
+            visible=False,  # until a colour layer is drawn
         )
         fig.add_layout(self.colorbar, "right")
         self._tprime_title, self._presentation = self.colorbar.title, False
@@ -242,7 +252,7 @@ class SectionFigure:
     def _build_basins(self) -> list[GlyphRenderer]:
         # Basins of attraction: a colour per attractor, translucent, over the T' map and under the points.
         self._basins = self._source(_image_data(), "basins_source")
-        rgba = ImageRGBA(image="image", x="x", y="y", dw="dw", dh="dh", global_alpha=0.5)
+        rgba = ImageRGBA(image="image", x="x", y="y", dw="dw", dh="dh", global_alpha=BASIN_ALPHA)
         return [_renderer(self._basins, rgba, level="image", name="basins_image")]
 
     def _build_manifolds(self) -> list[GlyphRenderer]:
@@ -331,11 +341,13 @@ class SectionFigure:
         if counts is None or counts.size == 0:
             if "density" in self._built and self._density.data["image"]:
                 self._density.data = _image_data()
+                self._refresh_colours()
             return
         self._activate("density")
         image = np.where(counts > 0, counts, np.nan).astype(np.float32)
         self.density_mapper.high = max(2.0, float(counts.max()))
         self.density.data = _image_data(image, *view)  # type: ignore[misc]
+        self._refresh_colours()
 
     def set_basins(self, labels: np.ndarray | None, view: tuple[float, ...] | None = None,
                    colours: dict[int, str] | None = None) -> None:  # fmt: skip
@@ -343,6 +355,7 @@ class SectionFigure:
         if labels is None or labels.size == 0:
             if "basins" in self._built and self._basins.data["image"]:
                 self._basins.data = _image_data()
+                self._refresh_colours()
             return
         self._activate("basins")
         rgba = np.zeros(labels.shape, dtype=np.uint32)
@@ -352,6 +365,7 @@ class SectionFigure:
             if m.any():
                 view8[m] = (int(hex_[1:3], 16), int(hex_[3:5], 16), int(hex_[5:7], 16), 255)
         self.basins.data = _image_data(rgba, *view)  # type: ignore[misc]
+        self._refresh_colours()
 
     def set_selected(self, q: np.ndarray, r: np.ndarray) -> None:
         self.selected.data = {"q": q, "r": r}
@@ -420,23 +434,47 @@ class SectionFigure:
     def set_tprime(self, values: np.ndarray | None, q: np.ndarray, r: np.ndarray, title: str) -> None:
         if values is None or values.size == 0:
             self.tprime.data = _image_data()
+            self._refresh_colours()
             return
         # Symmetric colour scale about 0 so the sign is the colour; clip outliers.
         lim = float(np.percentile(np.abs(values), 98)) or 1.0
         self.tprime_mapper.update(low=-lim, high=lim)
         self._tprime_title = title
-        self.colorbar.title = self._colorbar_title()
         dq = (q[-1] - q[0]) / max(1, q.size - 1)
         dr = (r[-1] - r[0]) / max(1, r.size - 1)
         # Each value is a pixel centred on its grid point.
         self.tprime.data = _image_data(values, q[0] - dq / 2, q[-1] + dq / 2, r[0] - dr / 2, r[-1] + dr / 2)
+        self._refresh_colours()
 
     def set_presentation(self, on: bool) -> None:
         set_fonts(self.axes, on)
         self._presentation = on
         self.colorbar.update(title_text_font_size="13pt" if on else "10pt", title=self._colorbar_title())
 
+    def _has_image(self, layer: str) -> bool:
+        return layer in self._built and bool(getattr(self, f"_{layer}").data["image"])
+
+    @property
+    def tprime_hidden_by(self) -> str:
+        """What hides the T' map computed ("" if nothing): the basins or the density image, whose colours it
+        would tint (their legends and scale would no longer match what is drawn)."""
+        if not self.tprime.data["image"]:
+            return ""
+        return "the density image" if self._has_image("density") else "the basins" if self._has_image("basins") else ""
+
+    def _refresh_colours(self) -> None:
+        """One colour layer seen at a time under the points, and the colour bar of the one seen (or none)."""
+        tprime = bool(self.tprime.data["image"]) and not self.tprime_hidden_by
+        if self._tprime_renderer.visible != tprime:
+            self._tprime_renderer.visible = tprime
+        mapper = self.density_mapper if self._has_image("density") else self.tprime_mapper if tprime else None
+        if mapper is not None and self.colorbar.color_mapper is not mapper:
+            self.colorbar.color_mapper = mapper
+        self.colorbar.update(visible=mapper is not None, title=self._colorbar_title())
+
     def _colorbar_title(self) -> str:
+        if self._has_image("density"):
+            return "points per pixel (log)" if self._presentation else "section points per pixel (log scale)"
         # At presentation size the long title runs past the plot's height (seen at 1280x720).
         title = self._tprime_title
         if self._presentation:

@@ -60,3 +60,46 @@ def test_frozen_field_equilibria_and_orbits_of_the_map_have_their_own_names() ->
     assert all(it.label.field == "label" for it in items)
     legend_renderers = {r.name for it in items for r in it.renderers}
     assert {"frozen_field_equilibria", "orbit_points_saddle", "orbit_points_unstable"} <= legend_renderers
+
+
+def test_colour_bars_only_for_the_colour_layer_seen() -> None:
+    """Fails on the old code: the T' colour bar stayed when the map was off, and the density image had none."""
+    fig = SectionFigure((-1.0, 1.0), (-1.0, 1.0))
+    assert not fig.colorbar.visible  # nothing coloured yet
+    grid = np.linspace(-1, 1, 5)
+    fig.set_tprime(np.outer(grid, grid), grid, grid, "T′ at t0: red energy gain, blue loss")
+    assert fig.colorbar.visible and fig.colorbar.color_mapper is fig.tprime_mapper
+    fig.set_tprime(None, np.zeros(0), np.zeros(0), "")
+    assert not fig.colorbar.visible
+    fig.set_tprime(np.outer(grid, grid), grid, grid, "T′ at t0: red energy gain, blue loss")
+    fig.set_density(np.arange(16.0).reshape(4, 4), (-1.0, 1.0, -1.0, 1.0))
+    assert fig.colorbar.visible and fig.colorbar.color_mapper is fig.density_mapper
+    assert "per pixel" in fig.colorbar.title
+    assert not fig._tprime_renderer.visible and fig.tprime_hidden_by == "the density image"
+    fig.set_density(None)
+    assert fig._tprime_renderer.visible and fig.colorbar.color_mapper is fig.tprime_mapper
+
+
+def test_the_basins_are_not_tinted_by_the_tprime_map_and_their_legend_matches() -> None:
+    """Fails on the old code: the T' map stayed under the half-transparent basins (their colours no longer those
+    of the legend) and nothing said so."""
+    from app.controller import OUTCOME_COLOURS
+    from app.views import BASIN_ALPHA, as_drawn
+    from explorer_core.analyses.basins import ESCAPE, FAILED
+
+    page, jobs = page_for({"basins": "1", "bas_n": "12"})
+    assert page.fig.tprime.data["image"] and page.fig.basins.data["image"]  # both computed
+    assert not page.fig._tprime_renderer.visible and not page.fig.colorbar.visible
+    assert "T′ map is hidden while the basins" in page.ui.view["section"]["colour_note"]
+    image = page.fig.basins.data["image"][0].view(np.uint8).reshape(12, 12, 4)
+    drawn = {"#" + "".join(f"{v:02x}" for v in px[:3]) for px in image.reshape(-1, 4) if px[3]}
+    swatches = {c for c, _ in page.ui.view["section"]["basin_legend"]}
+    assert swatches == {as_drawn(c) for c in drawn}, (swatches, drawn)  # each swatch the colour seen
+    assert page.commit("show_basins", "false") is None
+    jobs.drain()
+    assert page.fig._tprime_renderer.visible and page.fig.colorbar.visible
+    assert page.ui.view["section"]["colour_note"] == ""
+    # Escaped and failed pixels are clearly darker than the page's white (the old escape grey showed as #cfcfcf).
+    for code in (ESCAPE, FAILED):
+        seen = as_drawn(OUTCOME_COLOURS[code], BASIN_ALPHA)
+        assert max(int(seen[i : i + 2], 16) for i in (1, 3, 5)) <= 0xB0, (code, seen)
