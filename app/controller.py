@@ -173,6 +173,7 @@ class ExplorerSession(param.Parameterized):
         #: The density image on screen: (points computed, points in view), or None when points are drawn.
         self._density: tuple[int, int] | None = None
         self._density_req: SectionRequest | None = None
+        self._first_clicked = 0
         self._suspend = False
         self._t_req = time.perf_counter()
         if runner._on_busy is None:
@@ -237,8 +238,13 @@ class ExplorerSession(param.Parameterized):
         return watcher
 
     def _on_section_change(self, *events: Any) -> None:
-        if not self._suspend:
-            self.recompute()
+        if self._suspend:
+            return
+        for e in events:
+            # A clicked trajectory is numbered after the random ones: the selection follows it.
+            if e.name == "n_random" and self.state.selected >= e.old and self.state.clicked:
+                self.state.selected = max(0, self.state.selected + e.new - e.old)
+        self.recompute()
 
     def _on_layers_change(self, *events: Any) -> None:
         if not self._suspend:
@@ -372,6 +378,7 @@ class ExplorerSession(param.Parameterized):
                        query: dict[str, str]) -> None:  # fmt: skip
         """The section as a density image of the view (binned as computed; only ``req.keep``'s points kept)."""
         self._density_req = req
+        self._first_clicked = self.state.n_random  # trajectories numbered from here are drawn as points
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
             pending: list[tuple[np.ndarray, ...]] = []
@@ -412,7 +419,7 @@ class ExplorerSession(param.Parameterized):
                        cols: tuple[np.ndarray, ...], status: np.ndarray, done: int, total: int,
                        new_run: SectionRequest | None, query: dict[str, str]) -> None:  # fmt: skip
         traj, k, q, r = cols
-        drawn = traj < len(self.state.clicked)  # over the image only the clicked ones (the selected is ringed)
+        drawn = traj >= self._first_clicked  # over the image only the clicked ones (the selected is ringed)
         if new_run is not None:
             self._reset(new_run, query)
             self.fig.replace_points(traj[drawn], k[drawn], q[drawn], r[drawn])
@@ -569,7 +576,7 @@ class ExplorerSession(param.Parameterized):
         parts = [f"{n_points:,} points", f"{n_traj} trajectories", f"{self._elapsed:.2f} s"]
         if self._density is not None:
             n_traj = self._n_traj or self._run_n
-            n_drawn = sum(int(np.count_nonzero(c[0] < len(self.state.clicked))) for c in self._chunks)
+            n_drawn = sum(int(np.count_nonzero(c[0] >= self._first_clicked)) for c in self._chunks)
             drawn = f" ({n_drawn:,} of them drawn as points: the clicked trajectories)" if n_drawn else ""
             parts = [f"{self._density[0]:,} points as a density image, {self._density[1]:,} in view{drawn}",
                      f"{n_traj} trajectories", f"{self._elapsed:.2f} s"]  # fmt: skip
@@ -627,10 +634,10 @@ class ExplorerSession(param.Parameterized):
     def add_initial_condition(self, q: float, r: float) -> None:
         """Add a trajectory where the user clicked, select it and recompute the section.
 
-        Clicked points come first among the initial conditions (their indices stay put when the
-        number of random ones changes), so a new one shifts the random trajectories' indices:
-        the whole section is recomputed (the default scene in ~0.1 s of CPU), and every count,
-        colour and index on screen belongs to one consistent run.
+        Clicked points come after the random ones among the initial conditions: a click never
+        renumbers the random trajectories (their ids in the escaped list and the CSV stay). The whole
+        section is recomputed (the default scene in ~0.1 s of CPU), and every count, colour and index
+        on screen belongs to one consistent run.
         """
         if not (np.isfinite(q) and np.isfinite(r)):
             return
@@ -643,7 +650,7 @@ class ExplorerSession(param.Parameterized):
         except ParameterError as exc:
             self.error = str(exc)
             return
-        self.state.param.update(clicked=clicked, selected=len(clicked) - 1)
+        self.state.param.update(clicked=clicked, selected=self.state.n_random + len(clicked) - 1)
 
     def select_nearest(self, q: float, r: float) -> None:
         """Select the trajectory whose section point is nearest the click (in screen-like units)."""

@@ -477,7 +477,7 @@ class ExplorerState(param.Parameterized):
             clicked=[tuple(pt) for pt in s.points],
             q_range=tuple(s.q_range),
             r_range=tuple(s.r_range),
-            selected=0,
+            selected=n if len(s.points) else 0,  # the scene's first own point (numbered after the random ones)
             **values,
         )
 
@@ -514,11 +514,17 @@ class ExplorerState(param.Parameterized):
         )
 
     def initial_conditions(self) -> np.ndarray:
-        """Clicked/scene points first (stable indices), then the seeded random ones."""
-        parts = [np.array(self.clicked, dtype=float).reshape(-1, 2)]
+        """The seeded random ones first, then the clicked/scene points: a click never renumbers the random
+        trajectories (the escaped list and the CSV's ids stay), the clicked ones are numbered from n_random."""
+        parts = [np.zeros((0, 2))]
         if self.n_random:
             parts.append(random_ics(self.n_random, self.box, seed=self.seed))
+        parts.append(np.array(self.clicked, dtype=float).reshape(-1, 2))
         return np.concatenate(parts)
+
+    def clicked_indices(self) -> range:
+        """The trajectory numbers of the clicked/scene initial conditions (after the random ones)."""
+        return range(self.n_random, self.n_random + len(self.clicked))
 
     def n_trajectories(self) -> int:
         return len(self.clicked) + self.n_random
@@ -546,14 +552,14 @@ class ExplorerState(param.Parameterized):
         if not self.density_view(ics.shape[0]):
             return SectionRequest(params, ics, self.periods, self.transient, self.numerics())
         if self.n_random:
-            ics = np.concatenate([ics[: len(self.clicked)], random_ics(self.n_random, self.density_box(), self.seed)])
+            ics = np.concatenate([random_ics(self.n_random, self.density_box(), self.seed), ics[self.n_random :]])
         view = (*self.q_range, *self.r_range)
         numerics = self.numerics()  # "high" as for points; "plot": a quarter pixel over the density's window
         if self.accuracy != "high":
             numerics = density_numerics(view, DENSITY_PIXELS, numerics.bound, self.method)
         # Kept as points: the clicked trajectories (drawn), the selected one (ringed, its k-series) and the
         # first few, so that a selected trajectory lost in the transient can hand over to one with points.
-        keep = (*range(len(self.clicked)), self.selected, *range(min(ics.shape[0], len(self.clicked) + 8)))
+        keep = (*self.clicked_indices(), self.selected, *range(min(ics.shape[0], 8)))
         return SectionRequest(params, ics, self.periods, self.transient, numerics, True, view,  # type: ignore[arg-type]
                               tuple(sorted(set(keep))))  # fmt: skip
 
