@@ -174,6 +174,7 @@ class ExplorerSession(param.Parameterized):
         self._density: tuple[int, int] | None = None
         self._density_req: SectionRequest | None = None
         self._first_clicked = 0
+        self._run_transient = 0  # periods integrated before the first point (the core yields none meanwhile)
         self._suspend = False
         self._t_req = time.perf_counter()
         if runner._on_busy is None:
@@ -332,6 +333,7 @@ class ExplorerSession(param.Parameterized):
     def _start_section(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
         self._t_start = time.perf_counter()
         self._progress = (0, req.periods)
+        self._run_transient = req.transient
         self._outcome = ""
         self._run_n = req.ics.shape[0]
         query = self.state.to_query()  # the settings of this run: its points' export header
@@ -582,7 +584,12 @@ class ExplorerSession(param.Parameterized):
                      f"{n_traj} trajectories", f"{self._elapsed:.2f} s"]  # fmt: skip
         if running:
             done, total = self._progress or (None, None)
-            parts.insert(0, f"computing {done}/{total} periods" if done is not None else "computing…")
+            if done == 0 and self._run_transient:
+                # The core yields nothing during the transient: say what it does instead of "0/100" for seconds.
+                parts.insert(0, f"computing: transient of {self._run_transient} periods first (no points before "
+                                f"it ends), then {total} periods")  # fmt: skip
+            else:
+                parts.insert(0, f"computing {done}/{total} periods" if done is not None else "computing…")
         if escaped:
             parts.append(f"{len(escaped)} escaped")
         if failed:

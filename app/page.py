@@ -38,6 +38,12 @@ TAB_CLASSES: dict[str, type[AnalysisTab]] = {
     "chart": ChartTab,
     "bench": BenchTab,
 }
+#: Scenes whose figure is an analysis tab's picture (scene.extra key -> tab), and the tabs' names as shown.
+SCENE_TABS = {"sweep": "bifurcation", "chart": "chart"}
+TAB_NAMES = {"bifurcation": "Bifurcation diagram", "chart": "Chart of regimes"}
+#: The orbit search's button: an action, then a mode that stays on (redone after every pan or zoom).
+FIND_OFF = "Find orbits in view"
+FIND_ON = "Orbits in view: on (redone on pan/zoom; 'Clear orbits' ends it)"
 #: Session parameters that change what the section tab shows.
 SESSION_VIEW = ["status", "error", "running", "escaped", "failed", "reliability", "n_points", "orbits", "orbit_status",
                 "n_manifolds", "manifold_status", "basin_status", "basin_legend"]  # fmt: skip
@@ -252,6 +258,9 @@ class Page:
         else:
             sc = get_scene(st.scene)
             info = f"{sc.figure} — {sc.title}. {sc.shows}"
+            for key, tab in SCENE_TABS.items():
+                if key in sc.extra:  # the figure is another tab's picture: the section alone is not it
+                    info += f" This figure is drawn on the '{TAB_NAMES[tab]}' tab (open it and press Run)."
         sel = st.selected
         caption = f"Trajectory {sel}: q_k, r_k and the energy T_k"
         if sel in s.escaped:
@@ -271,6 +280,7 @@ class Page:
             "orbit_status": s.orbit_status,
             "n_orbits": len(s.orbits),
             "orbit_view": st.orbit_view,
+            "find_label": FIND_ON if st.orbit_view else FIND_OFF,
             "n_manifolds": s.n_manifolds,
             "manifold_status": s.manifold_status,
             "basin_status": s.basin_status,

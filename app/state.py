@@ -563,6 +563,25 @@ class ExplorerState(param.Parameterized):
         return SectionRequest(params, ics, self.periods, self.transient, numerics, True, view,  # type: ignore[arg-type]
                               tuple(sorted(set(keep))))  # fmt: skip
 
+    def chart_range_around(self, name: str) -> tuple[float, float]:
+        """A chart range for parameter ``name``: its value ± a tenth of its slider's span, narrowed until both
+        ends are valid systems (e.g. a positive definite tensor)."""
+        lo, hi, _ = SLIDER_RANGES[name]
+        v = float(getattr(self, name))
+        half = 0.1 * (hi - lo)
+        for _ in range(20):
+            ends = (round(max(lo, v - half), 6), round(min(hi, v + half), 6))
+            try:
+                for end in ends:
+                    self.system(**{name: end})
+            except ParameterError:
+                half /= 2
+                continue
+            if ends[0] < ends[1]:
+                return ends
+            half /= 2
+        return (v - 1e-3 * abs(v or 1), v + 1e-3 * abs(v or 1))
+
     def check_work(self, n: int, periods: int, render: str | None = None) -> None:
         if n * periods > MAX_DENSITY_POINTS:
             raise ParameterError(
@@ -723,9 +742,16 @@ def commit(state: ExplorerState, name: str, text: Any) -> str | None:
     if getattr(state, name) != value:
         if name in SYSTEM_FIELDS:
             state.param.update(**{name: value, "scene": "custom"})
+        elif name in _RANGE_OF:
+            # A new parameter on an axis: the old one's range means nothing for it (I11's 1..2 as a range of g0).
+            state.param.update(**{name: value, _RANGE_OF[name]: state.chart_range_around(value)})
         else:
             setattr(state, name, value)
     return None
+
+
+#: The chart's axis parameters and their ranges (a new parameter gets a range of its own).
+_RANGE_OF = {"chart_x": "chart_xrange", "chart_y": "chart_yrange"}
 
 
 def _shown(v: Any) -> str:

@@ -50,6 +50,7 @@ button.act.warn { background: #b8860b; border-color: #b8860b; }
 button.act.light { background: #fff; color: #2c5f8a; }
 button.act:disabled { opacity: .45; cursor: not-allowed; }
 button.act[hidden] { display: none; }
+button.act.light[aria-pressed="true"]:disabled { opacity: 1; background: #dbe9f5; color: #1d4466; cursor: default; }
 .error-box { color: #842029; background: #f8d7da; border: 1px solid #f5c2c7; border-radius: 4px; padding: 5px 10px; }
 .error-box:empty, .warnings:empty { display: none; }
 .warn-box { color: #664d03; background: #fff3cd; border: 1px solid #ffecb5; border-radius: 4px; padding: 5px 10px;
@@ -419,6 +420,8 @@ export function render({model, el}) {
     clearBtn.disabled = !s.n_clicked
     csvBtn.disabled = !s.n_points
     findBtn.disabled = !!s.orbit_view
+    findBtn.textContent = s.find_label || "Find orbits in view"
+    findBtn.setAttribute("aria-pressed", String(!!s.orbit_view))
     clearOrbBtn.disabled = !s.n_orbits && !s.orbit_view && !s.orbit_status
     orbCsvBtn.disabled = !s.n_orbits
     orbStatus.textContent = s.orbit_status || ""
