@@ -42,8 +42,8 @@ TAB_CLASSES: dict[str, type[AnalysisTab]] = {
 SCENE_TABS = {"sweep": "bifurcation", "chart": "chart"}
 TAB_NAMES = {"bifurcation": "Bifurcation diagram", "chart": "Chart of regimes"}
 #: The orbit search's button: an action, then a mode that stays on (redone after every pan or zoom).
-FIND_OFF = "Find orbits in view"
-FIND_ON = "Orbits in view: on (redone on pan/zoom; 'Clear orbits' ends it)"
+FIND_OFF = ("Find orbits in view", "Newton on P^n(x) - x from a grid of starting points over the plot window")
+FIND_ON = ("Orbits in view: on", "A mode: the search is redone after every pan or zoom; 'Clear orbits' ends it")
 #: Session parameters that change what the section tab shows.
 SESSION_VIEW = ["status", "error", "running", "escaped", "failed", "reliability", "n_points", "orbits", "orbit_status",
                 "n_manifolds", "manifold_status", "basin_status", "basin_legend"]  # fmt: skip
@@ -280,7 +280,8 @@ class Page:
             "orbit_status": s.orbit_status,
             "n_orbits": len(s.orbits),
             "orbit_view": st.orbit_view,
-            "find_label": FIND_ON if st.orbit_view else FIND_OFF,
+            "find_label": (FIND_ON if st.orbit_view else FIND_OFF)[0],
+            "find_title": (FIND_ON if st.orbit_view else FIND_OFF)[1],
             "n_manifolds": s.n_manifolds,
             "manifold_status": s.manifold_status,
             "basin_status": s.basin_status,

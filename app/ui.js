@@ -89,6 +89,8 @@ progress[hidden] { display: none; }
 .app.present { font-size: 18px; }
 .app.present header .title { font-size: 1.25em; }
 .app.present .status-line { font-size: 1em; }
+/* At 1280x720 the table sits just under the plot: smaller rows show the header and 3-4 orbits without scrolling. */
+.app.present .orbits { font-size: .8em; }
 `
 
 const TAB_TITLES = {section: "Poincaré section", lyapunov: "Lyapunov spectrum", bifurcation: "Bifurcation diagram",
@@ -210,8 +212,7 @@ export function render({model, el}) {
   clearBtn.addEventListener("click", () => send({action: "clear"}))
   const csvBtn = h("button", {class: "act light btn-csv", text: "Download section CSV"})
   csvBtn.addEventListener("click", () => send({action: "download", what: "section"}))
-  const findBtn = h("button", {class: "act light btn-find-orbits", text: "Find orbits in view",
-                               title: "Newton on P^n(x) - x from a grid of seeds over the plot window"})
+  const findBtn = h("button", {class: "act light btn-find-orbits", text: "Find orbits in view"})
   findBtn.addEventListener("click", () => send({action: "find_orbits"}))
   const clearOrbBtn = h("button", {class: "act light btn-clear-orbits", text: "Clear orbits"})
   clearOrbBtn.addEventListener("click", () => send({action: "clear_orbits"}))
@@ -257,7 +258,7 @@ export function render({model, el}) {
   const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
   const orbTable = h("div", {class: "orbits", hidden: true})
   const paneSection = h("section", {class: "pane pane-section"}, secBar, secErrors, warnings, status,
-                        h("div", {class: "plots"}, plotSection, plotSeries), eqLegend, orbLegend, orbStatus, orbTable,
+                        h("div", {class: "plots"}, plotSection, plotSeries), orbStatus, orbTable, eqLegend, orbLegend,
                         densLegend, manLegend, manStatus, basStatus, basLegend, colourNote)
 
   // Analysis pane (one for every analysis tab; its form is the open tab's controls).
@@ -421,6 +422,7 @@ export function render({model, el}) {
     csvBtn.disabled = !s.n_points
     findBtn.disabled = !!s.orbit_view
     findBtn.textContent = s.find_label || "Find orbits in view"
+    findBtn.title = s.find_title || ""
     findBtn.setAttribute("aria-pressed", String(!!s.orbit_view))
     clearOrbBtn.disabled = !s.n_orbits && !s.orbit_view && !s.orbit_status
     orbCsvBtn.disabled = !s.n_orbits

@@ -220,8 +220,10 @@ class SectionFigure:
         fig.renderers.extend([r for r in self._order if not isinstance(r, str)])
         # The frozen field's equilibria and the map's periodic orbits share words (saddle, focus): the legend
         # names them apart ("frozen-field saddle" vs "saddle orbit of the map").
+        # Compact: with the orbits' entries it has up to ~8 rows over a 300 px plot at 1280x720.
         self.legend = Legend(items=[LegendItem(label={"field": "label"}, renderers=[eq])], location="top_left",
-                             background_fill_alpha=0.7, label_text_font_size="9pt")  # fmt: skip
+                             background_fill_alpha=0.7, label_text_font_size="8pt", label_height=12,
+                             glyph_height=12, glyph_width=12, spacing=0, padding=4, margin=4)  # fmt: skip
         fig.add_layout(self.legend)
         # One hover per kind of mark, each with that mark's fields only (one tool over the points and the
         # diamonds showed "frozen-field equilibrium: ???" on every point). A few point entries at most: dozens

@@ -63,8 +63,9 @@ def test_find_orbits_in_view_says_when_it_is_a_mode() -> None:
     assert page.ui.view["section"]["find_label"] == "Find orbits in view"
     page.handle({"action": "find_orbits"})
     jobs.drain()
-    label = page.ui.view["section"]["find_label"]
-    assert "on" in label and "pan/zoom" in label and "Clear orbits" in label
+    view = page.ui.view["section"]
+    assert view["find_label"] == "Orbits in view: on"
+    assert "pan or zoom" in view["find_title"] and "Clear orbits" in view["find_title"]
     page.handle({"action": "clear_orbits"})
     assert page.ui.view["section"]["find_label"] == "Find orbits in view"
 
