@@ -324,7 +324,10 @@ class Page:
 
 def _colour_note(hidden_by: str) -> str:
     """Why the T' map is not drawn although it is on (its colours would tint those of the layer over it)."""
-    return f"The T′ map is hidden while {hidden_by} is shown (its colours would mix with theirs)." if hidden_by else ""
+    if not hidden_by:
+        return ""
+    verb = "are" if hidden_by == "the basins" else "is"
+    return f"The T′ map is hidden while {hidden_by} {verb} shown (its colours would mix with theirs)."
 
 
 def _url_tab(message: str) -> str:

@@ -90,7 +90,7 @@ def test_the_basins_are_not_tinted_by_the_tprime_map_and_their_legend_matches() 
     page, jobs = page_for({"basins": "1", "bas_n": "12"})
     assert page.fig.tprime.data["image"] and page.fig.basins.data["image"]  # both computed
     assert not page.fig._tprime_renderer.visible and not page.fig.colorbar.visible
-    assert "T′ map is hidden while the basins" in page.ui.view["section"]["colour_note"]
+    assert "T′ map is hidden while the basins are shown" in page.ui.view["section"]["colour_note"]
     image = page.fig.basins.data["image"][0].view(np.uint8).reshape(12, 12, 4)
     drawn = {"#" + "".join(f"{v:02x}" for v in px[:3]) for px in image.reshape(-1, 4) if px[3]}
     swatches = {c for c, _ in page.ui.view["section"]["basin_legend"]}
