@@ -451,6 +451,10 @@ class SectionFigure:
     def set_presentation(self, on: bool) -> None:
         set_fonts(self.axes, on)
         self._presentation = on
+        # Readable from the back of a room, still short enough for the 300 px plot of 1280x720.
+        size = 14 if on else 12
+        self.legend.update(label_text_font_size="10pt" if on else "8pt", label_height=size, glyph_height=size,
+                           glyph_width=size)  # fmt: skip
         self.colorbar.update(title_text_font_size="13pt" if on else "10pt", title=self._colorbar_title())
 
     def _has_image(self, layer: str) -> bool:
