@@ -262,7 +262,8 @@ class Page:
                 if key in sc.extra:  # the figure is another tab's picture: the section alone is not it
                     info += f" This figure is drawn on the '{TAB_NAMES[tab]}' tab (open it and press Run)."
         sel = st.selected
-        caption = f"Trajectory {sel}: q_k, r_k and the energy T_k"
+        who = " (clicked)" if sel in st.clicked_indices() else ""  # numbered after the random ones
+        caption = f"Trajectory {sel}{who}: q_k, r_k and the energy T_k"
         if sel in s.escaped:
             caption += " (escaped: its valid points)"
         elif sel in s.failed:

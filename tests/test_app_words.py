@@ -26,6 +26,7 @@ def test_a_click_does_not_renumber_the_random_trajectories() -> None:
     jobs.drain()
     traj, k, q, r = page.session.data()
     assert page.state.selected == 40 and set(traj[traj >= 40].tolist()) <= {40}  # the clicked one: number 40
+    assert page.ui.view["section"]["series_caption"].startswith("Trajectory 40 (clicked):")
     # Each random trajectory keeps its number: the same count of points, and its first point to within the
     # integration tolerance (the core's batch shares its adaptive steps, so a trajectory's numbers move at the
     # tolerance level with the batch's make-up, and chaos grows that later on: only the first is compared).
