@@ -151,7 +151,7 @@ class LyapunovTab(AnalysisTab):
         if sel.any():
             j = np.flatnonzero(sel)[np.argmax(k[sel])]
             return float(q[j]), float(r[j])
-        ics = st.initial_conditions()
+        ics = st.analysis_ics()
         if ics.shape[0] == 0:
             raise ParameterError("no initial condition: type one, or add trajectories in the section tab")
         return float(ics[0, 0]), float(ics[0, 1])
@@ -258,7 +258,7 @@ class BifurcationTab(AnalysisTab):
             lo, hi = st.bif_range or (getattr(st, name) - 0.05, getattr(st, name) + 0.05)
             for end in (lo, hi):
                 st.system(**{name: end})  # blank range: current ± 0.05 must be valid too
-            ics = st.initial_conditions()[:4]
+            ics = st.analysis_ics()[:4]
             if ics.shape[0] == 0:
                 raise ParameterError(
                     "no initial conditions: set 'Random initial conditions' above 0 or click in the section"
@@ -402,7 +402,7 @@ class ChartTab(AnalysisTab):
             nx, ny = st.chart_grid
             periods = st.chart_periods
             spec = chart_spec(params, st.chart_x, st.chart_xrange, st.chart_y, st.chart_yrange, (nx, ny),
-                              ics=st.initial_conditions()[:1], transient=st.chart_transient,
+                              ics=st.analysis_ics()[:1], transient=st.chart_transient,
                               periods=periods, p_max=max(1, min(16, (periods - 1) // 2)))  # fmt: skip
             scheduler = scheduler_from_env()  # BILIMOVICH_SCHEDULER: tiles run on a Dask cluster
         except (ParameterError, SchedulerError, ValueError) as exc:

@@ -522,6 +522,12 @@ class ExplorerState(param.Parameterized):
         parts.append(np.array(self.clicked, dtype=float).reshape(-1, 2))
         return np.concatenate(parts)
 
+    def analysis_ics(self) -> np.ndarray:
+        """The initial conditions an analysis tab starts from: the clicked/scene points first (the user's or the
+        figure's choice), then the random ones."""
+        ics = self.initial_conditions()
+        return np.concatenate([ics[self.n_random :], ics[: self.n_random]])
+
     def clicked_indices(self) -> range:
         """The trajectory numbers of the clicked/scene initial conditions (after the random ones)."""
         return range(self.n_random, self.n_random + len(self.clicked))
@@ -884,6 +890,8 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
                   tab="tab", presentation="present", orbit_seeds="orb", orbit_view="orb_all",
                   click_mode="click", manifold_saddles="man")  # fmt: skip
     names = sorted(updates, key=lambda n: _ORDER.index(n) if n in _ORDER else len(_ORDER))
+    # The scene shows its own first point (numbered after the random ones): it stays shown if the URL changes n.
+    scene_point = bool(state.clicked) and state.selected == state.n_random
     changed_system = False
     for name in names:
         value = updates[name]
@@ -900,6 +908,8 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
         setattr(state, name, value)
     if sid == "custom" or changed_system:
         state.scene = "custom"
+    if scene_point and "selected" not in updates and state.clicked:
+        state.selected = state.n_random
     if state.selected >= max(1, state.n_trajectories()):
         state.selected = 0
     return state, [_with_value_used(state, e) for e in errors]

@@ -117,3 +117,14 @@ def test_the_chart_says_the_colours_of_the_curves_it_draws() -> None:
     assert "fold: magenta" in tab.view["result"][-1] and tab.curves.data["color"] == ["#000000", "#e377c2"]
     hovers = [t for t in tab.figure().toolbar.tools if isinstance(t, HoverTool)]
     assert any(r.name == "chart_curve_lines" for h in hovers for r in h.renderers)
+
+
+def test_the_analysis_tabs_still_start_from_the_clicked_points_first() -> None:
+    """The clicked points are numbered after the random ones in the section; the chart (one initial condition),
+    the orbit diagram (four) and the Lyapunov tab still start from the clicked/scene points first."""
+    from app.state import state_from_query
+
+    state, _ = state_from_query({"scene": "fig1A", "n": "5"})  # Fig. 1A: one point of its own, 5 random
+    assert tuple(state.initial_conditions()[5]) == tuple(state.clicked[0])
+    assert tuple(state.analysis_ics()[0]) == tuple(state.clicked[0])
+    assert state.analysis_ics().shape == (6, 2) and state.selected == 5  # the scene's own point is shown
