@@ -49,7 +49,9 @@ CHART_HELP = (
     "refinement. Click a pixel to set those two parameters (the pixel's centre) and see that section; "
     "the cross marks the current parameters. The lines are the {curves} curves of the chart's stable cycles "
     "of periods 1-3, followed in both parameters by continuation: the boundaries of the chart's regions as "
-    "curves (hover one for its kind)."
+    "curves (hover one for its kind). Each pixel follows one initial condition (the first clicked or scene "
+    "point, else the first random one): where attractors coexist it shows the one that point reaches, so a "
+    "curve of a coexisting cycle can run through a region of another colour."
 )
 #: Bifurcation curves on the chart: colour and words per kind (the help, the result line and the hover use these).
 CURVE_STYLE = {
