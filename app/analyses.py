@@ -20,7 +20,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from bokeh.models import ColumnDataSource, LinearColorMapper, Plot
+from bokeh.models import ColumnDataSource, HoverTool, LinearColorMapper, Plot
 from bokeh.palettes import Category10, Category20
 from bokeh.plotting import figure
 
@@ -47,10 +47,19 @@ CHART_HELP = (
     "Chart of dynamical regimes: each pixel's attractor classified by the return of its section point "
     "(period p), its largest Lyapunov exponent (chaos) or escape. A coarse grid comes first, then "
     "refinement. Click a pixel to set those two parameters (the pixel's centre) and see that section; "
-    "the cross marks the current parameters. The lines are the period-doubling (black) and fold (magenta) "
-    "curves of the chart's stable cycles of periods 1-3, followed in both parameters by continuation: the "
-    "boundaries of the chart's regions as curves."
+    "the cross marks the current parameters. The lines are the {curves} curves of the chart's stable cycles "
+    "of periods 1-3, followed in both parameters by continuation: the boundaries of the chart's regions as "
+    "curves (hover one for its kind). Each pixel follows one initial condition (the first clicked or scene "
+    "point, else the first random one): where attractors coexist it shows the one that point reaches, so a "
+    "curve of a coexisting cycle can run through a region of another colour."
 )
+#: Bifurcation curves on the chart: colour and words per kind (the help, the result line and the hover use these).
+CURVE_STYLE = {
+    "period_doubling": ("#000000", "black", "period doubling"),
+    "fold": ("#e377c2", "magenta", "fold"),
+    "neimark_sacker": ("#17becf", "cyan", "Neimark–Sacker"),
+}
+CHART_HELP = CHART_HELP.format(curves=", ".join(f"{w} ({c})" for _, c, w in CURVE_STYLE.values()))
 LYAPUNOV_HELP = (
     "Exponents of the (q, r) flow from the variational equations with the exact Jacobian, re-orthonormalised "
     "at each section time; Λ3 = 0 is the time direction. The check Λ1 + Λ2 = ⟨dQ/dq + dR/dr⟩ must hold."
@@ -144,7 +153,7 @@ class LyapunovTab(AnalysisTab):
         if sel.any():
             j = np.flatnonzero(sel)[np.argmax(k[sel])]
             return float(q[j]), float(r[j])
-        ics = st.initial_conditions()
+        ics = st.analysis_ics()
         if ics.shape[0] == 0:
             raise ParameterError("no initial condition: type one, or add trajectories in the section tab")
         return float(ics[0, 0]), float(ics[0, 1])
@@ -251,7 +260,7 @@ class BifurcationTab(AnalysisTab):
             lo, hi = st.bif_range or (getattr(st, name) - 0.05, getattr(st, name) + 0.05)
             for end in (lo, hi):
                 st.system(**{name: end})  # blank range: current ± 0.05 must be valid too
-            ics = st.initial_conditions()[:4]
+            ics = st.analysis_ics()[:4]
             if ics.shape[0] == 0:
                 raise ParameterError(
                     "no initial conditions: set 'Random initial conditions' above 0 or click in the section"
@@ -379,7 +388,9 @@ class ChartTab(AnalysisTab):
         f.image(image="image", x="x", y="y", dw="dw", dh="dh", source=self.source, color_mapper=self.mapper)
         # Bifurcation curves from two-parameter continuation, with a white halo to show on any colour.
         f.multi_line("xs", "ys", source=self.curves, line_color="white", line_width=5, line_alpha=0.8)
-        f.multi_line("xs", "ys", source=self.curves, line_color="color", line_width=2.2, name="chart_curve_lines")
+        lines = f.multi_line("xs", "ys", source=self.curves, line_color="color", line_width=2.2,
+                             name="chart_curve_lines")  # fmt: skip
+        f.add_tools(HoverTool(renderers=[lines], tooltips=[("curve", "@kind")], line_policy="interp"))
         # The current parameters: a cross with a white halo, visible on every colour.
         f.scatter("x", "y", source=self.current, marker="cross", size=18, line_color="white", line_width=5)
         f.scatter("x", "y", source=self.current, marker="cross", size=18, line_color="black", line_width=2,
@@ -394,7 +405,7 @@ class ChartTab(AnalysisTab):
             nx, ny = st.chart_grid
             periods = st.chart_periods
             spec = chart_spec(params, st.chart_x, st.chart_xrange, st.chart_y, st.chart_yrange, (nx, ny),
-                              ics=st.initial_conditions()[:1], transient=st.chart_transient,
+                              ics=st.analysis_ics()[:1], transient=st.chart_transient,
                               periods=periods, p_max=max(1, min(16, (periods - 1) // 2)))  # fmt: skip
             scheduler = scheduler_from_env()  # BILIMOVICH_SCHEDULER: tiles run on a Dask cluster
         except (ParameterError, SchedulerError, ValueError) as exc:
@@ -480,12 +491,16 @@ class ChartTab(AnalysisTab):
             rows = np.array(c.rows)
             xs.append(rows[:, 0].tolist())
             ys.append(rows[:, 1].tolist())
-            colours.append("#000000" if c.kind == "period_doubling" else "#e377c2")
-            kinds.append(c.kind)
+            colour, _, words = CURVE_STYLE.get(c.kind, ("#7f7f7f", "grey", c.kind.replace("_", " ")))
+            colours.append(colour)
+            kinds.append(f"{words} of the period-{c.period} cycle")
         self.curves.data = {"xs": xs, "ys": ys, "color": colours, "kind": kinds}
         lines = list(self.view["result"])
         n_bif = sum(len(cont.bifurcations) for cont in parts)
-        lines.append(f"boundaries: {len(xs)} curves (period doubling: black, fold: magenta) from {n_bif} "
+        # The colours of the curves drawn, and only those (the help promised magenta folds on charts without any).
+        drawn = [k for k in CURVE_STYLE if any(c.kind == k and len(c.rows) >= 2 for cont in parts for c in cont.curves)]
+        key = ", ".join(f"{CURVE_STYLE[k][2]}: {CURVE_STYLE[k][1]}" for k in drawn)
+        lines.append(f"boundaries: {len(xs)} curves" + (f" ({key})" if key else "") + f" from {n_bif} "
                      "bifurcations of the stable cycles of periods 1-3 of the chart")  # fmt: skip
         lines += [m for cont in parts for m in cont.messages][:2]
         lines += [loss.line() for cont in parts for loss in cont.lost][:3]

@@ -39,7 +39,7 @@ from app.state import (
     commit,
     plain_label,
 )
-from app.views import SectionFigure, SeriesData
+from app.views import SectionFigure, SeriesData, as_drawn
 from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, basin_spec, iter_basins
 from explorer_core.analyses.density import iter_density
 from explorer_core.analyses.equilibria import equilibrium_tracks
@@ -67,8 +67,10 @@ BASIN_FIELDS = ("show_basins", "basin_grid")
 SECTION_CHANNELS = ("section", "tracks", "tprime", "reliability", "orbit", "orbits", "manifolds", "basins")
 #: Basins: a colour per attractor id (cycled), and the pixels that reach none.
 BASIN_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#1f78b4")
-OUTCOME_COLOURS = {ESCAPE: "#9e9e9e", FAILED: "#3d3d3d", UNDECIDED: "#ffffff"}
-OUTCOME_NAMES = {ESCAPE: "escape (noncompact drift)", FAILED: "integration failed", UNDECIDED: "undecided"}
+#: Escaped pixels mid grey, failed ones dark grey (the old light grey at half opacity looked like the page's white);
+#: undecided ones are left blank, and the legend says so.
+OUTCOME_COLOURS = {ESCAPE: "#555555", FAILED: "#000000", UNDECIDED: "#ffffff"}
+OUTCOME_NAMES = {ESCAPE: "escape (noncompact drift)", FAILED: "integration failed", UNDECIDED: "undecided (blank)"}
 #: The plot's size in pixels as the manifolds' refinement assumes it (segments of at most 3 of them).
 MANIFOLD_PIXELS = (800, 600)
 #: A click picks the saddle whose point is nearest, within this fraction of the view's width and height.
@@ -171,6 +173,8 @@ class ExplorerSession(param.Parameterized):
         #: The density image on screen: (points computed, points in view), or None when points are drawn.
         self._density: tuple[int, int] | None = None
         self._density_req: SectionRequest | None = None
+        self._first_clicked = 0
+        self._run_transient = 0  # periods integrated before the first point (the core yields none meanwhile)
         self._suspend = False
         self._t_req = time.perf_counter()
         if runner._on_busy is None:
@@ -235,8 +239,13 @@ class ExplorerSession(param.Parameterized):
         return watcher
 
     def _on_section_change(self, *events: Any) -> None:
-        if not self._suspend:
-            self.recompute()
+        if self._suspend:
+            return
+        for e in events:
+            # A clicked trajectory is numbered after the random ones: the selection follows it.
+            if e.name == "n_random" and self.state.selected >= e.old and self.state.clicked:
+                self.state.selected = max(0, self.state.selected + e.new - e.old)
+        self.recompute()
 
     def _on_layers_change(self, *events: Any) -> None:
         if not self._suspend:
@@ -324,6 +333,7 @@ class ExplorerSession(param.Parameterized):
     def _start_section(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
         self._t_start = time.perf_counter()
         self._progress = (0, req.periods)
+        self._run_transient = req.transient
         self._outcome = ""
         self._run_n = req.ics.shape[0]
         query = self.state.to_query()  # the settings of this run: its points' export header
@@ -370,6 +380,7 @@ class ExplorerSession(param.Parameterized):
                        query: dict[str, str]) -> None:  # fmt: skip
         """The section as a density image of the view (binned as computed; only ``req.keep``'s points kept)."""
         self._density_req = req
+        self._first_clicked = self.state.n_random  # trajectories numbered from here are drawn as points
 
         def job(cancelled: Callable[[], bool], emit: Callable[[Callable[[], None]], None]) -> None:
             pending: list[tuple[np.ndarray, ...]] = []
@@ -410,7 +421,7 @@ class ExplorerSession(param.Parameterized):
                        cols: tuple[np.ndarray, ...], status: np.ndarray, done: int, total: int,
                        new_run: SectionRequest | None, query: dict[str, str]) -> None:  # fmt: skip
         traj, k, q, r = cols
-        drawn = traj < len(self.state.clicked)  # over the image only the clicked ones (the selected is ringed)
+        drawn = traj >= self._first_clicked  # over the image only the clicked ones (the selected is ringed)
         if new_run is not None:
             self._reset(new_run, query)
             self.fig.replace_points(traj[drawn], k[drawn], q[drawn], r[drawn])
@@ -567,13 +578,18 @@ class ExplorerSession(param.Parameterized):
         parts = [f"{n_points:,} points", f"{n_traj} trajectories", f"{self._elapsed:.2f} s"]
         if self._density is not None:
             n_traj = self._n_traj or self._run_n
-            n_drawn = sum(int(np.count_nonzero(c[0] < len(self.state.clicked))) for c in self._chunks)
+            n_drawn = sum(int(np.count_nonzero(c[0] >= self._first_clicked)) for c in self._chunks)
             drawn = f" ({n_drawn:,} of them drawn as points: the clicked trajectories)" if n_drawn else ""
             parts = [f"{self._density[0]:,} points as a density image, {self._density[1]:,} in view{drawn}",
                      f"{n_traj} trajectories", f"{self._elapsed:.2f} s"]  # fmt: skip
         if running:
             done, total = self._progress or (None, None)
-            parts.insert(0, f"computing {done}/{total} periods" if done is not None else "computing…")
+            if done == 0 and self._run_transient:
+                # The core yields nothing during the transient: say what it does instead of "0/100" for seconds.
+                parts.insert(0, f"computing: transient of {self._run_transient} periods first (no points before "
+                                f"it ends), then {total} periods")  # fmt: skip
+            else:
+                parts.insert(0, f"computing {done}/{total} periods" if done is not None else "computing…")
         if escaped:
             parts.append(f"{len(escaped)} escaped")
         if failed:
@@ -625,10 +641,10 @@ class ExplorerSession(param.Parameterized):
     def add_initial_condition(self, q: float, r: float) -> None:
         """Add a trajectory where the user clicked, select it and recompute the section.
 
-        Clicked points come first among the initial conditions (their indices stay put when the
-        number of random ones changes), so a new one shifts the random trajectories' indices:
-        the whole section is recomputed (the default scene in ~0.1 s of CPU), and every count,
-        colour and index on screen belongs to one consistent run.
+        Clicked points come after the random ones among the initial conditions: a click never
+        renumbers the random trajectories (their ids in the escaped list and the CSV stay). The whole
+        section is recomputed (the default scene in ~0.1 s of CPU), and every count, colour and index
+        on screen belongs to one consistent run.
         """
         if not (np.isfinite(q) and np.isfinite(r)):
             return
@@ -641,7 +657,7 @@ class ExplorerSession(param.Parameterized):
         except ParameterError as exc:
             self.error = str(exc)
             return
-        self.state.param.update(clicked=clicked, selected=len(clicked) - 1)
+        self.state.param.update(clicked=clicked, selected=self.state.n_random + len(clicked) - 1)
 
     def select_nearest(self, q: float, r: float) -> None:
         """Select the trajectory whose section point is nearest the click (in screen-like units)."""
@@ -953,10 +969,10 @@ class ExplorerSession(param.Parameterized):
                 what += f" ({a.orbit_type})"
             if len(a.points):
                 what += f" at ({a.points[0, 0]:.4g}, {a.points[0, 1]:.4g})"
-            legend.append([colours[a.id], f"{what}: {100 * b.fraction.get(a.id, 0.0):.1f}%"])
+            legend.append([as_drawn(colours[a.id]), f"{what}: {100 * b.fraction.get(a.id, 0.0):.1f}%"])
         for code, name in OUTCOME_NAMES.items():
             if b.fraction.get(code, 0.0) > 0:
-                legend.append([OUTCOME_COLOURS[code], f"{name}: {100 * b.fraction[code]:.1f}%"])
+                legend.append([as_drawn(OUTCOME_COLOURS[code]), f"{name}: {100 * b.fraction[code]:.1f}%"])
         self.basin_legend = legend
         n_att = sum(a.kind != "escape" and a.attracting for a in b.attractors)
         if b.completed:

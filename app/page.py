@@ -38,6 +38,12 @@ TAB_CLASSES: dict[str, type[AnalysisTab]] = {
     "chart": ChartTab,
     "bench": BenchTab,
 }
+#: Scenes whose figure is an analysis tab's picture (scene.extra key -> tab), and the tabs' names as shown.
+SCENE_TABS = {"sweep": "bifurcation", "chart": "chart"}
+TAB_NAMES = {"bifurcation": "Bifurcation diagram", "chart": "Chart of regimes"}
+#: The orbit search's button: an action, then a mode that stays on (redone after every pan or zoom).
+FIND_OFF = ("Find orbits in view", "Newton on P^n(x) - x from a grid of starting points over the plot window")
+FIND_ON = ("Orbits in view: on", "A mode: the search is redone after every pan or zoom; 'Clear orbits' ends it")
 #: Session parameters that change what the section tab shows.
 SESSION_VIEW = ["status", "error", "running", "escaped", "failed", "reliability", "n_points", "orbits", "orbit_status",
                 "n_manifolds", "manifold_status", "basin_status", "basin_legend"]  # fmt: skip
@@ -252,8 +258,12 @@ class Page:
         else:
             sc = get_scene(st.scene)
             info = f"{sc.figure} — {sc.title}. {sc.shows}"
+            for key, tab in SCENE_TABS.items():
+                if key in sc.extra:  # the figure is another tab's picture: the section alone is not it
+                    info += f" This figure is drawn on the '{TAB_NAMES[tab]}' tab (open it and press Run)."
         sel = st.selected
-        caption = f"Trajectory {sel}: q_k, r_k and the energy T_k"
+        who = " (clicked)" if sel in st.clicked_indices() else ""  # numbered after the random ones
+        caption = f"Trajectory {sel}{who}: q_k, r_k and the energy T_k"
         if sel in s.escaped:
             caption += " (escaped: its valid points)"
         elif sel in s.failed:
@@ -271,11 +281,14 @@ class Page:
             "orbit_status": s.orbit_status,
             "n_orbits": len(s.orbits),
             "orbit_view": st.orbit_view,
+            "find_label": (FIND_ON if st.orbit_view else FIND_OFF)[0],
+            "find_title": (FIND_ON if st.orbit_view else FIND_OFF)[1],
             "n_manifolds": s.n_manifolds,
             "manifold_status": s.manifold_status,
             "basin_status": s.basin_status,
             "density": s.density_shown,
             "basin_legend": s.basin_legend,
+            "colour_note": _colour_note(self.fig.tprime_hidden_by),
         }
 
     def _tab_view(self, name: str) -> dict[str, Any]:
@@ -308,6 +321,14 @@ class Page:
         if tab == "section":
             return any(self.runner.busy(c) for c in SECTION_CHANNELS)
         return self.runner.busy(tab)
+
+
+def _colour_note(hidden_by: str) -> str:
+    """Why the T' map is not drawn although it is on (its colours would tint those of the layer over it)."""
+    if not hidden_by:
+        return ""
+    verb = "are" if hidden_by == "the basins" else "is"
+    return f"The T′ map is hidden while {hidden_by} {verb} shown (its colours would mix with theirs)."
 
 
 def _url_tab(message: str) -> str:

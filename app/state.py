@@ -477,7 +477,7 @@ class ExplorerState(param.Parameterized):
             clicked=[tuple(pt) for pt in s.points],
             q_range=tuple(s.q_range),
             r_range=tuple(s.r_range),
-            selected=0,
+            selected=n if len(s.points) else 0,  # the scene's first own point (numbered after the random ones)
             **values,
         )
 
@@ -514,11 +514,23 @@ class ExplorerState(param.Parameterized):
         )
 
     def initial_conditions(self) -> np.ndarray:
-        """Clicked/scene points first (stable indices), then the seeded random ones."""
-        parts = [np.array(self.clicked, dtype=float).reshape(-1, 2)]
+        """The seeded random ones first, then the clicked/scene points: a click never renumbers the random
+        trajectories (the escaped list and the CSV's ids stay), the clicked ones are numbered from n_random."""
+        parts = [np.zeros((0, 2))]
         if self.n_random:
             parts.append(random_ics(self.n_random, self.box, seed=self.seed))
+        parts.append(np.array(self.clicked, dtype=float).reshape(-1, 2))
         return np.concatenate(parts)
+
+    def analysis_ics(self) -> np.ndarray:
+        """The initial conditions an analysis tab starts from: the clicked/scene points first (the user's or the
+        figure's choice), then the random ones."""
+        ics = self.initial_conditions()
+        return np.concatenate([ics[self.n_random :], ics[: self.n_random]])
+
+    def clicked_indices(self) -> range:
+        """The trajectory numbers of the clicked/scene initial conditions (after the random ones)."""
+        return range(self.n_random, self.n_random + len(self.clicked))
 
     def n_trajectories(self) -> int:
         return len(self.clicked) + self.n_random
@@ -546,16 +558,35 @@ class ExplorerState(param.Parameterized):
         if not self.density_view(ics.shape[0]):
             return SectionRequest(params, ics, self.periods, self.transient, self.numerics())
         if self.n_random:
-            ics = np.concatenate([ics[: len(self.clicked)], random_ics(self.n_random, self.density_box(), self.seed)])
+            ics = np.concatenate([random_ics(self.n_random, self.density_box(), self.seed), ics[self.n_random :]])
         view = (*self.q_range, *self.r_range)
         numerics = self.numerics()  # "high" as for points; "plot": a quarter pixel over the density's window
         if self.accuracy != "high":
             numerics = density_numerics(view, DENSITY_PIXELS, numerics.bound, self.method)
         # Kept as points: the clicked trajectories (drawn), the selected one (ringed, its k-series) and the
         # first few, so that a selected trajectory lost in the transient can hand over to one with points.
-        keep = (*range(len(self.clicked)), self.selected, *range(min(ics.shape[0], len(self.clicked) + 8)))
+        keep = (*self.clicked_indices(), self.selected, *range(min(ics.shape[0], 8)))
         return SectionRequest(params, ics, self.periods, self.transient, numerics, True, view,  # type: ignore[arg-type]
                               tuple(sorted(set(keep))))  # fmt: skip
+
+    def chart_range_around(self, name: str) -> tuple[float, float]:
+        """A chart range for parameter ``name``: its value ± a tenth of its slider's span, narrowed until both
+        ends are valid systems (e.g. a positive definite tensor)."""
+        lo, hi, _ = SLIDER_RANGES[name]
+        v = float(getattr(self, name))
+        half = 0.1 * (hi - lo)
+        for _ in range(20):
+            ends = (round(max(lo, v - half), 6), round(min(hi, v + half), 6))
+            try:
+                for end in ends:
+                    self.system(**{name: end})
+            except ParameterError:
+                half /= 2
+                continue
+            if ends[0] < ends[1]:
+                return ends
+            half /= 2
+        return (v - 1e-3 * abs(v or 1), v + 1e-3 * abs(v or 1))
 
     def check_work(self, n: int, periods: int, render: str | None = None) -> None:
         if n * periods > MAX_DENSITY_POINTS:
@@ -717,9 +748,16 @@ def commit(state: ExplorerState, name: str, text: Any) -> str | None:
     if getattr(state, name) != value:
         if name in SYSTEM_FIELDS:
             state.param.update(**{name: value, "scene": "custom"})
+        elif name in _RANGE_OF:
+            # A new parameter on an axis: the old one's range means nothing for it (I11's 1..2 as a range of g0).
+            state.param.update(**{name: value, _RANGE_OF[name]: state.chart_range_around(value)})
         else:
             setattr(state, name, value)
     return None
+
+
+#: The chart's axis parameters and their ranges (a new parameter gets a range of its own).
+_RANGE_OF = {"chart_x": "chart_xrange", "chart_y": "chart_yrange"}
 
 
 def _shown(v: Any) -> str:
@@ -852,6 +890,8 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
                   tab="tab", presentation="present", orbit_seeds="orb", orbit_view="orb_all",
                   click_mode="click", manifold_saddles="man")  # fmt: skip
     names = sorted(updates, key=lambda n: _ORDER.index(n) if n in _ORDER else len(_ORDER))
+    # The scene shows its own first point (numbered after the random ones): it stays shown if the URL changes n.
+    scene_point = bool(state.clicked) and state.selected == state.n_random
     changed_system = False
     for name in names:
         value = updates[name]
@@ -868,6 +908,8 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
         setattr(state, name, value)
     if sid == "custom" or changed_system:
         state.scene = "custom"
+    if scene_point and "selected" not in updates and state.clicked:
+        state.selected = state.n_random
     if state.selected >= max(1, state.n_trajectories()):
         state.selected = 0
     return state, [_with_value_used(state, e) for e in errors]

@@ -50,6 +50,7 @@ button.act.warn { background: #b8860b; border-color: #b8860b; }
 button.act.light { background: #fff; color: #2c5f8a; }
 button.act:disabled { opacity: .45; cursor: not-allowed; }
 button.act[hidden] { display: none; }
+button.act.light[aria-pressed="true"]:disabled { opacity: 1; background: #dbe9f5; color: #1d4466; cursor: default; }
 .error-box { color: #842029; background: #f8d7da; border: 1px solid #f5c2c7; border-radius: 4px; padding: 5px 10px; }
 .error-box:empty, .warnings:empty { display: none; }
 .warn-box { color: #664d03; background: #fff3cd; border: 1px solid #ffecb5; border-radius: 4px; padding: 5px 10px;
@@ -88,6 +89,8 @@ progress[hidden] { display: none; }
 .app.present { font-size: 18px; }
 .app.present header .title { font-size: 1.25em; }
 .app.present .status-line { font-size: 1em; }
+/* At 1280x720 the table sits just under the plot: smaller rows show the header and 3-4 orbits without scrolling. */
+.app.present .orbits { font-size: .8em; }
 `
 
 const TAB_TITLES = {section: "Poincaré section", lyapunov: "Lyapunov spectrum", bifurcation: "Bifurcation diagram",
@@ -209,8 +212,7 @@ export function render({model, el}) {
   clearBtn.addEventListener("click", () => send({action: "clear"}))
   const csvBtn = h("button", {class: "act light btn-csv", text: "Download section CSV"})
   csvBtn.addEventListener("click", () => send({action: "download", what: "section"}))
-  const findBtn = h("button", {class: "act light btn-find-orbits", text: "Find orbits in view",
-                               title: "Newton on P^n(x) - x from a grid of seeds over the plot window"})
+  const findBtn = h("button", {class: "act light btn-find-orbits", text: "Find orbits in view"})
   findBtn.addEventListener("click", () => send({action: "find_orbits"}))
   const clearOrbBtn = h("button", {class: "act light btn-clear-orbits", text: "Clear orbits"})
   clearOrbBtn.addEventListener("click", () => send({action: "clear_orbits"}))
@@ -235,11 +237,12 @@ export function render({model, el}) {
   for (const [t, c] of model.spec.eq_colors) {
     eqLegend.append(h("span", {text: "◆", style: `color:${c};margin-left:8px`}), document.createTextNode(" " + t))
   }
-  eqLegend.prepend(document.createTextNode("Equilibria of the frozen field (t fixed at t0; tracks over one period; " +
-                                          "a heuristic for slow forcing, not orbits of the map):"))
+  eqLegend.prepend(document.createTextNode("◆ Frozen-field equilibria (t fixed at t0; dashed tracks over one " +
+                                          "period; a heuristic for slow forcing, not orbits of the map):"))
   const orbLegend = h("div", {class: "legend orbit-legend",
-    text: "Periodic orbits of the Poincaré map P (fixed points of P^n, found by Newton): ● stable, ○ unstable, " +
-          "◎ elliptic or neutral, ✕ saddle (flip saddle: the expanding multiplier is negative). Hover for the multipliers."})
+    text: "Periodic orbits of the Poincaré map P (fixed points of P^n, found by Newton; magenta rings, not " +
+          "diamonds): ● stable orbit, ○ unstable or elliptic orbit, ✕ saddle orbit of the map (flip saddle: the " +
+          "expanding multiplier is negative). Hover a mark for its multipliers."})
   const manLegend = h("div", {class: "legend manifold-legend"},
     document.createTextNode("Manifolds of a saddle (click its ✕ with 'draws a saddle's manifolds'): "),
     h("span", {text: "━", style: "color:#e8590c"}), document.createTextNode(" unstable, "),
@@ -248,14 +251,15 @@ export function render({model, el}) {
   const manStatus = h("div", {class: "orbit-status manifold-status", "aria-live": "polite"})
   const basStatus = h("div", {class: "orbit-status basin-status", "aria-live": "polite"})
   const densLegend = h("div", {class: "legend density-legend", hidden: true,
-    text: "Density image: section points per pixel of the view, log scale from light (a few) to dark (many); " +
-          "recomputed for the view when you pan or zoom."})
+    text: "Density image: section points per pixel of the view, log scale from light (a few) to dark (many; " +
+          "the colour bar right of the plot); recomputed for the view when you pan or zoom."})
   const basLegend = h("div", {class: "legend basin-legend"})
+  const colourNote = h("div", {class: "legend colour-note", hidden: true})
   const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
   const orbTable = h("div", {class: "orbits", hidden: true})
   const paneSection = h("section", {class: "pane pane-section"}, secBar, secErrors, warnings, status,
-                        h("div", {class: "plots"}, plotSection, plotSeries), eqLegend, orbLegend, orbStatus, orbTable,
-                        densLegend, manLegend, manStatus, basStatus, basLegend)
+                        h("div", {class: "plots"}, plotSection, plotSeries), orbStatus, orbTable, eqLegend, orbLegend,
+                        densLegend, manLegend, manStatus, basStatus, basLegend, colourNote)
 
   // Analysis pane (one for every analysis tab; its form is the open tab's controls).
   const aHelp = h("p", {class: "help analysis-help"})
@@ -417,6 +421,9 @@ export function render({model, el}) {
     clearBtn.disabled = !s.n_clicked
     csvBtn.disabled = !s.n_points
     findBtn.disabled = !!s.orbit_view
+    findBtn.textContent = s.find_label || "Find orbits in view"
+    findBtn.title = s.find_title || ""
+    findBtn.setAttribute("aria-pressed", String(!!s.orbit_view))
     clearOrbBtn.disabled = !s.n_orbits && !s.orbit_view && !s.orbit_status
     orbCsvBtn.disabled = !s.n_orbits
     orbStatus.textContent = s.orbit_status || ""
@@ -426,6 +433,8 @@ export function render({model, el}) {
     manStatus.textContent = s.manifold_status || ""
     basStatus.textContent = s.basin_status || ""
     densLegend.hidden = !s.density
+    colourNote.textContent = s.colour_note || ""
+    colourNote.hidden = !s.colour_note
     basLegend.replaceChildren(...(s.basin_legend || []).map(([c, t]) =>
       h("span", {class: "basin-item"}, h("span", {class: "sw", style: `background:${c}`}), document.createTextNode(t))))
     const rows = s.orbits || []

@@ -75,6 +75,8 @@ ORBIT_COLOUR = "#c2006b"
 #: Invariant manifolds of saddles: unstable and stable (apart from the T' map's red and blue).
 MANIFOLD_COLOURS = {"unstable": "#e8590c", "stable": "#0b7285"}
 N_COLORS = 20
+#: Section points described by a hover at most (the rest under the cursor are the same kind of thing).
+POINT_TIPS = 3
 #: Bokeh output backend of the point plots ("webgl" or "canvas"); see README (performance).
 BACKEND = os.environ.get("BILIMOVICH_BACKEND", "webgl")
 #: Palettes built once per process (every session's figures refer to the same lists).
@@ -82,6 +84,8 @@ TPRIME_PALETTE = interp_palette(RdBu11, 255)  # blue (loss) .. white .. red (gai
 TRAJ_PALETTE = Category20[N_COLORS]
 #: Density images: light (few points) to dark (many), empty pixels transparent over the T' map.
 DENSITY_PALETTE = tuple(reversed(Inferno256))
+#: Opacity of the basins image (over the page's white: the T' map is hidden under it).
+BASIN_ALPHA = 0.5
 #: Font sizes (points) of axis labels and ticks: normal and presentation mode.
 FONTS = {False: ("11pt", "9pt"), True: ("16pt", "13pt")}
 
@@ -98,7 +102,23 @@ def _image_data(image: np.ndarray | None = None, q0: float = 0, q1: float = 0, r
 
 
 def _empty_orbits() -> dict[str, list]:
-    return {"q": [], "r": [], "period": [], "type": [], "mu": []}
+    return {"q": [], "r": [], "period": [], "type": [], "mu": [], "label": []}
+
+
+def as_drawn(colour: str, alpha: float = BASIN_ALPHA) -> str:
+    """The colour ``#rrggbb`` seen when drawn with opacity ``alpha`` over white (a legend swatch that matches)."""
+    rgb = [round(255 - alpha * (255 - int(colour[i : i + 2], 16))) for i in (1, 3, 5)]
+    return "#" + "".join(f"{v:02x}" for v in rgb)
+
+
+def orbit_label(kind: str) -> str:
+    """The legend's words for a periodic orbit of the map ("saddle orbit of the map")."""
+    return f"{kind} orbit of the map"
+
+
+def equilibrium_label(kind: str) -> str:
+    """The legend's words for an equilibrium of the frozen field ("frozen-field saddle")."""
+    return f"frozen-field {kind}"
 
 
 def _axes(plot: Plot, x_label: str, y_label: str, *, grid: bool = True) -> list[LinearAxis]:
@@ -161,13 +181,15 @@ class SectionFigure:
         self.tprime_mapper = LinearColorMapper(palette=TPRIME_PALETTE, low=-1, high=1)
         self.tprime = source(_image_data(), "tprime_source")
         image = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.tprime_mapper, global_alpha=0.55)
-        tp = _renderer(self.tprime, image, level="image")
+        tp = _renderer(self.tprime, image, level="image", name="tprime_image")
+        self._tprime_renderer = tp
         self.colorbar = ColorBar(
             color_mapper=self.tprime_mapper,
             title="T′ — red: energy gain (body spins up), blue: loss",
             title_text_font_size="10pt",
             width=10,
             location=(0, 0),
+            visible=False,  # until a colour layer is drawn
         )
         fig.add_layout(self.colorbar, "right")
         self._tprime_title, self._presentation = self.colorbar.title, False
@@ -183,9 +205,9 @@ class SectionFigure:
         self.selected = source({"q": [], "r": []}, "selected_source")
         sel = _renderer(self.selected, Scatter(x="q", y="r", size=6, line_color="black", line_width=0.8, line_alpha=0.7,
                                                fill_color=None), name="selected_points")  # fmt: skip
-        self.equilibria = source({"q": [], "r": [], "color": [], "type": []}, "equilibria_source")
+        self.equilibria = source({"q": [], "r": [], "color": [], "type": [], "label": []}, "equilibria_source")
         eq = _renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
-                                                line_color="black"))  # fmt: skip
+                                                line_color="black"), name="frozen_field_equilibria")  # fmt: skip
         self.ics = source({"q": [], "r": []}, "ics_source")
         ics = _renderer(self.ics, Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2))
         self._source = source
@@ -196,12 +218,19 @@ class SectionFigure:
         self._built: dict[str, list[GlyphRenderer]] = {}
         self._shown: set[str] = set()
         fig.renderers.extend([r for r in self._order if not isinstance(r, str)])
-        fig.add_layout(
-            Legend(items=[LegendItem(label={"field": "type"}, renderers=[eq])], location="top_left",
-                   background_fill_alpha=0.7, label_text_font_size="9pt"),
-        )  # fmt: skip
-        hover = HoverTool(renderers=[pts, eq], tooltips=[("trajectory", "@traj"), ("k", "@k"), ("q, r", "@q, @r"),
-                                                         ("frozen-field equilibrium", "@type")])  # fmt: skip
+        # The frozen field's equilibria and the map's periodic orbits share words (saddle, focus): the legend
+        # names them apart ("frozen-field saddle" vs "saddle orbit of the map").
+        # Compact: with the orbits' entries it has up to ~8 rows over a 300 px plot at 1280x720.
+        self.legend = Legend(items=[LegendItem(label={"field": "label"}, renderers=[eq])], location="top_left",
+                             background_fill_alpha=0.7, label_text_font_size="8pt", label_height=12,
+                             glyph_height=12, glyph_width=12, spacing=0, padding=4, margin=4)  # fmt: skip
+        fig.add_layout(self.legend)
+        # One hover per kind of mark, each with that mark's fields only (one tool over the points and the
+        # diamonds showed "frozen-field equilibrium: ???" on every point). A few point entries at most: dozens
+        # of them under a flip saddle buried its multipliers.
+        hover = HoverTool(renderers=[pts], tooltips=[("trajectory", "@traj"), ("k", "@k"), ("q, r", "@q, @r")],
+                          limit=POINT_TIPS)  # fmt: skip
+        self._eq_renderer = eq
         self._hovers: dict[str, HoverTool] = {}
         # No active scroll tool: the wheel scrolls the page until the user picks the zoom tool.
         fig.toolbar = Toolbar(tools=[PanTool(), WheelZoomTool(), BoxZoomTool(), ResetTool(), SaveTool(), hover],
@@ -225,7 +254,7 @@ class SectionFigure:
     def _build_basins(self) -> list[GlyphRenderer]:
         # Basins of attraction: a colour per attractor, translucent, over the T' map and under the points.
         self._basins = self._source(_image_data(), "basins_source")
-        rgba = ImageRGBA(image="image", x="x", y="y", dw="dw", dh="dh", global_alpha=0.5)
+        rgba = ImageRGBA(image="image", x="x", y="y", dw="dw", dh="dh", global_alpha=BASIN_ALPHA)
         return [_renderer(self._basins, rgba, level="image", name="basins_image")]
 
     def _build_manifolds(self) -> list[GlyphRenderer]:
@@ -253,9 +282,19 @@ class SectionFigure:
             orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
                                               line_width=2.5, fill_color=fill, fill_alpha=alpha),
                                  name=f"orbit_points_{kind}"))  # fmt: skip
-        tips = [("periodic orbit", "period @period, @type"), ("multipliers", "@mu"), ("q, r", "@q, @r")]
-        self._hovers["orbits"] = HoverTool(renderers=orb[1::2], tooltips=tips)
+        # The multipliers first: they are what tells the kind of orbit; one orbit point described at a time.
+        tips = [("multipliers", "@mu"), ("periodic orbit of the map", "period @period, @type"), ("q, r", "@q, @r")]
+        self._hovers["orbits"] = HoverTool(renderers=orb[1::2], tooltips=tips, limit=1)
+        # Legend entries of the orbits drawn ("saddle orbit of the map"), beside the frozen field's.
+        self.legend.items = [*self.legend.items, *(LegendItem(label={"field": "label"}, renderers=[r])
+                                                   for r in orb[1::2])]  # fmt: skip
         return orb
+
+    def _build_equilibria_hover(self) -> list[GlyphRenderer]:
+        # Joins the toolbar with the first equilibria drawn (not a model of the new page).
+        tips = [("frozen-field equilibrium", "@type"), ("q, r", "@q, @r")]
+        self._hovers["equilibria_hover"] = HoverTool(renderers=[self._eq_renderer], tooltips=tips)
+        return []
 
     # Models of the layers built on first use (reading one builds its layer, not showing it).
     density = _OfLayer("density")
@@ -271,13 +310,17 @@ class SectionFigure:
             return
         self._build(layer)
         self._shown.add(layer)
+        if layer in self._order:
+            self._place_renderers()
+        if layer in self._hovers:
+            self.fig.toolbar.tools = [*self.fig.toolbar.tools, self._hovers[layer]]
+
+    def _place_renderers(self) -> None:
         self.fig.renderers = [
             r
             for x in self._order
             for r in ((self._built[x] if x in self._shown else []) if isinstance(x, str) else [x])
         ]
-        if layer in self._hovers:
-            self.fig.toolbar.tools = [*self.fig.toolbar.tools, self._hovers[layer]]
 
     # --- updates (always called on the document's thread) ------------------------------
 
@@ -300,11 +343,13 @@ class SectionFigure:
         if counts is None or counts.size == 0:
             if "density" in self._built and self._density.data["image"]:
                 self._density.data = _image_data()
+                self._refresh_colours()
             return
         self._activate("density")
         image = np.where(counts > 0, counts, np.nan).astype(np.float32)
         self.density_mapper.high = max(2.0, float(counts.max()))
         self.density.data = _image_data(image, *view)  # type: ignore[misc]
+        self._refresh_colours()
 
     def set_basins(self, labels: np.ndarray | None, view: tuple[float, ...] | None = None,
                    colours: dict[int, str] | None = None) -> None:  # fmt: skip
@@ -312,6 +357,7 @@ class SectionFigure:
         if labels is None or labels.size == 0:
             if "basins" in self._built and self._basins.data["image"]:
                 self._basins.data = _image_data()
+                self._refresh_colours()
             return
         self._activate("basins")
         rgba = np.zeros(labels.shape, dtype=np.uint32)
@@ -321,6 +367,7 @@ class SectionFigure:
             if m.any():
                 view8[m] = (int(hex_[1:3], 16), int(hex_[3:5], 16), int(hex_[5:7], 16), 255)
         self.basins.data = _image_data(rgba, *view)  # type: ignore[misc]
+        self._refresh_colours()
 
     def set_selected(self, q: np.ndarray, r: np.ndarray) -> None:
         self.selected.data = {"q": q, "r": r}
@@ -342,6 +389,7 @@ class SectionFigure:
                 d["period"].append(o["period"])
                 d["type"].append(o["type"])
                 d["mu"].append(o["mu"])
+                d["label"].append(orbit_label(o["type"]))
         for k, src in self.orbit_sources.items():
             src.data = data[k]
 
@@ -375,33 +423,64 @@ class SectionFigure:
         }
 
     def set_equilibria(self, q: np.ndarray, r: np.ndarray, types: tuple[str, ...]) -> None:
+        if len(types):
+            self._activate("equilibria_hover")
         self.equilibria.data = {
             "q": list(q),
             "r": list(r),
             "color": [TYPE_COLORS.get(t, "#000000") for t in types],
             "type": list(types),
+            "label": [equilibrium_label(t) for t in types],
         }
 
     def set_tprime(self, values: np.ndarray | None, q: np.ndarray, r: np.ndarray, title: str) -> None:
         if values is None or values.size == 0:
             self.tprime.data = _image_data()
+            self._refresh_colours()
             return
         # Symmetric colour scale about 0 so the sign is the colour; clip outliers.
         lim = float(np.percentile(np.abs(values), 98)) or 1.0
         self.tprime_mapper.update(low=-lim, high=lim)
         self._tprime_title = title
-        self.colorbar.title = self._colorbar_title()
         dq = (q[-1] - q[0]) / max(1, q.size - 1)
         dr = (r[-1] - r[0]) / max(1, r.size - 1)
         # Each value is a pixel centred on its grid point.
         self.tprime.data = _image_data(values, q[0] - dq / 2, q[-1] + dq / 2, r[0] - dr / 2, r[-1] + dr / 2)
+        self._refresh_colours()
 
     def set_presentation(self, on: bool) -> None:
         set_fonts(self.axes, on)
         self._presentation = on
+        # Readable from the back of a room, still short enough for the 300 px plot of 1280x720.
+        size = 14 if on else 12
+        self.legend.update(label_text_font_size="10pt" if on else "8pt", label_height=size, glyph_height=size,
+                           glyph_width=size)  # fmt: skip
         self.colorbar.update(title_text_font_size="13pt" if on else "10pt", title=self._colorbar_title())
 
+    def _has_image(self, layer: str) -> bool:
+        return layer in self._built and bool(getattr(self, f"_{layer}").data["image"])
+
+    @property
+    def tprime_hidden_by(self) -> str:
+        """What hides the T' map computed ("" if nothing): the basins or the density image, whose colours it
+        would tint (their legends and scale would no longer match what is drawn)."""
+        if not self.tprime.data["image"]:
+            return ""
+        return "the density image" if self._has_image("density") else "the basins" if self._has_image("basins") else ""
+
+    def _refresh_colours(self) -> None:
+        """One colour layer seen at a time under the points, and the colour bar of the one seen (or none)."""
+        tprime = bool(self.tprime.data["image"]) and not self.tprime_hidden_by
+        if self._tprime_renderer.visible != tprime:
+            self._tprime_renderer.visible = tprime
+        mapper = self.density_mapper if self._has_image("density") else self.tprime_mapper if tprime else None
+        if mapper is not None and self.colorbar.color_mapper is not mapper:
+            self.colorbar.color_mapper = mapper
+        self.colorbar.update(visible=mapper is not None, title=self._colorbar_title())
+
     def _colorbar_title(self) -> str:
+        if self._has_image("density"):
+            return "points per pixel (log)" if self._presentation else "section points per pixel (log scale)"
         # At presentation size the long title runs past the plot's height (seen at 1280x720).
         title = self._tprime_title
         if self._presentation:

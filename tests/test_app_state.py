@@ -157,13 +157,13 @@ def test_click_adds_one_trajectory_selects_it_and_counts_it() -> None:
     sess.add_initial_condition(0.3, 0.4)
     traj, k, q, r = sess.data()
     assert sorted(set(traj.tolist())) == [0, 1, 2]
-    assert np.count_nonzero(traj == 0) == 15  # clicked points come first
-    assert sess.state.selected == 0 and sess.state.clicked == [(0.3, 0.4)]
+    assert np.count_nonzero(traj == 2) == 15  # the clicked one is numbered after the random ones
+    assert sess.state.selected == 2 and sess.state.clicked == [(0.3, 0.4)]
     ics = sess.state.initial_conditions()
-    assert tuple(ics[0]) == (0.3, 0.4)
+    assert tuple(ics[2]) == (0.3, 0.4)
     ref = section(sess.state.system(), ics, 15, numerics=sess.state.numerics())
-    np.testing.assert_array_equal(sess.series.data["q"], ref.trajectory(0)[1])  # the clicked IC's orbit
-    np.testing.assert_array_equal(sess.fig.selected.data["q"], ref.trajectory(0)[1])  # ringed in the section
+    np.testing.assert_array_equal(sess.series.data["q"], ref.trajectory(2)[1])  # the clicked IC's orbit
+    np.testing.assert_array_equal(sess.fig.selected.data["q"], ref.trajectory(2)[1])  # ringed in the section
     assert sess.status.startswith("45 points · 3 trajectories")
     assert "ics=0.3,0.4" in "&".join(f"{a}={b}" for a, b in sess.state.to_query().items())
 
@@ -222,6 +222,7 @@ def test_scene_selection_sets_every_control() -> None:
 
 def test_selection_moves_to_a_trajectory_with_points() -> None:
     sess = make_session(scene="fig3")
+    sess.state.n_random = 0
     # (0, 12), above the chaotic layer, drifts past the escape bound (k ~ 1230) during the
     # transient: no points at all. ((0, 8) wanders in the chaotic layer first: its escape time
     # depends on round-off.)

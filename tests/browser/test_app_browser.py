@@ -69,8 +69,8 @@ def test_click_adds_a_trajectory_selects_and_rings_it(page, app_url) -> None:
     page.wait_for_function("() => (new URLSearchParams(location.search).get('ics') || '').includes(',')")
     status = wait_finished(page)
     assert status.startswith("160 points · 4 trajectories")  # the clicked one counted
-    assert box_value(page, "selected") == "0"  # clicked points come first
-    wait_query(page, "sel", "0")
+    assert box_value(page, "selected") == "3"  # numbered after the 3 random ones (they keep their numbers)
+    wait_query(page, "sel", "3")
     page.wait_for_function(f"() => ({JS_SOURCE})('selected_source').get_length() === 40")
 
 

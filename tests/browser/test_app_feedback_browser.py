@@ -101,3 +101,25 @@ def test_a_hostile_url_value_gives_the_normal_page_and_names_its_key(page, app_u
     assert "trajectories" in status
     page.locator(".main-error").wait_for(state="visible", timeout=30_000)
     assert f"URL parameter {key}:" in text(page, ".main-error")
+
+
+def test_in_presentation_mode_at_1280x720_the_orbit_table_shows_without_scrolling(browser, app_url) -> None:
+    """The table sat below the fold in presentation mode (its top at y = 775 of 720: the main area had to be
+    scrolled). Now it follows the plot directly: its header and three orbits are in the viewport, unscrolled."""
+    ctx = browser.new_context(viewport={"width": 1280, "height": 720})
+    page = ctx.new_page()
+    try:
+        open_app(page, app_url, "?scene=fig8B&n=20&periods=200&orb_all=1&orb_n=2&present=1")
+        page.locator(".orbit-table tr").nth(3).wait_for(state="attached", timeout=90_000)
+        wait_finished(page)
+        page.wait_for_timeout(800)
+        assert page.locator(".main").evaluate("(e) => e.scrollTop") == 0
+        viewport = {"x": 0, "y": 0, "w": 1280, "h": 720}
+        for i in range(4):  # the header and three orbits
+            b = page.locator(".orbit-table tr").nth(i).bounding_box()
+            assert inside({"x": b["x"], "y": b["y"], "w": b["width"], "h": b["height"]}, viewport), (i, b)
+        # The plot's legend names the map's orbits apart from the frozen field's equilibria.
+        legend = page.evaluate(JS_PLOT_BOXES)["legend"]
+        assert len(legend) == 1 and inside(legend[0], viewport)
+    finally:
+        ctx.close()
