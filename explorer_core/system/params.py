@@ -31,8 +31,11 @@ TIME_RESOLUTION = 1e-4
 
 def check_time(name: str, t: float, period: float) -> None:
     """Refuse a time ``t`` whose doubles do not resolve the forcing phase (``ulp(t) > TIME_RESOLUTION T``)."""
+    if not math.isfinite(t):  # t0 + (k + n) T overflowed
+        raise ParameterError(f"{name} overflows double precision ({t}): ask for fewer periods or a smaller t0")
     spacing = math.ulp(abs(t))
     if spacing > TIME_RESOLUTION * abs(period):
+        # the largest |t| whose doubles are TIME_RESOLUTION T apart
         limit = 2.0 ** (math.floor(52 + math.log2(TIME_RESOLUTION * abs(period))) + 1)
         raise ParameterError(
             f"{name} = {t:.6g} cannot be resolved in double precision: doubles there are {spacing:.3g} apart, "
