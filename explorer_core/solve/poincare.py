@@ -225,7 +225,7 @@ def newton(
     m = seeds.shape[0]
     numerics = pmap.numerics
     loose = {"rtol": min(1e-6, numerics.rtol * 1e4), "atol": min(1e-6, numerics.atol * 1e4)}
-    rough = pmap.with_numerics(Numerics(**{**numerics.as_dict(), **loose}))
+    rough = pmap.with_numerics(Numerics(**{**numerics.as_dict(), **loose})) if coarse else pmap
     fine = np.full(m, not coarse)
     x0 = seeds.astype(float)
     x = x0.copy()
@@ -251,7 +251,8 @@ def newton(
         if cancel is not None and cancel():
             out.cancelled = True
             break
-        for n, accurate in sorted({(int(a), bool(b)) for a, b in zip(period[active], fine[active], strict=True)}):
+        groups = np.unique(2 * period[active] + fine[active])  # (period, accurate) in order, without a Python loop
+        for n, accurate in zip((groups // 2).tolist(), (groups % 2 == 1).tolist(), strict=True):
             idx = active[(period[active] == n) & (fine[active] == accurate)]
             if dedupe:  # an iterate next to a point of an orbit found already (of a period dividing n)
                 dup = np.zeros(idx.size, bool)
