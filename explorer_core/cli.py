@@ -857,7 +857,8 @@ def cmd_basins(args: argparse.Namespace) -> int:
         for a in result.attractors:
             per = f" period {a.period}" if a.period else ""
             at = f" at ({a.points[0, 0]:.6g}, {a.points[0, 1]:.6g})" if a.points.shape[0] else ""
-            out.append(f"attractor {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%")
+            what = "attractor" if a.attracting else "not an attractor"  # a conservative island's curves
+            out.append(f"{what} {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%")
         out.append(f"{summary['computed']}/{summary['pixels']} pixels, {summary['statuses']}, {result.elapsed_s:.2f} s")
         return out + ([summary["note"]] if "note" in summary else [])
 
