@@ -66,13 +66,19 @@ def test_a_worker_answers_like_a_lone_process(env: dict[str, str], tmp_path: Pat
     assert "listening at" in status.stdout
 
 
-def test_busy_worker_and_ctrl_c(env: dict[str, str]) -> None:
+def long_job_in_worker(env: dict[str, str]) -> subprocess.Popen:
+    """A worker left by a small command, then a long section sent to it (running after 3 s)."""
     bilimovich(SMALL, env, ROOT)
     wait_for_worker(env)
     long = subprocess.Popen([sys.executable, "-m", "explorer_core.cli", "section", "--scene", "fig1C", "--periods",
                              "100000", "--random", "20", "--quiet", "--json"], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
     time.sleep(3.0)  # the worker is running it
+    return long
+
+
+def test_busy_worker_and_ctrl_c(env: dict[str, str]) -> None:
+    long = long_job_in_worker(env)
     meanwhile = bilimovich(SMALL, env, ROOT)
     assert meanwhile.returncode == 0 and "served by the worker" not in meanwhile.stderr  # ran by itself
     long.send_signal(signal.SIGINT)  # forwarded: the command stops and says so
@@ -222,12 +228,7 @@ def test_a_job_whose_caller_is_killed_stops(env: dict[str, str], fake_worker, tm
 
 @pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGKILL])
 def test_a_command_whose_client_is_killed_frees_the_worker(env: dict[str, str], how: int) -> None:
-    bilimovich(SMALL, env, ROOT)
-    wait_for_worker(env)
-    long = subprocess.Popen([sys.executable, "-m", "explorer_core.cli", "section", "--scene", "fig1C", "--periods",
-                             "100000", "--random", "20", "--quiet", "--json"], cwd=ROOT, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
-    time.sleep(3.0)  # the worker is running it
+    long = long_job_in_worker(env)
     long.send_signal(how)
     long.communicate(timeout=60)
     if how == signal.SIGTERM:

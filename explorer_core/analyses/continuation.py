@@ -842,8 +842,8 @@ def continue_orbit(
         )
     _, x_start, mono, _ = conv[0]
     chain = np.vstack([x_start[None, :], mono.points[0]])
-    if minimal_period(chain, mono.end[0], period, 1e-6) != period:
-        d = minimal_period(chain, mono.end[0], period, 1e-6)
+    d = minimal_period(chain, mono.end[0], period, 1e-6)
+    if d != period:
         raise ParameterError(f"the orbit found from {x0.tolist()} has period {d}, not {period}: ask for --period {d}")
 
     res = Continuation(params, param, (a, b), numerics, [], [], options=opts)

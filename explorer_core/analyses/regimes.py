@@ -57,7 +57,6 @@ from explorer_core.system.params import ParameterError, Params
 #: Regime codes of :attr:`Chart.regime`.
 NOT_COMPUTED, PERIODIC, QUASI_PERIODIC, CHAOTIC, ESCAPED, FAILED, INVALID = range(7)
 REGIMES = ("not_computed", "periodic", "quasi_periodic", "chaotic", "escaped", "failed", "invalid")
-_ENGINE_CODES = frozenset(int(c) for c in Status)
 #: Defaults: charts need the regime, not 1e-10 accuracy; cycles attract integration errors anyway.
 DEFAULT_CHART_TOL = 1e-8
 
@@ -443,7 +442,7 @@ def settled_cycles(
     ``coefs`` holds one row of coefficients per point (``coefs.row``, as a chart's members), so the points
     of many pixels go through one batch per iteration. None when Newton fails, when it goes farther than
     ``near[m]`` (max-norm) from ``x[m]`` (not the cycle the trajectory is close to), or when the cycle does
-    not attract (``max |mu| >= 1``). Points of the cycle within ``same[m]`` (max-norm) of its first are one
+    not attract (``max |mu| >= 1``). Points of the cycle within ``same[m]`` (Euclidean) of its first are one
     point: the period is the least ``d`` dividing ``p`` with ``P^d(x) = x`` at that resolution (Newton on
     ``P^2`` converges to a fixed point too); the exponent ``log max |mu| / (p T)`` is the same for a cycle
     and its multiples.
@@ -751,8 +750,10 @@ class Chart:
         failed = self.computed & ~self.inferred
         failed = (self.regime == FAILED) & failed[..., None]
         if failed.any():
-            codes = sorted({Status(int(c)).label for c in self.status[failed] if int(c) in _ENGINE_CODES})
-            out.append(Loss("pixel-ICs", int(failed.sum()), f"the integration failed ({', '.join(codes) or 'failed'})"))
+            # FAILED with status ok: the measurement stopped short (a cancel), not the integration
+            codes = sorted({Status(int(c)).label for c in self.status[failed] if int(c) != Status.OK})
+            why = f"the integration failed ({', '.join(codes)})" if codes else "the measurement ended before a verdict"
+            out.append(Loss("pixel-ICs", int(failed.sum()), why))
         return out
 
     @property

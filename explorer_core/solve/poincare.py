@@ -230,6 +230,7 @@ def newton(
     x0 = seeds.astype(float)
     x = x0.copy()
     near = np.broadcast_to(np.asarray(near, dtype=float), (m,))
+    same_at = None if same is None else np.broadcast_to(np.asarray(same, dtype=float), (m,))
     period = periods.astype(np.int64)
     prev, prev_res = x.copy(), np.full(m, np.inf)
     best, since = np.full(m, np.inf), np.zeros(m, np.int64)
@@ -276,7 +277,7 @@ def newton(
                 i = int(idx[j])
                 done[i] = True
                 chain = np.vstack([xi[j][None, :], mono.points[j]])
-                tol = max(100.0 * ftol, 1e-7) * scale[j] if same is None else float(np.broadcast_to(same, (m,))[i])
+                tol = max(100.0 * ftol, 1e-7) * scale[j] if same_at is None else float(same_at[i])
                 least = least_period(chain, n, tol)
                 out.converged.append(Converged(i, xi[j].copy(), mono.member(j), int(iters[i]), least))
                 known.append((n, chain[:n]))
