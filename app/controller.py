@@ -24,20 +24,19 @@ import param
 
 from app.runner import Runner
 from app.state import (
-    BY_NAME,
-    BY_URL,
     CONTROLS,
-    DENSITY_PIXELS,
     MAX_CLICKED,
     MAX_MAGNITUDE,
     MAX_MANIFOLDS,
     MAX_ORBIT_SEEDS,
+    PLOT_PIXELS,
     SYSTEM_FIELDS,
     TABS,
     ExplorerState,
     SectionRequest,
     commit,
-    plain_label,
+    key_words,
+    url_keys,
 )
 from app.views import SectionFigure, SeriesData, as_drawn
 from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, basin_spec, iter_basins
@@ -71,8 +70,6 @@ BASIN_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02
 #: undecided ones are left blank, and the legend says so.
 OUTCOME_COLOURS = {ESCAPE: "#555555", FAILED: "#000000", UNDECIDED: "#ffffff"}
 OUTCOME_NAMES = {ESCAPE: "escape (noncompact drift)", FAILED: "integration failed", UNDECIDED: "undecided (blank)"}
-#: The plot's size in pixels as the manifolds' refinement assumes it (segments of at most 3 of them).
-MANIFOLD_PIXELS = (800, 600)
 #: A click picks the saddle whose point is nearest, within this fraction of the view's width and height.
 PICK_RADIUS = 0.03
 #: Seeds of the "every orbit in view" search: a grid over the plot window.
@@ -82,23 +79,12 @@ ORBIT_ROWS = 40
 ANALYSIS_FIELDS = tuple(c.name for c in CONTROLS if c.area in TABS[1:])
 #: The URL keys (state.to_query) of the settings each result on screen depends on: what its export's header
 #: and a note on screen name when the result is not that of the controls (e.g. a Stop before the new points).
-SYSTEM_KEYS = tuple(BY_NAME[f].url for f in SYSTEM_FIELDS)
-SECTION_KEYS = (
-    *SYSTEM_KEYS,
-    *(BY_NAME[f].url if f in BY_NAME else f for f in SECTION_FIELDS[len(SYSTEM_FIELDS) :]),
-    "ics",
-)
-ORBIT_KEYS = (*SYSTEM_KEYS, "orb_n")
-VIEW_KEYS = ("qr", "rr")
-MANIFOLD_KEYS = (*SYSTEM_KEYS, "man_len", *VIEW_KEYS)
-BASIN_KEYS = (*SYSTEM_KEYS, "bas_n", *VIEW_KEYS)
-#: Words for the keys that are no control's (the view, the clicked initial conditions).
-KEY_WORDS = {
-    "qr": "q range",
-    "rr": "r range",
-    "ics": "clicked initial conditions",
-    "box": "box of the random initial conditions",
-}
+SYSTEM_KEYS = url_keys(SYSTEM_FIELDS)
+SECTION_KEYS = url_keys((*SECTION_FIELDS, "clicked"))
+ORBIT_KEYS = url_keys((*SYSTEM_FIELDS, "orbit_period"))
+VIEW_KEYS = url_keys(("q_range", "r_range"))
+MANIFOLD_KEYS = url_keys((*SYSTEM_FIELDS, "manifold_length", "q_range", "r_range"))
+BASIN_KEYS = url_keys((*SYSTEM_FIELDS, "basin_grid", "q_range", "r_range"))
 #: Longest chunk streamed to the browser: bounds how long a cancel waits.
 MAX_CHUNK = 32
 #: Time between point updates sent to the browser: starts here, doubles up to the max (seconds).
@@ -396,7 +382,7 @@ class ExplorerSession(param.Parameterized):
                 new_run = req if cadence.sent() else None
                 emit(lambda: self._apply_density(image, req.view, counts, cols, status, done, total, new_run, query))
 
-            for img, kept in iter_density(req.params, req.ics, req.periods, view=req.view, pixels=DENSITY_PIXELS,
+            for img, kept in iter_density(req.params, req.ics, req.periods, view=req.view, pixels=PLOT_PIXELS,
                                           transient=req.transient, numerics=req.numerics, keep=req.keep,
                                           max_chunk=MAX_CHUNK, cancel=cancelled):  # fmt: skip
                 last = img
@@ -873,7 +859,7 @@ class ExplorerSession(param.Parameterized):
                 except ParameterError as exc:  # e.g. no longer a saddle for this system
                     notes.append(f"({q:.4g}, {r:.4g}): {_plain(exc)}")
                     continue
-                for m in iter_manifolds(params, orbit, length=length, view=view, pixels=MANIFOLD_PIXELS, others=done,
+                for m in iter_manifolds(params, orbit, length=length, view=view, pixels=PLOT_PIXELS, others=done,
                                         cancel=cancelled):  # fmt: skip
                     if cancelled():
                         return
@@ -1123,18 +1109,13 @@ class _Cadence:
         start()  # type: ignore[misc]
 
 
-def _key_words(key: str) -> str:
-    c = BY_URL.get(key)
-    return plain_label(c.name) if c is not None else KEY_WORDS.get(key, key)
-
-
 def stale_note(then: dict[str, str] | None, now: dict[str, str], keys: tuple[str, ...], most: int = 3) -> str:
     """ "" when the settings ``keys`` of a result (``then``) are those in use (``now``); else what differs, in
     the controls' words: "α = 0.1 (the controls: 0.3)"."""
     if then is None:
         return ""
     diff = [k for k in keys if then.get(k) != now.get(k)]
-    parts = [f"{_key_words(k)} = {_short(then.get(k))} (the controls: {_short(now.get(k))})" for k in diff[:most]]
+    parts = [f"{key_words(k)} = {_short(then.get(k))} (the controls: {_short(now.get(k))})" for k in diff[:most]]
     if len(diff) > most:
         parts.append(f"and {len(diff) - most} more settings")
     return ", ".join(parts)

@@ -36,8 +36,10 @@ MAX_TRANSIENT = 5000
 MAX_POINTS = 400_000
 #: Points of a section drawn as a density image (binned on the server, never sent or kept).
 MAX_DENSITY_POINTS = 10_000_000
-#: Pixels of the density image (the plot's size on a large screen).
-DENSITY_PIXELS = (800, 600)
+#: The section plot's size in pixels on a large screen, the one place it is set: the density image's pixels,
+#: the manifolds' refinement (segments of at most 3 of them) and the 'plot' tolerance (a quarter pixel) use it.
+PLOT_PIXELS = (800, 600)
+DENSITY_PIXELS = PLOT_PIXELS
 MAX_CLICKED = 200
 #: Points clicked to find periodic orbits from (each a Newton search), per session.
 MAX_ORBIT_SEEDS = 60
@@ -75,6 +77,9 @@ SLIDER_RANGES: dict[str, tuple[float, float, float]] = {
     "t0": (0.0, 2 * math.pi, 0.01),
 }
 TABS = ("section", "lyapunov", "bifurcation", "chart", "bench")
+#: The system of a new session before its scene sets it.
+SYSTEM_DEFAULTS = {"I11": 1.0, "I22": 4.0, "I33": 2.0, "I12": 0.0, "I13": 0.0, "I23": 0.0, "alpha": 0.1, "g0": 0.0,
+                   "g1": 1.0, "g2": 0.0, "omega": 1.0, "t0": 0.0}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -180,10 +185,17 @@ class Control:
     parse: Callable[[str, str], Any] | None = None  # text kinds: (name, text) -> value
     placeholder: str = ""
     help: str = ""
+    #: The value of a new session (before a scene sets it) and the state's ``param`` attribute's default.
+    default: Any = None
+    #: When the URL carries the value: "always", or "changed" (only when it differs from ``default``), or a
+    #: predicate of the state.
+    url_when: str | Callable[[Any], bool] = "always"
+    doc: str | None = None
 
 
-def _ints(name: str, label: str, area: str, url: str, lo: int, hi: int, help: str = "") -> Control:
-    return Control(name, label, "int", area, url, (lo, hi), help=help)
+def _ints(name: str, label: str, area: str, url: str, lo: int, hi: int, default: int, help: str = "",
+          url_when: str | Callable[[Any], bool] = "always") -> Control:  # fmt: skip
+    return Control(name, label, "int", area, url, (lo, hi), help=help, default=default, url_when=url_when)
 
 
 _SCENES = tuple((s.id, f"{s.figure}: {s.title}") for s in list_scenes())
@@ -197,7 +209,14 @@ LABELS = {
 
 CONTROLS: tuple[Control, ...] = (
     Control(
-        "scene", "Scene (the paper's figures)", "select", "scene", "scene", options=(("custom", "custom"), *_SCENES)
+        "scene",
+        "Scene (the paper's figures)",
+        "select",
+        "scene",
+        "scene",
+        options=(("custom", "custom"), *_SCENES),
+        default=DEFAULT_SCENE,
+        doc="paper scene the view started from ('custom' once edited)",
     ),
     *(
         Control(
@@ -208,6 +227,7 @@ CONTROLS: tuple[Control, ...] = (
             f,
             SLIDER_RANGES[f][:2],
             SLIDER_RANGES[f][2],
+            default=SYSTEM_DEFAULTS[f],
         )
         for f in SYSTEM_FIELDS
     ),
@@ -218,6 +238,7 @@ CONTROLS: tuple[Control, ...] = (
         "numerics",
         "method",
         options=(("dop853", "DOP853 (8th order)"), ("dp5", "Dormand–Prince 5(4)"), ("rk4", "RK4, fixed steps")),
+        default="dop853",
     ),
     Control(
         "accuracy",
@@ -228,12 +249,13 @@ CONTROLS: tuple[Control, ...] = (
         options=(("plot", "plot"), ("high", "high")),
         help="plot: tolerance tied to the pixel size (error under a quarter pixel on regular orbits); "
         "high: tolerance 1e-12.",
+        default="plot",
     ),
-    _ints("steps_per_period", "RK4 steps per period", "numerics", "steps", 8, 20000),
-    _ints("n_random", "Random initial conditions", "numerics", "n", 0, MAX_RANDOM),
-    _ints("seed", "Random seed", "numerics", "seed", 0, 2**31 - 1),
-    _ints("periods", "Periods (section points each)", "numerics", "periods", 1, MAX_PERIODS),
-    _ints("transient", "Transient periods (dropped)", "numerics", "transient", 0, MAX_TRANSIENT),
+    _ints("steps_per_period", "RK4 steps per period", "numerics", "steps", 8, 20000, 200),
+    _ints("n_random", "Random initial conditions", "numerics", "n", 0, MAX_RANDOM, 60),
+    _ints("seed", "Random seed", "numerics", "seed", 0, 2**31 - 1, 1),
+    _ints("periods", "Periods (section points each)", "numerics", "periods", 1, MAX_PERIODS, 500),
+    _ints("transient", "Transient periods (dropped)", "numerics", "transient", 0, MAX_TRANSIENT, 0),
     Control(
         "show_orbits",
         "Periodic orbits of the map P (fixed points of P^n)",
@@ -242,8 +264,9 @@ CONTROLS: tuple[Control, ...] = (
         "orbits",
         help="● stable, ○ unstable, ✕ saddle (hover: period and multipliers). Click in the plot with "
         "'finds a periodic orbit', or find every orbit in view.",
+        default=True,
     ),
-    _ints("orbit_period", "Orbits: longest period searched", "layers", "orb_n", 1, MAX_ORBIT_PERIOD),
+    _ints("orbit_period", "Orbits: longest period searched", "layers", "orb_n", 1, MAX_ORBIT_PERIOD, 4),
     _ints(
         "manifold_length",
         "Manifolds: arc length of each branch",
@@ -251,8 +274,10 @@ CONTROLS: tuple[Control, ...] = (
         "man_len",
         1,
         200,
+        10,
         help="Click a saddle ✕ with 'draws a saddle's manifolds': its unstable (orange) and stable (teal) "
         "manifolds, grown to this arc length and refined for the view; ◆ black: homoclinic points.",
+        url_when=lambda s: bool(s.manifold_saddles) or s.manifold_length != 10,
     ),
     Control(
         "show_basins",
@@ -262,8 +287,10 @@ CONTROLS: tuple[Control, ...] = (
         "basins",
         help="Which attractor each point of the view reaches (a colour per attractor, grey: escape), computed "
         "coarse to fine by recurrences (as Attractors.jl) and Newton on the cycles; redone when you pan or zoom.",
+        default=False,
+        url_when="changed",
     ),
-    _ints("basin_grid", "Basins: pixels across", "layers", "bas_n", 10, MAX_BASIN_GRID),
+    _ints("basin_grid", "Basins: pixels across", "layers", "bas_n", 10, MAX_BASIN_GRID, 80, url_when="changed"),
     Control(
         "show_tracks",
         "Frozen-field equilibria (tracks over one period)",
@@ -271,6 +298,7 @@ CONTROLS: tuple[Control, ...] = (
         "layers",
         "tracks",
         help="Equilibria of the field with t frozen: a heuristic for slow forcing, not orbits of P.",
+        default=True,
     ),
     Control(
         "render",
@@ -282,8 +310,10 @@ CONTROLS: tuple[Control, ...] = (
         help=f"points: pickable, coloured by trajectory (up to {MAX_POINTS:,}); density: an image of how many points "
         f"fall in each pixel, computed on the server (up to {MAX_DENSITY_POINTS:,}; zooming recomputes it for the "
         f"new view, seeds in the view); auto: points up to {MAX_POINTS:,}, density beyond.",
+        default="auto",
+        url_when="changed",
     ),
-    Control("show_tprime", "T′ map under the points", "check", "layers"),
+    Control("show_tprime", "T′ map under the points", "check", "layers", default=True),
     Control(
         "tprime_kind",
         "T′ map",
@@ -291,21 +321,24 @@ CONTROLS: tuple[Control, ...] = (
         "layers",
         None,
         options=(("instantaneous", "at t0"), ("per-period", "over a period")),
+        default="instantaneous",
     ),
     Control(
         "click_mode",
         "Click in the plot",
         "radio",
         "section",
-        None,
+        "click",
         options=(
             ("add", "adds a trajectory"),
             ("select", "selects a trajectory"),
             ("orbit", "finds a periodic orbit"),
             ("manifolds", "draws a saddle's manifolds"),
         ),
+        default="add",
+        url_when=lambda s: s.click_mode in ("orbit", "manifolds"),  # the modes a shared link is about
     ),
-    _ints("selected", "Trajectory shown in the k-series", "section", "sel", 0, MAX_RANDOM + MAX_CLICKED),
+    _ints("selected", "Trajectory shown in the k-series", "section", "sel", 0, MAX_RANDOM + MAX_CLICKED, 0),
     Control(
         "lyap_ic",
         "Initial condition q,r (blank: the selected trajectory's last point)",
@@ -314,11 +347,22 @@ CONTROLS: tuple[Control, ...] = (
         "ly_ic",
         parse=_optional_point,
         placeholder="selected trajectory",
+        default=(),
+        url_when="changed",
     ),
-    _ints("lyap_transient", "Transient periods", "lyapunov", "ly_tr", 0, LIMITS["transient"]),
-    _ints("lyap_periods", "Periods measured", "lyapunov", "ly_n", 10, LIMITS["lyap_periods"]),
-    _ints("lyap_ensemble", "Ensemble members", "lyapunov", "ly_m", 1, LIMITS["ensemble"]),
-    Control("bif_param", "Parameter", "select", "bifurcation", "bif_p", options=_PARAM_OPTIONS),
+    _ints("lyap_transient", "Transient periods", "lyapunov", "ly_tr", 0, LIMITS["transient"], 200, url_when="changed"),
+    _ints("lyap_periods", "Periods measured", "lyapunov", "ly_n", 10, LIMITS["lyap_periods"], 1000, url_when="changed"),
+    _ints("lyap_ensemble", "Ensemble members", "lyapunov", "ly_m", 1, LIMITS["ensemble"], 4, url_when="changed"),
+    Control(
+        "bif_param",
+        "Parameter",
+        "select",
+        "bifurcation",
+        "bif_p",
+        options=_PARAM_OPTIONS,
+        default="alpha",
+        url_when="changed",
+    ),
     Control(
         "bif_range",
         "Range lo,hi (blank: current ± 0.05)",
@@ -327,10 +371,12 @@ CONTROLS: tuple[Control, ...] = (
         "bif_r",
         parse=_optional_range,
         placeholder="current ± 0.05",
+        default=(),
+        url_when="changed",
     ),
-    _ints("bif_values", "Values", "bifurcation", "bif_n", 2, LIMITS["bif_values"]),
-    _ints("bif_points", "Points per value", "bifurcation", "bif_pts", 1, LIMITS["bif_points"]),
-    _ints("bif_transient", "Transient", "bifurcation", "bif_tr", 0, LIMITS["transient"]),
+    _ints("bif_values", "Values", "bifurcation", "bif_n", 2, LIMITS["bif_values"], 120, url_when="changed"),
+    _ints("bif_points", "Points per value", "bifurcation", "bif_pts", 1, LIMITS["bif_points"], 80, url_when="changed"),
+    _ints("bif_transient", "Transient", "bifurcation", "bif_tr", 0, LIMITS["transient"], 300, url_when="changed"),
     Control(
         "bif_seeding",
         "Seeding",
@@ -338,23 +384,52 @@ CONTROLS: tuple[Control, ...] = (
         "bifurcation",
         "bif_seed",
         options=(("continuation", "continuation"), ("fixed", "fixed")),
+        default="continuation",
+        url_when="changed",
     ),
-    Control("bif_coord", "Plot", "radio", "bifurcation", "bif_xy", options=(("q", "q"), ("r", "r"))),
+    Control(
+        "bif_coord",
+        "Plot",
+        "radio",
+        "bifurcation",
+        "bif_xy",
+        options=(("q", "q"), ("r", "r")),
+        default="q",
+        url_when="changed",
+    ),
     Control(
         "bif_orbits",
         "Continued orbits over the diagram (stable solid, unstable dashed)",
         "check",
         "bifurcation",
         "bif_orb",
+        default=True,
+        url_when="changed",
+        doc="continue the orbits near the diagram's attractors and draw them",
     ),
-    Control("chart_x", "x parameter", "select", "chart", "ch_x", options=_PARAM_OPTIONS),
-    Control("chart_xrange", "x range", "text", "chart", "ch_xr", parse=_range),
-    Control("chart_y", "y parameter", "select", "chart", "ch_y", options=_PARAM_OPTIONS),
-    Control("chart_yrange", "y range", "text", "chart", "ch_yr", parse=_range),
-    Control("chart_grid", "grid NX,NY", "text", "chart", "ch_grid", parse=_grid),
-    _ints("chart_periods", "Periods", "chart", "ch_n", 10, LIMITS["chart_periods"]),
-    _ints("chart_transient", "Transient", "chart", "ch_tr", 0, LIMITS["transient"]),
-    Control("chart_curves", "Fold and period-doubling curves (continuation)", "check", "chart", "ch_curves"),
+    Control(
+        "chart_x", "x parameter", "select", "chart", "ch_x", options=_PARAM_OPTIONS, default="alpha", url_when="changed"
+    ),
+    Control(
+        "chart_xrange", "x range", "text", "chart", "ch_xr", parse=_range, default=(-0.6, -0.4), url_when="changed"
+    ),
+    Control(
+        "chart_y", "y parameter", "select", "chart", "ch_y", options=_PARAM_OPTIONS, default="I11", url_when="changed"
+    ),
+    Control("chart_yrange", "y range", "text", "chart", "ch_yr", parse=_range, default=(1.0, 2.0), url_when="changed"),
+    Control("chart_grid", "grid NX,NY", "text", "chart", "ch_grid", parse=_grid, default=(40, 30), url_when="changed"),
+    _ints("chart_periods", "Periods", "chart", "ch_n", 10, LIMITS["chart_periods"], 300, url_when="changed"),
+    _ints("chart_transient", "Transient", "chart", "ch_tr", 0, LIMITS["transient"], 300, url_when="changed"),
+    Control(
+        "chart_curves",
+        "Fold and period-doubling curves (continuation)",
+        "check",
+        "chart",
+        "ch_curves",
+        default=True,
+        url_when="changed",
+        doc="follow folds and period doublings in both chart parameters",
+    ),
     Control(
         "bench_ic",
         "Initial condition q,r (blank: the selected trajectory's)",
@@ -363,8 +438,19 @@ CONTROLS: tuple[Control, ...] = (
         "be_ic",
         parse=_optional_point,
         placeholder="selected trajectory",
+        default=(),
+        url_when="changed",
     ),
-    _ints("bench_periods", "Periods (longest horizon)", "bench", "be_n", 2, LIMITS["bench_periods"]),
+    _ints(
+        "bench_periods",
+        "Periods (longest horizon)",
+        "bench",
+        "be_n",
+        2,
+        LIMITS["bench_periods"],
+        50,
+        url_when="changed",
+    ),
 )
 BY_NAME: dict[str, Control] = {c.name: c for c in CONTROLS}
 BY_URL: dict[str, Control] = {c.url: c for c in CONTROLS if c.url}
@@ -377,74 +463,39 @@ def plain_label(name: str) -> str:
     return c.label.split(" (")[0].strip() if c is not None else name
 
 
+def _parameter(c: Control) -> param.Parameter:
+    """The state's attribute of control ``c``, generated from its entry (bounds, options, default: one place)."""
+    doc = c.doc or c.label
+    if c.kind == "float":
+        return param.Number(default=c.default, doc=doc)
+    if c.kind == "int":
+        return param.Integer(default=c.default, bounds=c.bounds, doc=doc)
+    if c.kind == "check":
+        return param.Boolean(default=c.default, doc=doc)
+    if c.kind in ("select", "radio"):
+        objects = [v for v, _ in c.options]
+        if c.name == "scene":  # a scene's id from the URL is checked against the scenes (parse_control)
+            return param.String(default=c.default, doc=doc)
+        return param.Selector(default=c.default, objects=objects, doc=doc)
+    return param.Parameter(default=c.default, doc=doc)  # text: a parsed tuple (() when blank)
+
+
 class ExplorerState(param.Parameterized):
-    """Control values in use of one session (the URL carries all of them)."""
+    """Control values in use of one session (the URL carries all of them).
 
-    scene = param.String(default=DEFAULT_SCENE, doc="paper scene the view started from ('custom' once edited)")
-    I11 = param.Number(default=1.0)
-    I22 = param.Number(default=4.0)
-    I33 = param.Number(default=2.0)
-    I12 = param.Number(default=0.0)
-    I13 = param.Number(default=0.0)
-    I23 = param.Number(default=0.0)
-    alpha = param.Number(default=0.1)
-    g0 = param.Number(default=0.0)
-    g1 = param.Number(default=1.0)
-    g2 = param.Number(default=0.0)
-    omega = param.Number(default=1.0)
-    t0 = param.Number(default=0.0)
+    Every control's attribute is generated from :data:`CONTROLS` (below the class); the fields declared here are
+    the state that no control edits directly (the view, the clicked points, the open tab).
+    """
 
-    method = param.Selector(default="dop853", objects=["dop853", "dp5", "rk4"])
-    accuracy = param.Selector(default="plot", objects=["plot", "high"], doc="tolerance tied to pixels, or 1e-12")
-    steps_per_period = param.Integer(default=200, bounds=(8, 20000), doc="RK4 steps per period")
-    n_random = param.Integer(default=60, bounds=(0, MAX_RANDOM))
-    seed = param.Integer(default=1, bounds=(0, 2**31 - 1))
-    periods = param.Integer(default=500, bounds=(1, MAX_PERIODS))
-    transient = param.Integer(default=0, bounds=(0, MAX_TRANSIENT))
     box = param.NumericTuple(default=(-3.0, 3.0, -5.0, 5.0), length=4, doc="random ICs box qmin,qmax,rmin,rmax")
     clicked = param.List(default=[], item_type=tuple, doc="initial conditions added by clicking")
     q_range = param.NumericTuple(default=(-3.5, 3.5), length=2)
     r_range = param.NumericTuple(default=(-5.5, 5.5), length=2)
-
-    show_orbits = param.Boolean(default=True)
-    orbit_period = param.Integer(default=4, bounds=(1, MAX_ORBIT_PERIOD))
     orbit_seeds = param.List(default=[], item_type=tuple, doc="points clicked to find periodic orbits from")
     orbit_view = param.Boolean(default=False, doc="also every orbit Newton finds from a grid over the view")
     manifold_saddles = param.List(default=[], item_type=tuple, doc="(q, r, period) of the saddles with manifolds")
-    manifold_length = param.Integer(default=10, bounds=(1, 200))
-    show_basins = param.Boolean(default=False)
-    basin_grid = param.Integer(default=80, bounds=(10, MAX_BASIN_GRID))
-    show_tracks = param.Boolean(default=True)
-    show_tprime = param.Boolean(default=True)
-    render = param.Selector(default="auto", objects=["auto", "points", "density"])
-    tprime_kind = param.Selector(default="instantaneous", objects=["instantaneous", "per-period"])
-    selected = param.Integer(default=0, bounds=(0, None), doc="trajectory shown in the k-series plots")
-    click_mode = param.Selector(default="add", objects=["add", "select", "orbit", "manifolds"])
     tab = param.Selector(default="section", objects=list(TABS))
     presentation = param.Boolean(default=False, doc="larger fonts, sidebar collapsed (for a projector)")
-
-    lyap_ic = param.Parameter(default=(), doc="() or (q, r)")
-    lyap_transient = param.Integer(default=200)
-    lyap_periods = param.Integer(default=1000)
-    lyap_ensemble = param.Integer(default=4)
-    bif_param = param.Selector(default="alpha", objects=list(SWEEPABLE))
-    bif_range = param.Parameter(default=(), doc="() (current ± 0.05) or (lo, hi)")
-    bif_values = param.Integer(default=120)
-    bif_points = param.Integer(default=80)
-    bif_transient = param.Integer(default=300)
-    bif_seeding = param.Selector(default="continuation", objects=["continuation", "fixed"])
-    bif_coord = param.Selector(default="q", objects=["q", "r"])
-    bif_orbits = param.Boolean(default=True, doc="continue the orbits near the diagram's attractors and draw them")
-    chart_x = param.Selector(default="alpha", objects=list(SWEEPABLE))
-    chart_xrange = param.Tuple(default=(-0.6, -0.4))
-    chart_y = param.Selector(default="I11", objects=list(SWEEPABLE))
-    chart_yrange = param.Tuple(default=(1.0, 2.0))
-    chart_grid = param.Tuple(default=(40, 30))
-    chart_periods = param.Integer(default=300)
-    chart_transient = param.Integer(default=300)
-    chart_curves = param.Boolean(default=True, doc="follow folds and period doublings in both chart parameters")
-    bench_ic = param.Parameter(default=(), doc="() or (q, r)")
-    bench_periods = param.Integer(default=50)
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -496,7 +547,7 @@ class ExplorerState(param.Parameterized):
         )  # fmt: skip
 
     def pixel_size(self) -> float:
-        return min(self.q_range[1] - self.q_range[0], self.r_range[1] - self.r_range[0]) / 800
+        return min(self.q_range[1] - self.q_range[0], self.r_range[1] - self.r_range[0]) / PLOT_PIXELS[0]
 
     def numerics(self, bound: float | None = None) -> Numerics:
         """Method and tolerance; 'plot' ties the tolerance to a quarter pixel after all periods."""
@@ -625,52 +676,8 @@ class ExplorerState(param.Parameterized):
                     raise ParameterError(f"{p} = {end:g} at an end of the range is not a valid system: {exc}") from None
 
     def to_query(self) -> dict[str, str]:
-        """The full state as URL query parameters (short, human-readable)."""
-        q: dict[str, str] = {"scene": self.scene}
-        for f in SYSTEM_FIELDS:
-            q[f] = _fmt(getattr(self, f))
-        q.update(
-            method=self.method,
-            accuracy=self.accuracy,
-            steps=str(self.steps_per_period),
-            n=str(self.n_random),
-            seed=str(self.seed),
-            periods=str(self.periods),
-            transient=str(self.transient),
-            box=",".join(_fmt(v) for v in self.box),
-            qr=",".join(_fmt(v) for v in self.q_range),
-            rr=",".join(_fmt(v) for v in self.r_range),
-            ics=";".join(f"{_fmt(a)},{_fmt(b)}" for a, b in self.clicked),
-            orbits=str(int(self.show_orbits)),
-            orb_n=str(self.orbit_period),
-            tracks=str(int(self.show_tracks)),
-            tprime={"instantaneous": "inst", "per-period": "period"}[self.tprime_kind] if self.show_tprime else "off",
-            sel=str(self.selected),
-        )
-        if self.orbit_seeds:
-            q["orb"] = ";".join(f"{_fmt(a)},{_fmt(b)}" for a, b in self.orbit_seeds)
-        if self.orbit_view:
-            q["orb_all"] = "1"
-        if self.manifold_saddles:
-            q["man"] = ";".join(f"{_fmt(a)},{_fmt(b)},{n}" for a, b, n in self.manifold_saddles)
-        if self.manifold_saddles or self.manifold_length != self.param["manifold_length"].default:
-            q["man_len"] = str(self.manifold_length)
-        if self.click_mode in ("orbit", "manifolds"):
-            q["click"] = self.click_mode
-        if self.show_basins:
-            q["basins"] = "1"
-        if self.basin_grid != self.param["basin_grid"].default:
-            q["bas_n"] = str(self.basin_grid)
-        if self.render != "auto":
-            q["render"] = self.render
-        if self.tab != "section":
-            q["tab"] = self.tab
-        if self.presentation:
-            q["present"] = "1"
-        for c in CONTROLS:  # analysis settings that differ from the defaults
-            if c.area in TABS[1:] and c.url and getattr(self, c.name) != self.param[c.name].default:
-                q[c.url] = self.display(c.name)
-        return q
+        """The full state as URL query parameters (short, human-readable): :data:`URL_KEYS`, in their order."""
+        return {u.key: u.encode(self) for u in URL_KEYS if u.when(self)}
 
     def display(self, name: str) -> Any:
         """The value in use of a control as the page shows it (text; bool for a checkbox)."""
@@ -683,6 +690,10 @@ class ExplorerState(param.Parameterized):
         if kind == "text":
             return ",".join(str(x) if isinstance(x, int) else _fmt(x) for x in v)
         return str(v)
+
+
+for _c in CONTROLS:
+    ExplorerState.param.add_parameter(_c.name, _parameter(_c))
 
 
 # --- parsing --------------------------------------------------------------------------------------
@@ -797,65 +808,8 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
         except ParameterError as exc:
             errors.append(f"URL parameter {key}: {exc}")
 
-    for key, c in BY_URL.items():
-        if key in ("tracks", "orbits"):
-            continue
-        attempt(key, lambda t, c=c: updates.__setitem__(c.name, parse_control(c.name, t, plain_label(c.name))))
-
-    def box(t: str) -> None:
-        if len(t) > MAX_TEXT:
-            raise ParameterError(f"at most {MAX_TEXT} characters")
-        updates["box"] = check_box(_numbers("box", t, 4, "qmin,qmax,rmin,rmax"))
-
-    attempt("box", box)
-    attempt("qr", lambda t: updates.__setitem__("q_range", _range("qr", t)))
-    attempt("rr", lambda t: updates.__setitem__("r_range", _range("rr", t)))
-
-    def ics(text: str) -> None:
-        pts = [p for p in text.split(";") if p.strip()]
-        if len(pts) > MAX_CLICKED:
-            raise ParameterError(f"at most {MAX_CLICKED} initial conditions, got {len(pts)}")
-        updates["clicked"] = [_numbers("ics", p, 2, "q,r") for p in pts]
-
-    attempt("ics", ics)
-
-    def orbit_seeds(text: str) -> None:
-        updates["orbit_seeds"] = _places("orb", text, MAX_ORBIT_SEEDS, "orbit seeds", 2, "q,r")
-
-    attempt("orb", orbit_seeds)
-
-    def manifold_saddles(text: str) -> None:
-        out = []
-        for q, r, n in _places("man", text, MAX_MANIFOLDS, "saddles", 3, "q,r,period"):
-            if not (n == int(n) and 1 <= n <= MAX_ORBIT_PERIOD):
-                raise ParameterError(f"the period must be a whole number 1..{MAX_ORBIT_PERIOD}, got {n:g}")
-            out.append((q, r, int(n)))
-        updates["manifold_saddles"] = out
-
-    attempt("man", manifold_saddles)
-
-    def choice(key: str, options: Mapping[str, Any], apply: Callable[[Any], None]) -> None:
-        def fn(t: str) -> None:
-            if t not in options:
-                raise ParameterError(f"must be one of {', '.join(options)}, got {t[:40]!r}")
-            apply(options[t])
-
-        attempt(key, fn)
-
-    choice("tracks", {"1": True, "0": False}, lambda v: updates.__setitem__("show_tracks", v))
-    choice("orb_all", {"1": True, "0": False}, lambda v: updates.__setitem__("orbit_view", v))
-    modes = {v: v for v, _ in BY_NAME["click_mode"].options}
-    choice("click", modes, lambda v: updates.__setitem__("click_mode", v))
-
-    def tprime(v: tuple[str | None, bool]) -> None:
-        updates["show_tprime"] = v[1]
-        if v[0]:
-            updates["tprime_kind"] = v[0]
-
-    choice("tprime", {"inst": ("instantaneous", True), "period": ("per-period", True), "off": (None, False)}, tprime)
-    choice("orbits", {"1": True, "0": False}, lambda v: updates.__setitem__("show_orbits", v))
-    choice("tab", {t: t for t in TABS}, lambda v: updates.__setitem__("tab", v))
-    choice("present", {"1": True, "0": False}, lambda v: updates.__setitem__("presentation", v))
+    for u in URL_KEYS:
+        attempt(u.key, lambda t, u=u: updates.update(u.decode(t)))
     return updates, errors
 
 
@@ -872,6 +826,124 @@ def _places(key: str, text: str, most: int, what: str, n: int, fields: str) -> l
     return out
 
 
+@dataclass(frozen=True)
+class UrlKey:
+    """One URL query parameter: the state fields it carries, when it is written, how it is written and read,
+    and its words in messages ("the picture is for q range = …")."""
+
+    key: str
+    fields: tuple[str, ...]
+    encode: Callable[[ExplorerState], str]
+    decode: Callable[[str], dict[str, Any]]  # text -> state updates; ParameterError naming the bad value
+    when: Callable[[ExplorerState], bool] = lambda s: True  # written only when this says so
+    words: str = ""
+
+
+def _ALWAYS(s: ExplorerState) -> bool:
+    return True
+
+
+def _control_key(c: Control) -> UrlKey:
+    """A control's URL parameter, generated from its entry: its text as shown (a checkbox 1/0), read back by
+    :func:`parse_control` (the same gate as a typed value)."""
+
+    def encode(s: ExplorerState) -> str:
+        return str(int(getattr(s, c.name))) if c.kind == "check" else str(s.display(c.name))
+
+    def changed(s: ExplorerState) -> bool:
+        return getattr(s, c.name) != c.default
+
+    when = {"always": _ALWAYS, "changed": changed}.get(c.url_when, c.url_when)  # type: ignore[arg-type]
+    return UrlKey(c.url, (c.name,), encode, lambda t: {c.name: parse_control(c.name, t, plain_label(c.name))}, when,
+                  plain_label(c.name))  # type: ignore[arg-type]  # fmt: skip
+
+
+def _points_text(points: list[tuple[float, ...]]) -> str:
+    return ";".join(",".join(_fmt(v) if i < 2 else str(v) for i, v in enumerate(p)) for p in points)
+
+
+def _box(t: str) -> dict[str, Any]:
+    if len(t) > MAX_TEXT:
+        raise ParameterError(f"at most {MAX_TEXT} characters")
+    return {"box": check_box(_numbers("box", t, 4, "qmin,qmax,rmin,rmax"))}
+
+
+def _ics(text: str) -> dict[str, Any]:
+    pts = [p for p in text.split(";") if p.strip()]
+    if len(pts) > MAX_CLICKED:
+        raise ParameterError(f"at most {MAX_CLICKED} initial conditions, got {len(pts)}")
+    return {"clicked": [_numbers("ics", p, 2, "q,r") for p in pts]}
+
+
+def _saddles(text: str) -> dict[str, Any]:
+    out = []
+    for q, r, n in _places("man", text, MAX_MANIFOLDS, "saddles", 3, "q,r,period"):
+        if not (n == int(n) and 1 <= n <= MAX_ORBIT_PERIOD):
+            raise ParameterError(f"the period must be a whole number 1..{MAX_ORBIT_PERIOD}, got {n:g}")
+        out.append((q, r, int(n)))
+    return {"manifold_saddles": out}
+
+
+def _choice(options: Mapping[str, dict[str, Any]]) -> Callable[[str], dict[str, Any]]:
+    def decode(t: str) -> dict[str, Any]:
+        if t not in options:
+            raise ParameterError(f"must be one of {', '.join(options)}, got {t[:40]!r}")
+        return dict(options[t])
+
+    return decode
+
+
+_TPRIME = {"inst": {"show_tprime": True, "tprime_kind": "instantaneous"},
+           "period": {"show_tprime": True, "tprime_kind": "per-period"}, "off": {"show_tprime": False}}  # fmt: skip
+_TPRIME_KEY = {"instantaneous": "inst", "per-period": "period"}
+
+#: Every URL query parameter, the one place their keys are written: the controls' (generated from CONTROLS),
+#: then the state that no control edits (the view, the clicked points, the layers' picks, the tab).
+URL_KEYS: tuple[UrlKey, ...] = (
+    *(_control_key(c) for c in CONTROLS if c.url),
+    UrlKey("box", ("box",), lambda s: ",".join(_fmt(v) for v in s.box), _box,
+           words="box of the random initial conditions"),
+    UrlKey("qr", ("q_range",), lambda s: ",".join(_fmt(v) for v in s.q_range),
+           lambda t: {"q_range": _range("qr", t)}, words="q range"),
+    UrlKey("rr", ("r_range",), lambda s: ",".join(_fmt(v) for v in s.r_range),
+           lambda t: {"r_range": _range("rr", t)}, words="r range"),
+    UrlKey("ics", ("clicked",), lambda s: _points_text(s.clicked), _ics, words="clicked initial conditions"),
+    UrlKey("tprime", ("show_tprime", "tprime_kind"),
+           lambda s: _TPRIME_KEY[s.tprime_kind] if s.show_tprime else "off", _choice(_TPRIME), words="T′ map"),
+    UrlKey("orb", ("orbit_seeds",), lambda s: _points_text(s.orbit_seeds),
+           lambda t: {"orbit_seeds": _places("orb", t, MAX_ORBIT_SEEDS, "orbit seeds", 2, "q,r")},
+           lambda s: bool(s.orbit_seeds), "orbit seeds"),
+    UrlKey("orb_all", ("orbit_view",), lambda s: "1", _choice({"1": {"orbit_view": True}, "0": {"orbit_view": False}}),
+           lambda s: s.orbit_view, "orbits in view"),
+    UrlKey("man", ("manifold_saddles",), lambda s: _points_text(s.manifold_saddles), _saddles,
+           lambda s: bool(s.manifold_saddles), "saddles with manifolds"),
+    UrlKey("tab", ("tab",), lambda s: s.tab, _choice({t: {"tab": t} for t in TABS}), lambda s: s.tab != "section",
+           "tab"),
+    UrlKey("present", ("presentation",), lambda s: "1",
+           _choice({"1": {"presentation": True}, "0": {"presentation": False}}), lambda s: s.presentation,
+           "presentation"),
+)  # fmt: skip
+#: A state field's URL key (the T′ map's two fields share one).
+URL_OF: dict[str, str] = {f: u.key for u in URL_KEYS for f in u.fields}
+_URL_BY_KEY: dict[str, UrlKey] = {u.key: u for u in URL_KEYS}
+
+
+def key_words(key: str) -> str:
+    """What a URL key is called in messages (a control's own words)."""
+    u = _URL_BY_KEY.get(key)
+    return u.words if u is not None and u.words else key
+
+
+def url_keys(fields: tuple[str, ...] | list[str]) -> tuple[str, ...]:
+    """The URL keys of state fields, in order, each once: what a result computed from those fields depends on."""
+    out: list[str] = []
+    for f in fields:
+        k = URL_OF[f]
+        if k not in out:
+            out.append(k)
+    return tuple(out)
+
+
 #: Order in which URL values meet the state's checks: what others are checked against comes first.
 _ORDER = ("render", "clicked", "n_random", "periods", "bif_param", "chart_x", "chart_y")
 
@@ -885,10 +957,6 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
     updates, errors = parse_query(query)
     sid = updates.pop("scene", DEFAULT_SCENE)
     state = ExplorerState(scene=sid if sid != "custom" else DEFAULT_SCENE)
-    key_of = {c.name: c.url for c in CONTROLS if c.url}
-    key_of.update(box="box", q_range="qr", r_range="rr", clicked="ics", show_tprime="tprime", tprime_kind="tprime",
-                  tab="tab", presentation="present", orbit_seeds="orb", orbit_view="orb_all",
-                  click_mode="click", manifold_saddles="man")  # fmt: skip
     names = sorted(updates, key=lambda n: _ORDER.index(n) if n in _ORDER else len(_ORDER))
     # The scene shows its own first point (numbered after the random ones): it stays shown if the URL changes n.
     scene_point = bool(state.clicked) and state.selected == state.n_random
@@ -902,7 +970,7 @@ def state_from_query(query: Mapping[str, Any]) -> tuple[ExplorerState, list[str]
                 state.check(name, value)
         except ParameterError as exc:
             kept = _shown(state.display(name)) if name in BY_NAME else "the scene's"
-            errors.append(f"URL parameter {key_of.get(name, name)}: {exc}; using {plain_label(name)} = {kept}")
+            errors.append(f"URL parameter {URL_OF.get(name, name)}: {exc}; using {plain_label(name)} = {kept}")
             continue
         changed_system |= name in SYSTEM_FIELDS and float(value) != float(getattr(state, name))
         setattr(state, name, value)
