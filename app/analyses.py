@@ -24,7 +24,8 @@ from bokeh.models import ColumnDataSource, HoverTool, LinearColorMapper, Plot
 from bokeh.palettes import Category10, Category20
 from bokeh.plotting import figure
 
-from app.controller import ExplorerSession, _plain
+from app.controller import ExplorerSession
+from app.layers.base import plain as _plain
 from app.views import BACKEND
 from explorer_core.analyses.bifurcation import bifurcation_diagram
 from explorer_core.analyses.continuation import chart_boundaries, continue_from_seeds

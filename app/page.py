@@ -23,7 +23,7 @@ from bokeh.models import Column
 
 from app.analyses import AnalysisTab, BifurcationTab, ChartTab, LyapunovTab
 from app.bench_tab import BenchTab
-from app.controller import SECTION_CHANNELS, ExplorerSession
+from app.controller import ExplorerSession
 from app.runner import FairScheduler, Runner
 from app.state import BY_NAME, BY_URL, CONTROLS, TABS, state_from_query
 from app.ui import ExplorerUI
@@ -319,7 +319,7 @@ class Page:
     def running(self, tab: str = "section") -> bool:
         """Whether the tab's Stop would stop something (the page enables it exactly then)."""
         if tab == "section":
-            return any(self.runner.busy(c) for c in SECTION_CHANNELS)
+            return any(self.runner.busy(c) for c in self.session.channels)
         return self.runner.busy(tab)
 
 

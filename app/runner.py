@@ -42,7 +42,7 @@ import os
 import threading
 import time
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import Executor, ThreadPoolExecutor
 
 from explorer_core import config
@@ -53,7 +53,8 @@ Emit = Callable[[Callable[[], None]], None]
 Job = Callable[[Callable[[], bool], Emit], None]
 
 #: Kinds of job, by channel: the points a user waits for after each move, the layers drawn with
-#: them; every other channel (chart, bifurcation, lyapunov, bench, ...) is heavy.
+#: them; every other channel (chart, bifurcation, lyapunov, bench, ...) is heavy. These are the defaults of
+#: the scheduler; a session's layers declare their own channels' kinds (:meth:`Runner.declare`).
 POINTS, LAYER, HEAVY = "points", "layer", "heavy"
 POINT_CHANNELS = frozenset({"section", "orbit"})  # an orbit found from a click: waited for like points
 LAYER_CHANNELS = frozenset({"tracks", "tprime", "reliability", "orbits", "manifolds", "basins"})
@@ -109,10 +110,12 @@ class Ticket:
 
     __slots__ = ("channel", "event", "fresh", "kind", "seq", "session", "since", "stale", "state")
 
-    def __init__(self, session: int, channel: str, seq: int, stale: Callable[[], bool]) -> None:
+    def __init__(
+        self, session: int, channel: str, seq: int, stale: Callable[[], bool], kind: str | None = None
+    ) -> None:
         self.session = session
         self.channel = channel
-        self.kind = job_kind(channel)
+        self.kind = kind or job_kind(channel)
         self.seq = seq
         self.since = 0.0
         self.stale = stale
@@ -173,8 +176,8 @@ class FairScheduler:
 
     # --- used by Runner ---------------------------------------------------------------
 
-    def ticket(self, session: int, channel: str, stale: Callable[[], bool]) -> Ticket:
-        return Ticket(session, channel, next(self._seq), stale)
+    def ticket(self, session: int, channel: str, stale: Callable[[], bool], kind: str | None = None) -> Ticket:
+        return Ticket(session, channel, next(self._seq), stale, kind)
 
     def acquire(self, t: Ticket) -> bool:
         """Wait for a slot; False if the job became stale meanwhile (it must not run)."""
@@ -352,7 +355,20 @@ class Runner:
         self._gen: dict[str, int] = defaultdict(int)
         self._lock = threading.Lock()
         self._id = next(_session_ids)
+        self._kinds: dict[str, str] = {}
         self.closed = False
+
+    def declare(self, kinds: Mapping[str, str]) -> None:
+        """The kind of job (POINTS, LAYER, HEAVY) of channels (a layer's): how the scheduler ranks them."""
+        self._kinds.update(kinds)
+
+    def kind(self, channel: str) -> str:
+        return self._kinds.get(channel) or job_kind(channel)
+
+    def set_on_busy(self, on_busy: Callable[[str], None], *, replace: bool = False) -> None:
+        """Who is told when a channel may have started or stopped (the controller, unless the page is)."""
+        if replace or self._on_busy is None:
+            self._on_busy = on_busy
 
     def ui(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` on the document thread (figure updates from widget callbacks)."""
@@ -397,7 +413,8 @@ class Runner:
             return self.closed or self._gen[channel] != gen or (alive is not None and not alive())
 
         sched = self._scheduler
-        ticket = sched.ticket(self._id, channel, stale) if sched is not None else None
+        kind = self.kind(channel)
+        ticket = sched.ticket(self._id, channel, stale, kind) if sched is not None else None
         stamps = [time.perf_counter()] if TRACE else None  # started, given a slot, first result out
 
         def cancelled() -> bool:
@@ -410,7 +427,7 @@ class Runner:
         def emit(fn: Callable[[], None]) -> None:
             if stale():
                 return
-            urgent = first[0] and job_kind(channel) == POINTS  # a user waits for exactly this
+            urgent = first[0] and kind == POINTS  # a user waits for exactly this
             first[0] = False
             if ticket is not None and ticket.fresh:
                 sched.shown(ticket)  # its first points are out: the rest waits behind others' first points
@@ -447,7 +464,7 @@ class Runner:
 
         if bump and sched is not None:
             sched.poke()  # the job this one replaces may be waiting: let it go now
-        if self._executor is _POOL and HEAVY_NICE and job_kind(channel) == HEAVY:
+        if self._executor is _POOL and HEAVY_NICE and kind == HEAVY:
             # A heavy job's tiles run in threads of its own that no poll can stop once started:
             # they inherit a low CPU priority from this thread, so sections still get the cores.
             threading.Thread(target=_niced, args=(run,), name=f"explorer-{channel}", daemon=True).start()

@@ -32,9 +32,9 @@ def test_a_density_view_bins_every_point_and_keeps_only_the_selected_trajectory(
     # kept one with points took over) is ringed and its k-series shown; only a few trajectories are kept.
     assert len(page.fig.points.data["q"]) == 0
     sel = page.state.selected
-    assert sel in page.session._density_req.keep and len(page.session._density_req.keep) <= 9
+    assert sel in page.session.section.density.req.keep and len(page.session.section.density.req.keep) <= 9
     assert page.series.data["k"].size == 200 and len(page.fig.selected.data["q"]) == 0  # no rings over the image
-    assert set(page.session.data()[0].tolist()) <= set(page.session._density_req.keep)
+    assert set(page.session.data()[0].tolist()) <= set(page.session.section.density.req.keep)
     assert page.state.to_query()["render"] == "density"
     csv = page.session.csv_bytes().getvalue().decode().splitlines()
     assert csv[1].startswith("# a density view")
@@ -62,7 +62,7 @@ def test_zooming_a_density_view_recomputes_it_for_the_view_with_seeds_in_it() ->
     jobs.drain()
     d = page.fig.density.data
     assert (d["x"][0], d["y"][0]) == (-0.5, -2.6) and d["dw"][0] == pytest.approx(0.5)
-    req = page.session._density_req
+    req = page.session.section.density.req
     assert req is not None and req.view == (-0.5, 0.0, -2.6, -2.2)
     inside = (req.ics[:, 0] >= -0.5) & (req.ics[:, 0] <= 0.0) & (req.ics[:, 1] >= -2.6) & (req.ics[:, 1] <= -2.2)
     assert inside.all()  # the random seeds start in the view
@@ -70,7 +70,7 @@ def test_zooming_a_density_view_recomputes_it_for_the_view_with_seeds_in_it() ->
     page.session.set_view_from_plot((-3.0, 2.5), (-4.5, 1.0))  # zoomed out past the box: the box's seeds again
     jobs.drain()
     box = page.state.box
-    ics = page.session._density_req.ics
+    ics = page.session.section.density.req.ics
     assert ics[:, 0].min() >= box[0] and ics[:, 0].max() <= box[1]
     assert ics[:, 0].max() - ics[:, 0].min() > 0.5 * (box[1] - box[0])
 
@@ -79,10 +79,10 @@ def test_selecting_another_trajectory_in_a_density_view_keeps_its_points() -> No
     page, jobs = page_for({"render": "density", "n": "30", "periods": "40"})
     assert page.commit("selected", "20") is None  # not among the kept: the image is recomputed keeping it
     jobs.drain()
-    assert 20 in page.session._density_req.keep
+    assert 20 in page.session.section.density.req.keep
     assert page.commit("selected", "3") is None
     jobs.drain()
-    assert 3 in page.session._density_req.keep and page.series.data["k"].size > 0
+    assert 3 in page.session.section.density.req.keep and page.series.data["k"].size > 0
 
 
 def test_points_only_is_refused_for_a_density_sized_section() -> None:

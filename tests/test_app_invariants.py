@@ -227,7 +227,9 @@ class PageMachine(RuleBasedStateMachine):
         page = self.page
         s = page.ui.view["section"]
         assert bool(s["n_points"]) == bool(page.session.data()[0].size)
-        assert bool(s["n_manifolds"]) == bool(page.session._manifolds)  # the manifolds CSV offers exactly these
+        assert bool(s["n_manifolds"]) == bool(
+            page.session.layer("manifolds").manifolds
+        )  # the manifolds CSV offers exactly these
         if not page.state.show_basins:
             assert not s["basin_legend"] and not page.fig.basins.data["image"]
         if "chart" in page.tabs:

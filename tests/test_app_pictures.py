@@ -83,7 +83,7 @@ def test_colour_bars_only_for_the_colour_layer_seen() -> None:
 def test_the_basins_are_not_tinted_by_the_tprime_map_and_their_legend_matches() -> None:
     """Fails on the old code: the T' map stayed under the half-transparent basins (their colours no longer those
     of the legend) and nothing said so."""
-    from app.controller import OUTCOME_COLOURS
+    from app.layers.basins import OUTCOME_COLOURS
     from app.views import BASIN_ALPHA, as_drawn
     from explorer_core.analyses.basins import ESCAPE, FAILED
 

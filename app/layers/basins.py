@@ -1,0 +1,131 @@
+"""Basins of attraction over the view: which attractor each pixel centre reaches, coarse to fine."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from app.layers.base import KEEP, Layer, plain, stale_note
+from app.runner import LAYER
+from app.state import SYSTEM_FIELDS, url_keys
+from app.views import as_drawn
+from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, BasinSpec, basin_spec, iter_basins
+from explorer_core.system.params import Params
+
+#: A colour per attractor id (cycled), and the pixels that reach none.
+BASIN_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#1f78b4")
+#: Escaped pixels mid grey, failed ones dark grey (the old light grey at half opacity looked like the page's white);
+#: undecided ones are left blank, and the legend says so.
+OUTCOME_COLOURS = {ESCAPE: "#555555", FAILED: "#000000", UNDECIDED: "#ffffff"}
+OUTCOME_NAMES = {ESCAPE: "escape (noncompact drift)", FAILED: "integration failed", UNDECIDED: "undecided (blank)"}
+
+
+@dataclass(frozen=True)
+class BasinInputs:
+    params: Params
+    box: tuple[float, float, float, float]
+    n: int
+    query: dict[str, str] = field(default_factory=dict, compare=False)
+
+
+class BasinsLayer(Layer):
+    name = "basins"
+    channels: ClassVar[dict[str, str]] = {"basins": LAYER}
+    fields = ("show_basins", "basin_grid")
+    dedupe = True
+    depends = (*SYSTEM_FIELDS, "basin_grid", "q_range", "r_range")
+
+    def __init__(self, host: Any) -> None:
+        super().__init__(host)
+        self.text = ""
+        self.rows: list[list[str]] = []
+
+    def inputs(self) -> BasinInputs | object | None:
+        st = self.host.state
+        if not st.show_basins:
+            return None
+        params = self.system_params()
+        if params is None:
+            return KEEP
+        return BasinInputs(params, (*st.q_range, *st.r_range), st.basin_grid, st.to_query())
+
+    def on_view(self) -> bool:
+        return bool(self.host.state.show_basins)  # the initial conditions are the new view's pixels
+
+    def prepare(self, inputs: BasinInputs) -> BasinSpec:
+        spec = basin_spec(inputs.params, inputs.box, (inputs.n, inputs.n))
+        self.text = f"basins of attraction on {inputs.n} x {inputs.n} initial conditions in view…"
+        return spec
+
+    def refused(self, exc: BaseException) -> None:
+        self.text = f"basins: {plain(exc)}"
+
+    def job(self, spec: BasinSpec, cancelled: Callable[[], bool]) -> Iterator[tuple[Basins, str]]:
+        for upd in iter_basins(spec, cancel=cancelled):
+            if cancelled():
+                return
+            yield upd.basins, f"{upd.done_pixels}/{upd.total_pixels}"
+
+    def current(self, inputs: BasinInputs) -> bool:
+        st = self.host.state  # else for a system or a view no longer on screen
+        return inputs.params == self.host.system() and inputs.box == (*st.q_range, *st.r_range)
+
+    def apply(self, inputs: BasinInputs, result: tuple[Basins, str]) -> None:
+        b, done = result
+        self.shown_query = inputs.query
+        colours = {a.id: BASIN_COLOURS[i % len(BASIN_COLOURS)] for i, a in enumerate(b.attractors)}
+        colours.update(OUTCOME_COLOURS)
+        self.host.fig.set_basins(b.filled(), inputs.box, colours)
+        legend = []
+        for a in b.attractors:
+            if a.kind == "escape":
+                continue
+            if not a.attracting:  # invariant curves of a conservative island: no attractor
+                what = "conservative island (not an attractor)"
+            elif a.kind == "periodic":
+                what = f"period-{a.period} cycle"
+            else:
+                what = a.kind.replace("_", "-") + " attractor"
+            if a.orbit_type:
+                what += f" ({a.orbit_type})"
+            if len(a.points):
+                what += f" at ({a.points[0, 0]:.4g}, {a.points[0, 1]:.4g})"
+            legend.append([as_drawn(colours[a.id]), f"{what}: {100 * b.fraction.get(a.id, 0.0):.1f}%"])
+        for code, name in OUTCOME_NAMES.items():
+            if b.fraction.get(code, 0.0) > 0:
+                legend.append([as_drawn(OUTCOME_COLOURS[code]), f"{name}: {100 * b.fraction[code]:.1f}%"])
+        self.rows = legend
+        n_att = sum(a.kind != "escape" and a.attracting for a in b.attractors)
+        if b.completed:
+            head = f"basins on {b.label.shape[1]} x {b.label.shape[0]} initial conditions: {n_att} attractor(s)"
+            if not n_att:
+                head += " (none found: every pixel escaped, failed or was undecided)"
+            said = [*b.warnings, *(loss.line() for loss in b.lost)]
+            self.text = f"{head}, {b.elapsed_s:.2f} s" + "".join(f"; {w}" for w in said[:3])
+        else:
+            self.text = f"basins: {done} pixels, {n_att} attractor(s) so far…"
+
+    def clear(self) -> None:
+        self.host.fig.set_basins(None)
+        self.text, self.rows = "", []
+        self.shown_query = None
+
+    def status(self) -> str:
+        return self.text
+
+    def legend(self) -> list[list[str]]:
+        return self.rows
+
+    def published(self) -> dict[str, Any]:
+        return {"basin_status": self.text, "basin_legend": self.rows}
+
+    def stopped(self, busy: bool, now: dict[str, str]) -> None:
+        if not self.host.state.show_basins:
+            return
+        note = stale_note(self.shown_query, now, url_keys(self.depends))
+        if note:
+            self.text = f"stopped: the basins shown are for {note}"
+        elif busy:
+            shown = self.shown_query is not None
+            self.text = "stopped: " + (self.text if shown else "no basins computed yet")

@@ -1,0 +1,132 @@
+"""The frozen-field layers: equilibrium tracks of the field with t frozen, and the T′ map under the points.
+
+Both start once the section's first points are out (``after_section``): computed alongside, they would take
+CPU (and the GIL: the tracks are Python) from the section's first points, and every update they send makes
+the browser redraw the whole plot while the points are still coming. Neither has text of its own: a Stop that
+leaves them for another system clears them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from app.layers.base import KEEP, Layer
+from app.runner import LAYER
+from explorer_core.analyses.equilibria import equilibrium_tracks
+from explorer_core.analyses.tprime import energy_change_map, tprime_map
+from explorer_core.solve.numerics import Numerics
+from explorer_core.system.params import Params
+
+TRACK_SAMPLES = 360
+TPRIME_GRID = 160
+PER_PERIOD_GRID = 80
+
+
+class _Frozen(Layer):
+    """A layer of the system alone, cleared by a Stop that leaves it for another system."""
+
+    on_section = False
+    after_section = True
+
+    def __init__(self, host: Any) -> None:
+        super().__init__(host)
+        self.params: Params | None = None  # the system of what is on screen
+
+    def stopped(self, busy: bool, now: dict[str, str]) -> None:
+        if self.params is not None and self.params != self.host.system():
+            self.clear()  # no text says whose it is: not left under other settings
+
+
+class TracksLayer(_Frozen):
+    name = "tracks"
+    channels: ClassVar[dict[str, str]] = {"tracks": LAYER}
+    fields = ("show_tracks",)
+
+    def inputs(self) -> Params | object | None:
+        params = self.system_params()
+        if params is None:
+            return KEEP
+        return params if self.host.state.show_tracks else None
+
+    def job(self, params: Params, cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
+        tr = equilibrium_tracks(params, n_t=TRACK_SAMPLES, cancel=cancelled)
+        if tr.completed:  # else a newer setting: its own tracks job is on the way
+            yield segments_by_type(tr.branches()), tr.section()
+
+    def apply(self, params: Params, result: tuple[list, Any]) -> None:
+        segments, at_t0 = result
+        self.params = params
+        self.host.fig.set_tracks(segments)
+        self.host.fig.set_equilibria(at_t0.q, at_t0.r, at_t0.types)
+
+    def clear(self) -> None:
+        self.params = None
+        self.host.fig.set_tracks([])
+        self.host.fig.set_equilibria([], [], ())
+
+
+@dataclass(frozen=True)
+class TPrimeInputs:
+    params: Params
+    kind: str
+    q_range: tuple[float, float]
+    r_range: tuple[float, float]
+    numerics: Numerics
+
+
+class TPrimeLayer(_Frozen):
+    name = "tprime"
+    channels: ClassVar[dict[str, str]] = {"tprime": LAYER}
+    fields = ("show_tprime", "tprime_kind")
+
+    def inputs(self) -> TPrimeInputs | object | None:
+        params = self.system_params()
+        if params is None:
+            return KEEP
+        st = self.host.state
+        if not st.show_tprime:
+            return None
+        return TPrimeInputs(params, st.tprime_kind, st.q_range, st.r_range, st.numerics())
+
+    def on_view(self) -> bool:
+        return True  # the map is of the view's window
+
+    def job(self, inputs: TPrimeInputs, cancelled: Callable[[], bool]) -> Iterator[tuple[Any, str]]:
+        p = inputs.params
+        if inputs.kind == "per-period":
+            m = energy_change_map(p, inputs.q_range, inputs.r_range, PER_PERIOD_GRID, numerics=inputs.numerics)
+            yield m, "ΔT over a period: red gain, blue loss"  # fits the plot's height at 1280x720
+        else:
+            yield (
+                tprime_map(p, p.t0, inputs.q_range, inputs.r_range, TPRIME_GRID),
+                "T′ at t0: red energy gain, blue loss",
+            )
+
+    def apply(self, inputs: TPrimeInputs, result: tuple[Any, str]) -> None:
+        m, title = result
+        self.params = inputs.params
+        self.host.fig.set_tprime(m.values, m.q, m.r, title)
+
+    def clear(self) -> None:
+        self.params = None
+        self.host.fig.set_tprime(None, np.zeros(0), np.zeros(0), "")
+
+
+def segments_by_type(branches: Any) -> list[tuple[np.ndarray, np.ndarray, str]]:
+    """Split each track where the equilibrium's type changes, so each piece has one colour."""
+    out: list[tuple[np.ndarray, np.ndarray, str]] = []
+    for b in branches:
+        q, r, types = b["q"], b["r"], b["types"]
+        start = 0
+        for i in range(1, len(types) + 1):
+            if i == len(types) or types[i] != types[start]:
+                # Overlap one sample so consecutive pieces join.
+                end = min(i + 1, len(types))
+                if end - start >= 2:
+                    out.append((q[start:end], r[start:end], types[start]))
+                start = i
+    return out

@@ -1,0 +1,180 @@
+"""Stable and unstable manifolds of the saddles the user picked (from the orbits layer), refined for the view."""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from app.layers.base import KEEP, Layer, num, plain, stale_note
+from app.runner import LAYER
+from app.state import MAX_MANIFOLDS, PLOT_PIXELS, SYSTEM_FIELDS, url_keys
+from explorer_core.analyses.manifolds import Manifolds, iter_manifolds, saddle_orbit
+from explorer_core.system.params import ParameterError, Params
+
+#: A click picks the saddle whose point is nearest, within this fraction of the view's width and height.
+PICK_RADIUS = 0.03
+
+
+@dataclass(frozen=True)
+class ManifoldInputs:
+    params: Params
+    view: tuple[float, float, float, float]
+    saddles: tuple[tuple[float, float, int], ...]
+    length: float
+    query: dict[str, str] = field(default_factory=dict, compare=False)
+
+
+class ManifoldsLayer(Layer):
+    name = "manifolds"
+    channels: ClassVar[dict[str, str]] = {"manifolds": LAYER}
+    fields = ("manifold_saddles", "manifold_length")
+    dedupe = True
+    depends = (*SYSTEM_FIELDS, "manifold_length", "q_range", "r_range")
+
+    def __init__(self, host: Any) -> None:
+        super().__init__(host)
+        self.manifolds: list[Manifolds] = []
+        self.text = ""
+
+    def inputs(self) -> ManifoldInputs | object | None:
+        st = self.host.state
+        if not st.manifold_saddles:
+            return None
+        params = self.system_params()
+        if params is None:
+            return KEEP
+        view = (*st.q_range, *st.r_range)
+        return ManifoldInputs(params, view, tuple(st.manifold_saddles), float(st.manifold_length), st.to_query())
+
+    def on_view(self) -> bool:
+        return bool(self.host.state.manifold_saddles)  # refined for the new view's pixels
+
+    def prepare(self, inputs: ManifoldInputs) -> ManifoldInputs:
+        self.text = f"growing the manifolds of {len(inputs.saddles)} saddle(s)…"
+        return inputs
+
+    def job(self, inputs: ManifoldInputs, cancelled: Callable[[], bool]) -> Iterator[tuple[list[Manifolds], str]]:
+        done: list[Manifolds] = []
+        notes: list[str] = []
+        for q, r, n in inputs.saddles:
+            try:
+                orbit = saddle_orbit(inputs.params, (q, r), n)
+            except ParameterError as exc:  # e.g. no longer a saddle for this system
+                notes.append(f"({q:.4g}, {r:.4g}): {plain(exc)}")
+                continue
+            for m in iter_manifolds(inputs.params, orbit, length=inputs.length, view=inputs.view, pixels=PLOT_PIXELS,
+                                    others=done, cancel=cancelled):  # fmt: skip
+                if cancelled():
+                    return
+                shown = [*done, m]
+                text = "; ".join([*(_manifold_text(x) for x in shown), *notes])
+                yield shown, ("growing… " + text if not m.completed else text)
+            done.append(m)
+        if not done:
+            yield [], "; ".join(notes)
+
+    def current(self, inputs: ManifoldInputs) -> bool:
+        return inputs.params == self.host.system()  # else grown for a system no longer on screen
+
+    def apply(self, inputs: ManifoldInputs, result: tuple[list[Manifolds], str]) -> None:
+        shown, self.text = result
+        self.manifolds = shown
+        self.shown_query = inputs.query
+        lines = [(p[:, 1], p[:, 2], b.kind) for m in shown for b in m.branches for p in b.pieces]
+        marks = [(c.q, c.r, f"{c.kind}: unstable {c.unstable}, stable {c.stable}") for m in shown for c in m.crossings]
+        self.host.fig.set_manifolds(lines, marks)
+
+    def clear(self) -> None:
+        self.manifolds = []
+        self.shown_query = None
+        self.text = ""
+        self.host.fig.set_manifolds([], [])
+
+    def status(self) -> str:
+        return self.text
+
+    def published(self) -> dict[str, Any]:
+        # n_manifolds: on screen (the CSV download offers exactly these)
+        return {"n_manifolds": len(self.manifolds), "manifold_status": self.text}
+
+    def stopped(self, busy: bool, now: dict[str, str]) -> None:
+        if not self.host.state.manifold_saddles:
+            return
+        note = stale_note(self.shown_query, now, url_keys(self.depends)) if self.manifolds else ""
+        if note:
+            self.text = f"stopped: the manifolds shown are for {note}"
+        elif busy:
+            self.text = "stopped: " + self.text.removeprefix("growing… ")
+
+    # --- what the user does -----------------------------------------------------------------
+
+    def pick(self, q: float, r: float, orbits: list[Any]) -> None:
+        """A click in "manifolds" mode: the saddle of ``orbits`` nearest the click (drawn, or removed)."""
+        if not (np.isfinite(q) and np.isfinite(r)):
+            return
+        st = self.host.state
+        sq = st.q_range[1] - st.q_range[0]
+        sr = st.r_range[1] - st.r_range[0]
+        best, where = None, np.inf
+        for o in orbits:
+            if o.kind not in ("saddle", "flip saddle"):
+                continue
+            d = float(np.min(np.hypot((o.points[:, 0] - q) / sq, (o.points[:, 1] - r) / sr)))
+            if d < where:
+                best, where = o, d
+        if best is None or where > PICK_RADIUS:
+            self.text = (
+                "no saddle ✕ near the click: find the orbits first ('Find orbits in view', or click with "
+                "'finds a periodic orbit')"
+                if best is None
+                else f"no saddle ✕ near ({q:.4g}, {r:.4g}): click on a saddle's cross"
+            )
+            self.host.publish(self)
+            return
+        x = best.points[0]
+        entry = (float(x[0]), float(x[1]), int(best.period))
+        kept = [s for s in st.manifold_saddles if not _same_saddle(s, entry, sq, sr)]
+        if len(kept) < len(st.manifold_saddles):
+            st.manifold_saddles = kept  # a second click on a drawn saddle removes its manifolds
+            return
+        if len(kept) >= MAX_MANIFOLDS:
+            self.text = f"at most {MAX_MANIFOLDS} saddles at once: click a drawn one to remove it"
+            self.host.publish(self)
+            return
+        st.manifold_saddles = [*kept, entry]
+
+    def csv(self) -> io.BytesIO:
+        """The manifolds on screen as CSV ``saddle,branch,kind,s,q,r`` with the settings in a comment header."""
+        buf = io.StringIO()
+        settings = self.shown_query or self.host.state.to_query()
+        buf.write("# Bilimovich Explorer manifolds; " + "&".join(f"{a}={b}" for a, b in settings.items()))
+        buf.write("\nsaddle,branch,kind,s,q,r\n")
+        for i, m in enumerate(self.manifolds):
+            for label, kind, s_, q, r in m.rows():
+                buf.write(f"{i},{label},{kind},{num(s_)},{num(q)},{num(r)}\n")
+        return io.BytesIO(buf.getvalue().encode())
+
+
+def _same_saddle(a: tuple, b: tuple, sq: float, sr: float) -> bool:
+    """The same saddle entry ``(q, r, period)``: equal periods, points within a thousandth of the view."""
+    return a[2] == b[2] and abs(a[0] - b[0]) <= 1e-3 * sq and abs(a[1] - b[1]) <= 1e-3 * sr
+
+
+def _manifold_text(m: Manifolds) -> str:
+    o = m.orbit
+    ends = sorted({b.status for b in m.branches})
+    homoclinic = sum(c.kind == "homoclinic" for c in m.crossings)
+    hetero = len(m.crossings) - homoclinic
+    text = (f"{o.kind} (period {o.period}) at ({o.points[0, 0]:.4g}, {o.points[0, 1]:.4g}): "
+            f"{len(m.branches)} branches to s = {m.length:g} ({', '.join(ends)})")  # fmt: skip
+    if m.completed:
+        text += f", {homoclinic} homoclinic" + (f" and {hetero} heteroclinic" if hetero else "") + " points"
+        escaped = sum(b.escaped for b in m.branches)
+        if escaped:
+            text += f", {escaped} points escaped (pieces split)"
+        text += f", {m.elapsed_s:.2f} s"
+    return text

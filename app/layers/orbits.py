@@ -1,0 +1,185 @@
+"""Periodic orbits of the map P (fixed points of P^n): Newton from clicked seeds and a grid over the view."""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from app.layers.base import KEEP, Layer, num, stale_note
+from app.runner import LAYER, POINTS
+from app.state import MAX_MAGNITUDE, MAX_ORBIT_SEEDS, SYSTEM_FIELDS, url_keys
+from explorer_core.analyses.orbits import Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
+from explorer_core.system.params import Params
+
+#: Seeds of the "every orbit in view" search: a grid over the plot window.
+ORBIT_GRID = (10, 10)
+#: Orbits listed in the table (all of them are drawn and in the CSV).
+ORBIT_ROWS = 40
+
+
+@dataclass(frozen=True)
+class OrbitInputs:
+    params: Params
+    seeds: tuple[tuple[float, float], ...]
+    periods: tuple[int, ...]
+    #: "" for the whole search (it replaces the orbits shown); a click's words for one seed (merged).
+    where: str = ""
+    query: dict[str, str] = field(default_factory=dict, compare=False)
+
+
+class OrbitsLayer(Layer):
+    name = "orbits"
+    #: "orbit": one job per click, all kept, waited for like points; "orbits": the whole search.
+    channels: ClassVar[dict[str, str]] = {"orbits": LAYER, "orbit": POINTS}
+    fields = ("show_orbits", "orbit_period")
+    depends = (*SYSTEM_FIELDS, "orbit_period")
+
+    def __init__(self, host: Any) -> None:
+        super().__init__(host)
+        self.orbits: list[Orbit] = []
+        self.rows: list[dict[str, Any]] = []
+        self.text = ""
+
+    def inputs(self) -> OrbitInputs | object | None:
+        st = self.host.state
+        seeds = [tuple(s) for s in st.orbit_seeds]
+        if st.orbit_view:
+            seeds += [tuple(x) for x in grid_seeds((*st.q_range, *st.r_range), *ORBIT_GRID)]
+        if not st.show_orbits or not seeds:
+            return None
+        params = self.system_params()
+        if params is None:
+            return KEEP
+        return OrbitInputs(params, tuple(seeds), tuple(range(1, st.orbit_period + 1)), "", st.to_query())
+
+    def on_view(self) -> bool:
+        return bool(self.host.state.orbit_view)
+
+    def prepare(self, inputs: OrbitInputs) -> OrbitInputs:
+        if not inputs.where:
+            self.text = (f"finding periodic orbits (periods 1..{max(inputs.periods)}) from {len(inputs.seeds)} "
+                         "starting points…")  # fmt: skip
+        return inputs
+
+    def job(self, inputs: OrbitInputs, cancelled: Callable[[], bool]) -> Iterator[OrbitSearch]:
+        res = find_orbits(inputs.params, list(inputs.seeds), list(inputs.periods), cancel=cancelled)
+        if not cancelled():
+            yield res
+
+    def current(self, inputs: OrbitInputs) -> bool:
+        return inputs.params == self.host.system()  # else found for a system no longer on screen
+
+    def apply(self, inputs: OrbitInputs, res: OrbitSearch) -> None:
+        if not inputs.where:
+            self.orbits = []
+        elif stale_note(self.shown_query, inputs.query, url_keys(SYSTEM_FIELDS)):
+            self.orbits = []  # those on screen are another system's (a Stop kept them): never mixed
+        self.shown_query = inputs.query
+        new = [o for o in res.orbits if not any(same_orbit(o, k) for k in self.orbits)]
+        self.orbits = sorted([*self.orbits, *new], key=lambda o: (o.period, float(o.points[0, 0])))
+        self._draw()
+        if inputs.where:
+            if new:
+                what = ", ".join(f"period {o.period} ({o.kind})" for o in new)
+                self.text = f"{inputs.where}: {what}"
+            elif res.orbits:
+                self.text = f"{inputs.where}: an orbit already shown (period {res.orbits[0].period})"
+            else:
+                reason = res.failures[0].reason if res.failures else "nothing found"
+                self.text = f"{inputs.where}: no orbit of period ≤ {max(res.extra.get('periods', [0]))} ({reason})"
+        else:
+            periods = list(res.extra.get("periods", [])) or [0]
+            tries = res.seeds * len(periods)
+            self.text = (f"{len(self.orbits)} periodic orbits of period 1..{max(periods)} from {res.seeds} "
+                         f"starting points ({len(res.failures)} of the {tries} Newton searches, one per "
+                         f"starting point and period, found none; {res.elapsed_s:.2f} s)")  # fmt: skip
+
+    def clear(self) -> None:
+        self.orbits = []
+        self.shown_query = None
+        self.text = ""
+        self._draw()
+
+    def _draw(self) -> None:
+        rows = [orbit_row(o) for o in self.orbits]
+        self.host.fig.set_orbits(rows)
+        self.rows = rows[:ORBIT_ROWS]
+
+    def status(self) -> str:
+        return self.text
+
+    def published(self) -> dict[str, Any]:
+        return {"orbits": self.rows, "orbit_status": self.text}
+
+    def stopped(self, busy: bool, now: dict[str, str]) -> None:
+        if not self.host.state.show_orbits or not (busy or self.orbits):
+            return
+        note = stale_note(self.shown_query, now, url_keys(self.depends)) if self.orbits else ""
+        if note:
+            self.text = f"stopped: the {len(self.orbits)} periodic orbits shown are for {note}"
+        elif busy:
+            self.text = f"stopped: {len(self.orbits)} periodic orbits shown (the search did not end)"
+
+    # --- what the user does -----------------------------------------------------------------
+
+    def find_at(self, q: float, r: float) -> bool:
+        """Newton from a click, for every period up to the setting; drawn as soon as found. Returns whether
+        the seeds changed (the URL)."""
+        if not (np.isfinite(q) and np.isfinite(r)) or max(abs(q), abs(r)) > MAX_MAGNITUDE:
+            return False
+        st = self.host.state
+        if len(st.orbit_seeds) >= MAX_ORBIT_SEEDS:
+            self.text = f"at most {MAX_ORBIT_SEEDS} orbit seeds; clear the orbits first"
+            self.host.publish(self)
+            return False
+        params = self.system_params()
+        if params is None:
+            return False
+        seed = (float(q), float(r))
+        st.orbit_seeds = [*st.orbit_seeds, seed]
+        if not st.show_orbits:
+            st.show_orbits = True  # recomputes every seed, this one included
+            return False
+        inputs = OrbitInputs(params, (seed,), tuple(range(1, st.orbit_period + 1)), f"from ({q:.4g}, {r:.4g})",
+                             st.to_query())  # fmt: skip
+        # One job per click, all kept: a second click does not cancel the first.
+        self.host.run(self, inputs, channel="orbit", bump=False)
+        return True
+
+    def csv(self) -> io.BytesIO:
+        """The orbits on screen as CSV (one row per orbit point), the settings in a comment header."""
+        buf = io.StringIO()
+        settings = "&".join(f"{a}={b}" for a, b in (self.shown_query or self.host.state.to_query()).items())
+        buf.write("# Bilimovich Explorer periodic orbits; " + settings)
+        buf.write("\norbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im,det,liouville,residual\n")
+        for i, o in enumerate(self.orbits):
+            m = o.multipliers
+            for j, (q, r) in enumerate(o.points):
+                nums = (q, r, m[0].real, m[0].imag, m[1].real, m[1].imag, o.det, o.liouville, o.residual)
+                buf.write(f"{i},{int(o.period)},{o.kind},{int(o.stable)},{j},{','.join(num(x) for x in nums)}\n")
+        return io.BytesIO(buf.getvalue().encode())
+
+
+def _mu_text(mu: np.ndarray) -> str:
+    parts = []
+    for m in mu:
+        parts.append(f"{m.real:.5g}{m.imag:+.5g}i" if abs(m.imag) > 1e-12 else f"{m.real:.6g}")
+    return ", ".join(parts) + f"  (|μ| {abs(mu[0]):.4g}, {abs(mu[1]):.4g})"
+
+
+def orbit_row(o: Orbit) -> dict[str, Any]:
+    """An orbit as plain data for the page (table) and the figure (markers, hover)."""
+    return {
+        "period": int(o.period),
+        "type": o.kind,
+        "stable": bool(o.stable),
+        "q": float(o.points[0, 0]),
+        "r": float(o.points[0, 1]),
+        "points": [[float(a), float(b)] for a, b in o.points],
+        "mu": _mu_text(o.multipliers),
+        "det": float(o.det),
+    }

@@ -1,0 +1,316 @@
+"""The section points: every trajectory's points of the stroboscopic map, streamed, and the status line.
+
+The section is the layer the others follow: its settings (``fields``) restart it and the layers of the
+system; the frozen-field layers start once its first points are out (:class:`Cadence`). Drawn as a density
+image instead (many points) by :mod:`app.layers.density`, which keeps its picture in the same channel.
+The reliability check (a priori: the numerics against the scene; then the states reached) is this layer's
+second channel.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import os
+import time
+from collections.abc import Callable
+from typing import Any, ClassVar
+
+import numpy as np
+
+from app.layers.base import Layer, stale_note
+from app.layers.density import DensityImage
+from app.layers.stream import MAX_CHUNK, Cadence
+from app.runner import LAYER, POINTS, Emit
+from app.state import SYSTEM_FIELDS, SectionRequest, url_keys
+from explorer_core.analyses.reliability import assess
+from explorer_core.solve.integrators import Status
+from explorer_core.solve.section import iter_section
+from explorer_core.system.model import Model
+from explorer_core.system.params import ParameterError, Params
+
+log = logging.getLogger(__name__)
+#: BILIMOVICH_TRACE=1 logs the timeline of each recompute (latency work).
+TRACE = bool(os.environ.get("BILIMOVICH_TRACE"))
+
+#: State fields whose change invalidates the section.
+SECTION_FIELDS = (*SYSTEM_FIELDS, "method", "accuracy", "steps_per_period", "n_random", "seed", "periods", "transient")
+SECTION_FIELDS += ("box", "render")
+#: The URL keys of the settings the section on screen depends on (its export's header and the stale note).
+SECTION_KEYS = url_keys((*SECTION_FIELDS, "clicked"))
+VIEW_KEYS = url_keys(("q_range", "r_range"))
+
+
+class SectionLayer(Layer):
+    """The section on screen: its points (or density image), the statuses of its trajectories, the status line."""
+
+    name = "section"
+    channels: ClassVar[dict[str, str]] = {"section": POINTS, "reliability": LAYER}
+    fields = SECTION_FIELDS
+    depends = (*SECTION_FIELDS, "clicked")
+
+    def __init__(self, host: Any) -> None:
+        super().__init__(host)
+        self.params: Params | None = None  # system of the data on screen
+        self.chunks: list[tuple[np.ndarray, ...]] = []
+        self.n_traj = 0
+        self.t_start = 0.0
+        self.elapsed = 0.0
+        self.progress: tuple[int | None, int | None] | None = None
+        self.outcome = ""  # "", "stopped" or "failed": how the last run ended short
+        self.status_arr = np.zeros(0, dtype=np.int8)  # status of each trajectory on screen
+        self.run_n = 0  # trajectories of the run in flight (or the last one)
+        self.run_transient = 0  # periods integrated before the first point (the core yields none meanwhile)
+        self.text = ""
+        self.escaped: list[int] = []
+        self.failed: list[int] = []
+        self.n_points = 0
+        self.warnings: list[dict[str, Any]] = []
+        self.density = DensityImage(self)
+        self.t_req = time.perf_counter()
+
+    def trace(self, label: str) -> None:
+        if TRACE:
+            log.warning("trace %.3f %8.1f ms %s", time.time(), 1e3 * (time.perf_counter() - self.t_req), label)
+
+    def status(self) -> str:
+        return self.text
+
+    def published(self) -> dict[str, Any]:
+        return {"status": self.text, "escaped": self.escaped, "failed": self.failed, "n_points": self.n_points,
+                "reliability": self.warnings}  # fmt: skip
+
+    # --- a run --------------------------------------------------------------------------------
+
+    def start(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
+        """Restart the section with ``req`` (its points replace those on screen when they come)."""
+        self.t_start = time.perf_counter()
+        self.progress = (0, req.periods)
+        self.run_transient = req.transient
+        self.outcome = ""
+        self.run_n = req.ics.shape[0]
+        query = self.host.state.to_query()  # the settings of this run: its points' export header
+        if req.density:
+            job = self.density.job(req, start_layers, query)
+        else:
+            job = self._points_job(req, start_layers, query)
+        self.host.runner.start("section", job)
+        self.check_reliability(req)  # a priori: the new numerics against the states on screen
+
+    def _points_job(self, req: SectionRequest, start_layers: Callable[[], None] | None, query: dict[str, str]) -> Any:
+        def job(cancelled: Callable[[], bool], emit: Emit) -> None:
+            self.trace("section job starts")
+            last_status = None
+            pending: list[tuple[np.ndarray, ...]] = []
+            cadence = Cadence(start_layers)
+
+            def flush(status: np.ndarray, done: int, total: int) -> None:
+                cols = tuple(np.concatenate([p[i] for p in pending]) for i in range(4))
+                pending.clear()
+                replace = cadence.sent()
+                emit(lambda: self.apply_chunk(cols, status, done, total, req if replace else None, query))
+
+            for chunk in iter_section(req.params, req.ics, req.periods, transient=req.transient,
+                                      numerics=req.numerics, max_chunk=MAX_CHUNK, cancel=cancelled):  # fmt: skip
+                pending.append(chunk.long())
+                last_status = chunk.status
+                if cadence.due():
+                    flush(chunk.status, chunk.done_periods, chunk.total_periods)
+                cadence.layers_if_late()
+            if pending and last_status is not None:
+                flush(last_status, req.periods, req.periods)
+            done = not cancelled()
+            cadence.layers_at_end(done)
+            emit(lambda: self.finish(done, last_status))
+
+        return job
+
+    def reset(self, req: SectionRequest, query: dict[str, str]) -> None:
+        """The first update of a new run: what is on screen is forgotten (in the same update that replaces it)."""
+        st = self.host.state
+        self.params = req.params
+        self.shown_query = query
+        self.chunks = []
+        if not req.density:
+            self.density.forget()
+        self.n_traj = req.ics.shape[0]
+        self.status_arr = np.zeros(self.n_traj, dtype=np.int8)
+        self.escaped, self.failed = [], []
+        self.host.fig.set_ics(np.array(st.clicked, dtype=float).reshape(-1, 2))
+        if st.selected >= self.n_traj:
+            st.selected = 0
+        self.host.series.set(*(np.zeros(0),) * 4)
+
+    def apply_chunk(self, cols: tuple[np.ndarray, ...], status: np.ndarray, done: int, total: int,
+                    new_run: SectionRequest | None, query: dict[str, str]) -> None:  # fmt: skip
+        traj, k, q, r = cols
+        if new_run is not None:
+            # The old picture stays until the new run's first points replace it, in one
+            # update: no blank plot, and the browser redraws once, not twice.
+            self.trace("first chunk on the document thread")
+            self.reset(new_run, query)
+            self.chunks.append(cols)
+            self.host.fig.replace_points(traj, k, q, r)
+        else:
+            self.chunks.append(cols)
+            self.host.fig.stream_points(traj, k, q, r)
+        self.set_status(status, done, total, running=True)
+        if traj.size and np.any(traj == self.host.state.selected):
+            self.update_series()
+        self.trace(f"{traj.size} points applied")
+
+    def finish(self, done: bool, status: np.ndarray | None) -> None:
+        self.trace("last chunk on the document thread")
+        self.progress = None
+        if not done:
+            self.outcome = "stopped"
+        if status is not None:
+            self.set_status(status, None, None, running=False)
+            self.check_reliability(None, status)
+        traj = self.data()[0]
+        if traj.size and not np.any(traj == self.host.state.selected):
+            # The selected trajectory left (e.g. escaped in the transient): show one that has points.
+            self.host.state.selected = int(traj.min())
+        self.update_series()
+
+    def stop(self) -> None:
+        """Stop pressed while the section ran (before its jobs are cancelled)."""
+        self.outcome = "stopped"
+        self.elapsed = time.perf_counter() - self.t_start
+
+    def stopped(self, busy: bool, now: dict[str, str]) -> None:
+        self.refresh_status()
+
+    def failed_run(self) -> None:
+        self.outcome = "failed"
+        self.refresh_status()
+
+    # --- the status line -----------------------------------------------------------------------
+
+    def set_status(self, status: np.ndarray, done: int | None, total: int | None, *, running: bool) -> None:
+        """Statuses of the main run's trajectories (a chunk or the end of the run)."""
+        self.status_arr[: status.size] = status
+        self.progress = (done, total) if running and done is not None else None
+        self.elapsed = time.perf_counter() - self.t_start
+        self.refresh_status()
+
+    def refresh_status(self) -> None:
+        """The status line from the data on screen and whether the section runs (document thread)."""
+        arr = self.status_arr
+        self.escaped = [int(i) for i in np.flatnonzero(arr == Status.ESCAPED)]
+        self.failed = [int(i) for i in np.flatnonzero((arr != Status.OK) & (arr != Status.ESCAPED))]
+        escaped, failed = self.escaped, self.failed
+        n_points = self.n_points = sum(c[0].size for c in self.chunks)
+        running = self.host.runner.busy("section")
+        if running:
+            self.elapsed = time.perf_counter() - self.t_start
+        n_traj = self.n_traj if n_points else self.run_n  # nothing on screen yet: the run's count
+        parts = [f"{n_points:,} points", f"{n_traj} trajectories", f"{self.elapsed:.2f} s"]
+        counts = self.density.counts
+        if counts is not None:
+            n_traj = self.n_traj or self.run_n
+            n_drawn = sum(int(np.count_nonzero(c[0] >= self.density.first_clicked)) for c in self.chunks)
+            drawn = f" ({n_drawn:,} of them drawn as points: the clicked trajectories)" if n_drawn else ""
+            parts = [f"{counts[0]:,} points as a density image, {counts[1]:,} in view{drawn}",
+                     f"{n_traj} trajectories", f"{self.elapsed:.2f} s"]  # fmt: skip
+        if running:
+            done, total = self.progress or (None, None)
+            if done == 0 and self.run_transient:
+                # The core yields nothing during the transient: say what it does instead of "0/100" for seconds.
+                parts.insert(0, f"computing: transient of {self.run_transient} periods first (no points before "
+                                f"it ends), then {total} periods")  # fmt: skip
+            else:
+                parts.insert(0, f"computing {done}/{total} periods" if done is not None else "computing…")
+        if escaped:
+            parts.append(f"{len(escaped)} escaped")
+        if failed:
+            parts.append(f"{len(failed)} failed")
+        if not running and self.outcome:
+            parts.append(self.outcome)
+        if not running and (n_points or counts is not None):
+            keys = (*SECTION_KEYS, *VIEW_KEYS) if counts is not None else SECTION_KEYS
+            note = stale_note(self.shown_query, self.host.state.to_query(), keys)
+            if note:
+                parts.append(f"the picture is for {note}")
+        shown = n_points or n_traj or running or self.outcome or counts
+        self.text = " · ".join(parts) if shown else ""
+        self.host.publish(self)
+
+    # --- the reliability check ----------------------------------------------------------------
+
+    def check_reliability(self, req: SectionRequest | None, status: np.ndarray | None = None) -> None:
+        """Warn when the method is unreliable for this scene (explorer_core.reliability.assess).
+
+        The check integrates a few probe states (RK4's error estimate), so it runs as a job
+        of its own, after the section's job has started: it never delays the first points.
+        """
+        st = self.host.state
+        try:
+            req = req or st.section_request()
+        except ParameterError:
+            return
+        # Points on screen tell how large the states get, if they belong to this system.
+        same = self.params == req.params and bool(self.chunks)
+        traj, _, q, r = self.data() if same else (None, None, None, None)
+        status = status if status is not None and status.size == req.ics.shape[0] else None
+        window, pixel = (*st.q_range, *st.r_range), st.pixel_size()
+
+        def job(cancelled: Callable[[], bool], emit: Emit) -> None:
+            try:
+                found = assess(
+                    req.params, req.numerics, periods=req.periods, transient=req.transient, ics=req.ics,
+                    points=np.column_stack([q, r]) if same else None, traj=traj, status=status,
+                    window=window, pixel=pixel,
+                )  # fmt: skip
+            except Exception:  # a failed check must never break the page
+                log.exception("reliability check failed")
+                found = []
+            warnings = [w.as_dict() for w in found]
+            emit(lambda: self._warn(warnings))
+
+        self.host.runner.start("reliability", job)
+
+    def _warn(self, warnings: list[dict[str, Any]]) -> None:
+        self.warnings = warnings
+        self.host.publish(self)
+
+    # --- data out ------------------------------------------------------------------------------
+
+    def data(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """All section points on screen as ``(traj, k, q, r)``."""
+        if not self.chunks:
+            z = np.zeros(0)
+            return z.astype(int), z.astype(int), z, z
+        return tuple(np.concatenate([c[i] for c in self.chunks]) for i in range(4))  # type: ignore[return-value]
+
+    def update_series(self) -> None:
+        """The selected trajectory: its k-series below and its points ringed in the section."""
+        traj, k, q, r = self.data()
+        sel = traj == self.host.state.selected
+        fig = self.host.fig
+        if self.params is None or not sel.any():
+            self.host.series.set(*(np.zeros(0),) * 4)
+            fig.set_selected(np.zeros(0), np.zeros(0))
+            return
+        order = np.argsort(k[sel], kind="stable")
+        ks, qs, rs = k[sel][order], q[sel][order], r[sel][order]
+        energy = Model(self.params).energy(qs, rs, self.params.t0)
+        self.host.series.set(ks, qs, rs, energy)
+        if self.density.counts is None:
+            fig.set_selected(qs, rs)
+        else:  # rings over a density image would hide it: the k-series below shows the trajectory
+            fig.set_selected(np.zeros(0), np.zeros(0))
+
+    def csv(self) -> io.BytesIO:
+        """The section on screen as CSV ``traj,k,q,r`` with the settings in a comment header."""
+        traj, k, q, r = self.data()
+        buf = io.StringIO()
+        settings = self.shown_query or self.host.state.to_query()
+        buf.write("# Bilimovich Explorer section; " + "&".join(f"{a}={b}" for a, b in settings.items()))
+        if self.density.counts is not None:
+            buf.write(f"\n# a density view: only the trajectories drawn as points (clicked, selected); the image "
+                      f"holds {self.density.counts[0]} points")  # fmt: skip
+        buf.write("\ntraj,k,q,r\n")
+        for row in zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True):
+            buf.write(f"{row[0]},{row[1]},{row[2]!r},{row[3]!r}\n")
+        return io.BytesIO(buf.getvalue().encode())
