@@ -1,0 +1,228 @@
+"""The app as layers (issue 21, item 1): each layer of the section plot is one module declaring what it watches
+and what it computes; the controller drives them alike, so a new layer is one file. Each control is declared
+once (its state attribute and its URL key generated from its entry); the plot's size is one constant."""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Iterator
+from typing import Any, ClassVar
+
+import pytest
+
+import app.controller
+from app.controller import ExplorerSession
+from app.layers import LAYERS, Layer
+from app.layers.section import SectionLayer
+from app.runner import HEAVY, LAYER, POINTS, WARM, InlineExecutor, Runner, job_kind
+from app.state import (
+    CONTROLS,
+    PLOT_PIXELS,
+    URL_KEYS,
+    URL_OF,
+    ExplorerState,
+    SectionRequest,
+    parse_query,
+    state_from_query,
+)
+from explorer_core.system.params import ParameterError
+
+ALL = (SectionLayer, *LAYERS)
+
+
+@pytest.fixture(autouse=True)
+def _warm() -> None:
+    WARM.set()
+
+
+def session(layers: tuple[type[Layer], ...] = LAYERS, **state: Any) -> ExplorerSession:
+    st = ExplorerState(scene="fig1C", **state)
+    return ExplorerSession(st, Runner(lambda fn: fn(), executor=InlineExecutor()), layers=layers)
+
+
+# --- each layer declares its fields, its channels and its job ---------------------------------------------
+
+
+@pytest.mark.parametrize("cls", ALL, ids=lambda c: c.__name__)
+def test_each_layer_declares_the_fields_it_watches_and_its_job(cls: type[Layer]) -> None:
+    assert cls.name and cls.name in cls.channels  # its main channel carries its name
+    assert cls.fields and set(cls.fields) <= set(ExplorerState.param)
+    assert set(cls.depends) <= set(ExplorerState.param)
+    assert set(cls.channels.values()) <= {POINTS, LAYER}  # a layer is never a heavy analysis
+    if cls is not SectionLayer:  # the section's job is its streaming run (SectionLayer.start)
+        for method in ("inputs", "job", "apply", "clear"):
+            assert getattr(cls, method) is not getattr(Layer, method), f"{cls.__name__}.{method}"
+        assert inspect.isgeneratorfunction(cls.job)  # results drawn as they come
+    # the scheduler's own defaults agree with what the layer declares
+    for channel, kind in cls.channels.items():
+        assert job_kind(channel) == kind
+
+
+def test_channels_are_derived_from_the_layers_once_each() -> None:
+    s = session()
+    declared = [c for cls in ALL for c in cls.channels]
+    assert len(set(declared)) == len(declared)
+    assert s.channels == tuple(declared)
+    for cls in ALL:
+        for channel, kind in cls.channels.items():
+            assert s.runner.kind(channel) == kind
+    assert s.runner.kind("chart") == HEAVY  # an analysis tab's
+
+
+def test_the_controller_names_no_layer_channel_by_hand() -> None:
+    src = inspect.getsource(app.controller)
+    for channel in ("tracks", "tprime", "basins", "reliability"):
+        assert f'"{channel}"' not in src, channel
+
+
+# --- a new layer is one file: a stand-in plugs in without editing the controller ----------------------------
+
+
+class Doubler(Layer):
+    """A stand-in layer: for the system on screen and its own setting, two results (a coarse, a final one)."""
+
+    name = "doubler"
+    channels: ClassVar[dict[str, str]] = {"doubler": LAYER, "doubler_click": POINTS}
+    fields = ("basin_grid",)
+    depends = ("alpha", "basin_grid")
+    dedupe = True
+
+    def __init__(self, host: Any) -> None:
+        super().__init__(host)
+        self.shown: list[tuple[Any, ...]] = []
+        self.jobs = 0
+        self.text = ""
+        self.stop_calls: list[bool] = []
+
+    def inputs(self) -> tuple[float, int] | None:
+        p = self.host.system()
+        return None if p is None else (p.alpha, self.host.state.basin_grid)
+
+    def prepare(self, inputs: tuple[float, int]) -> tuple[float, int]:
+        if inputs[1] == 13:
+            raise ParameterError("13 pixels across is refused by the stand-in")
+        self.text = "doubling…"
+        return inputs
+
+    def refused(self, exc: BaseException) -> None:
+        self.text = f"doubler: {exc}"
+
+    def job(self, inputs: tuple[float, int], cancelled: Callable[[], bool]) -> Iterator[int]:
+        self.jobs += 1
+        yield inputs[1]
+        yield 2 * inputs[1]
+
+    def current(self, inputs: tuple[float, int]) -> bool:
+        p = self.host.system()
+        return p is not None and p.alpha == inputs[0]
+
+    def apply(self, inputs: tuple[float, int], result: int) -> None:
+        self.shown.append((inputs, result))
+        self.text = f"doubled: {result}"
+
+    def clear(self) -> None:
+        self.shown = []
+        self.text = ""
+
+    def status(self) -> str:
+        return self.text
+
+    def published(self) -> dict[str, Any]:
+        return {"basin_status": self.text}  # borrows a field the page already shows
+
+    def stopped(self, busy: bool, now: dict[str, str]) -> None:
+        self.stop_calls.append(busy)
+
+
+def test_a_new_layer_plugs_in_without_editing_the_controller() -> None:
+    s = session(layers=(*LAYERS, Doubler))
+    d = s.layer("doubler")
+    assert isinstance(d, Doubler) and "doubler" in s.channels and "doubler_click" in s.channels
+    assert s.runner.kind("doubler") == LAYER and s.runner.kind("doubler_click") == POINTS
+    s.recompute()
+    assert [r for _, r in d.shown] == [80, 160] and s.basin_status == "doubled: 160"
+    # the section's numerics change: the same inputs, not redone (dedupe)
+    assert s.commit("periods", "40") is None
+    assert d.jobs == 1
+    # its own setting redoes it
+    assert s.commit("basin_grid", "20") is None
+    assert d.jobs == 2 and d.shown[-1][1] == 40
+    # a refusal of its inputs is its status, not a failed job
+    assert s.commit("basin_grid", "13") is None
+    assert d.jobs == 2 and s.basin_status.startswith("doubler: 13 pixels") and s.error == ""
+    assert s.commit("basin_grid", "20") is None
+    assert d.jobs == 3
+    # a new system redoes it; Stop tells it
+    assert s.commit("alpha", "0.2") is None
+    assert d.jobs == 4 and d.shown[-1][0][0] == 0.2
+    s.stop()
+    assert d.stop_calls == [False]
+    # a click-like job on its second channel, joined to the current generation (no cancel)
+    s.run(d, (0.2, 7), channel="doubler_click", bump=False)
+    assert d.shown[-1] == ((0.2, 7), 14)
+
+
+def test_a_result_for_a_system_no_longer_on_screen_is_not_applied() -> None:
+    queue: list[Callable[[], None]] = []
+    st = ExplorerState(scene="fig1C")
+    s = ExplorerSession(st, Runner(queue.append, executor=InlineExecutor()), layers=(Doubler,))
+    d = s.layer("doubler")
+    s.refresh(d)
+    st.param.update(alpha=0.3)  # the system moved on before the results were delivered
+    for fn in list(queue):
+        fn()
+    assert all(inputs[0] == 0.3 for inputs, _ in d.shown)
+
+
+# --- each control declared once ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("c", CONTROLS, ids=lambda c: c.name)
+def test_each_controls_attribute_is_generated_from_its_entry(c: Any) -> None:
+    p = ExplorerState.param[c.name]
+    assert p.default == c.default
+    if c.kind == "int":
+        assert p.bounds == c.bounds  # the one declaration of its bounds
+    if c.kind in ("select", "radio") and c.name != "scene":
+        assert list(p.objects) == [v for v, _ in c.options]
+
+
+def test_every_url_key_is_in_one_table_and_round_trips() -> None:
+    keys = [u.key for u in URL_KEYS]
+    assert len(set(keys)) == len(keys)
+    assert {c.url for c in CONTROLS if c.url} <= set(keys)
+    s = ExplorerState(scene="fig1C")
+    s.param.update(manifold_saddles=[(0.5, 0.25, 2)], orbit_seeds=[(0.1, 0.2)], orbit_view=True, tab="chart",
+                   presentation=True, bif_orbits=False, show_basins=True, basin_grid=30, render="points",
+                   click_mode="orbit", tprime_kind="per-period", lyap_ic=(0.1, 0.2))  # fmt: skip
+    q = s.to_query()
+    analysis = {c.url for c in CONTROLS if c.area in ("lyapunov", "bifurcation", "chart", "bench")}
+    # every key written when its value is not the default (the analysis tabs' are at theirs but two)
+    assert set(q) == set(keys) - analysis | {"ly_ic", "bif_orb"}
+    updates, errors = parse_query(q)
+    assert not errors
+    for field in updates:
+        assert field in URL_OF
+    restored, errors = state_from_query(q)
+    assert not errors and restored.to_query() == q
+
+
+def test_the_plot_size_is_one_constant() -> None:
+    s = ExplorerState(scene="fig1C", render="density")
+    req = s.section_request()
+    assert isinstance(req, SectionRequest) and req.density
+    assert s.pixel_size() == min(s.q_range[1] - s.q_range[0], s.r_range[1] - s.r_range[0]) / PLOT_PIXELS[0]
+    src = "".join(inspect.getsource(m) for m in (app.controller,))
+    assert "800" not in src and "600" not in src
+
+
+def test_the_runner_is_configured_through_its_methods() -> None:
+    calls: list[str] = []
+    r = Runner(lambda fn: fn(), executor=InlineExecutor(), on_busy=calls.append)
+    ExplorerSession(ExplorerState(scene="fig1C"), r)
+    r.start("section", lambda cancelled, emit: None)
+    assert calls and set(calls) == {"section"}  # the page's callback kept (set_on_busy does not replace it)
+    r2 = Runner(lambda fn: fn(), executor=InlineExecutor())
+    s2 = ExplorerSession(ExplorerState(scene="fig1C"), r2)
+    s2.recompute()
+    assert not s2.running  # the session's own callback: "running" follows the runner
