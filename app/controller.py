@@ -121,7 +121,7 @@ class ExplorerSession(param.Parameterized):
             running = any(self.runner.busy(c) for c in self.channels)
             if running != self.running:
                 self.running = running
-            if channel == "section":
+            if channel == self.section.name:
                 self.section.refresh_status()
 
     def system(self) -> Params | None:
@@ -148,22 +148,24 @@ class ExplorerSession(param.Parameterized):
             else:
                 self._clear(layer)
         elif inputs is not KEEP:
-            self.run(layer, inputs)
+            self.run(layer, inputs, from_job=from_job)
 
     def _clear(self, layer: Layer) -> None:
         layer.clear()
         self.publish(layer)
 
-    def run(self, layer: Layer, inputs: Any, *, channel: str | None = None, bump: bool = True) -> None:
+    def run(self, layer: Layer, inputs: Any, *, channel: str | None = None, bump: bool = True,
+            from_job: bool = False) -> None:  # fmt: skip
         """Start ``layer``'s job for ``inputs`` on its channel; each result it yields is applied on the document
         thread while the layer still shows what the state asks (:meth:`Layer.current`)."""
+        publish = (lambda: self.runner.ui(lambda: self.publish(layer))) if from_job else (lambda: self.publish(layer))
         try:
             arg = layer.prepare(inputs)
         except ParameterError as exc:
             layer.refused(exc)
-            self.publish(layer)
+            publish()
             return
-        self.publish(layer)
+        publish()
 
         def job(cancelled: Callable[[], bool], emit: Emit) -> None:
             for result in layer.job(arg, cancelled):
@@ -261,7 +263,7 @@ class ExplorerSession(param.Parameterized):
             req = self.state.section_request()
         except ParameterError as exc:
             self.error = str(exc)
-            self.runner.cancel("section")
+            self.runner.cancel(self.section.name)
             self.section.refresh_status()  # the picture kept is of other settings: the status says which
             self._publish_query()
             return
@@ -291,7 +293,7 @@ class ExplorerSession(param.Parameterized):
     def stop(self) -> None:
         """Stop everything of the section view in flight; what was computed stays on screen, and says which
         settings it belongs to when the controls have moved on (the new settings' results never came)."""
-        if self.runner.busy("section"):
+        if self.runner.busy(self.section.name):
             self.section.stop()
         busy = {c for c in self.channels if self.runner.busy(c)}
         self._inputs.clear()  # a stopped layer is computed again next time
@@ -308,7 +310,7 @@ class ExplorerSession(param.Parameterized):
         for layer in self.layers.values():
             if channel in layer.channels:
                 self._inputs.pop(layer.name, None)  # tried again on the next change
-        if channel == "section":
+        if channel == self.section.name:
             self.section.failed_run()
 
     # --- clicks --------------------------------------------------------------------------------
@@ -375,9 +377,11 @@ class ExplorerSession(param.Parameterized):
         self.layers["manifolds"].pick(q, r, self.layers["orbits"].orbits)  # type: ignore[attr-defined]
 
     def clear_manifolds(self) -> None:
-        self.runner.cancel("manifolds")
+        layer = self.layers["manifolds"]
+        for channel in layer.channels:
+            self.runner.cancel(channel)
         self.state.manifold_saddles = []  # the watcher redoes the layer: off
-        self._clear(self.layers["manifolds"])  # also its message when none was drawn
+        self._clear(layer)  # also its message when none was drawn
 
     # --- data out ------------------------------------------------------------------------------
 

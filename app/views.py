@@ -376,7 +376,7 @@ class SectionFigure:
         self.ics.data = {"q": ics[:, 0], "r": ics[:, 1]} if ics.size else {"q": [], "r": []}
 
     def set_orbits(self, rows: list[dict[str, Any]]) -> None:
-        """Every point of every orbit (rows of :func:`app.controller.orbit_row`), in its kind's layer."""
+        """Every point of every orbit (rows of :func:`app.layers.orbits.orbit_row`), in its kind's layer."""
         if not rows and "orbits" not in self._built:
             return
         self._activate("orbits")

@@ -71,7 +71,7 @@ def test_channels_are_derived_from_the_layers_once_each() -> None:
 
 def test_the_controller_names_no_layer_channel_by_hand() -> None:
     src = inspect.getsource(app.controller)
-    for channel in ("tracks", "tprime", "basins", "reliability"):
+    for channel in ("section", "tracks", "tprime", "basins", "reliability"):
         assert f'"{channel}"' not in src, channel
 
 
