@@ -44,9 +44,8 @@ TAB_NAMES = {"bifurcation": "Bifurcation diagram", "chart": "Chart of regimes"}
 #: The orbit search's button: an action, then a mode that stays on (redone after every pan or zoom).
 FIND_OFF = ("Find orbits in view", "Newton on P^n(x) - x from a grid of starting points over the plot window")
 FIND_ON = ("Orbits in view: on", "A mode: the search is redone after every pan or zoom; 'Clear orbits' ends it")
-#: Session parameters that change what the section tab shows.
-SESSION_VIEW = ["status", "error", "running", "escaped", "failed", "reliability", "n_points", "orbits", "orbit_status",
-                "n_manifolds", "manifold_status", "basin_status", "basin_legend"]  # fmt: skip
+#: Session parameters that change what the section tab shows: all of them (what the layers publish included).
+SESSION_VIEW = [p for p in ExplorerSession.param if p != "name"]
 
 
 class Page:
