@@ -226,3 +226,15 @@ def test_the_runner_is_configured_through_its_methods() -> None:
     s2 = ExplorerSession(ExplorerState(scene="fig1C"), r2)
     s2.recompute()
     assert not s2.running  # the session's own callback: "running" follows the runner
+
+
+def test_the_initial_page_has_no_more_bokeh_models_than_before_the_layers() -> None:
+    """The refactor builds the same page: 73 models in one Page's document (a4bc0e5: 73), no layer adds any."""
+    from bokeh.document import Document
+
+    from app.page import Page
+
+    doc = Document()
+    page = Page({}, lambda fn: fn(), executor=InlineExecutor())
+    doc.add_root(page.ui.get_root(doc))
+    assert len(list(doc.models)) <= 73
