@@ -124,10 +124,12 @@ def draw_section(s: Section, *, max_points: int = MAX_POINTS, **opts: Any) -> hv
     max_points = _check_max_points(max_points)
     traj, k, q, r = s.long()
     idx, stride = thin(traj.size, max_points)
-    data = {"q": q[idx], "r": r[idx], "traj": traj[idx], "k": k[idx], "colour": traj[idx] % N_COLORS}
+    # The colour of each point as the app's mapper gives it (palette[traj % 20]), as data: a mapper over a
+    # column of one value (one trajectory) would draw nothing.
+    colour = np.asarray(TRAJ_PALETTE)[traj[idx] % N_COLORS]
+    data = {"q": q[idx], "r": r[idx], "traj": traj[idx], "k": k[idx], "colour": colour}
     pts = hv.Points(data, kdims=["q", "r"], vdims=["traj", "k", "colour"], label="section points")
-    pts = pts.opts(color="colour", cmap=list(TRAJ_PALETTE), clim=(0, N_COLORS - 1), size=2.6, line_color=None,
-                   fill_alpha=0.9, tools=["hover"], colorbar=False, show_legend=False,
+    pts = pts.opts(color="colour", size=2.6, line_color=None, fill_alpha=0.9, tools=["hover"], show_legend=False,
                    hover_tooltips=[("trajectory", "@traj"), ("k", "@k"), ("q, r", "@q, @r")], **SIZE)  # fmt: skip
     elem, note = _many(pts, traj.size, stride, "points")
     lost = [f"{n} {lab}" for lab, n in zip(*np.unique(s.status_labels(), return_counts=True), strict=True)
@@ -407,11 +409,11 @@ def draw_orbit_diagram(d: OrbitDiagram, *, coord: str = "q", max_points: int = M
     s, _, value, ic, k, q, r = d.long()
     idx, stride = thin(s.size, max_points)
     y = (q, r)[c]
+    backward = d.sweeps[s[idx]] == "backward"
     data = {d.param: value[idx], f"{coord}_k": y[idx], "sweep": d.sweeps[s[idx]].astype(str),
-            "colour": (d.sweeps[s[idx]] == "backward").astype(int), "ic": ic[idx], "k": k[idx]}  # fmt: skip
+            "colour": np.asarray(PAIR_COLOURS)[backward.astype(int)], "ic": ic[idx], "k": k[idx]}  # fmt: skip
     pts = hv.Points(data, kdims=[d.param, f"{coord}_k"], vdims=["sweep", "colour", "ic", "k"], label="orbit diagram")
-    pts = pts.opts(color="colour", cmap=list(PAIR_COLOURS), clim=(0, 1), size=1.6, line_color=None, colorbar=False,
-                   show_legend=False, tools=["hover"], **SIZE)  # fmt: skip
+    pts = pts.opts(color="colour", size=1.6, line_color=None, show_legend=False, tools=["hover"], **SIZE)
     elem, note = _many(pts, s.size, stride, "points")
     n_lost = int((~d.drawn()).sum())
     title = f"Orbit diagram in {d.param} ({', '.join(str(v) for v in d.sweeps)}){note}"

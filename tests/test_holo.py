@@ -8,6 +8,7 @@ pyproject.toml, the clear error without a drawer) is tested without HoloViews' h
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 import tomllib
@@ -131,6 +132,15 @@ def glyph_renderers(fig):
     return [r for r in fig.renderers if hasattr(r, "glyph")]
 
 
+def drawn_colours(fig):
+    """The fill colour of every point of the figure's one scatter, as the browser gets it."""
+    (r,) = glyph_renderers(fig)
+    colour = r.glyph.fill_color
+    if isinstance(colour, str):  # one colour for every point: HoloViews sends it once
+        return np.full(len(next(iter(r.data_source.data.values()))), str(colour))
+    return np.asarray(r.data_source.data[colour.field])
+
+
 def hovers(fig):
     return [t for t in fig.tools if type(t).__name__ == "HoverTool"]
 
@@ -151,11 +161,10 @@ def test_section_points_are_the_sections_coloured_as_in_the_app(sec) -> None:
     np.testing.assert_array_equal(pts.dimension_values("r"), r)
     np.testing.assert_array_equal(pts.dimension_values("traj"), traj)
     np.testing.assert_array_equal(pts.dimension_values("k"), k)
-    np.testing.assert_array_equal(pts.dimension_values("colour"), traj % views.N_COLORS)
+    # The app's mapper: palette TRAJ_PALETTE over 0..N_COLORS-1 on traj % N_COLORS, i.e. palette[traj % 20].
+    np.testing.assert_array_equal(pts.dimension_values("colour"), np.asarray(views.TRAJ_PALETTE)[traj % views.N_COLORS])
     fig = render(pts)
-    (glyph,) = [r.glyph for r in glyph_renderers(fig)]
-    mapper = glyph.fill_color.transform
-    assert list(mapper.palette) == list(views.TRAJ_PALETTE) and (mapper.low, mapper.high) == (0, views.N_COLORS - 1)
+    np.testing.assert_array_equal(drawn_colours(fig), np.asarray(views.TRAJ_PALETTE)[traj % views.N_COLORS])
     (hover,) = hovers(fig)
     assert [name for name, _ in hover.tooltips] == ["trajectory", "k", "q, r"]
     assert f"{traj.size} points of 25 trajectories" in pts.opts.get().kwargs["title"]
@@ -306,7 +315,13 @@ def test_orbit_diagram_is_the_drawn_points() -> None:
     s, _, value, _, _, _, r = d.long()
     np.testing.assert_array_equal(pts.dimension_values("alpha"), value)
     np.testing.assert_array_equal(pts.dimension_values("r_k"), r)
-    np.testing.assert_array_equal(pts.dimension_values("colour"), (d.sweeps[s] == "backward").astype(int))
+    np.testing.assert_array_equal(
+        pts.dimension_values("colour"), np.asarray(holo.PAIR_COLOURS)[(d.sweeps[s] == "backward").astype(int)]
+    )
+    # One sweep alone (a constant colour column, which a colour mapper once drew as nothing) is drawn in its colour.
+    one = dataclasses.replace(d, sweeps=d.sweeps[:1], points=d.points[:1], npts=d.npts[:1], status=d.status[:1],
+                              final=d.final[:1])  # fmt: skip
+    assert set(drawn_colours(render(drawing.draw(one)))) == {holo.PAIR_COLOURS[0]}
     with pytest.raises(ParameterError, match="coord must be 'q' or 'r', got 'x'"):
         drawing.draw(d, coord="x")
 
