@@ -396,3 +396,17 @@ def test_basins_image_colours_each_attractor_as_the_app() -> None:
     assert len(codes) == len(cmap)
     assert [el.label for el in elements(ov)[1:]] == [holo.basin_words(b, a) for a in b.attractors
                                                      if a.kind != "escape" and len(a.points)]  # fmt: skip
+
+
+def test_every_result_class_draws_itself_without_the_core_importing_holoviews(sec) -> None:
+    for cls in holo.DRAWERS:
+        assert issubclass(cls, drawing.Drawable), cls
+    pts = sec.to_holoviews(width=300)
+    np.testing.assert_array_equal(pts.dimension_values("q"), sec.long()[2])
+    code = (
+        "import sys; from explorer_core.solve.section import Section; import explorer_core.analyses.basins;"
+        "print('holoviews' in sys.modules, 'app' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True,
+                         timeout=300)  # fmt: skip
+    assert out.stdout.split() == ["False", "False"]
