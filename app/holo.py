@@ -203,6 +203,7 @@ def draw_tracks(tr: Tracks, **opts: Any) -> hv.Overlay:
         paths = [{"q": q, "r": r, "type": kind} for q, r, t in segments if t == kind]
         path = hv.Path(paths, kdims=["q", "r"], vdims=["type"], label=f"{equilibrium_label(kind)} (track)")
         layers.append(path.opts(color=TYPE_COLORS.get(kind, "#000000"), line_width=1.6, alpha=0.7, line_dash="dashed",
+                                show_legend=True,
                                 **SIZE))  # fmt: skip
     title = f"Equilibrium tracks over t ∈ [{tr.t_start:.4g}, {tr.t_start + tr.period:.4g}]: {tr.n_branches} branches"
     if tr.lost:
@@ -301,7 +302,7 @@ def draw_manifolds(m: Manifolds, **opts: Any) -> hv.Overlay:
                  for b in m.branches if b.kind == kind for k, p in enumerate(b.pieces) if p.shape[0] > 1]  # fmt: skip
         if paths:
             path = hv.Path(paths, kdims=["q", "r"], vdims=["s", "branch"], label=f"{kind} manifold")
-            layers.append(path.opts(color=MANIFOLD_COLOURS[kind], line_width=1.6, alpha=0.9, **SIZE))
+            layers.append(path.opts(color=MANIFOLD_COLOURS[kind], line_width=1.6, alpha=0.9, show_legend=True, **SIZE))
     if m.crossings:
         data = {"q": [c.q for c in m.crossings], "r": [c.r for c in m.crossings],
                 "what": [f"{c.kind} point ({c.unstable} × {c.stable})" for c in m.crossings]}  # fmt: skip
@@ -456,7 +457,7 @@ def draw_continuation(c: Continuation, *, coord: str = "q", **opts: Any) -> hv.O
         if paths:
             layers.append(
                 hv.Path(paths, kdims=[c.param, coord], vdims=["branch", "period"], label=label).opts(
-                    color=colour, line_dash=dash, line_width=width, **SIZE
+                    color=colour, line_dash=dash, line_width=width, show_legend=True, **SIZE
                 )
             )
     if c.bifurcations:

@@ -222,6 +222,8 @@ def test_tracks_are_the_branches_split_by_type() -> None:
     ov = drawing.draw(tr)
     drawn = sum(len(el.split()) for el in elements(ov))
     assert drawn == len(holo.track_segments(tr))
+    legend = {item.label.value for lg in render(ov).legend for item in lg.items}
+    assert legend == {el.label for el in elements(ov)}
     for el in elements(ov):
         kind = el.label.removeprefix("frozen-field ").removesuffix(" (track)")
         assert el.opts.get().kwargs["color"] == views.TYPE_COLORS[kind]
@@ -279,6 +281,8 @@ def test_manifolds_are_their_pieces_in_their_colours(mans) -> None:
         for g, p in zip(got, pieces, strict=True):
             np.testing.assert_array_equal(g.dimension_values("q"), p[:, 1])
             np.testing.assert_array_equal(g.dimension_values("r"), p[:, 2])
+    legend = {item.label.value for lg in render(ov).legend for item in lg.items}
+    assert {"unstable manifold", "stable manifold", views.orbit_label(mans.orbit.kind)} <= legend
     # The saddle itself is drawn, as an orbit of the map (a cross).
     assert any(el.label == views.orbit_label(mans.orbit.kind) for el in elements(ov))
 
@@ -348,6 +352,8 @@ def test_continued_branches_split_by_stability_and_bifurcations_marked(cascade) 
             assert {bool(br.stable[i]) for i in idx[:-1]} == {stable}
             n_points += len(idx) - 1
     assert n_points >= cascade.n_points - 2 * len(cascade.branches)
+    legend = {item.label.value for lg in render(ov).legend for item in lg.items}
+    assert {"stable orbits", "bifurcations"} <= legend
     tips = [
         h.tooltips for h in hovers(render(ov)) if "bifurcation" not in str(h.tooltips) and "kind" in str(h.tooltips)
     ]
