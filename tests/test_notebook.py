@@ -1,10 +1,16 @@
-"""The explorer in a notebook: the inline component (app/notebook.py).
+"""The explorer in a notebook: the inline component (app/notebook.py) and the example notebook, executed.
 
 The component is the served page built in the kernel: its state is read and set from Python (a set value
-is checked as a typed one and recomputes), a shared link's state loads into it.
+is checked as a typed one and recomputes), a shared link's state loads into it. The example notebook
+(examples/paper_story.ipynb, outputs not stored) runs top to bottom with nbclient in a fresh kernel, and its
+rendering in docs/ loads nothing from the internet.
 """
 
 from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
 
 import pytest
 
@@ -12,6 +18,8 @@ from app.notebook import Explorer, query_of_url, text_of
 from app.runner import WARM
 from explorer_core.system.params import ParameterError
 
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOK = ROOT / "examples" / "paper_story.ipynb"
 SMALL = {"n": ["2"], "periods": ["5"]}
 
 
@@ -120,3 +128,48 @@ def test_the_component_renders_as_the_page() -> None:
     root = pn.panel(ex).get_root()  # what a notebook's cell output is built from
     assert root.select_one({"name": "section_figure"}) is not None
     assert hasattr(ex, "_repr_mimebundle_")
+
+
+# ---------------------------------------------------------------------------
+# The example notebook.
+
+
+def test_the_example_notebook_stores_no_outputs() -> None:
+    nb = json.loads(NOTEBOOK.read_text(encoding="utf-8"))
+    cells = [c for c in nb["cells"] if c["cell_type"] == "code"]
+    assert cells and all(not c["outputs"] and c["execution_count"] is None for c in cells)
+
+
+@pytest.mark.slow
+def test_the_example_notebook_runs() -> None:
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    pytest.importorskip("ipykernel")
+    nb = nbformat.read(NOTEBOOK, as_version=4)
+    env_path = os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])
+    os.environ["PYTHONPATH"] = env_path  # the kernel imports this checkout's explorer_core and app
+    client = nbclient.NotebookClient(
+        nb, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(ROOT)}}
+    )
+    client.kernel_manager_class = "jupyter_client.manager.KernelManager"
+    client.execute()
+    errors = [o for c in nb.cells if c.cell_type == "code" for o in c.outputs if o.output_type == "error"]
+    assert not errors, errors
+    # Every result drew itself: the cells that end with a picture show one (HoloViews' bokeh output).
+    shown = [c for c in nb.cells if c.cell_type == "code" and any("data" in o for o in c.outputs)]
+    assert len(shown) >= 6
+
+
+def test_the_rendered_notebook_loads_nothing_from_the_internet() -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("notebook_render", ROOT / "docs" / "notebook_render.py")
+    render = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(render)  # type: ignore[union-attr]
+    html = (ROOT / "docs" / "notebook_paper_story.html").read_text(encoding="utf-8")
+    assert render.remote_loads(html) == []
+    # The check finds what nbconvert's lab template and HoloViews' renderer load by default.
+    page = '<script src="https://cdnjs.cloudflare.com/ajax/libs/require.js/2.1.10/require.min.js"></script>'
+    page += '{"name":"ImportedStyleSheet","id":"p1","attributes":{"url":"https://cdn.holoviz.org/panel/x/a.css"}}'
+    page += 'var js_urls = ["https://cdn.bokeh.org/bokeh/release/bokeh-3.9.2.min.js"];'
+    assert len(render.remote_loads(page)) == 3
