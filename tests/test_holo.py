@@ -9,6 +9,8 @@ pyproject.toml, the clear error without a drawer) is tested without HoloViews' h
 from __future__ import annotations
 
 import dataclasses
+import importlib.metadata
+import os
 import subprocess
 import sys
 import tomllib
@@ -84,6 +86,9 @@ def test_the_entry_point_is_declared_and_names_the_registering_function() -> Non
     eps = meta["project"]["entry-points"][drawing.ENTRY_POINT_GROUP]
     assert eps == {"holoviews": "app.holo:register"}
     assert "holoviews" in " ".join(meta["project"]["dependencies"])
+    # Where the package is installed from a checkout with this pyproject, the metadata carries it too.
+    installed = {ep.value for ep in importlib.metadata.entry_points(group=drawing.ENTRY_POINT_GROUP)}
+    assert not installed or "app.holo:register" in installed
     module, _, attr = eps["holoviews"].partition(":")
     holo = pytest.importorskip(module)
     assert callable(getattr(holo, attr))
@@ -416,3 +421,23 @@ def test_every_result_class_draws_itself_without_the_core_importing_holoviews(se
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True,
                          timeout=300)  # fmt: skip
     assert out.stdout.split() == ["False", "False"]
+
+
+def test_an_installed_entry_point_is_found_without_importing_app_holo(tmp_path: Path) -> None:
+    # A distribution on the path that declares the drawers as pyproject.toml does (as `pip install .` writes it).
+    dist = tmp_path / "bilimovich_probe-0.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: bilimovich-probe\nVersion: 0\n", encoding="utf-8")
+    (dist / "entry_points.txt").write_text(f"[{drawing.ENTRY_POINT_GROUP}]\nholoviews = app.holo:register\n",
+                                           encoding="utf-8")  # fmt: skip
+    code = (
+        "import sys, numpy as np; from explorer_core.analyses.equilibria import Equilibria\n"
+        "e = Equilibria(0.0, np.array([0.5]), np.array([1.0]), np.zeros((1, 2), complex), ('saddle',))\n"
+        "assert 'app.holo' not in sys.modules\n"
+        "ov = e.to_holoviews()\n"
+        "print(type(ov).__name__, 'app.holo' in sys.modules, list(ov)[0].dimension_values('q'))"
+    )
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["Overlay", "True", "[0.5]"]
