@@ -69,6 +69,7 @@ from explorer_core import config
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
 from explorer_core.analyses.sweeps import detect_period
+from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.solve.integrators import Batch, Status, advance
 from explorer_core.solve.numerics import Numerics, check_box, check_int
@@ -254,7 +255,7 @@ class BasinSpec:
 
 
 @dataclass
-class Basins:
+class Basins(Drawable):
     """Basins of attraction on a grid of initial conditions (possibly partial: see ``computed``).
 
     ``q`` (NX,) and ``r`` (NY,) are the pixel centres; ``label`` (NY, NX) int: the id of the attractor

@@ -47,6 +47,7 @@ from explorer_core.analyses.sweeps import (
     params_at,
     status_label,
 )
+from explorer_core.drawing import Drawable
 from explorer_core.parallel.executor import Executor
 from explorer_core.progress import Progress
 from explorer_core.solve.integrators import Status, lockstep_groups, run
@@ -207,7 +208,7 @@ def sweep_orbits(
 
 
 @dataclass(frozen=True)
-class OrbitDiagram:
+class OrbitDiagram(Drawable):
     """A bifurcation diagram: section points per parameter value, sweep and initial condition.
 
     ``points[s, v, i, :npts[s, v, i]]`` are the points of initial condition ``i`` at

@@ -50,6 +50,7 @@ import numpy as np
 
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, UNIT_TOL, classify, minimal_period, multipliers, newton
 from explorer_core.analyses.sweeps import check_param
+from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.solve.integrators import run_at
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
@@ -236,7 +237,7 @@ class Curve:
 
 
 @dataclass
-class Continuation:
+class Continuation(Drawable):
     """Branches, the bifurcations on them and (two-parameter) curves.
 
     ``completed`` is False when the run was cancelled; ``complete`` is False when anything was lost

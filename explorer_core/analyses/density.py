@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.drawing import Drawable
 from explorer_core.progress import Progress
 from explorer_core.scenes import plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
@@ -40,7 +41,7 @@ MAX_PIXELS = 4096
 
 
 @dataclass(frozen=True)
-class Density:
+class Density(Drawable):
     """Counts of section points per pixel of ``view`` after ``done_periods`` of ``total_periods``.
 
     ``counts`` (pixels_r, pixels_q) int64, row 0 at ``r0`` (the bottom of the view), column 0 at ``q0``;

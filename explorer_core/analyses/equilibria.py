@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.system.model import ROW_Q, ROW_R, Model, coefficients_at
 from explorer_core.system.params import ParameterError, Params
@@ -70,7 +71,7 @@ _L0 = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
-class Equilibria:
+class Equilibria(Drawable):
     """Equilibria of the frozen field at one time ``t``.
 
     Attributes
@@ -563,7 +564,7 @@ def _finish(t: float, cq: list[float], cr: list[float], sol: ConicSolution, rtol
 
 
 @dataclass(frozen=True, eq=False)
-class Tracks:
+class Tracks(Drawable):
     """Equilibria followed continuously over one forcing period.
 
     Rows are sorted by branch, then time. A branch ends where its point is born

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.drawing import Drawable
 from explorer_core.progress import Progress
 from explorer_core.solve import rk, tangent
 from explorer_core.solve.integrators import tables
@@ -122,7 +123,7 @@ class LyapunovProgress:
 
 
 @dataclass(frozen=True)
-class LyapunovResult:
+class LyapunovResult(Drawable):
     """Lyapunov exponents of one or several trajectories (an ensemble).
 
     All exponents are **per unit time**; multiply by :attr:`period` for the

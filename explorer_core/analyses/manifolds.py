@@ -43,6 +43,7 @@ from numba import njit
 
 from explorer_core import config
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, Orbit, find_orbits
+from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.solve.integrators import Batch
@@ -146,7 +147,7 @@ class Crossing:
 
 
 @dataclass(frozen=True)
-class Manifolds:
+class Manifolds(Drawable):
     """The manifolds of one saddle orbit (and their crossings), complete or as grown so far."""
 
     params: Params

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.drawing import Drawable
 from explorer_core.solve import poincare
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
 from explorer_core.solve.poincare import PATIENCE, NewtonResult, PoincareMap, least_period
@@ -51,7 +52,7 @@ TYPES = ("stable node", "stable focus", "unstable node", "unstable focus", "sadd
 
 
 @dataclass(frozen=True)
-class Orbit:
+class Orbit(Drawable):
     """A periodic orbit of the Poincare map (see the module docstring).
 
     ``points`` (n, 2): ``x, P(x), ..., P^(n-1)(x)``; ``matrix`` (2, 2): ``DP^n`` at ``points[0]``;
@@ -110,7 +111,7 @@ class OrbitFailure:
 
 
 @dataclass(frozen=True)
-class OrbitSearch:
+class OrbitSearch(Drawable):
     """The distinct orbits found from a set of seeds, and the seeds that found none."""
 
     params: Params

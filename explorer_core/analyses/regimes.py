@@ -43,6 +43,7 @@ import numpy as np
 
 from explorer_core import config
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
+from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.progress import Progress
@@ -630,7 +631,7 @@ def _fill_each(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out)
 
 
 @dataclass
-class Chart:
+class Chart(Drawable):
     """A (possibly partial) chart of regimes. Arrays are ``[row j (y), column i (x), ic]``.
 
     ``regime`` holds the codes of :data:`REGIMES`; ``period`` the cycle's period

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.drawing import Drawable
 from explorer_core.solve.integrators import Status
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.poincare import PoincareMap
@@ -30,7 +31,7 @@ from explorer_core.system.params import ParameterError, Params
 
 
 @dataclass(frozen=True)
-class TPrimeMap:
+class TPrimeMap(Drawable):
     """Values on a grid: ``values[j, i]`` at ``(q[i], r[j])``.
 
     ``ok[j, i]`` is False where the value could not be computed (the one-period

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
+from explorer_core.drawing import Drawable
 from explorer_core.progress import Progress
 from explorer_core.solve.integrators import Batch, Status, advance
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
@@ -142,7 +143,7 @@ def iter_section(
 
 
 @dataclass
-class Section:
+class Section(Drawable):
     """A computed section: per-trajectory points, status and cost.
 
     ``points[i, :npts[i]]`` are the valid points of trajectory ``i`` at
