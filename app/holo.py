@@ -26,7 +26,8 @@ import numpy as np
 from bokeh.palettes import Category10
 
 from app.analyses import CHART_LEGEND, CURVE_STYLE
-from app.controller import BASIN_COLOURS, OUTCOME_COLOURS, OUTCOME_NAMES, orbit_row
+from app.layers.basins import BASIN_COLOURS, OUTCOME_COLOURS, OUTCOME_NAMES
+from app.layers.orbits import orbit_row
 from app.views import (
     BASIN_ALPHA,
     DENSITY_PALETTE,

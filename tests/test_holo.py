@@ -109,7 +109,7 @@ holo = pytest.importorskip("app.holo")
 
 from app import views  # noqa: E402
 from app.analyses import CHART_LEGEND, CURVE_STYLE  # noqa: E402
-from app.controller import BASIN_COLOURS  # noqa: E402
+from app.layers.basins import BASIN_COLOURS  # noqa: E402
 from explorer_core.analyses.basins import basins  # noqa: E402
 from explorer_core.analyses.bifurcation import bifurcation_diagram  # noqa: E402
 from explorer_core.analyses.continuation import continue_orbit  # noqa: E402

@@ -53,12 +53,12 @@ def explorer(scene: str = "fig8B", **query: str) -> tuple[Explorer, Jobs]:
 def test_state_reads_the_values_in_use_and_a_set_value_recomputes() -> None:
     ex, jobs = explorer()
     assert ex.state.alpha == -0.45 and ex.state.scene == "fig8B"
-    before = ex.page.session._params
+    before = ex.page.session.system()
     assert before is not None and before.alpha == -0.45
     ex.state.alpha = -0.41
     jobs.drain()
     assert ex.state.alpha == -0.41 and ex.state.scene == "custom"  # as a typed value on the page
-    assert ex.page.session._params.alpha == -0.41  # the section on screen is of the new system
+    assert ex.page.session.system().alpha == -0.41  # the section on screen is of the new system
     assert "alpha=-0.41" in ex.url
     ex.state.update(periods=7, q_range=(-1.5, 1.0))
     jobs.drain()
@@ -107,7 +107,7 @@ def test_wait_runs_the_results_delivered_to_the_kernel_until_the_section_is_done
     later: list = []  # a kernel's loop that never gets to run: wait() must run the results itself
     ex = Explorer("fig8B", query=SMALL, deliver=later.append)
     assert ex.wait(timeout=120) and not ex.running()
-    assert ex.page.session.n_points == 2 * 5 and ex.page.session._params.alpha == -0.45
+    assert ex.page.session.n_points == 2 * 5 and ex.page.session.system().alpha == -0.45
     for fn in later:  # the loop's turn comes later: nothing left to run
         fn()
     with pytest.raises(ParameterError, match="timeout must be a positive number of seconds, got 0"):
