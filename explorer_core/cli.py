@@ -752,7 +752,7 @@ def cmd_manifolds(args: argparse.Namespace) -> int:
         for b in result.branches:
             npts = sum(p.shape[0] for p in b.pieces)
             out.append(f"  {b.kind:8s} {b.label}: length {b.length:.4g}, {npts} points, {len(b.pieces)} piece(s), "
-                       f"{b.status}" + (f", {b.escaped} escaped" if b.escaped else ""))  # fmt: skip
+                       f"{b.end}" + (f", {b.escaped} escaped" if b.escaped else ""))  # fmt: skip
         homoclinic = sum(c.kind == "homoclinic" for c in result.crossings)
         return [*out, f"{len(result.crossings)} crossings ({homoclinic} homoclinic), {result.elapsed_s:.2f} s"]
 
