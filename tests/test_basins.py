@@ -177,6 +177,7 @@ def test_coarse_to_fine_levels_reuse_the_attractors_and_cancel_stops() -> None:
 
     last = list(iter_basins(spec, cancel=cancel))[-1].basins
     assert not last.completed and (last.label == NOT_COMPUTED).any()
+    assert np.array_equal(last.status == Status.NOT_RUN, last.label == NOT_COMPUTED)  # not computed: not_run
 
 
 @pytest.mark.parametrize(
