@@ -106,3 +106,8 @@ def count_names(codes: Iterable[Any]) -> dict[str, int]:
         return {}
     values, n = np.unique(arr.astype(np.int64), return_counts=True)
     return {Status.of(int(v)).label: int(k) for v, k in zip(values, n, strict=True)}
+
+
+def describe(codes: Iterable[Any]) -> str:
+    """The statuses of members in words, for people (the CLI's and the app's lines): ``"7 ok, 2 escaped"``."""
+    return ", ".join(f"{n} {Status.of(name).word}" for name, n in count_names(codes).items()) or "no members"

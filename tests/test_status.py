@@ -20,7 +20,7 @@ from explorer_core.scenes import get_scene
 from explorer_core.solve import integrators, poincare, rk
 from explorer_core.solve.integrators import Batch, advance
 from explorer_core.solve.numerics import Numerics
-from explorer_core.status import CODES, Status, count_names, names, status_names
+from explorer_core.status import CODES, Status, count_names, describe, names, status_names
 from explorer_core.system.model import Model
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,6 +49,7 @@ def test_helpers_decode_arrays_and_name_bad_values() -> None:
     assert names(codes) == [["ok", "escaped"], ["invalid", "not_run"]]
     assert names(np.int64(3)) == "too_many_steps"
     assert count_names(np.array([1, 0, 1])) == {"ok": 1, "escaped": 2} and count_names([]) == {}
+    assert describe(np.array([2, 0, 0, 9])) == "2 ok, 1 step collapsed, 1 invalid parameters"
     for bad, needle in ((11, "code 11"), ("exploded", "'exploded'"), (True, "True"), (1.5, "1.5")):
         with pytest.raises(ValueError, match=needle):
             Status.of(bad)
