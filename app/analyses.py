@@ -34,6 +34,7 @@ from explorer_core.analyses.regimes import REGIMES, chart_spec, iter_chart
 from explorer_core.analyses.sweeps import sweep_values
 from explorer_core.parallel.cluster import SchedulerError, executor_for, scheduler_from_env
 from explorer_core.solve.numerics import Numerics
+from explorer_core.status import Status, describe
 from explorer_core.system.params import ParameterError
 from explorer_core.warm import warm_all
 
@@ -179,7 +180,7 @@ class LyapunovTab(AnalysisTab):
             last = [0.0]
 
             def progress(p) -> None:
-                ok = p.status == 0
+                ok = p.status == Status.OK
                 if p.phase == "measure" and p.done_periods and ok.any():  # no estimate from failed members
                     est = p.running[ok].mean(axis=0)
                     history.append((p.done_periods, float(est[0]), float(est[1])))
@@ -204,7 +205,7 @@ class LyapunovTab(AnalysisTab):
     def _done(self, res, rows) -> None:
         self._partial(rows, "measure", res.periods, res.periods)
         labels = res.status_labels()
-        status = ", ".join(f"{lab}: {labels.count(lab)}" for lab in sorted(set(labels)))
+        status = describe(res.status)
         n_ok = int(res.ok.sum())
         tail = f"{res.elapsed_s:.2f} s" + ("" if res.completed else " (stopped)")
         if n_ok == 0:
@@ -296,7 +297,7 @@ class BifurcationTab(AnalysisTab):
                 return
             emit(lambda: self.set_view(message=self.view["message"] + "; continuing the orbits…"))
             # Seeds: where the sweep's trajectories settled at the first value, and its initial conditions.
-            seeds = np.concatenate([d.final[0, 0][np.asarray(d.status[0, 0]) == 0], ics])
+            seeds = np.concatenate([d.final[0, 0][np.asarray(d.status[0, 0]) == Status.OK], ics])
             cont = continue_from_seeds(params, name, (lo, hi), seeds, max_orbits=4, cancel=cancelled)
             if not cancelled():
                 emit(lambda: self._continued(cont))

@@ -331,9 +331,9 @@ def cmd_section(args: argparse.Namespace) -> int:
         summary["reliability"] = [w.as_dict() for w in warnings]
 
     def lines() -> list[str]:
-        labels = sec.status_labels()
-        counts = {lab: labels.count(lab) for lab in sorted(set(labels))}
-        return [f"{sec.n} trajectories, {int(sec.npts.sum())} points, {sec.elapsed_s:.3f} s, status {counts}"]
+        from explorer_core.status import describe
+
+        return [f"{sec.n} trajectories, {int(sec.npts.sum())} points, {sec.elapsed_s:.3f} s, {describe(sec.status)}"]
 
     notes = [] if args.quiet else [w.line() for w in warnings]
     return _finish(args, summary, lines, result=sec, what="points", notes=notes)
@@ -752,7 +752,7 @@ def cmd_manifolds(args: argparse.Namespace) -> int:
         for b in result.branches:
             npts = sum(p.shape[0] for p in b.pieces)
             out.append(f"  {b.kind:8s} {b.label}: length {b.length:.4g}, {npts} points, {len(b.pieces)} piece(s), "
-                       f"{b.status}" + (f", {b.escaped} escaped" if b.escaped else ""))  # fmt: skip
+                       f"{b.end}" + (f", {b.escaped} escaped" if b.escaped else ""))  # fmt: skip
         homoclinic = sum(c.kind == "homoclinic" for c in result.crossings)
         return [*out, f"{len(result.crossings)} crossings ({homoclinic} homoclinic), {result.elapsed_s:.2f} s"]
 
@@ -825,6 +825,7 @@ def _basins_args(p: argparse.ArgumentParser) -> None:
 
 def cmd_basins(args: argparse.Namespace) -> int:
     from explorer_core.analyses.basins import basin_spec, iter_basins
+    from explorer_core.status import describe
 
     params, scene = _params(args)
     box = _box(args.box, "--box", scene.box if scene else None)
@@ -859,7 +860,10 @@ def cmd_basins(args: argparse.Namespace) -> int:
             at = f" at ({a.points[0, 0]:.6g}, {a.points[0, 1]:.6g})" if a.points.shape[0] else ""
             what = "attractor" if a.attracting else "not an attractor"  # a conservative island's curves
             out.append(f"{what} {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%")
-        out.append(f"{summary['computed']}/{summary['pixels']} pixels, {summary['statuses']}, {result.elapsed_s:.2f} s")
+        out.append(
+            f"{summary['computed']}/{summary['pixels']} pixels ({describe(result.status[result.computed])}), "
+            f"{result.elapsed_s:.2f} s"
+        )
         return out + ([summary["note"]] if "note" in summary else [])
 
     return _finish(args, summary, lines, result=result, what="pixels")

@@ -21,6 +21,7 @@ from explorer_core.analyses.basins import (
 from explorer_core.analyses.orbits import find_orbits, same_orbit
 from explorer_core.scenes import get_scene
 from explorer_core.solve.numerics import Numerics
+from explorer_core.status import Status, names
 from explorer_core.system.params import ParameterError
 
 #: Fig. 11's tensor at alpha = -0.5, I11 = 1.6: a period-1 and a period-3 attractor coexist.
@@ -72,7 +73,7 @@ def test_fig11_tensor_has_two_coexisting_periodic_attractors(fig11) -> None:
         assert 0.2 < a.fraction < 0.8
         assert a.points.shape == (a.period, 2)
     assert sum(a.fraction for a in fig11.attractors) == pytest.approx(1.0)
-    assert fig11.statuses == {"attractor": 24 * 24}
+    assert fig11.statuses == {"ok": 24 * 24} and (fig11.status == Status.OK).all()
 
 
 def test_periodic_attractors_are_the_stable_orbits_newton_finds(fig11) -> None:
@@ -176,6 +177,7 @@ def test_coarse_to_fine_levels_reuse_the_attractors_and_cancel_stops() -> None:
 
     last = list(iter_basins(spec, cancel=cancel))[-1].basins
     assert not last.completed and (last.label == NOT_COMPUTED).any()
+    assert np.array_equal(last.status == Status.NOT_RUN, last.label == NOT_COMPUTED)  # not computed: not_run
 
 
 @pytest.mark.parametrize(
@@ -209,6 +211,7 @@ def test_summary_is_the_issues_json_and_npz_has_the_arrays(fig11, tmp_path) -> N
     with np.load(path) as z:
         assert z["q"].shape == (24,) and z["r"].shape == (24,) and z["label"].shape == (24, 24)
         assert np.array_equal(z["label"], fig11.label)
+        assert np.array_equal(z["status"], fig11.status) and z["status_names"][Status.ESCAPED] == "escaped"
         np.testing.assert_allclose(z["q"][[0, -1]], [-1.7 + 3.2 / 48, 1.5 - 3.2 / 48])
 
 
@@ -218,14 +221,16 @@ def test_all_members_failing_is_said_and_gives_no_attractor() -> None:
     assert b.attractors == []
     s = b.summary()
     assert s["attractors"] == [] and "no attractor" in s["note"]
-    assert s["statuses"] == {"attractor": 0, "too_many_steps": 16}
+    assert s["statuses"] == {"too_many_steps": 16}
+    assert names(b.status) == [["too_many_steps"] * 4] * 4  # the pixel says WHICH engine failure
 
 
 def test_pixels_without_a_fate_in_max_periods_are_undecided() -> None:
     b = basins(FIG11, BOX, (4, 3), max_periods=3)
     assert (b.label == UNDECIDED).all() and b.attractors == []
     s = b.summary()
-    assert s["statuses"] == {"attractor": 0, "undecided": 12} and s["undecided_fraction"] == 1.0
+    assert s["statuses"] == {"undecided": 12} and s["undecided_fraction"] == 1.0
+    assert (b.status == Status.UNDECIDED).all()
     assert "no attractor" in s["note"]
 
 
@@ -234,7 +239,8 @@ def test_labelling_by_basin_cells_is_an_option() -> None:
     b = basins(FIG8B, BOX, (12, 12), hit_basin=10)
     assert b.spec.hit_basin == 10 and b.completed
     assert {a.kind for a in b.attractors} == {"chaotic", "escape"}
-    assert set(b.statuses) <= {"attractor", "escaped", "escape_by_cells"}
+    assert set(b.statuses) <= {"ok", "escaped"}
+    assert np.array_equal(b.status == Status.ESCAPED, b.label == ESCAPE)
 
 
 def test_labels_do_not_depend_on_how_many_trajectories_are_in_flight() -> None:

@@ -11,7 +11,7 @@ import pytest
 from clirun import run_cli
 
 from explorer_core.analyses.bifurcation import bifurcation_diagram, bilimovich_orbits, sweep_orbits
-from explorer_core.analyses.sweeps import INVALID_PARAMS, check_param, detect_period, sweep_values
+from explorer_core.analyses.sweeps import check_param, detect_period, sweep_values
 from explorer_core.scenes import get_scene
 from explorer_core.solve.integrators import Status
 from explorer_core.solve.numerics import Numerics
@@ -128,7 +128,7 @@ def test_invalid_values_are_marked_and_skipped() -> None:
     """I11 below ~0.066 makes the fig. 8 tensor indefinite: marked invalid, the rest computed."""
     vals = np.array([0.0, 0.05, 1.0, 1.2])
     d = bifurcation_diagram(FIG10, "I11", vals, points=5, transient=5, ics=[(-0.5, -1.0)])
-    assert d.status[:, :2].ravel().tolist() == [INVALID_PARAMS] * 4
+    assert d.status[:, :2].ravel().tolist() == [Status.INVALID] * 4
     assert d.valid.tolist() == [False, False, True, True]
     assert "positive definite" in d.errors[0]
     assert np.all(d.status[:, 2:] == Status.OK)

@@ -20,9 +20,9 @@ from clirun import run_cli
 
 from explorer_core.analyses.bifurcation import bifurcation_diagram
 from explorer_core.analyses.regimes import chart_spec, iter_chart, plan_tiles, regime_chart
-from explorer_core.analyses.sweeps import NOT_RUN
 from explorer_core.parallel import cluster as dd
 from explorer_core.scenes import get_scene
+from explorer_core.status import Status
 from explorer_core.system.params import ParameterError
 
 # One xdist worker runs the whole module (./dev test uses --dist loadgroup): one cluster, not two.
@@ -137,7 +137,7 @@ def test_cancel_drops_the_outstanding_tasks(cluster) -> None:
     d = bifurcation_diagram(FIG11, "alpha", np.linspace(-0.42, -0.36, 18), points=8, transient=20, seeding="fixed",
                             executor=dd.DaskExecutor(cluster), progress=calls.append,
                             cancel=lambda: bool(calls))  # fmt: skip
-    assert not d.completed and np.any(d.status == NOT_RUN) and 0 < len(calls) < 18
+    assert not d.completed and np.any(d.status == Status.NOT_RUN) and 0 < len(calls) < 18
 
 
 def test_losing_the_scheduler_ends_the_run_with_a_clear_error() -> None:

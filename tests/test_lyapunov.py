@@ -181,7 +181,7 @@ def test_escape_is_reported_and_excluded_from_the_ensemble() -> None:
     assert res.ok.tolist() == [False, True]
     np.testing.assert_array_equal(res.mean(), res.exponents[1])
     s = res.summary()
-    assert s["status"] == "partial" and s["members"][0]["status"] == "escaped"
+    assert s["status"] == "escaped" and s["members_ok"] == 1 and s["members"][0]["status"] == "escaped"
     only = lyapunov_spectrum(p, [(0.0, 8.0)], 300, numerics=Numerics(bound=30.0)).summary()
     assert only["status"] == "escaped" and only["exponents"] is None
     assert all(np.isfinite(res.exponents.ravel()))

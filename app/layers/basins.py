@@ -11,6 +11,7 @@ from app.runner import LAYER
 from app.state import SYSTEM_FIELDS, url_keys
 from app.views import as_drawn
 from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, BasinSpec, basin_spec, iter_basins
+from explorer_core.status import Status, describe
 from explorer_core.system.params import Params
 
 #: A colour per attractor id (cycled), and the pixels that reach none.
@@ -18,7 +19,12 @@ BASIN_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02
 #: Escaped pixels mid grey, failed ones dark grey (the old light grey at half opacity looked like the page's white);
 #: undecided ones are left blank, and the legend says so.
 OUTCOME_COLOURS = {ESCAPE: "#555555", FAILED: "#000000", UNDECIDED: "#ffffff"}
-OUTCOME_NAMES = {ESCAPE: "escape (noncompact drift)", FAILED: "integration failed", UNDECIDED: "undecided (blank)"}
+#: In the one status vocabulary's words (explorer_core.status), as the CLI prints them.
+OUTCOME_NAMES = {
+    ESCAPE: f"{Status.ESCAPED.word} (noncompact drift)",
+    FAILED: "integration failed",
+    UNDECIDED: f"{Status.UNDECIDED.word} (blank)",
+}
 
 
 @dataclass(frozen=True)
@@ -94,6 +100,8 @@ class BasinsLayer(Layer):
             legend.append([as_drawn(colours[a.id]), f"{what}: {100 * b.fraction.get(a.id, 0.0):.1f}%"])
         for code, name in OUTCOME_NAMES.items():
             if b.fraction.get(code, 0.0) > 0:
+                if code == FAILED:  # which failures, in the status words
+                    name += f" ({describe(b.status[b.label == FAILED])})"
                 legend.append([as_drawn(OUTCOME_COLOURS[code]), f"{name}: {100 * b.fraction[code]:.1f}%"])
         self.rows = legend
         n_att = sum(a.kind != "escape" and a.attracting for a in b.attractors)

@@ -166,7 +166,7 @@ def _same_saddle(a: tuple, b: tuple, sq: float, sr: float) -> bool:
 
 def _manifold_text(m: Manifolds) -> str:
     o = m.orbit
-    ends = sorted({b.status for b in m.branches})
+    ends = sorted({b.end for b in m.branches})
     homoclinic = sum(c.kind == "homoclinic" for c in m.crossings)
     hetero = len(m.crossings) - homoclinic
     text = (f"{o.kind} (period {o.period}) at ({o.points[0, 0]:.4g}, {o.points[0, 1]:.4g}): "

@@ -43,7 +43,10 @@ as its fate is known:
   sections' 1e4: along the noncompact curves the steps per period grow with ``|x|``, and a trajectory
   that far out has not been seen to come back; the bound is in the result);
 * **failure** (label :data:`FAILED` = -2): any other engine status (step collapse, step budget,
-  non-finite values); :data:`UNDECIDED` = -3: no fate within ``max_periods`` periods. Nothing is lost in
+  non-finite values); :data:`UNDECIDED` = -3: no fate within ``max_periods`` periods. Beside the labels,
+  ``Basins.status`` gives every pixel its :class:`~explorer_core.status.Status` (the one vocabulary):
+  ``ok`` (an attractor or a conservative set), ``escaped``, the engine failure that ended it
+  (``step_collapsed``, ``too_many_steps``, ``nonfinite``), ``undecided``, ``not_run``. Nothing is lost in
   silence: the result's ``lost`` counts the pixels failed (by the engine's reason), undecided, not
   computed (cancelled) or still locating, and a grid of cells that does not resolve the attractors;
   ``complete`` is True only when it is empty.
@@ -71,15 +74,14 @@ from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
 from explorer_core.analyses.sweeps import detect_period
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
-from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.integrators import Batch, advance
 from explorer_core.solve.numerics import Numerics, check_box, check_int
+from explorer_core.status import Status, count_names, status_names
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
-#: Labels of pixels that reach no attractor (attractor ids are >= 0).
+#: Labels of pixels that reach no attractor (attractor ids are >= 0); why is the pixel's ``Basins.status``.
 ESCAPE, FAILED, UNDECIDED, NOT_COMPUTED, LOCATING = -1, -2, -3, -4, -5
-OUTCOMES = {ESCAPE: "escape", FAILED: "failed", UNDECIDED: "undecided", NOT_COMPUTED: "not_computed",
-            LOCATING: "locating"}  # fmt: skip
 KINDS = ("periodic", "chaotic", "quasi_periodic", "conservative", "escape")
 #: Integration tolerance: basins need the attractor, not 1e-10 accuracy (as the chart of regimes).
 DEFAULT_BASIN_TOL = 1e-8
@@ -113,9 +115,6 @@ MAX_REFINES, MAX_REFINED_CELLS = 4, 1024
 _SEARCH, _LOCATE, _LOCATED, _LABELLED, _FULL = 0, 1, 2, 3, 4
 #: Basin-cell code of a cell that trajectories of different fates crossed (never used as evidence).
 _MIXED = -(2**30)
-#: Fates of pixels beyond the engine's statuses (``Basins.statuses``).
-_UNDECIDED_FATE, _BY_CELLS = -1, -2
-_FATES = {_UNDECIDED_FATE: "undecided", _BY_CELLS: "escape_by_cells"}
 #: Slots of a member's table of visited cells: a power of two, 8 per cell along the cell grid's diagonal,
 #: in [TABLE_MIN, TABLE_MAX]; it may fill to 70 % (a member that visits more cells is undecided). The
 #: most cells one trajectory visited before its fate was known: 387 on Fig. 8B, 852 on Fig. 1C (192 x 192
@@ -264,10 +263,11 @@ class Basins(Drawable):
     that is still being located. ``computed`` (NY, NX) bool. Ids are 0, 1, ... in the order attractors
     are published, stable while the computation refines (an attractor later found to be one already
     known is merged into it; its id is not reused). ``fraction`` maps every label present (ids and
-    negative outcomes) to its share of the computed pixels; ``statuses`` counts the pixels by fate
-    (``attractor``: reached one; the engine statuses of the trajectories that ended there: ``escaped``
-    is the engine's bound; ``escape_by_cells``: escape told by basin cells, only with ``hit_basin``;
-    ``undecided``); ``periods`` and ``steps`` are the work done (member-periods, RK steps).
+    negative outcomes) to its share of the computed pixels; ``status`` (NY, NX) int8: each pixel's
+    :class:`~explorer_core.status.Status` code (``ok``: reached an attractor or a conservative set;
+    ``escaped``: the engine's bound, or basin cells of escape with ``hit_basin``; the engine failure;
+    ``undecided``; ``not_run``: not computed); ``statuses`` counts the computed pixels by status name;
+    ``periods`` and ``steps`` are the work done (member-periods, RK steps).
 
     ``complete``: ``completed`` and nothing lost; ``lost``: the :class:`~explorer_core.losses.Loss` es
     (pixels undecided, failed, not computed or cancelled, still locating; attractors the recurrence
@@ -292,6 +292,7 @@ class Basins(Drawable):
     complete: bool = False
     lost: list[Loss] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    status: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.int8))
 
     def attractor(self, ident: int) -> Attractor:
         for a in self.attractors:
@@ -343,10 +344,12 @@ class Basins(Drawable):
         return out
 
     def to_npz(self, path: str) -> None:
-        """Arrays ``q`` (NX,), ``r`` (NY,), ``label`` (NY, NX); ``computed`` and the summary as JSON."""
+        """Arrays ``q`` (NX,), ``r`` (NY,), ``label`` (NY, NX), ``status`` (NY, NX) codes with ``status_names``
+        (the name of code ``c`` is ``status_names[c]``); ``computed`` and the summary as JSON."""
         import json
 
-        np.savez_compressed(path, q=self.q, r=self.r, label=self.label, computed=self.computed,
+        np.savez_compressed(path, q=self.q, r=self.r, label=self.label, status=self.status,
+                            status_names=status_names(), computed=self.computed,
                             summary=json.dumps(self.summary()))  # fmt: skip
 
 
@@ -786,7 +789,7 @@ class _Run:
         self.ics = np.column_stack([qq.ravel(), rr.ravel()])
         n_pix = self.ics.shape[0]
         self.label = np.full(n_pix, NOT_COMPUTED, dtype=np.int64)  # internal ids until published
-        self.fate = np.zeros(n_pix, dtype=np.int64)  # engine status of each pixel (or -1: undecided)
+        self.fate = np.full(n_pix, Status.NOT_RUN, dtype=np.int8)  # the Status of each pixel
         nq, nr = spec.cells
         cq, cr = spec.cell_size
         self.geom = np.array([spec.cell_box[0], spec.cell_box[2], 1.0 / cq, 1.0 / cr, float(nq), float(nr)])
@@ -998,10 +1001,11 @@ class _Run:
 
     # -- members ---------------------------------------------------------------
 
-    def end(self, s: int, label: int, code: int) -> None:
-        """Member in slot ``s`` is done: pixel label (internal id or negative outcome), its cells marked."""
+    def end(self, s: int, label: int, code: int, status: Status = Status.OK) -> None:
+        """Member in slot ``s`` is done: pixel label (internal id or negative outcome) and status, its cells marked."""
         pix = self.pixel[s]
         self.label[pix] = label
+        self.fate[pix] = status
         _settle(self.table, s, self.att, self.bas, self.root, code)
         self.pixel[s] = -1
 
@@ -1052,12 +1056,10 @@ class _Run:
             self.locating[int(self.state[s, 6])] = int(s)
         for s in live[phase == _LABELLED]:
             lab = int(self.state[s, 8])
-            if lab < 0:
-                self.fate[self.pixel[s]] = _BY_CELLS
-            self.end(s, lab, lab + 1 if lab >= 0 else -1)
+            # a negative label from basin cells is escape (only with hit_basin)
+            self.end(s, lab, lab + 1 if lab >= 0 else -1, Status.OK if lab >= 0 else Status.ESCAPED)
         for s in live[phase == _FULL]:
-            self.fate[self.pixel[s]] = _UNDECIDED_FATE
-            self.end(s, UNDECIDED, 0)
+            self.end(s, UNDECIDED, 0, Status.UNDECIDED)
         # Cycles: members whose last points return (as the chart's early stops) go to Newton.
         search = live[(self.state[live, 0] == _SEARCH) & (self.pixel[live] >= 0) & self.may_check[live]
                       & (self.status[live] == Status.OK)]  # fmt: skip
@@ -1076,14 +1078,12 @@ class _Run:
                 self.end(int(s), known, known + 1)
         # Engine failures and escapes of members still running; the undecided.
         for s in np.flatnonzero((self.pixel >= 0) & (self.status != Status.OK)):
-            st = int(self.status[s])
-            self.fate[self.pixel[s]] = st
+            st = Status.of(int(self.status[s]))
             self._drop_locating(int(s))
-            self.end(int(s), ESCAPE if st == Status.ESCAPED else FAILED, -1 if st == Status.ESCAPED else 0)
+            self.end(int(s), ESCAPE if st == Status.ESCAPED else FAILED, -1 if st == Status.ESCAPED else 0, st)
         for s in np.flatnonzero((self.pixel >= 0) & (self.age >= spec.max_periods)):
-            self.fate[self.pixel[s]] = _UNDECIDED_FATE
             self._drop_locating(int(s))
-            self.end(int(s), UNDECIDED, 0)
+            self.end(int(s), UNDECIDED, 0, Status.UNDECIDED)
         self.merge_overlaps()
 
     def _drop_locating(self, s: int) -> None:
@@ -1126,18 +1126,14 @@ class _Run:
         attractors.sort(key=lambda a: a.id)
         if fraction.get(ESCAPE):
             attractors.append(Attractor(ESCAPE, "escape", None, np.zeros((0, 2)), fraction=fraction[ESCAPE]))
-        statuses = {"attractor": int(np.count_nonzero(pos))}
-        fates = self.fate[computed & ~pos]
-        for code in np.unique(fates):
-            key = _FATES.get(int(code)) or Status(int(code)).label
-            statuses[key] = int(np.count_nonzero(fates == code))
+        statuses = count_names(self.fate[computed])
         lost, warnings = self.losses(lab, completed, cancelled)
         extra = {"escape_bound": spec.numerics.bound, "cell_refinements": self.refinements,
                  "attractor_scale": self.scale}  # fmt: skip
         return Basins(spec, spec.q, spec.r, lab.reshape(spec.ny, spec.nx), computed.reshape(spec.ny, spec.nx),
                       attractors, fraction, statuses, time.perf_counter() - start, completed, stride,
                       self.periods + self.earlier[0], self.steps + self.earlier[1], extra, completed and not lost,
-                      lost, warnings)  # fmt: skip
+                      lost, warnings, self.fate.reshape(spec.ny, spec.nx).copy())  # fmt: skip
 
     def losses(self, lab: np.ndarray, completed: bool, cancelled: bool) -> tuple[list[Loss], list[str]]:
         """What the labels ``lab`` (public) lost, and what they mean beyond attractors."""
@@ -1155,10 +1151,8 @@ class _Run:
             cap = int(0.7 * self.table.shape[1])
             lost.append(Loss("pixels undecided", n, f"no attractor, escape or failure within {spec.max_periods} "
                              f"periods (or more than {cap} recurrence cells visited)"))  # fmt: skip
-        failed = self.fate[lab == FAILED]
-        for code in np.unique(failed):
-            lost.append(Loss("pixels failed", int(np.count_nonzero(failed == code)),
-                             f"the integrator stopped: {Status(int(code)).label}"))  # fmt: skip
+        for name, k in count_names(self.fate[lab == FAILED]).items():
+            lost.append(Loss("pixels failed", k, f"the integrator stopped: {name}"))
         if self.scale is not None:
             cq, cr = spec.cell_size
             if math.hypot(cq, cr) > self.scale / RESOLVE:

@@ -17,7 +17,8 @@ For each value of the swept parameter (``alpha``, an inertia entry, ``g0``,
 Escaped (noncompact) or failed trajectories are marked by their status, never
 drawn: their points are not part of the diagram. A value for which the system
 is not defined (e.g. a tensor that is not positive definite) is marked
-``invalid_params``; a continuation sweep carries its state across it.
+``invalid`` and a value never run (cancelled) ``not_run`` (:class:`~explorer_core.status.Status`); a
+continuation sweep carries its state across an invalid value.
 
 The sweep engine (:func:`sweep_orbits`) is independent of the ODE: it takes a
 function that computes orbits at one value, so it is tested on the logistic
@@ -39,21 +40,15 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
-from explorer_core.analyses.sweeps import (
-    INVALID_PARAMS,
-    NOT_RUN,
-    check_param,
-    detect_period,
-    params_at,
-    status_label,
-)
+from explorer_core.analyses.sweeps import check_param, detect_period, params_at
 from explorer_core.drawing import Drawable
 from explorer_core.parallel.executor import Executor
 from explorer_core.progress import Progress
-from explorer_core.solve.integrators import Status, lockstep_groups, run
+from explorer_core.solve.integrators import lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import FIELD
+from explorer_core.status import Status, count_names
 from explorer_core.system.params import ParameterError, Params
 
 SEEDINGS = ("continuation", "fixed")
@@ -91,10 +86,10 @@ def next_seed(status: np.ndarray, final: np.ndarray, ics: np.ndarray) -> np.ndar
 
 
 def empty_sweep_arrays(n_sweeps: int, valid: np.ndarray, n_ics: int, n_points: int) -> dict[str, np.ndarray]:
-    """``points, npts, status, final`` of a sweep before any value ran (``NOT_RUN`` / ``INVALID_PARAMS``)."""
+    """``points, npts, status, final`` of a sweep before any value ran (``Status.NOT_RUN`` / ``Status.INVALID``)."""
     shape = (n_sweeps, valid.size, n_ics)
-    status = np.full(shape, NOT_RUN, dtype=np.int64)
-    status[:, ~valid] = INVALID_PARAMS
+    status = np.full(shape, Status.NOT_RUN, dtype=np.int64)
+    status[:, ~valid] = Status.INVALID
     return {
         "points": np.zeros((*shape, n_points, 2)),
         "npts": np.zeros(shape, dtype=np.int64),
@@ -257,8 +252,7 @@ class OrbitDiagram(Drawable):
         return out
 
     def status_counts(self) -> dict[str, int]:
-        codes, counts = np.unique(self.status, return_counts=True)
-        return {status_label(int(c)): int(n) for c, n in zip(codes, counts, strict=True)}
+        return count_names(self.status)
 
     def to_csv(self, path: str) -> int:
         """Rows ``sweep,value_index,value,ic,k,q,r,status``: every drawn point, plus one row
@@ -280,9 +274,8 @@ class OrbitDiagram(Drawable):
                                 )  # fmt: skip
                                 rows += 1
                         else:
-                            lab = status_label(int(self.status[s, v, i]))
-                            if lab == "ok":
-                                lab = "incomplete"
+                            # ok but short of its points: only a cancel stops an ok trajectory
+                            lab = Status.of(int(self.status[s, v, i]) or Status.CANCELLED).label
                             w.writerow((self.sweeps[s], v, repr(float(self.values[v])), i, "", "", "", lab))
                             rows += 1
         return rows
@@ -606,7 +599,7 @@ def bifurcation_diagram(
         errors=errors,
         numerics=numerics,
         elapsed_s=time.perf_counter() - start,
-        completed=not np.any(out["status"] == NOT_RUN),
+        completed=not np.any(out["status"] == Status.NOT_RUN),
     )
 
 

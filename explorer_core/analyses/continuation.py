@@ -54,8 +54,9 @@ from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.solve.integrators import run_at
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.rk import FIELD, Status
+from explorer_core.solve.rk import FIELD
 from explorer_core.solve.tangent import monodromy_at
+from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
 
 #: Bifurcation types and their test functions.
@@ -152,14 +153,21 @@ class ContinuationOptions:
 
 
 class _Stop(Exception):
-    """A step is refused (or a branch ends) for the reason given."""
+    """A step is refused (or a branch ends) for the reason given; ``status`` says it in the one vocabulary."""
+
+    def __init__(self, why: str, status: Status = Status.NOT_CONVERGED) -> None:
+        super().__init__(why)
+        self.status = status
 
 
 @dataclass
 class Branch:
     """Points of one branch: ``values`` (m,), ``states`` (m,) of ``(q, r)``, ``mults`` (m,) of 2 complex numbers.
 
-    Plain Python numbers throughout (written to CSV and JSON as they are).
+    Plain Python numbers throughout (written to CSV and JSON as they are). ``status``: how the branch ended in the
+    one vocabulary (``ok``: at the range's end, its birth point or a stop it meant; ``cancelled``; ``budget``:
+    ``max_points``; ``not_converged``; ``invalid``: it left the valid parameters; an engine failure); ``stop``
+    the detail in words.
     """
 
     period: int
@@ -169,6 +177,7 @@ class Branch:
     orbits: list[np.ndarray] = field(default_factory=list)  # (n, 2) each: x, P(x), ..., P^(n-1)(x)
     stop: str = ""
     parent: int | None = None
+    status: Status = Status.OK
 
     def add(self, p: float, pt: _Point) -> None:
         self.values.append(float(p))
@@ -183,6 +192,7 @@ class Branch:
     def as_dict(self) -> dict[str, Any]:
         return {
             "period": self.period,
+            "status": self.status.label,
             "stop": self.stop,
             "parent": self.parent,
             "points": [
@@ -220,17 +230,20 @@ class Bifurcation:
 
 @dataclass
 class Curve:
-    """A fold or period-doubling point followed in two parameters: rows ``(p1, p2, q, r)``."""
+    """A fold or period-doubling point followed in two parameters: rows ``(p1, p2, q, r)``; ``status`` as a
+    branch's (the first half that did not end well decides), ``stop`` both halves' ends in words."""
 
     kind: str
     period: int
     rows: list[tuple[float, float, float, float]] = field(default_factory=list)
     stop: str = ""
+    status: Status = Status.OK
 
     def as_dict(self, name1: str, name2: str) -> dict[str, Any]:
         return {
             "type": self.kind,
             "period": self.period,
+            "status": self.status.label,
             "stop": self.stop,
             "points": [{name1: a, name2: b, "q": q, "r": r} for a, b, q, r in self.rows],
         }
@@ -304,6 +317,12 @@ class Continuation(Drawable):
 # The map, its derivatives and the test functions at a point (x, p).
 
 
+def _failed(code: int) -> _Stop:
+    """The stop of an orbit whose trajectory the engine ended with ``code``."""
+    st = Status.of(int(code))
+    return _Stop(f"the orbit's trajectory failed: {st.label}", st)
+
+
 class _System:
     """``P^n`` and its derivatives at ``(x, p...)`` for one or two continuation parameters."""
 
@@ -317,7 +336,7 @@ class _System:
         try:
             return self.base.with_(**{n: float(v) for n, v in zip(self.names, p, strict=True)})
         except ParameterError as exc:
-            raise _Stop(f"left the valid parameters ({exc})") from None
+            raise _Stop(f"left the valid parameters ({exc})", Status.INVALID) from None
 
     def delta(self, p: float, amp: float = 1.0) -> float:
         """The parameter step of ``F_p``. ``P^n`` bends in ``p`` on a scale that shrinks with the orbit's
@@ -330,7 +349,7 @@ class _System:
         """``P^n(x)``, ``A = DP^n(x)`` and the points ``P(x) .. P^n(x)`` at the parameters ``p``."""
         mono = monodromy_at([self.params(p)], x[None, :], n, self.numerics, workers=1, block=1)
         if mono.status[0] != Status.OK:
-            raise _Stop(f"the orbit's trajectory failed: {Status(int(mono.status[0])).label}")
+            raise _failed(mono.status[0])
         return mono.end[0], mono.matrix[0], mono.points[0]
 
     def fp(self, x: np.ndarray, p: Sequence[float], n: int, amp: float = 1.0) -> np.ndarray:
@@ -345,7 +364,7 @@ class _System:
                                  block=len(prs), **self.numerics.kernel_kwargs())  # fmt: skip
         bad = np.flatnonzero(status != Status.OK)
         if bad.size:
-            raise _Stop(f"the orbit's trajectory failed: {Status(int(status[bad[0]])).label}")
+            raise _failed(status[bad[0]])
         return np.column_stack([(y[2 * k] - y[2 * k + 1]) / (2 * self.delta(p[k], amp)) for k in range(len(p))])
 
     def evaluate(self, x: np.ndarray, p: Sequence[float], n: int, dx: bool = False):
@@ -371,7 +390,7 @@ class _System:
         mono = monodromy_at(prs, np.array(pts), n, self.numerics, workers=self.workers)
         bad = np.flatnonzero(mono.status != Status.OK)
         if bad.size:
-            raise _Stop(f"the orbit's trajectory failed: {Status(int(mono.status[bad[0]])).label}")
+            raise _failed(mono.status[bad[0]])
         fp = np.column_stack([(mono.end[1 + 2 * k] - mono.end[2 + 2 * k]) / (2 * self.delta(p[k]))
                               for k in range(len(p))])  # fmt: skip
         extra = None
@@ -487,8 +506,8 @@ class _CurveProblem:
 class _Refused(_Stop):
     """A trial step refused; ``used`` is the step it took (the next one is shorter than that)."""
 
-    def __init__(self, why: str, used: float) -> None:
-        super().__init__(why)
+    def __init__(self, why: str, used: float, status: Status = Status.NOT_CONVERGED) -> None:
+        super().__init__(why, status)
         self.used = used
 
 
@@ -603,15 +622,15 @@ class _Engine:
         except _Refused:
             raise
         except _Stop as exc:
-            raise _Refused(str(exc), used) from None
+            raise _Refused(str(exc), used, exc.status) from None
 
     def follow(self, prob: Any, pt: _Point, accept: Callable[[_Point, _Point], str | None],
-               ds_max: float) -> tuple[str, bool, _Point]:  # fmt: skip
+               ds_max: float) -> tuple[str, bool, _Point, Status]:  # fmt: skip
         """Steps from ``pt`` until an end, a stop ``accept`` returns, or a refusal at ``ds_min``.
 
         ``accept(pt, new)`` records an accepted point; it raises :class:`_Stop` to refuse it, or returns a
-        reason to stop there. Returns ``(reason, lost, last point)``: ``lost`` unless the curve reached an
-        end of its range or a stop ``accept`` meant.
+        reason to stop there. Returns ``(reason, lost, last point, status)``: ``lost`` unless the curve reached
+        an end of its range or a stop ``accept`` meant (then ``status`` is ok).
         """
         o = self.opts
         h = min(o.ds, ds_max)
@@ -619,13 +638,13 @@ class _Engine:
         first_refusal = ""  # since the last accepted point: the longer step may have failed for a telling reason
         while True:
             if self.cancel is not None and self.cancel():
-                return "cancelled", True, pt
+                return "cancelled", True, pt, Status.CANCELLED
             if count >= o.max_points:
-                return f"stopped after max_points = {o.max_points} points", True, pt
+                return f"stopped after max_points = {o.max_points} points", True, pt, Status.BUDGET
             try:
                 new, theta, at_end = self._trial(prob, pt, h)
                 if new is pt:
-                    return "range end", False, pt
+                    return "range end", False, pt, Status.OK
                 verdict = accept(pt, new)
             except _Stop as exc:
                 used = exc.used if isinstance(exc, _Refused) else h
@@ -634,15 +653,15 @@ class _Engine:
                     why = f"{exc} (at the minimum step ds_min = {o.ds_min:g})"
                     if first_refusal != str(exc):
                         why += f"; with longer steps: {first_refusal}"
-                    return why, True, pt
+                    return why, True, pt, exc.status
                 h = max(o.ds_min, used * o.shrink)
                 continue
             first_refusal = ""
             count += 1
             if verdict is not None:
-                return verdict, False, new
+                return verdict, False, new, Status.OK
             if at_end:
-                return "range end", False, new
+                return "range end", False, new, Status.OK
             pt = new
             # Deuflhard's rule: the predictor's error, hence the corrector's contraction, goes as h^2.
             factor = o.growth if theta <= 0.0 else min(o.growth, max(o.shrink, math.sqrt(o.contraction / theta)))
@@ -896,11 +915,11 @@ def continue_orbit(
             direction = math.copysign(1.0, away / (b - a)) if abs(away) > 1e-14 * (1 + abs(p)) else 1.0
             pt = eng.first(prob, np.array([x[0], x[1], prob.scaled(p)]), np.array([0.0, 0.0, direction]))
             br.add(p, pt)
-            reason, lost, last = eng.follow(prob, pt, accept, opts.ds_max)
+            reason, lost, last, br.status = eng.follow(prob, pt, accept, opts.ds_max)
             if reason == "range end":
                 reason = "range end" if last.X[2] >= 0.5 else "back at the range's start (after a fold)"
         except _Stop as exc:
-            reason, lost = str(exc), True
+            reason, lost, br.status = str(exc), True, exc.status
         br.stop = reason
         if lost:
             res.lost.append(Loss(what, 1, reason))
@@ -1015,6 +1034,7 @@ def _follow_curve(eng: _Engine, base: Params, name1: str, name2: str, bif: Bifur
     lo, hi = rng2
     if not lo <= p2_0 <= hi:
         curve.stop = f"{name2} = {p2_0} at the bifurcation is outside the range"
+        curve.status = Status.NOT_RUN
         return curve, [Loss(what, 1, curve.stop)]
     origin = np.array([0.0, 0.0, min(rng1), lo])
     width = np.array([1.0, 1.0, abs(rng1[1] - rng1[0]), hi - lo])
@@ -1023,7 +1043,7 @@ def _follow_curve(eng: _Engine, base: Params, name1: str, name2: str, bif: Bifur
     try:
         pt0 = eng.first(prob, Z0, np.zeros(4))
     except _Stop as exc:
-        curve.stop = str(exc)
+        curve.stop, curve.status = str(exc), exc.status
         return curve, [Loss(what, 1, curve.stop)]
     halves: list[list[tuple[float, float, float, float]]] = []
     reasons, losses = [], []
@@ -1035,10 +1055,12 @@ def _follow_curve(eng: _Engine, base: Params, name1: str, name2: str, bif: Bifur
             rows.append((float(Y[2]), float(Y[3]), float(Y[0]), float(Y[1])))
 
         try:
-            reason, lost, _ = eng.follow(prob, _Point(Z0, pt0.A, pt0.J, sgn * pt0.t, None), accept,
-                                         eng.opts.curve_ds_max)  # fmt: skip
+            reason, lost, _, status = eng.follow(prob, _Point(Z0, pt0.A, pt0.J, sgn * pt0.t, None), accept,
+                                                 eng.opts.curve_ds_max)  # fmt: skip
         except _Stop as exc:
-            reason, lost = str(exc), True
+            reason, lost, status = str(exc), True, exc.status
+        if curve.status == Status.OK:
+            curve.status = status
         if lost:
             losses.append(Loss(f"{what} ({way})", 1, reason))
         halves.append(rows)

@@ -28,8 +28,8 @@ from explorer_core.drawing import Drawable
 from explorer_core.progress import Progress
 from explorer_core.scenes import plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
-from explorer_core.solve.rk import Status
 from explorer_core.solve.section import iter_section
+from explorer_core.status import Status, count_names
 from explorer_core.system.params import ParameterError, Params
 
 #: Periods over which a density point stays within a quarter pixel of its exact orbit.
@@ -76,8 +76,8 @@ class Density(Drawable):
         return {"view": list(self.view), "pixels": [int(self.counts.shape[1]), int(self.counts.shape[0])],
                 "points": self.points, "in_view": self.in_view, "done_periods": self.done_periods,
                 "total_periods": self.total_periods, "trajectories": int(self.status.size), "escaped": self.escaped,
-                "failed": self.failed, "completed": self.completed, "elapsed_s": round(self.elapsed_s, 6),
-                **self.extra}  # fmt: skip
+                "failed": self.failed, "statuses": count_names(self.status), "completed": self.completed,
+                "elapsed_s": round(self.elapsed_s, 6), **self.extra}  # fmt: skip
 
 
 def check_pixels(pixels: Sequence[int]) -> list[int]:

@@ -216,12 +216,11 @@ class LyapunovResult(Drawable):
         mean = self.mean()
         spread = self.spread()
         labels = self.status_labels()
-        if n_ok == self.ics.shape[0]:
-            status = "ok"
-        elif n_ok:
-            status = "partial"
-        else:
-            status = next((lab for lab in labels if lab != "ok"), "incomplete")
+        # The ensemble's status: ok, or what ended its first member that did not finish (a member ok but short of
+        # its periods was cancelled); ``members_ok`` says how many the exponents average.
+        short = [lab if lab != "ok" else Status.CANCELLED.label for lab, good in zip(labels, self.ok, strict=True)
+                 if not good]  # fmt: skip
+        status = short[0] if short else Status.OK.label
         div = self.divergence()
         return {
             "exponents": [float(mean[0]), float(mean[1]), 0.0] if n_ok else None,
@@ -232,6 +231,7 @@ class LyapunovResult(Drawable):
             "divergence_mean": div if n_ok else None,
             "sum_minus_divergence": float(mean.sum() - div) if n_ok else None,
             "status": status,
+            "members_ok": n_ok,
             "members": [
                 {
                     "ic": [float(q), float(r)],

@@ -49,7 +49,7 @@ from explorer_core.progress import Progress
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
 from explorer_core.solve.poincare import PoincareMap
-from explorer_core.solve.rk import Status
+from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
 
 KINDS = ("unstable", "stable")
@@ -81,9 +81,12 @@ class Branch:
     """One branch of a stable or unstable manifold: its pieces and how its growth ended.
 
     ``pieces``: list of (m, 3) arrays ``s, q, r`` (arc length from the saddle, point), split where a member
-    escaped or failed. ``status``: ``complete`` (reached the length), ``ends`` (its levels stopped adding
-    length: it tends to an attractor or the saddle's orbit), ``escaped`` / ``failed`` (every member did),
-    ``levels`` (level limit), ``budget`` (point budget), ``cancelled``, or ``growing`` (a partial result).
+    escaped or failed. ``end``, how its growth ended: ``complete`` (reached the length), ``ends`` (its levels
+    stopped adding length: it tends to an attractor or the saddle's orbit), ``escaped`` / ``failed`` (every
+    member did), ``levels`` (level limit), ``budget`` (point budget), ``cancelled``, or ``growing`` (a partial
+    result); ``status``, the same in the one vocabulary (the name of a :class:`~explorer_core.status.Status`):
+    ``ok`` (complete, ends), ``escaped``, the engine failure of its members, ``budget`` (levels, budget),
+    ``cancelled``, ``not_run`` (growing: no outcome yet).
     """
 
     point: int
@@ -93,12 +96,13 @@ class Branch:
     eigenvector: np.ndarray
     pieces: list[np.ndarray]
     length: float
-    status: str
+    end: str
     levels: int
     members: int
     escaped: int
     failed: int
     unresolved: int
+    status: str = Status.NOT_RUN.label
 
     @property
     def label(self) -> str:
@@ -121,6 +125,7 @@ class Branch:
             "points": int(sum(p.shape[0] for p in self.pieces)),
             "pieces": len(self.pieces),
             "status": self.status,
+            "end": self.end,
             "levels": self.levels,
             "members": self.members,
             "escaped": self.escaped,
@@ -175,7 +180,7 @@ class Manifolds(Drawable):
         why = {"escaped": "every member escaped", "failed": "every member's integration failed",
                "levels": "the level limit was reached before the length", "budget": "the point budget ran out",
                "cancelled": "cancelled", "growing": "not grown to the end (a partial result)"}  # fmt: skip
-        out = [Loss(f"branch {b.label} ({b.kind})", 1, why[b.status]) for b in self.branches if b.status in why]
+        out = [Loss(f"branch {b.label} ({b.kind})", 1, why[b.end]) for b in self.branches if b.end in why]
         for attr, reason in (("escaped", "escaped: the branch is split there"),
                              ("failed", "the integration failed: the branch is split there"),
                              ("unresolved", "segments below the parameter resolution: a gap may remain")):  # fmt: skip
@@ -494,8 +499,17 @@ class _Growth:
                               min(length, self.length), self.status[b], self.level, int(np.count_nonzero(mem)),
                               int(np.count_nonzero(st == Status.ESCAPED)),
                               int(np.count_nonzero((st != Status.OK) & (st != Status.ESCAPED))),
-                              int(self.unresolved[b])))  # fmt: skip
+                              int(self.unresolved[b]), _outcome(self.status[b], st).label))  # fmt: skip
         return out
+
+
+def _outcome(end: str, members: np.ndarray) -> Status:
+    """A branch's growth end in the one vocabulary; ``failed`` is its members' most frequent engine failure."""
+    if end == "failed":
+        codes = members[(members != Status.OK) & (members != Status.ESCAPED)].astype(np.int64)
+        return Status.of(int(np.bincount(codes).argmax())) if codes.size else Status.NOT_RUN
+    return {"complete": Status.OK, "ends": Status.OK, "escaped": Status.ESCAPED, "levels": Status.BUDGET,
+            "budget": Status.BUDGET, "cancelled": Status.CANCELLED}.get(end, Status.NOT_RUN)  # fmt: skip
 
 
 def _cut(pieces: list[np.ndarray], length: float) -> list[np.ndarray]:

@@ -34,6 +34,7 @@ from explorer_core.solve import poincare
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
 from explorer_core.solve.poincare import PATIENCE, NewtonResult, PoincareMap, least_period
 from explorer_core.solve.tangent import Monodromy
+from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
 
 #: Integration settings for orbits: the residual can only be as small as ``P^n`` is accurate.
@@ -98,16 +99,17 @@ class Orbit(Drawable):
 
 @dataclass(frozen=True)
 class OrbitFailure:
-    """A seed where Newton did not find an orbit of the asked period, and why."""
+    """A seed where Newton did not find an orbit of the asked period, and why (``status``: the one vocabulary)."""
 
     seed: tuple[float, float]
     period: int
     reason: str
     iterations: int
+    status: Status = Status.NOT_CONVERGED
 
     def as_dict(self) -> dict[str, Any]:
-        return {"seed": [float(self.seed[0]), float(self.seed[1])], "period": self.period, "reason": self.reason,
-                "iterations": self.iterations}  # fmt: skip
+        return {"seed": [float(self.seed[0]), float(self.seed[1])], "period": self.period, "status": self.status.label,
+                "reason": self.reason, "iterations": self.iterations}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -217,7 +219,7 @@ def _newton(params: Params, seeds: np.ndarray, periods: np.ndarray, *, numerics:
 
 
 def _failures(res: NewtonResult, seeds: np.ndarray) -> list[OrbitFailure]:
-    return [OrbitFailure((float(seeds[f.i, 0]), float(seeds[f.i, 1])), f.period, f.reason, f.iterations)
+    return [OrbitFailure((float(seeds[f.i, 0]), float(seeds[f.i, 1])), f.period, f.reason, f.iterations, f.status)
             for f in res.failures]  # fmt: skip
 
 

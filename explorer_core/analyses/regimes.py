@@ -15,6 +15,11 @@ section points are computed together with the largest Lyapunov exponent
 * ``failed``: any other integration failure; ``invalid``: the parameters do not
   define a system (e.g. a tensor that is not positive definite).
 
+Why a pixel has no regime is its :class:`~explorer_core.status.Status` (``Chart.status``, the one
+vocabulary, beside the regime codes): ``ok`` for a classified pixel, ``escaped``, the engine failure
+that ended it (``step_collapsed``, ``too_many_steps``, ``nonfinite``), ``cancelled`` (the measurement
+stopped short), ``invalid`` (refused parameters) and ``not_run`` (not computed).
+
 The work is organised in **tiles**: :func:`compute_tile` is a pure function of
 a :class:`ChartSpec` and a :class:`TileSpec` (both plain picklable data), so a
 task scheduler can run tiles anywhere. :func:`plan_tiles` orders them
@@ -48,14 +53,18 @@ from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.progress import Progress
 from explorer_core.solve import tangent
-from explorer_core.solve.integrators import Status, coefficients, lockstep_groups, run
+from explorer_core.solve.integrators import coefficients, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
 from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.solve.rk import LYAPUNOV, Coefficients
+from explorer_core.status import Status, count_names, status_names
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
-#: Regime codes of :attr:`Chart.regime`.
+#: Regime codes of :attr:`Chart.regime` (the classification; pinned charts keep them). Codes 0 and 4-6 are
+#: "no regime": the reason is the pixel's :class:`~explorer_core.status.Status` in :attr:`Chart.status`
+#: (NOT_COMPUTED: ``not_run``; ESCAPED: ``escaped``; FAILED: the engine failure, or ``cancelled``;
+#: INVALID: ``invalid``).
 NOT_COMPUTED, PERIODIC, QUASI_PERIODIC, CHAOTIC, ESCAPED, FAILED, INVALID = range(7)
 REGIMES = ("not_computed", "periodic", "quasi_periodic", "chaotic", "escaped", "failed", "invalid")
 #: Defaults: charts need the regime, not 1e-10 accuracy; cycles attract integration errors anyway.
@@ -374,7 +383,7 @@ def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileRes
     for n, (j, i) in enumerate(pix):
         p = spec.pixel_params(j, i)
         if isinstance(p, str):
-            regime[n] = INVALID
+            regime[n], status[n] = INVALID, Status.INVALID
             errors.append(p)
             continue
         errors.append("")
@@ -593,9 +602,15 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
             pix, k = at[m]
             s, got = int(batch.status[row]), int(measured[row])
             lyap[pix, k] = logs[row, :got].sum() / (max(got, 1) * params[m].period)
-            status[pix, k] = s
             regime[pix, k], period[pix, k] = classify(points[row], got, s, lyap[pix, k], p_max=spec.p_max,
                                                       tol=spec.tol, lyap_threshold=spec.lyap_threshold)  # fmt: skip
+            status[pix, k] = _pixel_status(regime[pix, k], s)
+
+
+def _pixel_status(regime: int, engine: int) -> int:
+    """The member's :class:`~explorer_core.status.Status`: the engine's, or ``cancelled`` for a measurement that
+    stopped short with the integration ok (only a cancel does that)."""
+    return int(Status.CANCELLED) if regime == FAILED and engine == Status.OK else engine
 
 
 def compute_tile_each(spec: ChartSpec, tile: TileSpec) -> TileResult:
@@ -621,9 +636,9 @@ def _fill_each(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out)
         for k in range(n_ic):
             m = int(npts[k])
             lyap[n, k] = logs[k, :m, 0].sum() / (max(m, 1) * p.period)
-            status[n, k] = batch.status[k]
             regime[n, k], period[n, k] = classify(pts[k], m, int(batch.status[k]), lyap[n, k], p_max=spec.p_max,
                                                   tol=spec.tol, lyap_threshold=spec.lyap_threshold)  # fmt: skip
+            status[n, k] = _pixel_status(regime[n, k], int(batch.status[k]))
 
 
 # ---------------------------------------------------------------------------
@@ -636,7 +651,9 @@ class Chart(Drawable):
 
     ``regime`` holds the codes of :data:`REGIMES`; ``period`` the cycle's period
     (0 unless periodic); ``lyap`` the largest exponent per unit time; ``status``
-    the integration status. ``computed[j, i]`` says whether a pixel is done.
+    the :class:`~explorer_core.status.Status` code of each pixel and IC (``ok`` when
+    classified; otherwise why not, ``not_run`` until computed). ``computed[j, i]``
+    says whether a pixel is done.
     """
 
     spec: ChartSpec
@@ -664,7 +681,7 @@ class Chart(Drawable):
             np.zeros((ny, nx, n), dtype=np.int8),
             np.zeros((ny, nx, n), dtype=np.int16),
             np.zeros((ny, nx, n)),
-            np.zeros((ny, nx, n), dtype=np.int8),
+            np.full((ny, nx, n), Status.NOT_RUN, dtype=np.int8),
             np.zeros((ny, nx), dtype=bool),
         )
 
@@ -750,11 +767,10 @@ class Chart(Drawable):
             out.append(Loss("pixels", len(self.errors), f"not a valid system (e.g. {first})"))
         failed = self.computed & ~self.inferred
         failed = (self.regime == FAILED) & failed[..., None]
-        if failed.any():
-            # FAILED with status ok: the measurement stopped short (a cancel), not the integration
-            codes = sorted({Status(int(c)).label for c in self.status[failed] if int(c) != Status.OK})
-            why = f"the integration failed ({', '.join(codes)})" if codes else "the measurement ended before a verdict"
-            out.append(Loss("pixel-ICs", int(failed.sum()), why))
+        for code, n in count_names(self.status[failed]).items():
+            st = Status.of(code)
+            why = "the measurement ended before a verdict" if st == Status.CANCELLED else "the integration failed"
+            out.append(Loss("pixel-ICs", n, f"{why} ({st.label}: {st.meaning})"))
         return out
 
     @property
@@ -769,6 +785,7 @@ class Chart(Drawable):
             "computed": int(self.computed.sum()),
             "pixels": int(self.computed.size),
             "counts": self.counts(),
+            "statuses": count_names(self.status[self.computed]),
             "multistable_pixels": int(self.multistable()[self.computed].sum()),
             "invalid_pixels": len(self.errors),
             "inferred_pixels": int(self.inferred.sum()),
@@ -789,6 +806,7 @@ class Chart(Drawable):
             computed=self.computed,
             inferred=self.inferred,
             regimes=np.array(REGIMES),
+            status_names=status_names(),
             spec=json.dumps(self.spec.as_dict()),
         )
 

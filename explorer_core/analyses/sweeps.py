@@ -12,24 +12,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from explorer_core import config
-from explorer_core.solve.rk import Status
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
 #: Parameters a diagram (or a chart of regimes) can sweep.
 SWEEP_PARAMS = ("alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega")
-#: Status code of a parameter value that does not define a system (beyond :class:`Status`).
-INVALID_PARAMS = 9
-#: Status code of work that was cancelled before it ran.
-NOT_RUN = 10
-
-
-def status_label(code: int) -> str:
-    """Label of a status code: :class:`Status` labels plus ``invalid_params`` and ``not_run``."""
-    if code == INVALID_PARAMS:
-        return "invalid_params"
-    if code == NOT_RUN:
-        return "not_run"
-    return Status(int(code)).label
 
 
 def check_param(name: str) -> str:

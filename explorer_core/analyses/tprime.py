@@ -23,9 +23,9 @@ import numpy as np
 
 from explorer_core import config
 from explorer_core.drawing import Drawable
-from explorer_core.solve.integrators import Status
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.poincare import PoincareMap
+from explorer_core.status import Status, status_names
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -75,6 +75,7 @@ class TPrimeMap(Drawable):
             sign=self.sign,
             ok=self.ok,
             status=self.status,
+            status_names=status_names(),
             params=json.dumps(self.params.as_dict()),
         )
 

@@ -30,9 +30,9 @@ import numpy as np
 from explorer_core.solve import rk
 from explorer_core.solve.integrators import Batch, coefficients, run
 from explorer_core.solve.numerics import Numerics
-from explorer_core.solve.rk import Status
 from explorer_core.solve.section import SectionChunk, iter_section
 from explorer_core.solve.tangent import Monodromy, monodromy, monodromy_at
+from explorer_core.status import Status
 from explorer_core.system.model import Model
 from explorer_core.system.params import Params
 
@@ -152,12 +152,14 @@ class Converged:
 
 @dataclass(frozen=True)
 class NewtonFailure:
-    """Seed ``i`` found no fixed point of ``P^period``, and why."""
+    """Seed ``i`` found no fixed point of ``P^period``, and why: ``status`` in the one vocabulary (``not_converged``,
+    ``cancelled``, or the engine failure of the seed's trajectory), ``reason`` the detail."""
 
     i: int
     period: int
     reason: str
     iterations: int
+    status: Status = Status.NOT_CONVERGED
 
 
 @dataclass
@@ -240,10 +242,10 @@ def newton(
     out = NewtonResult()
     known: list[tuple[int, np.ndarray]] = []  # (period, its points) of the converged
 
-    def fail(idx: np.ndarray, reason: Callable[[int], str]) -> None:
+    def fail(idx: np.ndarray, reason: Callable[[int], str], status: Status = Status.NOT_CONVERGED) -> None:
         for i in idx:
             done[i] = True
-            out.failures.append(NewtonFailure(int(i), int(period[i]), reason(int(i)), int(iters[i])))
+            out.failures.append(NewtonFailure(int(i), int(period[i]), reason(int(i)), int(iters[i]), status))
 
     for _ in range(max_iter):
         active = np.flatnonzero(~done)
@@ -291,8 +293,8 @@ def newton(
             x[idx[pull]] = 0.5 * (prev[idx[pull]] + xi[pull])
             first_bad = ~ok & ~back & bad
             for j in np.flatnonzero(first_bad):
-                fail(idx[j : j + 1], lambda i, c=int(mono.status[j]): f"the trajectory from the seed failed: "
-                                                                         f"{Status(c).label}")  # fmt: skip
+                c = Status.of(int(mono.status[j]))
+                fail(idx[j : j + 1], lambda i, c=c: f"the trajectory from the seed failed: {c.label}", c)
             step_ = ~ok & ~back & ~bad
             sel = idx[step_]
             if sel.size == 0:
@@ -323,6 +325,6 @@ def newton(
             away = go & ~over & (np.abs(new - x0[sel]).max(axis=1) > near[sel])
             fail(sel[away], lambda i: f"Newton left the seed's neighbourhood ({near[i]:.3g})")
     if out.cancelled:
-        fail(np.flatnonzero(~done), lambda i: "cancelled before Newton converged")
+        fail(np.flatnonzero(~done), lambda i: "cancelled before Newton converged", Status.CANCELLED)
     fail(np.flatnonzero(~done), lambda i: f"no convergence in {int(iters[i])} iterations (residual {prev_res[i]:.3g})")
     return out

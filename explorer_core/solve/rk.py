@@ -38,31 +38,16 @@ the step-size factor, as in scipy's ``solve_ivp``); DOP853's combined 5th/3rd-or
 from __future__ import annotations
 
 import math
-from enum import IntEnum
 from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
 from explorer_core import config
+from explorer_core.status import Status  # the one vocabulary; the kernels write its codes 0-4
 from explorer_core.system.model import coefficients_of, forcing_at, forcing_of, quadratic
 
-
-class Status(IntEnum):
-    """Per-trajectory outcome; anything but OK ends the trajectory."""
-
-    OK = 0
-    ESCAPED = 1  # |q| or |r| left the bound: noncompact motion
-    STEP_COLLAPSED = 2  # the adaptive step fell below the round-off floor
-    TOO_MANY_STEPS = 3  # the per-period step budget ran out
-    NONFINITE = 4  # the field or the state became inf/NaN
-
-    @property
-    def label(self) -> str:
-        return self.name.lower()
-
-
-_OK, _ESCAPED, _COLLAPSED, _TOO_MANY, _NONFINITE = (int(s) for s in Status)
+_OK, _ESCAPED, _COLLAPSED, _TOO_MANY, _NONFINITE = (int(s) for s in Status if s.engine)
 
 #: Systems the engine integrates (see the module docstring).
 FIELD, TANGENT, LYAPUNOV = 0, 1, 2

@@ -39,7 +39,7 @@ import numpy as np
 from explorer_core.solve.rk import FIELD, STATE_SIZE, Status
 from explorer_core.system.params import ParameterError
 
-_OK, _ESCAPED, _COLLAPSED, _TOO_MANY, _NONFINITE = (int(s) for s in Status)
+_OK, _ESCAPED, _COLLAPSED, _TOO_MANY, _NONFINITE = (int(s) for s in Status if s.engine)
 _EPS = float(np.finfo(float).eps)
 _BIG = float(np.finfo(float).max)
 #: The highest order (rtol 1e-15 needs 19; the bound only sizes the scratch arrays).
