@@ -223,7 +223,8 @@ class SectionFigure:
         # Compact: with the orbits' entries it has up to ~8 rows over a 300 px plot at 1280x720.
         self.legend = Legend(items=[LegendItem(label={"field": "label"}, renderers=[eq])], location="top_left",
                              background_fill_alpha=0.7, label_text_font_size="8pt", label_height=12,
-                             glyph_height=12, glyph_width=12, spacing=0, padding=4, margin=4)  # fmt: skip
+                             glyph_height=12, glyph_width=12, spacing=0, padding=4, margin=4,
+                             visible=False)  # fmt: skip
         fig.add_layout(self.legend)
         # One hover per kind of mark, each with that mark's fields only (one tool over the points and the
         # diamonds showed "frozen-field equilibrium: ???" on every point). A few point entries at most: dozens
@@ -392,6 +393,14 @@ class SectionFigure:
                 d["label"].append(orbit_label(o["type"]))
         for k, src in self.orbit_sources.items():
             src.data = data[k]
+        self._legend_shown()
+
+    def _legend_shown(self) -> None:
+        # An empty legend is drawn as a blank box in the plot's corner (e.g. basins with the tracks off)
+        built = self._orbit_sources.values() if "orbits" in self._built else ()  # never built for this
+        n = len(self.equilibria.data["q"]) + sum(len(s.data["q"]) for s in built)
+        if self.legend.visible != (n > 0):
+            self.legend.visible = n > 0
 
     def set_manifolds(self, lines: list[tuple[Any, Any, str]], marks: list[tuple[float, float, str]]) -> None:
         """Pieces of manifolds ``(q, r, kind)`` (kind: unstable | stable) and crossings ``(q, r, text)``."""
@@ -432,6 +441,7 @@ class SectionFigure:
             "type": list(types),
             "label": [equilibrium_label(t) for t in types],
         }
+        self._legend_shown()
 
     def set_tprime(self, values: np.ndarray | None, q: np.ndarray, r: np.ndarray, title: str) -> None:
         if values is None or values.size == 0:

@@ -103,3 +103,17 @@ def test_the_basins_are_not_tinted_by_the_tprime_map_and_their_legend_matches() 
     for code in (ESCAPE, FAILED):
         seen = as_drawn(OUTCOME_COLOURS[code], BASIN_ALPHA)
         assert max(int(seen[i : i + 2], 16) for i in (1, 3, 5)) <= 0xB0, (code, seen)
+
+
+def test_the_legend_is_shown_only_with_entries() -> None:
+    """With the tracks off and no orbit, the legend was a blank box in the plot's corner (basins screenshot)."""
+    fig = SectionFigure((-1.0, 1.0), (-1.0, 1.0))
+    assert not fig.legend.visible
+    fig.set_equilibria(np.array([0.1]), np.array([0.2]), ("saddle",))
+    assert fig.legend.visible
+    fig.set_equilibria(np.array([]), np.array([]), ())
+    assert not fig.legend.visible
+    fig.set_orbits([{"points": [(0.1, 0.2)], "period": 1, "type": "stable focus", "mu": "0.5, 0.4"}])
+    assert fig.legend.visible
+    fig.set_orbits([])
+    assert not fig.legend.visible
