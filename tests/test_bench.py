@@ -189,6 +189,7 @@ def test_heyoka_table_has_the_issue_columns_and_an_independent_reference() -> No
     for r in rows:
         assert r["complete"] == cfg.table_ics and r["error_median"] <= r["error_max"]
         assert r["ratio_per_core"] == pytest.approx(r["time_s"] * table["workers"] / r["heyoka_time_s"])
+        assert r["ratio_1_thread"] > 0
     tight = {r["method"]: r for r in rows if r["tol"] == 1e-12}
     loose = {r["method"]: r for r in rows if r["tol"] == 1e-6}
     for m in cfg.table_methods:

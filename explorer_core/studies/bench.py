@@ -97,7 +97,7 @@ REF_TOL = 3e-14
 #: Tolerance of the runs that measure the amplification of perturbations (the horizon).
 AMP_TOL = 1e-12
 CASE_NAMES = ("regular", "chaotic", "attractor", "drift")
-OUR_METHODS = ("rk4", "dp5", "dop853", "taylor")
+OUR_METHODS = ("rk4", "dp5", "dop853", "vern9", "taylor")
 PEERS = (
     "scipy:RK45",
     "scipy:DOP853",
@@ -148,6 +148,7 @@ LINE_COLOURS = {
     ("ours", "rk4"): "#9467bd",
     ("ours", "dp5"): "#2ca02c",
     ("ours", "dop853"): "#1f77b4",
+    ("ours", "vern9"): "#393b79",
     ("ours", "taylor"): "#bcbd22",
     ("scipy.solve_ivp", "RK45"): "#ff7f0e",
     ("scipy.solve_ivp", "DOP853"): "#d62728",
@@ -192,6 +193,7 @@ class BenchConfig:
     rk4_steps: tuple[int, ...] = (25, 50, 100, 200, 400, 800, 1600)
     dp5_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
     dop853_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
+    vern9_tols: tuple[float, ...] = tuple(10.0**-e for e in range(6, 15))
     taylor_tols: tuple[float, ...] = tuple(10.0**-e for e in range(4, 16))
     modes: tuple[str, ...] = ("single", "batch")
     peers: tuple[str, ...] = PEERS
@@ -214,7 +216,7 @@ class BenchConfig:
     table_ics: int = 200
     table_periods: int = 1000
     table_tols: tuple[float, ...] = (1e-6, 1e-8, 1e-10, 1e-12, 1e-14)
-    table_methods: tuple[str, ...] = ("dop853", "taylor")
+    table_methods: tuple[str, ...] = ("dop853", "vern9", "taylor")
     label: str = "full"
 
     def as_dict(self) -> dict[str, Any]:
@@ -234,7 +236,7 @@ class BenchConfig:
         if not 1 <= self.k_max <= 100_000 or not 1 <= self.measured <= self.batch:
             raise ParameterError(f"need 1 <= k_max <= 100000 and 1 <= measured <= batch, got {self.k_max}, "
                                  f"{self.measured}, {self.batch}")  # fmt: skip
-        for name in ("dp5_tols", "dop853_tols", "taylor_tols", "peer_tols", "target_tols"):
+        for name in ("dp5_tols", "dop853_tols", "vern9_tols", "taylor_tols", "peer_tols", "target_tols"):
             if any(not (1e-15 <= t <= 1.0) for t in getattr(self, name)):
                 raise ParameterError(f"{name} must lie in [1e-15, 1], got {getattr(self, name)}")
         if any(not 1 <= n <= 10_000_000 for n in self.rk4_steps):
@@ -261,6 +263,7 @@ def quick_config() -> BenchConfig:
         rk4_steps=(50, 200, 800),
         dp5_tols=(1e-4, 1e-6, 1e-8),
         dop853_tols=(1e-4, 1e-6, 1e-8, 1e-10),
+        vern9_tols=(1e-8, 1e-12),
         taylor_tols=(1e-6, 1e-10),
         peer_tols=(1e-4, 1e-6),
         peer_budget_s=2.0,
@@ -285,6 +288,7 @@ def app_config() -> BenchConfig:
         rk4_steps=(50, 100, 200, 400),
         dp5_tols=(1e-4, 1e-6, 1e-8),
         dop853_tols=(1e-4, 1e-6, 1e-8, 1e-10),
+        vern9_tols=(1e-8, 1e-12),
         taylor_tols=(1e-6, 1e-10),
         peers=("scipy:DOP853",),
         peer_tols=(1e-4, 1e-6, 1e-8),
@@ -738,7 +742,7 @@ def _status_text(codes: Sequence[int]) -> str:
 
 
 #: Right-hand-side evaluations per step (Taylor's method has none: a step costs O(order^2) series products).
-_STAGES = {"rk4": 4, "dp5": 6, "dop853": 12, "taylor": None}
+_STAGES = {"rk4": 4, "dp5": 6, "dop853": 12, "vern9": 16, "taylor": None}
 
 
 def _ours(
@@ -1103,7 +1107,8 @@ def run_bench(
     res.peers = {"numbalsoda": nbs_text, "heyoka": hy_text}
     peers = [p for p in cfg.peers if (nbs is not None or not p.startswith("numbalsoda"))
              and (hy is not None or not p.startswith("heyoka"))]  # fmt: skip
-    n_ours = len(cfg.modes) * (len(cfg.rk4_steps) + len(cfg.dp5_tols) + len(cfg.dop853_tols) + len(cfg.taylor_tols))
+    n_ours = len(cfg.modes) * (len(cfg.rk4_steps) + len(cfg.dp5_tols) + len(cfg.dop853_tols) + len(cfg.vern9_tols)
+                               + len(cfg.taylor_tols))  # fmt: skip
     total = len(cases) * (1 + n_ours + len(peers) * len(cfg.peer_tols)) + (3 if cfg.throughput else 0)
     table = cfg.table and any(p.startswith("heyoka") for p in cfg.peers)  # --no-peers: no table either
     total += (1 + len(cfg.table_tols)) if table and hy is not None else 0
@@ -1195,7 +1200,7 @@ def _run_case(
     for mode in cfg.modes:
         ics = measured if mode == "single" else batch_ics
         for method, settings in (("rk4", cfg.rk4_steps), ("dp5", cfg.dp5_tols), ("dop853", cfg.dop853_tols),
-                                 ("taylor", cfg.taylor_tols)):  # fmt: skip
+                                 ("vern9", cfg.vern9_tols), ("taylor", cfg.taylor_tols)):  # fmt: skip
             for s in settings:
                 sec, pts, npts, st, ns = _ours(model, ics, k, method, s, mode, cfg.repeat)
                 errs = [_error(pts[i], int(npts[i]), ref_pts[i]) for i in range(m)]
@@ -1395,9 +1400,9 @@ def heyoka_table(
         dev = np.max(np.linalg.norm(pts[use] - ref[use], axis=2), axis=1)
         return float(np.median(dev)), float(np.max(dev))
 
-    def ours(method: str, tol: float) -> tuple[np.ndarray, np.ndarray, float]:
+    def ours(method: str, tol: float, workers_: int | None) -> tuple[np.ndarray, np.ndarray, float]:
         b = Batch.start(ics, params.t0, params.period)
-        out, npts = advance(model, b, periods, method=method, rtol=tol, atol=tol)
+        out, npts = advance(model, b, periods, method=method, rtol=tol, atol=tol, workers=workers_)
         return out, (b.status == Status.OK) & (npts == periods), float(b.nsteps.mean()) / periods
 
     def peer(tol: float) -> tuple[np.ndarray, np.ndarray, None]:
@@ -1408,7 +1413,9 @@ def heyoka_table(
     for tol in cfg.table_tols:
         runs: dict[str, Callable[[], Any]] = {"heyoka": lambda tol=tol: peer(tol)}
         for m in cfg.table_methods:
-            runs[m] = lambda m=m, tol=tol: ours(m, tol)
+            runs[m] = lambda m=m, tol=tol: ours(m, tol, None)
+            if workers > 1:  # per core without the parallel efficiency (and the machine's load) in it
+                runs[f"{m} 1"] = lambda m=m, tol=tol: ours(m, tol, 1)
         best = dict.fromkeys(runs, math.inf)
         got: dict[str, Any] = {}
         for _ in range(max(3, cfg.repeat)):
@@ -1422,6 +1429,7 @@ def heyoka_table(
             rows.append({"tol": tol, "method": m, "error_median": med, "error_max": mx, "time_s": best[m],
                          "steps_per_period": got[m][2], "heyoka_error_median": hy_med, "heyoka_error_max": hy_max,
                          "heyoka_time_s": best["heyoka"], "ratio_per_core": best[m] * workers / best["heyoka"],
+                         "ratio_1_thread": best.get(f"{m} 1", best[m]) / best["heyoka"],
                          "complete": int(got[m][1].sum())})  # fmt: skip
         tick(f"heyoka table: tol {tol:g}")
     return {
@@ -1429,7 +1437,8 @@ def heyoka_table(
         "what": f"{cfg.table_ics} random ICs in [-1, 1]^2 x {periods} periods, tensor diag(1, 4, 2), alpha 0.1, "
         f"g = cos t; error = per IC the largest distance from heyoka at tol {TABLE_REF_TOL:g} (median, max over "
         f"ICs); ours on {workers} workers (default block kernel), heyoka batch x{HEYOKA_BATCH} on one thread; "
-        "ratio per core = ours wall x workers / heyoka wall; fastest of interleaved rounds",
+        "ratio per core = ours wall x workers / heyoka wall; ratio 1 thread = ours on one worker / heyoka; "
+        "fastest of interleaved rounds",
         "workers": workers,
         "rows": rows,
     }
@@ -1445,11 +1454,12 @@ def heyoka_table_markdown(table: dict[str, Any]) -> str:
 
     out = [table["what"], "",
            "| tol | ours | error (median / max) | time (s) | steps / period | heyoka error (median / max) | "
-           "heyoka time (s) | ratio per core |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+           "heyoka time (s) | ratio per core | ratio 1 thread |", "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for r in table["rows"]:
         out.append(f"| {r['tol']:.0e} | {r['method']} | {e(r['error_median'])} / {e(r['error_max'])} | "
                    f"{r['time_s']:.3f} | {r['steps_per_period']:.1f} | {e(r['heyoka_error_median'])} / "
-                   f"{e(r['heyoka_error_max'])} | {r['heyoka_time_s']:.3f} | {r['ratio_per_core']:.2f} |")  # fmt: skip
+                   f"{e(r['heyoka_error_max'])} | {r['heyoka_time_s']:.3f} | {r['ratio_per_core']:.2f} | "
+                   f"{r['ratio_1_thread']:.2f} |")  # fmt: skip
     return "\n".join(out) + "\n"
 
 
@@ -1493,6 +1503,8 @@ def _ratios(res: BenchResult, cfg: BenchConfig, have_nbs: bool, have_hy: bool = 
         for peer, ours in (
             ("heyoka taylor", "ours dop853"),
             ("heyoka taylor batch", "ours dop853 batch"),
+            ("heyoka taylor", "ours vern9"),
+            ("heyoka taylor batch", "ours vern9 batch"),
             ("heyoka taylor", "ours taylor"),
             ("heyoka taylor batch", "ours taylor batch"),
         ):
