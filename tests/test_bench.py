@@ -179,6 +179,35 @@ def test_heyoka_is_a_peer_single_and_batch(tmp_path) -> None:
     assert "heyoka: available" in res.markdown()
 
 
+def test_heyoka_table_has_the_issue_columns_and_an_independent_reference() -> None:
+    pytest.importorskip("heyoka")
+    cfg = dataclasses.replace(bench.quick_config(), table_ics=9, table_periods=10, table_tols=(1e-6, 1e-12), repeat=1)
+    table = bench.heyoka_table(cfg)
+    assert table["available"] and table["workers"] >= 1
+    rows = table["rows"]
+    assert [(r["tol"], r["method"]) for r in rows] == [(t, m) for t in cfg.table_tols for m in cfg.table_methods]
+    for r in rows:
+        assert r["complete"] == cfg.table_ics and r["error_median"] <= r["error_max"]
+        assert r["ratio_per_core"] == pytest.approx(r["time_s"] * table["workers"] / r["heyoka_time_s"])
+        assert r["ratio_1_thread"] > 0
+    tight = {r["method"]: r for r in rows if r["tol"] == 1e-12}
+    loose = {r["method"]: r for r in rows if r["tol"] == 1e-6}
+    for m in cfg.table_methods:
+        assert tight[m]["error_max"] < 1e-9 and tight[m]["error_max"] < loose[m]["error_max"]
+    assert tight["dop853"]["heyoka_error_max"] < 1e-9
+    md = bench.heyoka_table_markdown(table)
+    assert "| tol | ours | error (median / max) | time (s) |" in md and "ratio per core" in md
+    # The table's reference (heyoka at 1e-16) against solve_ivp at 1e-13 on one IC, section by section.
+    p = bench.TABLE_PARAMS
+    model = Model(p)
+    ic = bench.random_ics(1, (-1.0, 1.0, -1.0, 1.0), seed=0)
+    ref, _, _, _ = bench._peer_heyoka(model, ic, 10, "batch", bench.TABLE_REF_TOL)
+    rhs = bench.scipy_rhs(model)
+    sol = solve_ivp(rhs, (p.t0, p.t0 + 10 * p.period), ic[0], method="DOP853", rtol=1e-13, atol=1e-13,
+                    t_eval=p.t0 + p.period * np.arange(1, 11))  # fmt: skip
+    assert np.max(np.abs(sol.y.T - ref[0])) < 1e-10
+
+
 def test_heyoka_absence_is_reported_and_skipped(monkeypatch, tmp_path) -> None:
     import builtins
 
@@ -200,6 +229,7 @@ def test_heyoka_absence_is_reported_and_skipped(monkeypatch, tmp_path) -> None:
     assert {r.implementation for r in res.rows} == {"ours", "scipy.solve_ivp"}
     assert f"heyoka: {text}" in res.markdown()
     assert not any(k.startswith("heyoka") for k in res.ratios)
+    assert f"heyoka table: {text}" in res.markdown()
 
 
 def test_bad_settings_are_rejected() -> None:

@@ -97,7 +97,7 @@ REF_TOL = 3e-14
 #: Tolerance of the runs that measure the amplification of perturbations (the horizon).
 AMP_TOL = 1e-12
 CASE_NAMES = ("regular", "chaotic", "attractor", "drift")
-OUR_METHODS = ("rk4", "dp5", "dop853", "taylor")
+OUR_METHODS = ("rk4", "dp5", "dop853", "vern9", "taylor")
 PEERS = (
     "scipy:RK45",
     "scipy:DOP853",
@@ -148,6 +148,7 @@ LINE_COLOURS = {
     ("ours", "rk4"): "#9467bd",
     ("ours", "dp5"): "#2ca02c",
     ("ours", "dop853"): "#1f77b4",
+    ("ours", "vern9"): "#393b79",
     ("ours", "taylor"): "#bcbd22",
     ("scipy.solve_ivp", "RK45"): "#ff7f0e",
     ("scipy.solve_ivp", "DOP853"): "#d62728",
@@ -192,6 +193,7 @@ class BenchConfig:
     rk4_steps: tuple[int, ...] = (25, 50, 100, 200, 400, 800, 1600)
     dp5_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
     dop853_tols: tuple[float, ...] = tuple(10.0**-e for e in range(3, 13))
+    vern9_tols: tuple[float, ...] = tuple(10.0**-e for e in range(6, 15))
     taylor_tols: tuple[float, ...] = tuple(10.0**-e for e in range(4, 16))
     modes: tuple[str, ...] = ("single", "batch")
     peers: tuple[str, ...] = PEERS
@@ -208,6 +210,13 @@ class BenchConfig:
     target_error: float = 1e-6
     target_check: int = 6
     target_tols: tuple[float, ...] = (1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9, 1e-9, 3e-10, 1e-10)
+    #: The table of issue 22 against heyoka (:func:`heyoka_table`): ``table_ics`` random ICs in [-1, 1]^2 x
+    #: ``table_periods`` periods of :data:`TABLE_PARAMS` at each of ``table_tols``, ``table_methods`` on every core.
+    table: bool = True
+    table_ics: int = 200
+    table_periods: int = 1000
+    table_tols: tuple[float, ...] = (1e-6, 1e-8, 1e-10, 1e-12, 1e-14)
+    table_methods: tuple[str, ...] = ("dop853", "vern9", "taylor")
     label: str = "full"
 
     def as_dict(self) -> dict[str, Any]:
@@ -227,11 +236,19 @@ class BenchConfig:
         if not 1 <= self.k_max <= 100_000 or not 1 <= self.measured <= self.batch:
             raise ParameterError(f"need 1 <= k_max <= 100000 and 1 <= measured <= batch, got {self.k_max}, "
                                  f"{self.measured}, {self.batch}")  # fmt: skip
-        for name in ("dp5_tols", "dop853_tols", "taylor_tols", "peer_tols", "target_tols"):
+        for name in ("dp5_tols", "dop853_tols", "vern9_tols", "taylor_tols", "peer_tols", "target_tols"):
             if any(not (1e-15 <= t <= 1.0) for t in getattr(self, name)):
                 raise ParameterError(f"{name} must lie in [1e-15, 1], got {getattr(self, name)}")
         if any(not 1 <= n <= 10_000_000 for n in self.rk4_steps):
             raise ParameterError(f"rk4_steps must lie in [1, 1e7], got {self.rk4_steps}")
+        if any(not (1e-15 <= t <= 1.0) for t in self.table_tols):
+            raise ParameterError(f"table_tols must lie in [1e-15, 1], got {self.table_tols}")
+        bad = [m for m in self.table_methods if m not in OUR_METHODS or m == "rk4"]
+        if bad:
+            raise ParameterError(f"table_methods must be adaptive methods of ours, got {', '.join(bad)}")
+        if not (1 <= self.table_ics <= 100_000 and 1 <= self.table_periods <= 100_000):
+            raise ParameterError(f"need 1 <= table_ics, table_periods <= 100000, got {self.table_ics}, "
+                                 f"{self.table_periods}")  # fmt: skip
 
 
 def full_config() -> BenchConfig:
@@ -246,6 +263,7 @@ def quick_config() -> BenchConfig:
         rk4_steps=(50, 200, 800),
         dp5_tols=(1e-4, 1e-6, 1e-8),
         dop853_tols=(1e-4, 1e-6, 1e-8, 1e-10),
+        vern9_tols=(1e-8, 1e-12),
         taylor_tols=(1e-6, 1e-10),
         peer_tols=(1e-4, 1e-6),
         peer_budget_s=2.0,
@@ -256,6 +274,9 @@ def quick_config() -> BenchConfig:
         target_periods=100,
         target_check=2,
         target_tols=(1e-6, 1e-7, 1e-8, 1e-9, 1e-10),
+        table_ics=16,
+        table_periods=20,
+        table_tols=(1e-6, 1e-10),
         label="quick",
     )
 
@@ -267,6 +288,7 @@ def app_config() -> BenchConfig:
         rk4_steps=(50, 100, 200, 400),
         dp5_tols=(1e-4, 1e-6, 1e-8),
         dop853_tols=(1e-4, 1e-6, 1e-8, 1e-10),
+        vern9_tols=(1e-8, 1e-12),
         taylor_tols=(1e-6, 1e-10),
         peers=("scipy:DOP853",),
         peer_tols=(1e-4, 1e-6, 1e-8),
@@ -275,6 +297,7 @@ def app_config() -> BenchConfig:
         batch=16,
         repeat=1,
         throughput=False,
+        table=False,
         label="app",
     )
 
@@ -719,7 +742,7 @@ def _status_text(codes: Sequence[int]) -> str:
 
 
 #: Right-hand-side evaluations per step (Taylor's method has none: a step costs O(order^2) series products).
-_STAGES = {"rk4": 4, "dp5": 6, "dop853": 12, "taylor": None}
+_STAGES = {"rk4": 4, "dp5": 6, "dop853": 12, "vern9": 16, "taylor": None}
 
 
 def _ours(
@@ -878,6 +901,8 @@ class BenchResult:
         for k, v in self.ratios.items():
             if " / " in k:
                 out.append(f"{k} at the same error: {'n/a' if v is None else f'{v:g}x'}")
+        if "heyoka_table" in self.throughput:
+            out.append(heyoka_table_markdown(self.throughput["heyoka_table"]).rstrip("\n"))
         return "\n".join(out)
 
     def csv_text(self) -> str:
@@ -952,8 +977,14 @@ def markdown_report(data: dict[str, Any], rows: bool = True) -> str:
         out.append("")
     if data.get("throughput"):
         out += ["## Throughput and targets", ""]
-        out += [f"* {k}: {_fmt_value(v)}" for k, v in data["throughput"].items()]
+        out += [f"* {k}: {_fmt_value(v)}" for k, v in data["throughput"].items() if k != "heyoka_table"]
         out.append("")
+    if "heyoka_table" in (data.get("throughput") or {}):
+        out += [
+            "## Against heyoka at every tolerance (issue 22)",
+            "",
+            heyoka_table_markdown(data["throughput"]["heyoka_table"]),
+        ]
     if rows:
         out += ["## Rows", "",
                 "| case | implementation | method | setting | mode | n | periods | error | time / traj (s) | "
@@ -1076,8 +1107,11 @@ def run_bench(
     res.peers = {"numbalsoda": nbs_text, "heyoka": hy_text}
     peers = [p for p in cfg.peers if (nbs is not None or not p.startswith("numbalsoda"))
              and (hy is not None or not p.startswith("heyoka"))]  # fmt: skip
-    n_ours = len(cfg.modes) * (len(cfg.rk4_steps) + len(cfg.dp5_tols) + len(cfg.dop853_tols) + len(cfg.taylor_tols))
+    n_ours = len(cfg.modes) * (len(cfg.rk4_steps) + len(cfg.dp5_tols) + len(cfg.dop853_tols) + len(cfg.vern9_tols)
+                               + len(cfg.taylor_tols))  # fmt: skip
     total = len(cases) * (1 + n_ours + len(peers) * len(cfg.peer_tols)) + (3 if cfg.throughput else 0)
+    table = cfg.table and any(p.startswith("heyoka") for p in cfg.peers)  # --no-peers: no table either
+    total += (1 + len(cfg.table_tols)) if table and hy is not None else 0
     done = [0]
 
     def tick(text: str) -> None:
@@ -1095,6 +1129,8 @@ def run_bench(
             _run_case(res, case, cfg, peers, nbs, cache_dir_, tick)
         if cfg.throughput:
             _run_throughput(res, cfg, cache_dir_, tick)
+        if table:
+            res.throughput["heyoka_table"] = heyoka_table(cfg, tick)
     except _Cancelled:
         res.completed = False
     res.ratios = _ratios(res, cfg, nbs is not None, hy is not None) if res.completed or res.rows else {}
@@ -1164,7 +1200,7 @@ def _run_case(
     for mode in cfg.modes:
         ics = measured if mode == "single" else batch_ics
         for method, settings in (("rk4", cfg.rk4_steps), ("dp5", cfg.dp5_tols), ("dop853", cfg.dop853_tols),
-                                 ("taylor", cfg.taylor_tols)):  # fmt: skip
+                                 ("vern9", cfg.vern9_tols), ("taylor", cfg.taylor_tols)):  # fmt: skip
             for s in settings:
                 sec, pts, npts, st, ns = _ours(model, ics, k, method, s, mode, cfg.repeat)
                 errs = [_error(pts[i], int(npts[i]), ref_pts[i]) for i in range(m)]
@@ -1327,6 +1363,106 @@ def _run_throughput(
     tick(f"throughput: {100 * ours1 / ceiling:.0f}% of the ceiling")
 
 
+#: The work of issue 22's table: a regular orbit family of the diagonal tensor (1, 4, 2), alpha = 0.1, g = cos t.
+TABLE_PARAMS = Params(inertia=(1.0, 4.0, 2.0, 0.0, 0.0, 0.0), alpha=0.1)
+#: heyoka's tolerance for the table's reference.
+TABLE_REF_TOL = 1e-16
+
+
+def heyoka_table(
+    cfg: BenchConfig, tick: Callable[[str], None] = lambda _: None, params: Params = TABLE_PARAMS
+) -> dict[str, Any]:
+    """Issue 22's table: at each tolerance, heyoka's batch mode (x :data:`HEYOKA_BATCH`, one thread) beside ours.
+
+    ``cfg.table_ics`` random ICs in [-1, 1]^2 (seed 0) x ``cfg.table_periods`` periods of ``params``. Error of a
+    run: per IC the largest distance from heyoka at :data:`TABLE_REF_TOL` over the section points; the table
+    gives the median and the largest over ICs. Ours: ``cfg.table_methods``, the default lock-step block kernel
+    on every worker (:data:`explorer_core.config.N_WORKERS`). Times: heyoka and ours interleaved, the fastest of
+    ``max(3, cfg.repeat)`` rounds (short runs on a shared machine). ``ratio_per_core`` = our core-seconds (wall x
+    workers) over heyoka's one-thread seconds: above 1, heyoka does the work with less CPU.
+    """
+    hy, text = heyoka_status()
+    if hy is None:
+        return {"available": False, "heyoka": text}
+    model = Model(params)
+    ics = random_ics(cfg.table_ics, (-1.0, 1.0, -1.0, 1.0), seed=0)
+    periods = cfg.table_periods
+    workers = config.N_WORKERS
+    ref_pts, ref_ok, _, _ = _peer_heyoka(model, ics, periods, "batch", TABLE_REF_TOL)
+    ref = np.array(ref_pts)
+    good = np.asarray(ref_ok, bool)
+    tick(f"heyoka table: reference at tol {TABLE_REF_TOL:g} ({int(good.sum())} of {good.size} ICs complete)")
+
+    def errors(pts: np.ndarray, ok: np.ndarray) -> tuple[float | None, float | None]:
+        use = good & ok
+        if not use.any():
+            return None, None
+        dev = np.max(np.linalg.norm(pts[use] - ref[use], axis=2), axis=1)
+        return float(np.median(dev)), float(np.max(dev))
+
+    def ours(method: str, tol: float, workers_: int | None) -> tuple[np.ndarray, np.ndarray, float]:
+        b = Batch.start(ics, params.t0, params.period)
+        out, npts = advance(model, b, periods, method=method, rtol=tol, atol=tol, workers=workers_)
+        return out, (b.status == Status.OK) & (npts == periods), float(b.nsteps.mean()) / periods
+
+    def peer(tol: float) -> tuple[np.ndarray, np.ndarray, None]:
+        pts, ok, _, _ = _peer_heyoka(model, ics, periods, "batch", tol)
+        return np.array(pts), np.asarray(ok, bool), None
+
+    rows = []
+    for tol in cfg.table_tols:
+        runs: dict[str, Callable[[], Any]] = {"heyoka": lambda tol=tol: peer(tol)}
+        for m in cfg.table_methods:
+            runs[m] = lambda m=m, tol=tol: ours(m, tol, None)
+            if workers > 1:  # per core without the parallel efficiency (and the machine's load) in it
+                runs[f"{m} 1"] = lambda m=m, tol=tol: ours(m, tol, 1)
+        best = dict.fromkeys(runs, math.inf)
+        got: dict[str, Any] = {}
+        for _ in range(max(3, cfg.repeat)):
+            for name, fn in runs.items():
+                t0 = time.perf_counter()
+                got[name] = fn()
+                best[name] = min(best[name], time.perf_counter() - t0)
+        hy_med, hy_max = errors(got["heyoka"][0], got["heyoka"][1])
+        for m in cfg.table_methods:
+            med, mx = errors(got[m][0], got[m][1])
+            rows.append({"tol": tol, "method": m, "error_median": med, "error_max": mx, "time_s": best[m],
+                         "steps_per_period": got[m][2], "heyoka_error_median": hy_med, "heyoka_error_max": hy_max,
+                         "heyoka_time_s": best["heyoka"], "ratio_per_core": best[m] * workers / best["heyoka"],
+                         "ratio_1_thread": best.get(f"{m} 1", best[m]) / best["heyoka"],
+                         "complete": int(got[m][1].sum())})  # fmt: skip
+        tick(f"heyoka table: tol {tol:g}")
+    return {
+        "available": True,
+        "what": f"{cfg.table_ics} random ICs in [-1, 1]^2 x {periods} periods, tensor diag(1, 4, 2), alpha 0.1, "
+        f"g = cos t; error = per IC the largest distance from heyoka at tol {TABLE_REF_TOL:g} (median, max over "
+        f"ICs); ours on {workers} workers (default block kernel), heyoka batch x{HEYOKA_BATCH} on one thread; "
+        "ratio per core = ours wall x workers / heyoka wall; ratio 1 thread = ours on one worker / heyoka; "
+        "fastest of interleaved rounds",
+        "workers": workers,
+        "rows": rows,
+    }
+
+
+def heyoka_table_markdown(table: dict[str, Any]) -> str:
+    """The table of :func:`heyoka_table` as Markdown (one line if heyoka is not available)."""
+    if not table.get("available"):
+        return f"heyoka table: {table.get('heyoka', 'not measured')}\n"
+
+    def e(v: float | None) -> str:
+        return "—" if v is None else f"{v:.1e}"
+
+    out = [table["what"], "",
+           "| tol | ours | error (median / max) | time (s) | steps / period | heyoka error (median / max) | "
+           "heyoka time (s) | ratio per core | ratio 1 thread |", "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for r in table["rows"]:
+        out.append(f"| {r['tol']:.0e} | {r['method']} | {e(r['error_median'])} / {e(r['error_max'])} | "
+                   f"{r['time_s']:.3f} | {r['steps_per_period']:.1f} | {e(r['heyoka_error_median'])} / "
+                   f"{e(r['heyoka_error_max'])} | {r['heyoka_time_s']:.3f} | {r['ratio_per_core']:.2f} | "
+                   f"{r['ratio_1_thread']:.2f} |")  # fmt: skip
+    return "\n".join(out) + "\n"
+
+
 def _batch_run(
     model: Model, ics: np.ndarray, periods: int, tol: float, workers: int | None
 ) -> tuple[Batch, np.ndarray, np.ndarray]:
@@ -1367,6 +1503,8 @@ def _ratios(res: BenchResult, cfg: BenchConfig, have_nbs: bool, have_hy: bool = 
         for peer, ours in (
             ("heyoka taylor", "ours dop853"),
             ("heyoka taylor batch", "ours dop853 batch"),
+            ("heyoka taylor", "ours vern9"),
+            ("heyoka taylor batch", "ours vern9 batch"),
             ("heyoka taylor", "ours taylor"),
             ("heyoka taylor batch", "ours taylor batch"),
         ):
