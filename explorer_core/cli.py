@@ -224,6 +224,10 @@ class _Run:
     def __call__(self) -> bool:
         return self.flag
 
+    def update(self, update: Any) -> None:
+        """The progress callback of every long analysis: its update's ``progress`` as the one line."""
+        self.line(update.progress.line())
+
     def line(self, text: str) -> None:
         now = time.perf_counter()
         if self.show and now - self._last > 0.2:
@@ -471,13 +475,8 @@ def cmd_lyapunov(args: argparse.Namespace) -> int:
         ics = attractor_ensemble(params, ics[0], args.ensemble, transient=transient, offset=args.offset,
                                  seed=args.seed, numerics=numerics)  # fmt: skip
     with _Run(args) as run:
-
-        def progress(p: Any) -> None:
-            run.line(f"{p.phase} {p.done_periods}/{p.total_periods} periods, L1 ~ {p.running[0, 0]:.5f}, "
-                     f"{p.elapsed_s:.1f} s")  # fmt: skip
-
         res = lyapunov_spectrum(params, ics, args.periods, transient=transient, numerics=numerics, cancel=run,
-                                progress=progress)  # fmt: skip
+                                progress=run.update)  # fmt: skip
     summary = _with_scene(res.summary(), args)
     if args.history:
 
@@ -546,7 +545,7 @@ def cmd_bifurcation(args: argparse.Namespace) -> int:
         diag = bifurcation_diagram(params, args.param, values, points=args.points, transient=args.transient,
                                    seeding=args.seeding, ics=_scene_point(scene) if ics is None else ics, sweeps=sweeps,
                                    numerics=_numerics(args, None, args.transient + args.points), cancel=run,
-                                   progress=lambda p: run.line(f"{p.done}/{p.total} values, {p.elapsed_s:.1f} s"),
+                                   progress=run.update,
                                    executor=_executor(args))  # fmt: skip
     summary = diag.summary()
     if args.scheduler:
@@ -690,7 +689,7 @@ def cmd_continue(args: argparse.Namespace) -> int:
                              max_period=args.max_period, numerics=numerics, param2=args.param2, cancel=run,
                              max_points=args.max_points,
                              range2=_span(args.range2, "--range2") if args.range2 else None,
-                             progress=lambda n, v: run.line(f"{n} points, {name} = {v:.8g}"), **steps)  # fmt: skip
+                             progress=run.update, **steps)  # fmt: skip
     summary = res.summary()
     if args.out:
         header = ["branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable"]
@@ -793,8 +792,7 @@ def cmd_chart(args: argparse.Namespace) -> int:
                       numerics=_numerics(args, None, args.transient + args.periods))  # fmt: skip
     with _Run(args) as run:
         chart = regime_chart(spec, coarse=args.coarse, cancel=run, executor=_executor(args), refine=args.refine,
-                             progress=lambda u: run.line(f"{int(u.chart.computed.sum())}/{u.chart.computed.size} "
-                                                         f"pixels, {u.chart.elapsed_s:.1f} s"))  # fmt: skip
+                             progress=run.update)  # fmt: skip
     summary = chart.summary()
     if args.scheduler:
         summary["scheduler"] = args.scheduler
@@ -888,8 +886,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     with _Run(args) as run:
         fit = drift_fit(params, (k0, k1), degree=tuple(degree), m=args.members, ics=ics, box=box, seed=args.seed,
                         criterion=args.criterion, numerics=_numerics(args, None, k1), cancel=run,
-                        progress=lambda found, draws: run.line(f"{found}/{args.members} members on the drift, "
-                                                               f"{draws} tried"))  # fmt: skip
+                        progress=run.update)  # fmt: skip
     summary = fit.summary()
     if args.out:
         rows = ((i, k, x[k, 0], x[k, 1]) for i, x in enumerate(fit.series) for k in range(x.shape[0]))
@@ -1015,7 +1012,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     out, size, stages, progress = _staged_run(args)
     start = time.perf_counter()
     with _Run(args) as run:
-        rep = reproduce(size, stages=stages, progress=progress, cancel=run)
+        rep = reproduce(size, stages=stages, progress=lambda u: u.detail and progress(*u.detail), cancel=run)
     from explorer_core.reports.render import render_reproduction  # matplotlib only here
 
     figures = render_reproduction(rep, out)

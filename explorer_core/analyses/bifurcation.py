@@ -27,13 +27,14 @@ map, whose period-doubling points are known.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import closing
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -47,8 +48,10 @@ from explorer_core.analyses.sweeps import (
     params_at,
     status_label,
 )
+from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor
-from explorer_core.progress import Progress
+from explorer_core.progress import Progress, stream
+from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import Status, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
 from explorer_core.solve.poincare import PoincareMap
@@ -104,11 +107,13 @@ def empty_sweep_arrays(n_sweeps: int, valid: np.ndarray, n_ics: int, n_points: i
 
 @dataclass(frozen=True)
 class SweepProgress:
-    """Passed to ``progress`` after each computed value."""
+    """Yielded by :func:`iter_bifurcation_diagram` (passed to ``progress``) after each computed value; the
+    last one carries the diagram."""
 
     done: int
     total: int
     elapsed_s: float
+    result: OrbitDiagram | None = None
 
     @property
     def progress(self) -> Progress:
@@ -232,6 +237,28 @@ class OrbitDiagram:
     numerics: Numerics
     elapsed_s: float
     completed: bool
+    #: what the diagram lost: trajectories not computed (cancelled), invalid values, trajectories that stopped
+    lost: list[Loss] = field(default_factory=list)
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
+    def losses(self) -> list[Loss]:
+        """What is not in the diagram, and why (computed from the statuses)."""
+        lost = []
+        n = int(np.count_nonzero(self.status == NOT_RUN))
+        if n:
+            lost.append(Loss("trajectories not computed", n, "cancelled"))
+        bad = [(v, e) for v, e in zip(self.values, self.errors, strict=True) if e]
+        if bad:
+            first = f"{self.param} = {bad[0][0]:.12g}: {bad[0][1]}"
+            lost.append(Loss("values", len(bad), f"not a valid system (first: {first})"))
+        codes = self.status[(self.status != NOT_RUN) & (self.status != INVALID_PARAMS) & (self.status != Status.OK)]
+        for code in np.unique(codes):
+            lost.append(Loss("trajectories", int(np.count_nonzero(codes == code)),
+                             f"not drawn: {status_label(int(code))}"))  # fmt: skip
+        return lost
 
     @property
     def valid(self) -> np.ndarray:
@@ -304,6 +331,8 @@ class OrbitDiagram:
             ],
             "periods": {str(s): per[k, :, 0].tolist() for k, s in enumerate(self.sweeps)},
             "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict(),
             "numerics": self.numerics.as_dict(),
@@ -515,7 +544,50 @@ def sweep_chunk(
     )
 
 
+def iter_bifurcation_diagram(
+    params: Params,
+    param: str,
+    values: Any,
+    *,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> Iterator[SweepProgress]:
+    """:func:`bifurcation_diagram` (same arguments) as a stream of :class:`SweepProgress` (values done of
+    values to compute); the last update's ``result`` is the diagram."""
+    if "progress" in kw:
+        raise TypeError("iter_bifurcation_diagram takes no progress callback: its updates are the progress")
+
+    def work(emit: Callable[[SweepProgress], None], stop: Callable[[], bool]) -> SweepProgress:
+        last = [0, 0]
+
+        def report(p: SweepProgress) -> None:
+            last[:] = [p.done, p.total]
+            emit(p)
+
+        d = _diagram(params, param, values, progress=report, cancel=stop, **kw)
+        d = dataclasses.replace(d, lost=d.losses())
+        done = last[0] if not d.completed else max(last[1], int(np.count_nonzero(d.valid)))
+        return SweepProgress(done, max(done, last[1], int(np.count_nonzero(d.valid))), d.elapsed_s, d)
+
+    return stream(work, cancel)
+
+
 def bifurcation_diagram(
+    params: Params,
+    param: str,
+    values: Any,
+    *,
+    progress: Callable[[SweepProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> OrbitDiagram:
+    """Orbit diagram of the Poincare map over ``param`` (paper, Fig. 10): :func:`_diagram`'s arguments;
+    ``progress`` gets every update of :func:`iter_bifurcation_diagram`. A cancelled diagram has
+    ``completed=False`` and the trajectories not computed in ``lost``."""
+    return run_updates(iter_bifurcation_diagram(params, param, values, cancel=cancel, **kw), progress)
+
+
+def _diagram(
     params: Params,
     param: str,
     values: Any,

@@ -27,14 +27,17 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.polynomial import polynomial as P
 
 from explorer_core import config
+from explorer_core.losses import Loss
+from explorer_core.progress import Progress, Step, stream
+from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import Batch, run, tables
 from explorer_core.solve.numerics import Numerics, check_box, check_ics
 from explorer_core.solve.rk import FIELD, Status
@@ -164,6 +167,13 @@ class DriftFit:
     growth_rate: np.ndarray  # (M,) slope of log |x_k| per period over the window
     numerics: Numerics
     elapsed_s: float
+    completed: bool = True  # False: cancelled
+    #: members wanted but not found (cancelled, or the draws spent)
+    lost: list[Loss] = field(default_factory=list)
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
 
     @property
     def k(self) -> np.ndarray:
@@ -171,12 +181,14 @@ class DriftFit:
         return np.arange(k0, k1 + 1)
 
     def mean(self) -> tuple[np.ndarray, np.ndarray]:
-        """Averaged coefficients (the paper's procedure)."""
+        """Averaged coefficients (the paper's procedure); NaN when no member was found (cancelled)."""
+        if self.members.shape[0] == 0:
+            return np.full(self.coef_q.shape[1], np.nan), np.full(self.coef_r.shape[1], np.nan)
         return self.coef_q.mean(axis=0), self.coef_r.mean(axis=0)
 
     def spread(self) -> tuple[np.ndarray, np.ndarray]:
         """Standard deviation of the coefficients over members (ddof=1; zeros for one member)."""
-        if self.members.shape[0] < 2:
+        if self.members.shape[0] < 2:  # (a zero-member fit: zeros of the coefficients' shape)
             return np.zeros_like(self.coef_q[0]), np.zeros_like(self.coef_r[0])
         return self.coef_q.std(axis=0, ddof=1), self.coef_r.std(axis=0, ddof=1)
 
@@ -218,6 +230,13 @@ class DriftFit:
         return out
 
     def summary(self) -> dict[str, Any]:
+        if self.members.shape[0] == 0:  # cancelled before any member was found
+            return {"window": list(self.window), "degree": list(self.degree), "criterion": self.criterion,
+                    "members": 0, "rejected": self.rejected, "failed": self.failed, "completed": self.completed,
+                    "complete": False, "lost": [loss.as_dict() for loss in self.lost],
+                    "elapsed_s": round(self.elapsed_s, 6),
+                    "params": self.params.as_dict() if self.params is not None else None,
+                    "numerics": self.numerics.as_dict()}  # fmt: skip
         cq, cr = self.mean()
         sq, sr = self.spread()
         tq, tr = self.mean_in_time()
@@ -241,6 +260,9 @@ class DriftFit:
             "map_error": self.map_error(),
             "growth_rate_per_period": float(self.growth_rate.mean()),
             "ics": self.members.tolist(),
+            "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict() if self.params is not None else None,
             "numerics": self.numerics.as_dict(),
@@ -279,11 +301,30 @@ def _series(field: Tables, ics: np.ndarray, k1: int, numerics: Numerics) -> tupl
     return out, np.where(ok, Status.OK, np.where(batch.status == Status.OK, Status.TOO_MANY_STEPS, batch.status))
 
 
-def drift_fit(params: Params, window: Sequence[int], **kw: Any) -> DriftFit:
-    """Fit polynomials to the drift of the Bilimovich system (see :func:`drift_fit_tables`)."""
+def iter_drift_fit(
+    params: Params, window: Sequence[int], *, cancel: Callable[[], bool] | None = None, **kw: Any
+) -> Iterator[Step[DriftFit]]:
+    """:func:`drift_fit` as a stream of :class:`~explorer_core.progress.Step` (draws tried of the draws
+    allowed, after each batch); the last update's ``result`` is the fit."""
+    if "progress" in kw:
+        raise TypeError("iter_drift_fit takes no progress callback: its updates are the progress")
     model = Model(params)
     field = Tables(model.num, model.gpc, model.den, np.ascontiguousarray(model.forcing), params.t0, params.period)
-    return drift_fit_tables(field, window, params=params, **kw)
+    return stream(lambda emit, stop: drift_fit_tables(field, window, params=params, progress=emit, cancel=stop,
+                                                      final=True, **kw), cancel)  # fmt: skip
+
+
+def drift_fit(
+    params: Params,
+    window: Sequence[int],
+    *,
+    progress: Callable[[Step[DriftFit]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> DriftFit:
+    """Fit polynomials to the drift of the Bilimovich system (see :func:`drift_fit_tables`); ``progress``
+    gets every update of :func:`iter_drift_fit`."""
+    return run_updates(iter_drift_fit(params, window, cancel=cancel, **kw), progress)
 
 
 def drift_fit_tables(
@@ -298,10 +339,11 @@ def drift_fit_tables(
     max_draws: int | None = None,
     criterion: str = "on_curve",
     numerics: Numerics | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[Step[DriftFit]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     params: Params | None = None,
-) -> DriftFit:
+    final: bool = False,
+) -> Any:
     """Fit polynomials to ``q_k``, ``r_k`` over ``window = (k0, k1)``, averaged over drifting members.
 
     Parameters
@@ -316,8 +358,11 @@ def drift_fit_tables(
     criterion : which trajectories count as drifting (:func:`on_drift`): ``"on_curve"``
         through the whole window, or ``"leaves"`` the compact region within it.
     numerics : integration settings; the escape ``bound`` must exceed the drift's reach.
-    progress : ``progress(members found, draws)`` after each batch; ``cancel`` polled between batches.
+    progress : called with a :class:`~explorer_core.progress.Step` (draws tried of the draws allowed, the
+        members found as its ``detail``) after each batch; ``cancel`` polled between batches: a cancelled
+        fit has ``completed`` False and the members not found in ``lost`` (no member at all: NaN means).
     params : recorded in the result (``None`` for a field that is not a Bilimovich system).
+    final : return the last update (a ``Step`` carrying the fit, :func:`iter_drift_fit`) instead of the fit.
 
     Raises
     ------
@@ -354,6 +399,8 @@ def drift_fit_tables(
         max_draws = max_draws or 50 * m
         batches = None
     members, series, rejected, failed, draws = [], [], 0, 0, 0
+    cancelled = False
+    allowed = pool.shape[0] if ics is not None else max_draws
 
     def consider(ic_batch: np.ndarray) -> None:
         nonlocal rejected, failed
@@ -373,20 +420,26 @@ def drift_fit_tables(
     else:
         while len(members) < m and draws < max_draws:
             if cancel is not None and cancel():
+                cancelled = True
                 break
             n = min(max(2 * config.N_WORKERS, 2 * (m - len(members))), max_draws - draws)
             batch = np.column_stack([rng.uniform(box[0], box[1], n), rng.uniform(box[2], box[3], n)])
             consider(batch)
             draws += n
             if progress is not None:
-                progress(len(members), draws)
+                progress(Step(Progress(draws, max_draws, "draws", time.perf_counter() - start), len(members)))
         del members[m:], series[m:]
-    if not members:
+    lost = []
+    wanted = m if ics is None else 0
+    if len(members) < wanted:
+        why = "cancelled" if cancelled else f"{draws} draws spent: {rejected} not drifting, {failed} failed or escaped"
+        lost.append(Loss("members not found", wanted - len(members), why))
+    if not members and not cancelled:
         raise ParameterError(
             f"no trajectory is on the drift over k = {k0}..{k1}: {draws} tried, {rejected} not drifting "
             f"(criterion {criterion!r}), {failed} failed or escaped (raise the bound?)"
         )
-    ser = np.array(series)
+    ser = np.array(series).reshape(len(series), k1 + 1, 2)
     k = np.arange(k0, k1 + 1)
     cq, cr, rq, rr, gr = [], [], [], [], []
     for x in ser:
@@ -398,22 +451,27 @@ def drift_fit_tables(
         rr.append(float(np.sqrt(np.mean(res * res))))
         norms = np.log(np.hypot(x[k0 : k1 + 1, 0], x[k0 : k1 + 1, 1]))
         gr.append(float(np.polyfit(k, norms, 1)[0]))
-    return DriftFit(
+    fit = DriftFit(
         params=params,
         t0=float(field.t0),
         period=float(field.period),
         window=(k0, k1),
         degree=(dq, dr),
         criterion=criterion,
-        members=np.array(members),
+        members=np.array(members).reshape(len(members), 2),
         rejected=rejected,
         failed=failed,
         series=ser,
-        coef_q=np.array(cq),
-        coef_r=np.array(cr),
+        coef_q=np.array(cq).reshape(len(cq), dq + 1),
+        coef_r=np.array(cr).reshape(len(cr), dr + 1),
         rms_q=np.array(rq),
         rms_r=np.array(rr),
         growth_rate=np.array(gr),
         numerics=numerics,
         elapsed_s=time.perf_counter() - start,
+        completed=not cancelled,
+        lost=lost,
     )
+    if not final:
+        return fit
+    return Step(Progress(draws if cancelled else allowed, allowed, "draws", fit.elapsed_s), len(members), fit)

@@ -39,6 +39,7 @@ import functools
 import itertools
 import math
 import os
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -47,6 +48,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from explorer_core.losses import Loss
+from explorer_core.progress import Progress, Step, run
 from explorer_core.system.model import ROW_Q, ROW_R, Model, coefficients_at
 from explorer_core.system.params import ParameterError, Params
 
@@ -604,6 +606,10 @@ class Tracks:
     lost: tuple[Loss, ...] = ()
 
     @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
+    @property
     def n_branches(self) -> int:
         return int(self.branch.max()) + 1 if self.branch.size else 0
 
@@ -729,14 +735,35 @@ def equilibrium_tracks(
     n_t: int = 400,
     t_start: float | None = None,
     *,
+    progress: Callable[[Step[Tracks]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> Tracks:
+    """Equilibria of the frozen field followed over one period (:func:`iter_equilibrium_tracks`'s
+    arguments); ``progress`` gets each of its updates."""
+    return run(iter_equilibrium_tracks(model_or_params, n_t, t_start, cancel=cancel, **kw), progress)
+
+
+#: Updates :func:`iter_equilibrium_tracks` yields over a period (at most; one per grid interval if fewer).
+TRACK_UPDATES = 100
+
+
+def iter_equilibrium_tracks(
+    model_or_params: Model | Params,
+    n_t: int = 400,
+    t_start: float | None = None,
+    *,
     jump: float = 0.05,
     max_depth: int = 12,
     max_refine: int | None = None,
     inf_norm: float = 1e8,
     rtol: float = 1e-12,
     cancel: Callable[[], bool] | None = None,
-) -> Tracks:
+) -> Iterator[Step[Tracks]]:
     """Equilibria of the frozen field followed over one period ``[t_start, t_start + T]``.
+
+    Yields a :class:`~explorer_core.progress.Step` (grid intervals done of ``n_t - 1``) about
+    :data:`TRACK_UPDATES` times; the last one's ``result`` is the :class:`Tracks`.
 
     Parameters
     ----------
@@ -763,9 +790,9 @@ def equilibrium_tracks(
         Polled between grid intervals; once it returns True the work stops and the tracks
         computed so far come back with ``completed=False`` and the rest of the period in ``lost``.
 
-    Returns
-    -------
-    Tracks
+    Yields
+    ------
+    Step[Tracks]
     """
     model = _as_model(model_or_params)
     if isinstance(n_t, bool) or not isinstance(n_t, int | np.integer):
@@ -798,7 +825,13 @@ def equilibrium_tracks(
     links: dict[tuple[float, int], tuple[float, int]] = {}
     budget = max_refine
     lost: tuple[Loss, ...] = ()
+    start = time.perf_counter()
+    every = max(1, (n_t - 1) // TRACK_UPDATES)
+    done = 0
     for k in range(n_t - 1):
+        if k and k % every == 0:
+            yield Step(Progress(k, n_t - 1, "intervals", time.perf_counter() - start))
+        done = k
         if cancel is not None and cancel():
             why = f"cancelled: the tracks cover t in [{grid[0]:.6g}, {grid[k]:.6g}] of [{grid[0]:.6g}, {grid[-1]:.6g}]"
             lost = (Loss("grid intervals", n_t - 1 - k, why),)
@@ -819,6 +852,7 @@ def equilibrium_tracks(
                 pairs, _ = _match(solve(ta), solve(tb), max(jump, _LOOSE_JUMP))
             for i, j in pairs:
                 links[(ta, i)] = (tb, j)
+        done = k + 1
 
     times = sorted(cache)
     branch_of: dict[tuple[float, int], int] = {}
@@ -837,7 +871,7 @@ def equilibrium_tracks(
     rows.sort()
     n = len(rows)
     eig = np.array([cache[t].eigenvalues[i] for _, t, i in rows], dtype=complex).reshape(n, 2)
-    return Tracks(
+    tracks = Tracks(
         model=model,
         t_start=float(t_start),
         period=float(period),
@@ -853,6 +887,7 @@ def equilibrium_tracks(
         completed=not lost,
         lost=lost,
     )
+    yield Step(Progress(done, n_t - 1, "intervals", time.perf_counter() - start), None, tracks)
 
 
 # ---------------------------------------------------------------------------

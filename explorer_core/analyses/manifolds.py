@@ -169,6 +169,11 @@ class Manifolds:
         return Progress(done, self.length, "arc length", self.elapsed_s)
 
     @property
+    def result(self) -> Manifolds:
+        """The update is the result (as grown so far; the last one of :func:`iter_manifolds` is final)."""
+        return self
+
+    @property
     def lost(self) -> list[Loss]:
         """Branches that stopped short of the length for want of resources or by failure, and members lost."""
         why = {"escaped": "every member escaped", "failed": "every member's integration failed",

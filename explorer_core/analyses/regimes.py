@@ -46,6 +46,7 @@ from explorer_core.analyses.sweeps import check_param, detect_period, params_at,
 from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.progress import Progress
+from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
 from explorer_core.solve.integrators import Status, coefficients, lockstep_groups, run
 from explorer_core.solve.numerics import Numerics, check_ics
@@ -813,7 +814,7 @@ class Chart:
 class ChartUpdate:
     """Yielded by :func:`iter_chart` after each tile; ``chart`` is the live (partial) chart."""
 
-    tile: TileResult
+    tile: TileResult | None  # None on the last update of a chart cancelled before any tile finished
     done_tiles: int
     total_tiles: int
     chart: Chart
@@ -821,6 +822,11 @@ class ChartUpdate:
     @property
     def progress(self) -> Progress:
         return Progress(self.done_tiles, self.total_tiles, "tiles", self.chart.elapsed_s)
+
+    @property
+    def result(self) -> Chart:
+        """The live chart (the last update's is the result)."""
+        return self.chart
 
 
 def iter_chart(
@@ -862,6 +868,10 @@ def iter_chart(
                 chart.elapsed_s = time.perf_counter() - start
                 chart.completed = done == len(tiles)
                 yield ChartUpdate(res, done, len(tiles), chart)
+    if done == 0:  # cancelled before any tile: the last update still carries the chart (the contract)
+        chart.elapsed_s = time.perf_counter() - start
+        chart.completed = False
+        yield ChartUpdate(None, done, len(tiles), chart)
 
 
 #: Cells around a pixel's own that must share its code before :func:`refine_level` fills it (0: the cell only).
@@ -910,6 +920,10 @@ def _iter_refined(
                 chart.elapsed_s = time.perf_counter() - start
                 chart.completed = pending == 0 and level == 1
                 yield ChartUpdate(res, done, planned, chart)
+    if done == 0:  # cancelled before any tile: the last update still carries the chart (the contract)
+        chart.elapsed_s = time.perf_counter() - start
+        chart.completed = False
+        yield ChartUpdate(None, done, planned, chart)
 
 
 def regime_chart(
@@ -924,11 +938,6 @@ def regime_chart(
     refine: bool = False,
 ) -> Chart:
     """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``."""
-    chart = Chart.empty(spec)
     kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "executor": executor,
           "refine": refine}  # fmt: skip
-    for upd in iter_chart(spec, **kw):
-        chart = upd.chart
-        if progress is not None:
-            progress(upd)
-    return chart
+    return run_updates(iter_chart(spec, **kw), progress)
