@@ -8,12 +8,14 @@ what was computed, marked incomplete with a :class:`~explorer_core.losses.Loss`,
 
 from __future__ import annotations
 
+import csv
 import itertools
 import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import pytest
 
 from explorer_core import export
@@ -151,6 +153,49 @@ def test_manifolds_keep_the_contract() -> None:
     assert run(iter(ups)) is ups[-1].result
 
 
+# --- every result writes its own files ------------------------------------------------------------------
+
+#: The suffixes each result writes (``write`` refuses any other).
+WRITES = {"lyapunov": (".csv", ".json"), "bifurcation": (".csv", ".json"), "bifurcation_sweeps": (".csv", ".json"),
+          "continue_orbit": (".csv", ".json"), "continue_from_seeds": (".csv", ".json"), "drift": (".csv", ".json"),
+          "equilibrium_tracks": (".csv", ".json"), "chart": (".npz", ".csv", ".json"), "basins": (".npz", ".json"),
+          "density": (".npz", ".json")}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", [c for c in CASES if c.name in WRITES], ids=lambda c: c.name)
+def test_every_result_writes_files_that_read_back(case: Case, tmp_path: Any) -> None:
+    result = run(case.iterate(None))
+    for suffix in WRITES[case.name]:
+        path = str(tmp_path / f"out{suffix}")
+        info = result.write(path)
+        assert info["path"] == path
+        if suffix == ".csv":
+            with open(path, newline="") as fh:
+                rows = list(csv.reader(fh))
+            assert len(rows) >= 2 and "np.float64" not in open(path).read()
+            assert info.get("rows", len(rows) - 1) == len(rows) - 1
+            table = np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding=None)
+            assert any(np.issubdtype(table.dtype[k], np.number) for k in range(len(table.dtype))), table.dtype
+        elif suffix == ".npz":
+            with np.load(path) as data:
+                assert data.files and all(data[k].size >= 0 for k in data.files)
+        else:
+            with open(path) as fh:
+                back = json.load(fh)
+            assert back["complete"] == result.complete and "lost" in back
+    with pytest.raises(export.OutputError, match="written as"):
+        result.write(str(tmp_path / "out.png"))
+
+
+def test_chart_boundaries_write_their_points(tmp_path: Any) -> None:
+    res = continuation.chart_boundaries(_small_chart(), periods=(1,))
+    info = res.write(str(tmp_path / "b.csv"))
+    with open(info["path"], newline="") as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0][:2] == ["continuation", "branch"] and len(rows) - 1 == info["rows"] > 0
+    assert json.loads(export.dumps(res.summary()))["continuations"]
+
+
 # --- the driver and the thread adapter -------------------------------------------------------------------
 
 
@@ -192,3 +237,12 @@ def test_stream_raises_the_analysis_error_in_the_consumer() -> None:
 
     with pytest.raises(ValueError, match="bad input 42"):
         run(stream(work))
+
+
+def test_a_drift_fit_cancelled_before_any_member_returns_an_empty_fit() -> None:
+    """On the old code this raised ParameterError ('no trajectory is on the drift'): a cancel must not."""
+    fit = drift.drift_fit(get_scene("fig3").params, (200, 300), degree=(0, 2), m=3, box=(-3, 3, 6, 10),
+                          cancel=lambda: True)  # fmt: skip
+    assert fit.members.shape == (0, 2) and not fit.completed and not fit.complete
+    assert fit.lost == [Loss("members not found", 3, "cancelled")]
+    assert json.loads(export.dumps(fit.summary()))["members"] == 0

@@ -65,16 +65,16 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
 from explorer_core.analyses.sweeps import detect_period
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
-from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.integrators import Batch, Status
 from explorer_core.solve.numerics import Numerics, check_box, check_int
-from explorer_core.system.model import Model
+from explorer_core.solve.poincare import PoincareMap
 from explorer_core.system.params import ParameterError, Params
 
 #: Labels of pixels that reach no attractor (attractor ids are >= 0).
@@ -336,6 +336,13 @@ class Basins:
         if note:
             out["note"] = note
         return out
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.npz``: :meth:`to_npz`; ``.json``: the summary."""
+        npz = lambda p: export.write_through(p, self.to_npz)  # noqa: E731
+        return export.write_by_suffix(
+            path, {".npz": npz, ".json": lambda p: export.write_json(p, self.summary())}, "basins image"
+        )
 
     def to_npz(self, path: str) -> None:
         """Arrays ``q`` (NX,), ``r`` (NY,), ``label`` (NY, NX); ``computed`` and the summary as JSON."""
@@ -787,8 +794,7 @@ class _Run:
 
     def __init__(self, spec: BasinSpec) -> None:
         self.spec = spec
-        self.model = Model(spec.params)
-        self.kw = spec.numerics.kernel_kwargs()
+        self.map = PoincareMap.of(spec.params, spec.numerics)
         qq, rr = np.meshgrid(spec.q, spec.r)
         self.ics = np.column_stack([qq.ravel(), rr.ravel()])
         n_pix = self.ics.shape[0]
@@ -1026,7 +1032,7 @@ class _Run:
         batch = Batch(self.y[live], self.h[live], self.status[live], self.nsteps[live], self.k,
                       spec.params.t0, spec.params.period)  # fmt: skip
         steps0 = int(batch.nsteps.sum())
-        pts, npts = advance(self.model, batch, spec.chunk, **self.kw)
+        pts, npts = self.map.advance(batch, spec.chunk)
         self.k += spec.chunk
         self.y[live], self.h[live], self.status[live], self.nsteps[live] = batch.y, batch.h, batch.status, batch.nsteps
         self.steps += int(batch.nsteps.sum()) - steps0

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.analyses.sweeps import (
     INVALID_PARAMS,
     NOT_RUN,
@@ -52,10 +52,9 @@ from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor
 from explorer_core.progress import Progress, stream
 from explorer_core.progress import run as run_updates
-from explorer_core.solve.integrators import Status, lockstep_groups, run
+from explorer_core.solve.integrators import Status, lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics
 from explorer_core.solve.poincare import PoincareMap
-from explorer_core.solve.rk import FIELD
 from explorer_core.system.params import ParameterError, Params
 
 SEEDINGS = ("continuation", "fixed")
@@ -243,6 +242,12 @@ class OrbitDiagram:
     @property
     def complete(self) -> bool:
         return self.completed and not self.lost
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: :meth:`to_csv`; ``.json``: the summary."""
+        return export.write_by_suffix(
+            path, {".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "orbit diagram"
+        )
 
     def losses(self) -> list[Loss]:
         """What is not in the diagram, and why (computed from the statuses)."""
@@ -466,7 +471,6 @@ def fixed_lockstep(
     pset = [spec.params_at(v) for v in todo]
     plist = [pset[k // n_ic] for k in range(len(members))]
     y0 = spec.ics[[i for _, i in members]]
-    kw = spec.numerics.kernel_kwargs()
     total_periods = spec.transient + spec.n_points
     done_periods = 0
 
@@ -480,18 +484,19 @@ def fixed_lockstep(
 
     groups = lockstep_groups(plist, y0)
     for idx, coefs, batch in groups:
+        pmap = PoincareMap.rows(coefs, batch.t0, batch.period, spec.numerics, workers=workers)
         left = spec.transient
         while left > 0:
             if stopped():
                 return out
             c = min(LOCKSTEP_CHUNK, left)
-            run(FIELD, coefs, batch, c, store=False, workers=workers, block=LOCKSTEP_BLOCK, **kw)
+            pmap.advance(batch, c, store=False, block=LOCKSTEP_BLOCK)
             left -= c
             done_periods += c * idx.size // len(members)
             report()
         if stopped():
             return out
-        pts, npts = run(FIELD, coefs, batch, spec.n_points, workers=workers, block=LOCKSTEP_BLOCK, **kw)
+        pts, npts = pmap.advance(batch, spec.n_points, block=LOCKSTEP_BLOCK)
         pts[np.arange(spec.n_points)[None, :] >= npts[:, None]] = 0.0  # not data: make results reproducible
         for j, m in enumerate(idx):
             v, i = members[m]
@@ -554,8 +559,6 @@ def iter_bifurcation_diagram(
 ) -> Iterator[SweepProgress]:
     """:func:`bifurcation_diagram` (same arguments) as a stream of :class:`SweepProgress` (values done of
     values to compute); the last update's ``result`` is the diagram."""
-    if "progress" in kw:
-        raise TypeError("iter_bifurcation_diagram takes no progress callback: its updates are the progress")
 
     def work(emit: Callable[[SweepProgress], None], stop: Callable[[], bool]) -> SweepProgress:
         last = [0, 0]

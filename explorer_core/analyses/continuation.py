@@ -48,13 +48,14 @@ from typing import Any
 
 import numpy as np
 
+from explorer_core import export
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, UNIT_TOL, classify, minimal_period, multipliers, newton
 from explorer_core.analyses.sweeps import check_param
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, run, stream
-from explorer_core.solve.integrators import run_at
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.rk import FIELD, Status
+from explorer_core.solve.poincare import PoincareMap
+from explorer_core.solve.rk import Status
 from explorer_core.solve.tangent import monodromy_at
 from explorer_core.system.params import ParameterError, Params
 
@@ -291,6 +292,16 @@ class Continuation:
 
     as_dict = summary
 
+    #: the CSV's columns (:meth:`csv_rows`)
+    CSV_HEADER = ("branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable")
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: a row per point (:attr:`CSV_HEADER`); ``.json``: the summary."""
+        csv_ = lambda p: export.write_csv(p, self.CSV_HEADER, self.csv_rows())  # noqa: E731
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "continuation"
+        )
+
     def csv_rows(self) -> list[tuple[int, int, float, float, float, float, float, float, float, int]]:
         """``branch, period, value, q, r, mu1_re, mu1_im, mu2_re, mu2_im, stable`` per point, plain numbers."""
         rows = []
@@ -341,8 +352,8 @@ class _System:
                 q = list(p)
                 q[k] += sgn * self.delta(p[k], amp)
                 prs.append(self.params(q))
-        y, _, status, _ = run_at(FIELD, prs, np.repeat(x[None, :], len(prs), axis=0), n, workers=1,
-                                 block=len(prs), **self.numerics.kernel_kwargs())  # fmt: skip
+        pmap = PoincareMap.members(prs, self.numerics, workers=1, block=len(prs))
+        y, status = pmap.image(np.repeat(x[None, :], len(prs), axis=0), n)
         bad = np.flatnonzero(status != Status.OK)
         if bad.size:
             raise _Stop(f"the orbit's trajectory failed: {Status(int(status[bad[0]])).label}")
@@ -797,21 +808,29 @@ def iter_continue_orbit(
     ``branches`` (the branches and curves done, the current one counted by the share of the range its
     furthest point covers, of those started or queued); ``detail`` is ``(points, value)``. The last
     update's ``result`` is the continuation."""
-    if "progress" in kw:
-        raise TypeError("iter_continue_orbit takes no progress callback: its updates are the progress")
 
     def work(emit: Callable[[Step[Continuation]], None], stop: Callable[[], bool]) -> Step[Continuation]:
-        res = _continue_orbit(params, param, value_range, seed, period, progress=emit, cancel=stop, **kw)
-        return _last_step(res)
+        last = _Last(emit)
+        res = _continue_orbit(params, param, value_range, seed, period, progress=last, cancel=stop, **kw)
+        return last.step(res, "branches", len(res.branches) + len(res.curves))
 
     return stream(work, cancel)
 
 
-def _last_step(res: Continuation, unit: str = "branches", total: float | None = None) -> Step[Continuation]:
-    """The last update of a continuation: done of total when it ran to its end, as far as it came if not."""
-    n = len(res.branches) + len(res.curves)
-    total = n if total is None else total
-    return Step(Progress(total if res.completed else n, total, unit, res.elapsed_s), (res.n_points, None), res)
+class _Last:
+    """Passes a continuation's updates on and remembers the last, for the progress of the final update."""
+
+    def __init__(self, emit: Callable[[Step[Continuation]], None]) -> None:
+        self.emit, self.done = emit, 0.0
+
+    def __call__(self, update: Step[Continuation]) -> None:
+        self.done = update.progress.done
+        self.emit(update)
+
+    def step(self, res: Continuation, unit: str, total: float) -> Step[Continuation]:
+        """The last update: ``total`` done when the run reached its end, as far as it came if cancelled."""
+        done = total if res.completed else min(self.done, total)
+        return Step(Progress(done, total, unit, res.elapsed_s), (res.n_points, None), res)
 
 
 class _Meter:
@@ -1147,12 +1166,11 @@ def iter_continue_from_seeds(
 ) -> Iterator[Step[Continuation]]:
     """:func:`continue_from_seeds` as a stream of :class:`~explorer_core.progress.Step` in ``orbits`` (the
     orbits found and continued, the current one by its own progress); the last one carries the result."""
-    if "progress" in kw:
-        raise TypeError("iter_continue_from_seeds takes no progress callback: its updates are the progress")
 
     def work(emit: Callable[[Step[Continuation]], None], stop: Callable[[], bool]) -> Step[Continuation]:
-        res, n = _continue_from_seeds(params, param, value_range, seeds, progress=emit, cancel=stop, **kw)
-        return _last_step(res, "orbits", n)
+        last = _Last(emit)
+        res, n = _continue_from_seeds(params, param, value_range, seeds, progress=last, cancel=stop, **kw)
+        return last.step(res, "orbits", n)
 
     return stream(work, cancel)
 
@@ -1261,6 +1279,17 @@ class Boundaries(list):
         return {"continuations": [c.summary() for c in self], "completed": self.completed,
                 "complete": self.complete, "lost": [loss.as_dict() for loss in self.lost]}  # fmt: skip
 
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: the continuations' points, a column ``continuation`` first; ``.json``: the summary."""
+
+        def csv_(p: str) -> int:
+            rows = ((k, *row) for k, c in enumerate(self) for row in c.csv_rows())
+            return export.write_csv(p, ("continuation", *Continuation.CSV_HEADER), rows)
+
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "set of boundaries"
+        )
+
 
 def chart_boundaries(
     chart: Any,
@@ -1279,8 +1308,6 @@ def iter_chart_boundaries(
 ) -> Iterator[Step[Boundaries]]:
     """:func:`chart_boundaries` as a stream of :class:`~explorer_core.progress.Step` in ``directions`` (each
     period's region continued towards both ends of the chart's ``x``); the last carries the result."""
-    if "progress" in kw:
-        raise TypeError("iter_chart_boundaries takes no progress callback: its updates are the progress")
     return stream(lambda emit, stop: _chart_boundaries(chart, progress=emit, cancel=stop, **kw), cancel)
 
 
@@ -1304,8 +1331,6 @@ def _chart_boundaries(
     """
     from explorer_core.analyses.orbits import find_orbits
     from explorer_core.analyses.regimes import PERIODIC
-    from explorer_core.solve.integrators import Batch, advance
-    from explorer_core.system.model import Model
 
     spec = chart.spec
     xs, ys = np.asarray(spec.x_values, float), np.asarray(spec.y_values, float)
@@ -1338,8 +1363,9 @@ def _chart_boundaries(
         params = spec.pixel_params(j, i)
         if isinstance(params, str):
             continue
-        batch = Batch.start(spec.ics[k : k + 1], params.t0, params.period)
-        advance(Model(params), batch, spec.transient, store=False, workers=1, **spec.numerics.kernel_kwargs())
+        pmap = PoincareMap.of(params, spec.numerics, workers=1)
+        batch = pmap.start(spec.ics[k : k + 1])
+        pmap.advance(batch, spec.transient, store=False)
         found = find_orbits(params, batch.y, [p], numerics=numerics, workers=workers).orbits
         if not found:
             continue

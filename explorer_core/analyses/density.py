@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
@@ -66,6 +66,18 @@ class Density:
         # a completed image has nothing left to compute, even if every trajectory escaped early
         done = self.total_periods if self.completed else self.done_periods
         return Progress(done, self.total_periods, "periods", self.elapsed_s)
+
+    def write(self, path: str, summary: dict[str, Any] | None = None) -> dict[str, Any]:
+        """``.npz``: ``counts``, ``q_edges``, ``r_edges`` and ``summary`` (JSON text; default :meth:`summary`);
+        ``.json``: the summary."""
+        summary = self.summary() if summary is None else summary
+        (q0, q1, r0, r1), (ny, nx) = self.view, self.counts.shape
+        edges = {"q_edges": np.linspace(q0, q1, nx + 1), "r_edges": np.linspace(r0, r1, ny + 1)}
+
+        def npz(p: str) -> None:
+            export.write_npz(p, counts=self.counts, **edges, summary=export.dumps(summary))
+
+        return export.write_by_suffix(path, {".npz": npz, ".json": lambda p: export.write_json(p, summary)}, "density")
 
     @property
     def escaped(self) -> int:

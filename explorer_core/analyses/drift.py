@@ -34,13 +34,14 @@ from typing import Any
 import numpy as np
 from numpy.polynomial import polynomial as P
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, stream
 from explorer_core.progress import run as run_updates
-from explorer_core.solve.integrators import Batch, run, tables
+from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_box, check_ics
-from explorer_core.solve.rk import FIELD, Status
+from explorer_core.solve.poincare import PoincareMap
+from explorer_core.solve.rk import Status
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -175,6 +176,14 @@ class DriftFit:
     def complete(self) -> bool:
         return self.completed and not self.lost
 
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: the members' series ``member,k,q,r``; ``.json``: the summary."""
+        rows = lambda: ((i, k, x[k, 0], x[k, 1]) for i, x in enumerate(self.series) for k in range(x.shape[0]))  # noqa: E731
+        csv_ = lambda p: export.write_csv(p, ("member", "k", "q", "r"), rows())  # noqa: E731
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "drift fit"
+        )
+
     @property
     def k(self) -> np.ndarray:
         k0, k1 = self.window
@@ -293,9 +302,10 @@ class Tables:
 
 def _series(field: Tables, ics: np.ndarray, k1: int, numerics: Numerics) -> tuple[np.ndarray, np.ndarray]:
     """``x_k`` for ``k = 0..k1`` (k = 0 is the IC) and the status of each trajectory."""
-    batch = Batch.start(ics, field.t0, field.period)
-    coefs = tables(field.num, field.gpc, field.den, field.forcing, np.zeros(batch.n, dtype=np.int64))
-    pts, npts = run(FIELD, coefs, batch, k1, **numerics.kernel_kwargs())
+    coefs = tables(field.num, field.gpc, field.den, field.forcing, np.zeros(ics.shape[0], dtype=np.int64))
+    pmap = PoincareMap.rows(coefs, field.t0, field.period, numerics)
+    batch = pmap.start(ics)
+    pts, npts = pmap.advance(batch, k1)
     out = np.concatenate([ics[:, None, :], pts], axis=1)
     ok = (batch.status == Status.OK) & (npts == k1)
     return out, np.where(ok, Status.OK, np.where(batch.status == Status.OK, Status.TOO_MANY_STEPS, batch.status))
@@ -306,8 +316,6 @@ def iter_drift_fit(
 ) -> Iterator[Step[DriftFit]]:
     """:func:`drift_fit` as a stream of :class:`~explorer_core.progress.Step` (draws tried of the draws
     allowed, after each batch); the last update's ``result`` is the fit."""
-    if "progress" in kw:
-        raise TypeError("iter_drift_fit takes no progress callback: its updates are the progress")
     model = Model(params)
     field = Tables(model.num, model.gpc, model.den, np.ascontiguousarray(model.forcing), params.t0, params.period)
     return stream(lambda emit, stop: drift_fit_tables(field, window, params=params, progress=emit, cancel=stop,

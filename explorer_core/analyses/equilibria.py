@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from explorer_core import export
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, run
 from explorer_core.system.model import ROW_Q, ROW_R, Model, coefficients_at
@@ -648,11 +649,20 @@ class Tracks:
             "n_samples": int(self.sample_t.size),
             "count_samples": {str(int(c)): int(f) for c, f in zip(counts, freq, strict=True)},
             "n_branches": self.n_branches,
+            "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "branches": [
                 {"branch": b["branch"], "n": int(b["t"].size), "start": end(b, 0), "end": end(b, -1)}
                 for b in self.branches()
             ],
         }
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: :meth:`to_csv`; ``.json``: the summary."""
+        return export.write_by_suffix(
+            path, {".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "set of tracks"
+        )
 
     def rows_at(self, t: float) -> np.ndarray:
         """Indices of the rows at sample time ``t`` (exact match), e.g. ``rows_at(tracks.t_start)``."""

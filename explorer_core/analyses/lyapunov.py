@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, run, stream
 from explorer_core.solve import rk, tangent
@@ -175,6 +175,22 @@ class LyapunovResult:
     @property
     def complete(self) -> bool:
         return self.completed and not self.lost
+
+    def history(self) -> Iterator[tuple[int, int, float, float, float]]:
+        """Rows ``member, k, L1, L2, divergence_mean``: every member's running estimates after each period."""
+        for i in range(self.ics.shape[0]):
+            est = self.running(i)
+            m = est.shape[0]
+            dmean = np.cumsum(self.divs[i, :m]) / (np.arange(1, m + 1) * self.period)
+            for k in range(m):
+                yield i, self.transient + k + 1, est[k, 0], est[k, 1], dmean[k]
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: the running estimates (:meth:`history`); ``.json``: the summary."""
+        csv_ = lambda p: export.write_csv(p, ("member", "k", "L1", "L2", "divergence_mean"), self.history())  # noqa: E731
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "Lyapunov result"
+        )
 
     @property
     def ok(self) -> np.ndarray:

@@ -41,17 +41,17 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
 from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
-from explorer_core.solve.integrators import Status, coefficients, lockstep_groups, run
+from explorer_core.solve.integrators import Status, coefficients, lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics
 from explorer_core.solve.poincare import PoincareMap, newton
-from explorer_core.solve.rk import LYAPUNOV, Coefficients
+from explorer_core.solve.rk import Coefficients
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -506,13 +506,13 @@ def chaos_bound(logs: np.ndarray, block: int = SETTLE_CHUNK) -> tuple[float, flo
 def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
     """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile)."""
     regime, period, lyap, status = out
-    kw = spec.numerics.kernel_kwargs()
-    kw["bound"] = min(kw["bound"], ESCAPE_BOUND)
+    bound = min(spec.numerics.bound, ESCAPE_BOUND)
     total = spec.transient + spec.periods
     window = settle_window(spec.p_max)
     short = min(window, spec.p_max + SETTLE_POINTS)  # points that must return before Newton is asked
     y0 = tangent.start(spec.ics[at[:, 1]], 0.0, 1.0).y
     for idx, coefs, batch in lockstep_groups(params, y0):
+        pmap = PoincareMap.rows(coefs, batch.t0, batch.period, spec.numerics, workers=1, block=1)
         n = idx.size
         points = np.zeros((n, spec.periods, 2))  # the measurement's section points
         every = np.zeros((n, total))  # log R_11 of every period (the measurement's: from spec.transient on)
@@ -526,8 +526,7 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
         while done < total and live.size:
             step = min(SETTLE_CHUNK, total - done)
             part = batch.take(live)
-            rec, npts = run(LYAPUNOV, coefs._replace(row=np.ascontiguousarray(coefs.row[live])), part, step,
-                            workers=1, block=1, **kw)  # fmt: skip
+            rec, npts = pmap.advance_lyapunov(part, step, members=live, bound=bound)
             batch.put(live, part)
             for c in range(step):  # this chunk's records into the ring and the measurement
                 kk = done + c
@@ -775,6 +774,13 @@ class Chart:
             "completed": self.completed,
             "elapsed_s": round(self.elapsed_s, 6),
         }
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.npz``: :meth:`to_npz`; ``.csv``: :meth:`to_csv`; ``.json``: the summary."""
+        npz = lambda p: export.write_through(p, self.to_npz)  # noqa: E731
+        return export.write_by_suffix(
+            path, {".npz": npz, ".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "chart"
+        )
 
     def to_npz(self, path: str) -> None:
         """Arrays plus the spec as JSON, so the file says what it holds."""
