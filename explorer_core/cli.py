@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import __version__, config, export
+from explorer_core.progress import run as run_updates
 from explorer_core.scenes import Scene, get_scene, list_scenes
 from explorer_core.solve.numerics import Numerics, check_box, random_ics
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
@@ -224,6 +225,10 @@ class _Run:
     def __call__(self) -> bool:
         return self.flag
 
+    def update(self, update: Any) -> None:
+        """The progress callback of every long analysis: its update's ``progress`` as the one line."""
+        self.line(update.progress.line())
+
     def line(self, text: str) -> None:
         now = time.perf_counter()
         if self.show and now - self._last > 0.2:
@@ -316,9 +321,7 @@ def cmd_section(args: argparse.Namespace) -> int:
     with _Run(args) as run:
         sec = section(params, ics, periods, transient=transient, numerics=numerics,
                       direction=-1 if args.backward else 1, cancel=run,
-                      progress=lambda c: run.line(f"{c.done_periods}/{c.total_periods} periods, "
-                                                  f"{int(np.count_nonzero(c.status == 0))}/{c.status.size} running, "
-                                                  f"{c.elapsed_s:.1f} s"))  # fmt: skip
+                      progress=run.update)  # fmt: skip
     summary = _with_scene(sec.summary(), args)
     if args.out:
         summary["csv"] = {"path": args.out, "rows": sec.to_csv(args.out)}
@@ -350,7 +353,7 @@ def _density_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_density(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.density import MAX_DENSITY_POINTS, density_numerics, iter_density
+    from explorer_core.analyses.density import MAX_DENSITY_POINTS, density, density_numerics
 
     params, scene = _params(args)
     periods, transient = _periods_transient(args, scene)
@@ -365,19 +368,14 @@ def cmd_density(args: argparse.Namespace) -> int:
     bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
     numerics = _numerics(args, None, 1, base=density_numerics(view, pixels, bound))
     ics = random_ics(args.random, box, seed=args.seed)
-    img = None
     with _Run(args) as run:
-        for img, _ in iter_density(params, ics, periods, view=view, pixels=pixels, transient=transient,
-                                   numerics=numerics, max_chunk=64, cancel=run):  # fmt: skip
-            run.line(f"{img.done_periods}/{periods} periods, {img.points:,} points, {img.elapsed_s:.1f} s")
-    assert img is not None
+        img = density(params, ics, periods, view=view, pixels=pixels, transient=transient, numerics=numerics,
+                      max_chunk=64, cancel=run, progress=run.update)  # fmt: skip
     summary = {**img.summary(), "params": params.as_dict(), "numerics": numerics.as_dict(),
                "ics": {"random": args.random, "box": list(box), "seed": args.seed}, "transient": transient}  # fmt: skip
     _with_scene(summary, args)
     if args.out:
-        q_edges, r_edges = np.linspace(*view[:2], pixels[0] + 1), np.linspace(*view[2:], pixels[1] + 1)
-        export.write_npz(args.out, counts=img.counts, q_edges=q_edges, r_edges=r_edges, summary=export.dumps(summary))
-        summary["npz"] = {"path": args.out}
+        summary["npz"] = img.write(args.out, summary)
     return _finish(args, summary, lambda: [f"{img.points:,} points, {img.in_view:,} in view, {img.escaped} escaped, "
                                            f"{img.failed} failed, {img.elapsed_s:.2f} s"],
                    result=img, completed=not run(), what="image's points")  # fmt: skip
@@ -398,7 +396,7 @@ def cmd_critical(args: argparse.Namespace) -> int:
             raise UsageError("--track needs --out FILE.csv (or --json)")
         tracks = equilibrium_tracks(params, n_t=args.n_t)
         if args.out:
-            tracks.to_csv(args.out)
+            tracks.write(args.out)
         if args.json:
             _print_json(tracks.summary())
         return 0
@@ -471,25 +469,11 @@ def cmd_lyapunov(args: argparse.Namespace) -> int:
         ics = attractor_ensemble(params, ics[0], args.ensemble, transient=transient, offset=args.offset,
                                  seed=args.seed, numerics=numerics)  # fmt: skip
     with _Run(args) as run:
-
-        def progress(p: Any) -> None:
-            run.line(f"{p.phase} {p.done_periods}/{p.total_periods} periods, L1 ~ {p.running[0, 0]:.5f}, "
-                     f"{p.elapsed_s:.1f} s")  # fmt: skip
-
         res = lyapunov_spectrum(params, ics, args.periods, transient=transient, numerics=numerics, cancel=run,
-                                progress=progress)  # fmt: skip
+                                progress=run.update)  # fmt: skip
     summary = _with_scene(res.summary(), args)
     if args.history:
-
-        def history() -> Any:
-            for i in range(res.ics.shape[0]):
-                est = res.running(i)
-                m = est.shape[0]
-                dmean = np.cumsum(res.divs[i, :m]) / (np.arange(1, m + 1) * res.period)
-                for k in range(m):
-                    yield i, res.transient + k + 1, est[k, 0], est[k, 1], dmean[k]
-
-        export.write_csv(args.history, ["member", "k", "L1", "L2", "divergence_mean"], history())
+        res.write(args.history)
         summary["history_csv"] = args.history
 
     def lines() -> list[str]:
@@ -546,13 +530,13 @@ def cmd_bifurcation(args: argparse.Namespace) -> int:
         diag = bifurcation_diagram(params, args.param, values, points=args.points, transient=args.transient,
                                    seeding=args.seeding, ics=_scene_point(scene) if ics is None else ics, sweeps=sweeps,
                                    numerics=_numerics(args, None, args.transient + args.points), cancel=run,
-                                   progress=lambda p: run.line(f"{p.done}/{p.total} values, {p.elapsed_s:.1f} s"),
+                                   progress=run.update,
                                    executor=_executor(args))  # fmt: skip
     summary = diag.summary()
     if args.scheduler:
         summary["scheduler"] = args.scheduler
     if args.out:
-        summary["csv"] = {"path": args.out, "rows": diag.to_csv(args.out)}
+        summary["csv"] = diag.write(args.out)
     return _finish(args, summary, lambda: [f"{diag.values.size} values x {diag.sweeps.size} sweeps, status "
                                            f"{summary['status']}, {diag.elapsed_s:.2f} s"],
                    result=diag, what="values")  # fmt: skip
@@ -690,13 +674,10 @@ def cmd_continue(args: argparse.Namespace) -> int:
                              max_period=args.max_period, numerics=numerics, param2=args.param2, cancel=run,
                              max_points=args.max_points,
                              range2=_span(args.range2, "--range2") if args.range2 else None,
-                             progress=lambda n, v: run.line(f"{n} points, {name} = {v:.8g}"), **steps)  # fmt: skip
+                             progress=run.update, **steps)  # fmt: skip
     summary = res.summary()
     if args.out:
-        header = ["branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable"]
-        rows = ([i, br.period, v, x[0], x[1], *_multiplier_cells(mu), st] for i, br in enumerate(res.branches)
-                for v, x, mu, st in zip(br.values, br.states, br.mults, br.stable, strict=True))  # fmt: skip
-        summary["csv"] = {"path": args.out, "rows": export.write_csv(args.out, header, rows)}
+        summary["csv"] = res.write(args.out)
 
     def lines() -> list[str]:
         return [*(f"branch {i}: period {br.period}, {len(br.values)} points, {name} {br.values[0]:.10g} .. "
@@ -721,7 +702,7 @@ def _manifolds_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_manifolds(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.manifolds import KINDS, PIXELS, iter_manifolds, saddle_orbit
+    from explorer_core.analyses.manifolds import KINDS, PIXELS, manifolds, saddle_orbit
 
     params, scene = _params(args)
     bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
@@ -733,17 +714,13 @@ def cmd_manifolds(args: argparse.Namespace) -> int:
     view = _box(args.view, "--view", (*scene.q_range, *scene.r_range) if scene else None)
     pixels = _ints(args.pixels, "--pixels", "W,H") if args.pixels else list(PIXELS)
     orbit = saddle_orbit(params, point, args.period)
-    result = None
     with _Run(args) as run:
-        for result in iter_manifolds(params, orbit, kinds=kinds, length=args.length, view=view, pixels=pixels,
-                                     delta_px=args.delta_px, numerics=numerics, max_points=args.max_points,
-                                     cancel=run):  # fmt: skip
-            run.line(f"{result.elapsed_s:.1f} s: " + ", ".join(f"{b.kind[0]}{b.label} {b.length:.3g}"
-                                                              for b in result.branches))  # fmt: skip
-    assert result is not None
+        result = manifolds(params, orbit, kinds=kinds, length=args.length, view=view, pixels=pixels,
+                           delta_px=args.delta_px, numerics=numerics, max_points=args.max_points, cancel=run,
+                           progress=run.update)  # fmt: skip
     summary = _with_scene(result.summary(), args)
     if args.out:
-        summary["csv"] = {"path": args.out, "rows": result.to_csv(args.out)}
+        summary["csv"] = result.write(args.out)
 
     def lines() -> list[str]:
         o = result.orbit
@@ -793,17 +770,13 @@ def cmd_chart(args: argparse.Namespace) -> int:
                       numerics=_numerics(args, None, args.transient + args.periods))  # fmt: skip
     with _Run(args) as run:
         chart = regime_chart(spec, coarse=args.coarse, cancel=run, executor=_executor(args), refine=args.refine,
-                             progress=lambda u: run.line(f"{int(u.chart.computed.sum())}/{u.chart.computed.size} "
-                                                         f"pixels, {u.chart.elapsed_s:.1f} s"))  # fmt: skip
+                             progress=run.update)  # fmt: skip
     summary = chart.summary()
     if args.scheduler:
         summary["scheduler"] = args.scheduler
     for path in outs:
-        low = path.lower()
-        if low.endswith(".npz"):
-            export.write_through(path, chart.to_npz)
-        elif low.endswith(".csv"):
-            chart.to_csv(path)
+        if not path.lower().endswith(".png"):
+            chart.write(path)
         else:
             from explorer_core.reports.render import render_chart  # matplotlib only when a picture is asked for
 
@@ -839,18 +812,11 @@ def cmd_basins(args: argparse.Namespace) -> int:
         opts["cells"] = _ints(args.cells, "--cells", "NQ,NR")
     base = basin_spec(params, box, grid, **opts)
     spec = basin_spec(params, box, grid, numerics=_numerics(args, None, 1, base=base.numerics), **opts)
-    result = None
     with _Run(args) as run:
-        for upd in iter_basins(spec, cancel=run):
-            result = upd.basins
-            run.line(f"every {upd.stride}th pixel: {upd.done_pixels}/{upd.total_pixels} pixels, "
-                     f"{len(result.attractors)} attractors, {result.elapsed_s:.1f} s")  # fmt: skip
-    if result is None:
-        sys.stderr.write("bilimovich basins: interrupted before any pixel was computed\n")
-        return 130
+        result = run_updates(iter_basins(spec, cancel=run), run.update)
     summary = _with_scene(result.summary(), args)
     if args.out:
-        export.write_through(args.out, result.to_npz)
+        result.write(args.out)
         summary["out"] = args.out
 
     def lines() -> list[str]:
@@ -892,12 +858,10 @@ def cmd_fit(args: argparse.Namespace) -> int:
     with _Run(args) as run:
         fit = drift_fit(params, (k0, k1), degree=tuple(degree), m=args.members, ics=ics, box=box, seed=args.seed,
                         criterion=args.criterion, numerics=_numerics(args, None, k1), cancel=run,
-                        progress=lambda found, draws: run.line(f"{found}/{args.members} members on the drift, "
-                                                               f"{draws} tried"))  # fmt: skip
+                        progress=run.update)  # fmt: skip
     summary = fit.summary()
     if args.out:
-        rows = ((i, k, x[k, 0], x[k, 1]) for i, x in enumerate(fit.series) for k in range(x.shape[0]))
-        export.write_csv(args.out, ["member", "k", "q", "r"], rows)
+        fit.write(args.out)
         summary["csv"] = args.out
 
     def lines() -> list[str]:
@@ -1019,7 +983,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     out, size, stages, progress = _staged_run(args)
     start = time.perf_counter()
     with _Run(args) as run:
-        rep = reproduce(size, stages=stages, progress=progress, cancel=run)
+        rep = reproduce(size, stages=stages, progress=lambda u: u.detail and progress(*u.detail), cancel=run)
     from explorer_core.reports.render import render_reproduction  # matplotlib only here
 
     figures = render_reproduction(rep, out)

@@ -151,3 +151,20 @@ def write_through(path: str, writer: Callable[[BinaryIO], Any]) -> Any:
     """Let a result's own ``to_npz``-style writer fill exactly ``path`` (it gets an open binary file)."""
     with open(path, "wb") as fh:
         return writer(fh)
+
+
+def write_by_suffix(path: str, writers: dict[str, Callable[[str], Any]], what: str = "result") -> dict[str, Any]:
+    """Write ``path`` with the writer of its suffix (``{".csv": fn, ".json": fn, ...}``, each ``fn(path)``).
+
+    The one shape of a result's ``write(path)``: a suffix it has no writer for is refused with one line
+    naming the ones it has (the command line refuses it before any work, :func:`check_output`). Returns
+    what the CLI reports: ``{"path": path}``, with ``"rows"`` when the writer returns a row count.
+    """
+    text = os.fspath(path)
+    for suffix, writer in writers.items():
+        if text.lower().endswith(suffix):
+            rows = writer(text)
+            return (
+                {"path": text, "rows": rows} if isinstance(rows, int) and not isinstance(rows, bool) else {"path": text}
+            )
+    raise OutputError(f"a {what} is written as {' or '.join(writers)}, got {text!r}")

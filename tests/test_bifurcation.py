@@ -160,15 +160,16 @@ def test_cancel_and_progress() -> None:
         FIG10, "alpha", sweep_values((-0.4, -0.36), 40), points=5, transient=5, seeding="fixed",
         progress=seen.append, cancel=lambda: len(seen) >= 3, workers=1, lockstep=False,
     )  # fmt: skip
-    assert not d.completed and len(seen) == 3 and seen[-1].total == 40
-    assert d.status_counts()["not_run"] == 37
+    # (the contract: progress also gets the last update, the one that carries the diagram)
+    assert not d.completed and len(seen) == 4 and seen[-1].total == 40 and seen[-1].result is d
+    assert d.status_counts()["not_run"] == 37 and not d.complete and d.lost[0].count == 37
     # In lock-step every value advances together: progress by periods, a cancel leaves nothing drawn.
     seen.clear()
     d = bifurcation_diagram(
         FIG10, "alpha", sweep_values((-0.4, -0.36), 40), points=5, transient=250, seeding="fixed",
         progress=seen.append, cancel=lambda: len(seen) >= 2,
     )  # fmt: skip
-    assert not d.completed and len(seen) == 2 and seen[0].done < seen[1].done < 40
+    assert not d.completed and len(seen) == 3 and seen[0].done < seen[1].done < 40 and seen[2].result is d
     assert d.status_counts() == {"not_run": 40}
 
 

@@ -323,6 +323,18 @@ class _FakeContinuation:
     def summary(self) -> dict:
         return {"branches": len(self.branches), "completed": self.completed}
 
+    # The result writes its own files: the real writer on these fields (a fake with numpy values).
+    def csv_rows(self) -> list:
+        from explorer_core.analyses.continuation import Continuation
+
+        return Continuation.csv_rows(self)  # type: ignore[arg-type]
+
+    def write(self, path: str) -> dict:
+        from explorer_core.analyses.continuation import Continuation
+
+        self.CSV_HEADER = Continuation.CSV_HEADER
+        return Continuation.write(self, path)  # type: ignore[arg-type]
+
 
 def test_continue_steps_csv_and_losses(tmp_path, monkeypatch) -> None:
     """--ds/--ds-min/--ds-max reach continue_orbit; its CSV holds numbers; its losses are printed and in --json."""

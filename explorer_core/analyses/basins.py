@@ -68,16 +68,18 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
 from explorer_core.analyses.sweeps import detect_period
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
-from explorer_core.solve.integrators import Batch, advance
+from explorer_core.progress import Progress
+from explorer_core.progress import run as run_updates
+from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
+from explorer_core.solve.poincare import PoincareMap
 from explorer_core.status import Status, count_names, status_names
-from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
 #: Labels of pixels that reach no attractor (attractor ids are >= 0); why is the pixel's ``Basins.status``.
@@ -343,6 +345,13 @@ class Basins(Drawable):
             out["note"] = note
         return out
 
+    def write(self, path: str) -> dict[str, Any]:
+        """``.npz``: :meth:`to_npz`; ``.json``: the summary."""
+        npz = lambda p: export.write_through(p, self.to_npz)  # noqa: E731
+        return export.write_by_suffix(
+            path, {".npz": npz, ".json": lambda p: export.write_json(p, self.summary())}, "basins image"
+        )
+
     def to_npz(self, path: str) -> None:
         """Arrays ``q`` (NX,), ``r`` (NY,), ``label`` (NY, NX), ``status`` (NY, NX) codes with ``status_names``
         (the name of code ``c`` is ``status_names[c]``); ``computed`` and the summary as JSON."""
@@ -362,6 +371,18 @@ class BasinsUpdate:
     done_pixels: int
     total_pixels: int
     basins: Basins
+    #: pixels computed in earlier passes (a pass restarted with finer cells counts as work done)
+    earlier: int = 0
+
+    @property
+    def progress(self) -> Progress:
+        done, total = self.earlier + self.done_pixels, self.earlier + self.total_pixels
+        return Progress(done, total, "pixels", self.basins.elapsed_s)
+
+    @property
+    def result(self) -> Basins:
+        """The live result (the last update's is final)."""
+        return self.basins
 
 
 # ---------------------------------------------------------------------------
@@ -783,8 +804,7 @@ class _Run:
 
     def __init__(self, spec: BasinSpec) -> None:
         self.spec = spec
-        self.model = Model(spec.params)
-        self.kw = spec.numerics.kernel_kwargs()
+        self.map = PoincareMap.of(spec.params, spec.numerics)
         qq, rr = np.meshgrid(spec.q, spec.r)
         self.ics = np.column_stack([qq.ravel(), rr.ravel()])
         n_pix = self.ics.shape[0]
@@ -1034,7 +1054,7 @@ class _Run:
         batch = Batch(self.y[live], self.h[live], self.status[live], self.nsteps[live], self.k,
                       spec.params.t0, spec.params.period)  # fmt: skip
         steps0 = int(batch.nsteps.sum())
-        pts, npts = advance(self.model, batch, spec.chunk, **self.kw)
+        pts, npts = self.map.advance(batch, spec.chunk)
         self.k += spec.chunk
         self.y[live], self.h[live], self.status[live], self.nsteps[live] = batch.y, batch.h, batch.status, batch.nsteps
         self.steps += int(batch.nsteps.sum()) - steps0
@@ -1204,6 +1224,7 @@ def iter_basins(
     """
     start = time.perf_counter()
     refinements, earlier = 0, (0, 0)
+    passed = 0  # pixels done in the passes restarted with finer cells (for the progress)
     default_box = spec.cell_box
     while True:
         run = _Run(spec)
@@ -1238,20 +1259,21 @@ def iter_basins(
                 level += 1
                 last = time.perf_counter()
                 yield BasinsUpdate(levels[level - 1][0], True, done, total,
-                                   run.snapshot(start, level == len(levels), levels[level - 1][0]))  # fmt: skip
+                                   run.snapshot(start, level == len(levels), levels[level - 1][0]), passed)  # fmt: skip
             if level < len(levels) and time.perf_counter() - last > update_s:
                 last = time.perf_counter()
                 stride = levels[level - 1][0] if level else LEVELS[0]
-                yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride))
+                yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride), passed)
         if restart is None:
             break
+        passed += max(0, total - len(queue) - int(np.count_nonzero(run.pixel >= 0)))
         refinements += 1
         earlier = (earlier[0] + run.periods, earlier[1] + run.steps)
         spec = restart
     if level < len(levels):
         stride = levels[level - 1][0] if level else LEVELS[0]
         done = int(np.count_nonzero(run.label != NOT_COMPUTED))
-        yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride, cancelled))
+        yield BasinsUpdate(stride, False, done, total, run.snapshot(start, False, stride, cancelled), passed)
 
 
 def basins(
@@ -1283,12 +1305,4 @@ def basins(
     G. Datseris and A. Wagemakers, "Effortless estimation of basins of attraction", Chaos 32, 023104
     (2022) (the recurrences); the attracting cycles by Newton, :mod:`explorer_core.analyses.orbits`.
     """
-    spec = basin_spec(params, box, grid, **kw)
-    result: Basins | None = None
-    for upd in iter_basins(spec, cancel=cancel):
-        result = upd.basins
-        if progress is not None:
-            progress(upd)
-    if result is None:  # cancelled before anything ran
-        result = _Run(spec).snapshot(time.perf_counter(), False, LEVELS[0], cancelled=True)
-    return result
+    return run_updates(iter_basins(basin_spec(params, box, grid, **kw), cancel=cancel), progress)

@@ -28,26 +28,28 @@ map, whose period-doubling points are known.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import closing
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at
 from explorer_core.drawing import Drawable
+from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor
-from explorer_core.progress import Progress
-from explorer_core.solve.integrators import lockstep_groups, run
+from explorer_core.progress import Progress, stream
+from explorer_core.progress import run as run_updates
+from explorer_core.solve.integrators import lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics
 from explorer_core.solve.poincare import PoincareMap
-from explorer_core.solve.rk import FIELD
 from explorer_core.status import Status, count_names
 from explorer_core.system.params import ParameterError, Params
 
@@ -100,11 +102,13 @@ def empty_sweep_arrays(n_sweeps: int, valid: np.ndarray, n_ics: int, n_points: i
 
 @dataclass(frozen=True)
 class SweepProgress:
-    """Passed to ``progress`` after each computed value."""
+    """Yielded by :func:`iter_bifurcation_diagram` (passed to ``progress``) after each computed value; the
+    last one carries the diagram."""
 
     done: int
     total: int
     elapsed_s: float
+    result: OrbitDiagram | None = None
 
     @property
     def progress(self) -> Progress:
@@ -228,6 +232,36 @@ class OrbitDiagram(Drawable):
     numerics: Numerics
     elapsed_s: float
     completed: bool
+    #: what the diagram lost: trajectories not computed (cancelled), invalid values, trajectories that stopped
+    lost: list[Loss] = field(default_factory=list)
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: :meth:`to_csv`; ``.json``: the summary."""
+        return export.write_by_suffix(
+            path, {".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "orbit diagram"
+        )
+
+    def losses(self) -> list[Loss]:
+        """What is not in the diagram, and why (computed from the statuses)."""
+        lost = []
+        n = int(np.count_nonzero(self.status == Status.NOT_RUN))
+        if n:
+            lost.append(Loss("trajectories not computed", n, "cancelled"))
+        bad = [(v, e) for v, e in zip(self.values, self.errors, strict=True) if e]
+        if bad:
+            first = f"{self.param} = {bad[0][0]:.12g}: {bad[0][1]}"
+            lost.append(Loss("values", len(bad), f"not a valid system (first: {first})"))
+        codes = self.status[
+            (self.status != Status.NOT_RUN) & (self.status != Status.INVALID) & (self.status != Status.OK)
+        ]
+        for code in np.unique(codes):
+            lost.append(Loss("trajectories", int(np.count_nonzero(codes == code)),
+                             f"not drawn: {Status(int(code)).word}"))  # fmt: skip
+        return lost
 
     @property
     def valid(self) -> np.ndarray:
@@ -298,6 +332,8 @@ class OrbitDiagram(Drawable):
             ],
             "periods": {str(s): per[k, :, 0].tolist() for k, s in enumerate(self.sweeps)},
             "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict(),
             "numerics": self.numerics.as_dict(),
@@ -431,7 +467,6 @@ def fixed_lockstep(
     pset = [spec.params_at(v) for v in todo]
     plist = [pset[k // n_ic] for k in range(len(members))]
     y0 = spec.ics[[i for _, i in members]]
-    kw = spec.numerics.kernel_kwargs()
     total_periods = spec.transient + spec.n_points
     done_periods = 0
 
@@ -445,18 +480,19 @@ def fixed_lockstep(
 
     groups = lockstep_groups(plist, y0)
     for idx, coefs, batch in groups:
+        pmap = PoincareMap.rows(coefs, batch.t0, batch.period, spec.numerics, workers=workers)
         left = spec.transient
         while left > 0:
             if stopped():
                 return out
             c = min(LOCKSTEP_CHUNK, left)
-            run(FIELD, coefs, batch, c, store=False, workers=workers, block=LOCKSTEP_BLOCK, **kw)
+            pmap.advance(batch, c, store=False, block=LOCKSTEP_BLOCK)
             left -= c
             done_periods += c * idx.size // len(members)
             report()
         if stopped():
             return out
-        pts, npts = run(FIELD, coefs, batch, spec.n_points, workers=workers, block=LOCKSTEP_BLOCK, **kw)
+        pts, npts = pmap.advance(batch, spec.n_points, block=LOCKSTEP_BLOCK)
         pts[np.arange(spec.n_points)[None, :] >= npts[:, None]] = 0.0  # not data: make results reproducible
         for j, m in enumerate(idx):
             v, i = members[m]
@@ -509,7 +545,48 @@ def sweep_chunk(
     )
 
 
+def iter_bifurcation_diagram(
+    params: Params,
+    param: str,
+    values: Any,
+    *,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> Iterator[SweepProgress]:
+    """:func:`bifurcation_diagram` (same arguments) as a stream of :class:`SweepProgress` (values done of
+    values to compute); the last update's ``result`` is the diagram."""
+
+    def work(emit: Callable[[SweepProgress], None], stop: Callable[[], bool]) -> SweepProgress:
+        last = [0, 0]
+
+        def report(p: SweepProgress) -> None:
+            last[:] = [p.done, p.total]
+            emit(p)
+
+        d = _diagram(params, param, values, progress=report, cancel=stop, **kw)
+        d = dataclasses.replace(d, lost=d.losses())
+        done = last[0] if not d.completed else max(last[1], int(np.count_nonzero(d.valid)))
+        return SweepProgress(done, max(done, last[1], int(np.count_nonzero(d.valid))), d.elapsed_s, d)
+
+    return stream(work, cancel)
+
+
 def bifurcation_diagram(
+    params: Params,
+    param: str,
+    values: Any,
+    *,
+    progress: Callable[[SweepProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> OrbitDiagram:
+    """Orbit diagram of the Poincare map over ``param`` (paper, Fig. 10): :func:`_diagram`'s arguments;
+    ``progress`` gets every update of :func:`iter_bifurcation_diagram`. A cancelled diagram has
+    ``completed=False`` and the trajectories not computed in ``lost``."""
+    return run_updates(iter_bifurcation_diagram(params, param, values, cancel=cancel, **kw), progress)
+
+
+def _diagram(
     params: Params,
     param: str,
     values: Any,

@@ -42,19 +42,20 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
+from explorer_core import export
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, UNIT_TOL, classify, minimal_period, multipliers, newton
 from explorer_core.analyses.sweeps import check_param
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
-from explorer_core.solve.integrators import run_at
+from explorer_core.progress import Progress, Step, run, stream
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.rk import FIELD
+from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.tangent import monodromy_at
 from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
@@ -304,6 +305,16 @@ class Continuation(Drawable):
 
     as_dict = summary
 
+    #: the CSV's columns (:meth:`csv_rows`)
+    CSV_HEADER = ("branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable")
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: a row per point (:attr:`CSV_HEADER`); ``.json``: the summary."""
+        csv_ = lambda p: export.write_csv(p, self.CSV_HEADER, self.csv_rows())  # noqa: E731
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "continuation"
+        )
+
     def csv_rows(self) -> list[tuple[int, int, float, float, float, float, float, float, float, int]]:
         """``branch, period, value, q, r, mu1_re, mu1_im, mu2_re, mu2_im, stable`` per point, plain numbers."""
         rows = []
@@ -360,8 +371,8 @@ class _System:
                 q = list(p)
                 q[k] += sgn * self.delta(p[k], amp)
                 prs.append(self.params(q))
-        y, _, status, _ = run_at(FIELD, prs, np.repeat(x[None, :], len(prs), axis=0), n, workers=1,
-                                 block=len(prs), **self.numerics.kernel_kwargs())  # fmt: skip
+        pmap = PoincareMap.members(prs, self.numerics, workers=1, block=len(prs))
+        y, status = pmap.image(np.repeat(x[None, :], len(prs), axis=0), n)
         bad = np.flatnonzero(status != Status.OK)
         if bad.size:
             raise _failed(status[bad[0]])
@@ -793,6 +804,78 @@ def continue_orbit(
     seed: Sequence[float],
     period: int,
     *,
+    progress: Callable[[Step[Continuation]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> Continuation:
+    """Follow the period-``period`` orbit near ``seed`` over ``param`` (:func:`_continue_orbit`'s
+    arguments); ``progress`` gets every update of :func:`iter_continue_orbit`."""
+    return run(iter_continue_orbit(params, param, value_range, seed, period, cancel=cancel, **kw), progress)
+
+
+def iter_continue_orbit(
+    params: Params,
+    param: str,
+    value_range: Sequence[float],
+    seed: Sequence[float],
+    period: int,
+    *,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> Iterator[Step[Continuation]]:
+    """:func:`continue_orbit` as a stream of :class:`~explorer_core.progress.Step`: after every point, in
+    ``branches`` (the branches and curves done, the current one counted by the share of the range its
+    furthest point covers, of those started or queued); ``detail`` is ``(points, value)``. The last
+    update's ``result`` is the continuation."""
+
+    def work(emit: Callable[[Step[Continuation]], None], stop: Callable[[], bool]) -> Step[Continuation]:
+        last = _Last(emit)
+        res = _continue_orbit(params, param, value_range, seed, period, progress=last, cancel=stop, **kw)
+        return last.step(res, "branches", len(res.branches) + len(res.curves))
+
+    return stream(work, cancel)
+
+
+class _Last:
+    """Passes a continuation's updates on and remembers the last, for the progress of the final update."""
+
+    def __init__(self, emit: Callable[[Step[Continuation]], None]) -> None:
+        self.emit, self.done = emit, 0.0
+
+    def __call__(self, update: Step[Continuation]) -> None:
+        self.done = update.progress.done
+        self.emit(update)
+
+    def step(self, res: Continuation, unit: str, total: float) -> Step[Continuation]:
+        """The last update: ``total`` done when the run reached its end, as far as it came if cancelled."""
+        done = total if res.completed else min(self.done, total)
+        return Step(Progress(done, total, unit, res.elapsed_s), (res.n_points, None), res)
+
+
+class _Meter:
+    """The progress of a continuation in branches (and curves): monotone, the current one by its range share."""
+
+    def __init__(self, report: Callable[[Step[Continuation]], None] | None, a: float, b: float) -> None:
+        self.report, self.a, self.b = report, a, b
+        self.start = time.perf_counter()
+        self.done = 0.0
+
+    def __call__(self, res: Continuation, finished: int, total: int, value: float | None) -> None:
+        if self.report is None:
+            return
+        share = 0.0 if value is None else min(1.0, max(0.0, (value - self.a) / (self.b - self.a)))
+        self.done = max(self.done, min(finished + share, total))
+        elapsed = time.perf_counter() - self.start
+        self.report(Step(Progress(self.done, total, "branches", elapsed), (res.n_points, value)))
+
+
+def _continue_orbit(
+    params: Params,
+    param: str,
+    value_range: Sequence[float],
+    seed: Sequence[float],
+    period: int,
+    *,
     switch: bool = False,
     max_period: int = DEFAULT_MAX_PERIOD,
     options: ContinuationOptions | None = None,
@@ -820,8 +903,9 @@ def continue_orbit(
         ``max_points``, when given, replace theirs.
     param2, range2 : also follow every fold and period doubling found as a curve in ``(param, param2)``
         with ``param2`` over ``range2`` and ``param`` over ``window1`` (default: the range).
-    progress : called with (points so far, current value); cancel: polled at every point. A cancelled run
-        returns what it computed, with ``completed`` False and the rest in ``lost``.
+    progress : called with a :class:`~explorer_core.progress.Step` after every point (see
+        :func:`iter_continue_orbit`); cancel: polled at every point. A cancelled run returns what it
+        computed, with ``completed`` False and the rest in ``lost``.
 
     Every branch stops at the range's end, at its birth point (a doubled orbit collapsing onto the orbit it
     was born from), on escape or integration failure, on leaving the valid parameters (e.g. a tensor
@@ -868,6 +952,7 @@ def continue_orbit(
 
     res = Continuation(params, param, (a, b), numerics, [], [], options=opts)
     queue: list[tuple[int, np.ndarray, float, int | None]] = [(period, x_start, a, None)]
+    meter = _Meter(progress, a, b)
     stopped = False
     while queue and not stopped:
         n, x, p, parent = queue.pop(0)
@@ -902,8 +987,7 @@ def continue_orbit(
                                              str(exc)))  # fmt: skip
             last = new if birth is None else birth[0]
             br.add(prob.p(last.X), last)
-            if progress is not None:
-                progress(res.n_points, prob.p(last.X))
+            meter(res, k, len(res.branches) + len(queue), prob.p(last.X))
             if birth is not None:
                 return (f"the period-{n} orbit collapsed onto a period-{birth[1]} orbit at {param} = "
                         f"{prob.p(birth[0].X):.12g} (its birth point)")  # fmt: skip
@@ -941,8 +1025,10 @@ def continue_orbit(
         if not (math.isfinite(c) and math.isfinite(d) and c < d):
             raise ParameterError(f"range2 must be finite with C < D, got {range2!r}")
         res.range2 = (c, d)
+        todo = [bif for bif in res.bifurcations if bif.kind in ("fold", "period_doubling")]
         for bif in list(res.bifurcations):
             if bif.kind in ("fold", "period_doubling"):
+                meter(res, len(res.branches) + len(res.curves), len(res.branches) + len(todo), None)
                 if cancel is not None and cancel():
                     stopped = True
                     res.lost.append(Loss(f"the {bif.kind} curve from {param} = {bif.value:.12g}", 1, "cancelled"))
@@ -1082,6 +1168,41 @@ def continue_from_seeds(
     value_range: Sequence[float],
     seeds: Any,
     *,
+    progress: Callable[[Step[Continuation]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> Continuation:
+    """Every distinct orbit Newton finds from ``seeds``, continued (:func:`_continue_from_seeds`'s
+    arguments); ``progress`` gets every update of :func:`iter_continue_from_seeds`."""
+    return run(iter_continue_from_seeds(params, param, value_range, seeds, cancel=cancel, **kw), progress)
+
+
+def iter_continue_from_seeds(
+    params: Params,
+    param: str,
+    value_range: Sequence[float],
+    seeds: Any,
+    *,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> Iterator[Step[Continuation]]:
+    """:func:`continue_from_seeds` as a stream of :class:`~explorer_core.progress.Step` in ``orbits`` (the
+    orbits found and continued, the current one by its own progress); the last one carries the result."""
+
+    def work(emit: Callable[[Step[Continuation]], None], stop: Callable[[], bool]) -> Step[Continuation]:
+        last = _Last(emit)
+        res, n = _continue_from_seeds(params, param, value_range, seeds, progress=last, cancel=stop, **kw)
+        return last.step(res, "orbits", n)
+
+    return stream(work, cancel)
+
+
+def _continue_from_seeds(
+    params: Params,
+    param: str,
+    value_range: Sequence[float],
+    seeds: Any,
+    *,
     periods: Sequence[int] = (1, 2, 3, 4),
     switch: bool = True,
     max_period: int = DEFAULT_MAX_PERIOD,
@@ -1091,14 +1212,15 @@ def continue_from_seeds(
     range2: Sequence[float] | None = None,
     window1: Sequence[float] | None = None,
     options: ContinuationOptions | None = None,
-    progress: Callable[[int, float], None] | None = None,
+    progress: Callable[[Step[Continuation]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
-) -> Continuation:
+) -> tuple[Continuation, int]:
     """Every distinct orbit of ``periods`` that Newton finds from ``seeds`` at the range's first value, continued.
 
     For an orbit diagram: its initial conditions (or final states) as seeds; the branches of all the
     orbits found (stable and unstable, up to ``max_orbits``, lowest periods first) in one result.
+    Returns it and the number of orbits found.
     """
     from explorer_core.analyses.orbits import find_orbits
 
@@ -1110,6 +1232,13 @@ def continue_from_seeds(
     if not found:
         out.messages.append(f"no orbit of period {', '.join(map(str, periods))} near the seeds at {param} = {a:g}")
     t0 = time.perf_counter()
+    seen = [0.0]  # orbits done so far, monotone
+
+    def step(upd: Step[Continuation], i: int) -> None:
+        seen[0] = max(seen[0], i + upd.progress.fraction)
+        p = Progress(seen[0], len(found), "orbits", time.perf_counter() - t0)
+        progress(Step(p, upd.detail))  # type: ignore[misc]
+
     for orb in found:
         if cancel is not None and cancel():
             out.completed = False
@@ -1117,12 +1246,11 @@ def continue_from_seeds(
             break
         if _on_a_branch(out, orb, a):
             continue  # already followed: the orbit is a point of a branch computed for an earlier seed
-        done = out.n_points
-        step = None if progress is None else (lambda n, v, d=done: progress(d + n, v))
-        res = continue_orbit(params, param, value_range, orb.points[0], orb.period, switch=switch,
-                             max_period=max(max_period, orb.period), numerics=numerics, cancel=cancel, workers=workers,
-                             progress=step, param2=param2, range2=range2, window1=window1,
-                             options=options)  # fmt: skip
+        i = found.index(orb)
+        res = _continue_orbit(params, param, value_range, orb.points[0], orb.period, switch=switch,
+                              max_period=max(max_period, orb.period), numerics=numerics, cancel=cancel,
+                              workers=workers, progress=None if progress is None else (lambda u, i=i: step(u, i)),
+                              param2=param2, range2=range2, window1=window1, options=options)  # fmt: skip
         shift = len(out.branches)
         nb = len(out.bifurcations)
         out.branches += res.branches
@@ -1137,7 +1265,7 @@ def continue_from_seeds(
         out.param2, out.range2 = res.param2, res.range2
         out.completed = out.completed and res.completed
     out.elapsed_s = time.perf_counter() - t0
-    return out
+    return out, len(found)
 
 
 def _on_a_branch(cont: Continuation, orbit: Any, value: float) -> bool:
@@ -1154,34 +1282,102 @@ def _on_a_branch(cont: Continuation, orbit: Any, value: float) -> bool:
     return False
 
 
+class Boundaries(list):
+    """The continuations of :func:`chart_boundaries` (a list of :class:`Continuation`), with what was lost:
+    directions not continued because cancelled, and every loss of the continuations themselves."""
+
+    completed: bool = True
+
+    @property
+    def lost(self) -> list[Loss]:
+        own = getattr(self, "_lost", [])
+        return own + [loss for c in self for loss in c.lost]
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
+    def summary(self) -> dict[str, Any]:
+        return {"continuations": [c.summary() for c in self], "completed": self.completed,
+                "complete": self.complete, "lost": [loss.as_dict() for loss in self.lost]}  # fmt: skip
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: the continuations' points, a column ``continuation`` first; ``.json``: the summary."""
+
+        def csv_(p: str) -> int:
+            rows = ((k, *row) for k, c in enumerate(self) for row in c.csv_rows())
+            return export.write_csv(p, ("continuation", *Continuation.CSV_HEADER), rows)
+
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "set of boundaries"
+        )
+
+
 def chart_boundaries(
+    chart: Any,
+    *,
+    progress: Callable[[Step[Boundaries]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> Boundaries:
+    """The fold and period-doubling curves that bound a chart's regions of stable cycles
+    (:func:`_chart_boundaries`); ``progress`` gets every update of :func:`iter_chart_boundaries`."""
+    return run(iter_chart_boundaries(chart, cancel=cancel, **kw), progress)
+
+
+def iter_chart_boundaries(
+    chart: Any, *, cancel: Callable[[], bool] | None = None, **kw: Any
+) -> Iterator[Step[Boundaries]]:
+    """:func:`chart_boundaries` as a stream of :class:`~explorer_core.progress.Step` in ``directions`` (each
+    period's region continued towards both ends of the chart's ``x``); the last carries the result."""
+    return stream(lambda emit, stop: _chart_boundaries(chart, progress=emit, cancel=stop, **kw), cancel)
+
+
+def _chart_boundaries(
     chart: Any,
     *,
     periods: Sequence[int] = (1, 2, 3),
     numerics: Numerics | None = None,
+    progress: Callable[[Step[Boundaries]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
-) -> list[Continuation]:
+) -> Step[Boundaries]:
     """The fold and period-doubling curves that bound a chart's regions of stable cycles.
 
     For each period ``p`` in ``periods`` present in the chart (:class:`explorer_core.analyses.regimes.Chart`),
     the pixel of period ``p`` nearest the region's centre: its trajectory is run through the chart's
     transient, Newton finds the period-``p`` orbit there, and that orbit is continued in the chart's ``x``
     towards both ends with every fold and period doubling followed as a curve in ``(x, y)`` over the
-    chart. Returns one :class:`Continuation` per continued direction (their ``curves`` are the boundaries).
+    chart. Returns the last update, whose result holds one :class:`Continuation` per continued direction
+    (their ``curves`` are the boundaries).
     """
     from explorer_core.analyses.orbits import find_orbits
     from explorer_core.analyses.regimes import PERIODIC
-    from explorer_core.solve.integrators import Batch, advance
-    from explorer_core.system.model import Model
 
     spec = chart.spec
     xs, ys = np.asarray(spec.x_values, float), np.asarray(spec.y_values, float)
     xr, yr = (float(xs.min()), float(xs.max())), (float(ys.min()), float(ys.max()))
-    out: list[Continuation] = []
-    for p in periods:
+    out = Boundaries()
+    start = time.perf_counter()
+    total = 2 * len(periods)
+    done = [0.0]
+
+    def stopped() -> bool:
+        return cancel is not None and bool(cancel())
+
+    def meter(slots: int, upd: Step[Continuation] | None = None) -> None:
+        done[0] = max(done[0], slots + (upd.progress.fraction if upd is not None else 0.0))
+        if progress is not None:
+            progress(Step(Progress(done[0], total, "directions", time.perf_counter() - start)))
+
+    for np_, p in enumerate(periods):
+        meter(2 * np_)
+        if stopped():
+            out.completed = False
+            out._lost = [Loss("periods not continued", len(periods) - np_, "cancelled")]
+            break
         js, is_, ks = np.nonzero((chart.regime == PERIODIC) & (chart.period == p) & chart.computed[..., None])
-        if js.size == 0 or (cancel is not None and cancel()):
+        if js.size == 0:
             continue
         cj, ci = js.mean(), is_.mean()
         n = int(np.argmin((js - cj) ** 2 + (is_ - ci) ** 2))
@@ -1189,19 +1385,30 @@ def chart_boundaries(
         params = spec.pixel_params(j, i)
         if isinstance(params, str):
             continue
-        batch = Batch.start(spec.ics[k : k + 1], params.t0, params.period)
-        advance(Model(params), batch, spec.transient, store=False, workers=1, **spec.numerics.kernel_kwargs())
+        pmap = PoincareMap.of(params, spec.numerics, workers=1)
+        batch = pmap.start(spec.ics[k : k + 1])
+        pmap.advance(batch, spec.transient, store=False)
         found = find_orbits(params, batch.y, [p], numerics=numerics, workers=workers).orbits
         if not found:
             continue
         x0 = float(xs[i])
-        for end in xr:
-            if end == x0 or (cancel is not None and cancel()):
+        for e, end in enumerate(xr):
+            if end == x0:
                 continue
+            if stopped():
+                out.completed = False
+                out._lost = [Loss("directions not continued", total - 2 * np_ - e, "cancelled")]
+                break
+            step = None if progress is None else (lambda u, s=2 * np_ + e: meter(s, u))
             try:
-                out.append(continue_orbit(params, spec.x_param, (x0, end), found[0].points[0], found[0].period,
-                                          numerics=numerics, param2=spec.y_param, range2=yr, window1=xr,
-                                          cancel=cancel, workers=workers))  # fmt: skip
+                res = _continue_orbit(params, spec.x_param, (x0, end), found[0].points[0], found[0].period,
+                                      numerics=numerics, param2=spec.y_param, range2=yr, window1=xr,
+                                      cancel=cancel, workers=workers, progress=step)  # fmt: skip
             except ParameterError:
                 continue
-    return out
+            out.append(res)
+            out.completed = out.completed and res.completed
+        if not out.completed:
+            break
+    elapsed = time.perf_counter() - start
+    return Step(Progress(total if out.completed else done[0], total, "directions", elapsed), None, out)

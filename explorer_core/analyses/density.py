@@ -19,13 +19,15 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.drawing import Drawable
+from explorer_core.losses import Loss
 from explorer_core.progress import Progress
+from explorer_core.progress import run as run_updates
 from explorer_core.scenes import plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
 from explorer_core.solve.section import iter_section
@@ -62,11 +64,41 @@ class Density(Drawable):
 
     @property
     def progress(self) -> Progress:
-        return Progress(self.done_periods, self.total_periods, "periods", self.elapsed_s)
+        # a completed image has nothing left to compute, even if every trajectory escaped early
+        done = self.total_periods if self.completed else self.done_periods
+        return Progress(done, self.total_periods, "periods", self.elapsed_s)
+
+    def write(self, path: str, summary: dict[str, Any] | None = None) -> dict[str, Any]:
+        """``.npz``: ``counts``, ``q_edges``, ``r_edges`` and ``summary`` (JSON text; default :meth:`summary`);
+        ``.json``: the summary."""
+        summary = self.summary() if summary is None else summary
+        (q0, q1, r0, r1), (ny, nx) = self.view, self.counts.shape
+        edges = {"q_edges": np.linspace(q0, q1, nx + 1), "r_edges": np.linspace(r0, r1, ny + 1)}
+
+        def npz(p: str) -> None:
+            export.write_npz(p, counts=self.counts, **edges, summary=export.dumps(summary))
+
+        return export.write_by_suffix(path, {".npz": npz, ".json": lambda p: export.write_json(p, summary)}, "density")
 
     @property
     def escaped(self) -> int:
         return int(np.count_nonzero(self.status == Status.ESCAPED))
+
+    @property
+    def lost(self) -> list[Loss]:
+        """Periods not computed (cancelled), trajectories that escaped or failed (their later points)."""
+        out = []
+        if self.completed is False and self.done_periods < self.total_periods:
+            out.append(Loss("periods not computed", self.total_periods - self.done_periods, "cancelled"))
+        if self.escaped:
+            out.append(Loss("trajectories", self.escaped, "escaped: no points after the escape"))
+        if self.failed:
+            out.append(Loss("trajectories", self.failed, "the integration failed: no points after the failure"))
+        return out
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
 
     @property
     def failed(self) -> int:
@@ -77,7 +109,24 @@ class Density(Drawable):
                 "points": self.points, "in_view": self.in_view, "done_periods": self.done_periods,
                 "total_periods": self.total_periods, "trajectories": int(self.status.size), "escaped": self.escaped,
                 "failed": self.failed, "statuses": count_names(self.status), "completed": self.completed,
+                "complete": self.complete, "lost": [loss.as_dict() for loss in self.lost],
                 "elapsed_s": round(self.elapsed_s, 6), **self.extra}  # fmt: skip
+
+
+class DensityUpdate(NamedTuple):
+    """Yielded by :func:`iter_density`: the image so far and the kept trajectories' points of this chunk
+    (unpacks as ``image, kept``); the last update's ``result`` is the final image."""
+
+    density: Density
+    kept: dict[int, np.ndarray]
+
+    @property
+    def progress(self) -> Progress:
+        return self.density.progress
+
+    @property
+    def result(self) -> Density:
+        return self.density
 
 
 def check_pixels(pixels: Sequence[int]) -> list[int]:
@@ -120,7 +169,7 @@ def iter_density(
     max_chunk: int = 64,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
-) -> Iterator[tuple[Density, dict[int, np.ndarray]]]:
+) -> Iterator[DensityUpdate]:
     """Stream the density image of a section over ``view``: one update per chunk of periods.
 
     Parameters
@@ -133,7 +182,7 @@ def iter_density(
 
     Yields
     ------
-    (Density, kept) : the image so far (the same array, updated in place: copy it to keep a snapshot) and,
+    DensityUpdate (Density, kept) : the image so far (the same array, updated in place: copy it to keep a snapshot) and,
         for each trajectory in ``keep``, its section points of this chunk as ``(k, q, r)`` rows.
     """
     start = time.perf_counter()
@@ -166,15 +215,14 @@ def iter_density(
         status = chunk.status
         done = chunk.done_periods
         elapsed = time.perf_counter() - start
-        yield Density(counts, box, total, inside, done, periods, status, elapsed, False, extra), kept
+        yield DensityUpdate(Density(counts, box, total, inside, done, periods, status, elapsed, False, extra), kept)
     completed = not (cancel is not None and cancel())
-    yield Density(counts, box, total, inside, done, periods, status, time.perf_counter() - start, completed, extra), {}
+    elapsed = time.perf_counter() - start
+    yield DensityUpdate(Density(counts, box, total, inside, done, periods, status, elapsed, completed, extra), {})
 
 
-def density(params: Params, ics: Any, periods: int, **kw: Any) -> Density:
-    """The final image of :func:`iter_density` (same arguments)."""
-    out = None
-    for out, _ in iter_density(params, ics, periods, **kw):  # noqa: B007 - the last one is the result
-        pass
-    assert out is not None
-    return out
+def density(
+    params: Params, ics: Any, periods: int, *, progress: Callable[[DensityUpdate], None] | None = None, **kw: Any
+) -> Density:
+    """The final image of :func:`iter_density` (same arguments); ``progress`` gets each of its updates."""
+    return run_updates(iter_density(params, ics, periods, **kw), progress)

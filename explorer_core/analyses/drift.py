@@ -27,17 +27,21 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.polynomial import polynomial as P
 
-from explorer_core import config
-from explorer_core.solve.integrators import Batch, run, tables
+from explorer_core import config, export
+from explorer_core.losses import Loss
+from explorer_core.progress import Progress, Step, stream
+from explorer_core.progress import run as run_updates
+from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_box, check_ics
-from explorer_core.solve.rk import FIELD, Status
+from explorer_core.solve.poincare import PoincareMap
+from explorer_core.solve.rk import Status
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -164,6 +168,21 @@ class DriftFit:
     growth_rate: np.ndarray  # (M,) slope of log |x_k| per period over the window
     numerics: Numerics
     elapsed_s: float
+    completed: bool = True  # False: cancelled
+    #: members wanted but not found (cancelled, or the draws spent)
+    lost: list[Loss] = field(default_factory=list)
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: the members' series ``member,k,q,r``; ``.json``: the summary."""
+        rows = lambda: ((i, k, x[k, 0], x[k, 1]) for i, x in enumerate(self.series) for k in range(x.shape[0]))  # noqa: E731
+        csv_ = lambda p: export.write_csv(p, ("member", "k", "q", "r"), rows())  # noqa: E731
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "drift fit"
+        )
 
     @property
     def k(self) -> np.ndarray:
@@ -171,12 +190,14 @@ class DriftFit:
         return np.arange(k0, k1 + 1)
 
     def mean(self) -> tuple[np.ndarray, np.ndarray]:
-        """Averaged coefficients (the paper's procedure)."""
+        """Averaged coefficients (the paper's procedure); NaN when no member was found (cancelled)."""
+        if self.members.shape[0] == 0:
+            return np.full(self.coef_q.shape[1], np.nan), np.full(self.coef_r.shape[1], np.nan)
         return self.coef_q.mean(axis=0), self.coef_r.mean(axis=0)
 
     def spread(self) -> tuple[np.ndarray, np.ndarray]:
         """Standard deviation of the coefficients over members (ddof=1; zeros for one member)."""
-        if self.members.shape[0] < 2:
+        if self.members.shape[0] < 2:  # (a zero-member fit: zeros of the coefficients' shape)
             return np.zeros_like(self.coef_q[0]), np.zeros_like(self.coef_r[0])
         return self.coef_q.std(axis=0, ddof=1), self.coef_r.std(axis=0, ddof=1)
 
@@ -218,6 +239,13 @@ class DriftFit:
         return out
 
     def summary(self) -> dict[str, Any]:
+        if self.members.shape[0] == 0:  # cancelled before any member was found
+            return {"window": list(self.window), "degree": list(self.degree), "criterion": self.criterion,
+                    "members": 0, "rejected": self.rejected, "failed": self.failed, "completed": self.completed,
+                    "complete": False, "lost": [loss.as_dict() for loss in self.lost],
+                    "elapsed_s": round(self.elapsed_s, 6),
+                    "params": self.params.as_dict() if self.params is not None else None,
+                    "numerics": self.numerics.as_dict()}  # fmt: skip
         cq, cr = self.mean()
         sq, sr = self.spread()
         tq, tr = self.mean_in_time()
@@ -241,6 +269,9 @@ class DriftFit:
             "map_error": self.map_error(),
             "growth_rate_per_period": float(self.growth_rate.mean()),
             "ics": self.members.tolist(),
+            "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict() if self.params is not None else None,
             "numerics": self.numerics.as_dict(),
@@ -271,19 +302,37 @@ class Tables:
 
 def _series(field: Tables, ics: np.ndarray, k1: int, numerics: Numerics) -> tuple[np.ndarray, np.ndarray]:
     """``x_k`` for ``k = 0..k1`` (k = 0 is the IC) and the status of each trajectory."""
-    batch = Batch.start(ics, field.t0, field.period)
-    coefs = tables(field.num, field.gpc, field.den, field.forcing, np.zeros(batch.n, dtype=np.int64))
-    pts, npts = run(FIELD, coefs, batch, k1, **numerics.kernel_kwargs())
+    coefs = tables(field.num, field.gpc, field.den, field.forcing, np.zeros(ics.shape[0], dtype=np.int64))
+    pmap = PoincareMap.rows(coefs, field.t0, field.period, numerics)
+    batch = pmap.start(ics)
+    pts, npts = pmap.advance(batch, k1)
     out = np.concatenate([ics[:, None, :], pts], axis=1)
     ok = (batch.status == Status.OK) & (npts == k1)
     return out, np.where(ok, Status.OK, np.where(batch.status == Status.OK, Status.TOO_MANY_STEPS, batch.status))
 
 
-def drift_fit(params: Params, window: Sequence[int], **kw: Any) -> DriftFit:
-    """Fit polynomials to the drift of the Bilimovich system (see :func:`drift_fit_tables`)."""
+def iter_drift_fit(
+    params: Params, window: Sequence[int], *, cancel: Callable[[], bool] | None = None, **kw: Any
+) -> Iterator[Step[DriftFit]]:
+    """:func:`drift_fit` as a stream of :class:`~explorer_core.progress.Step` (draws tried of the draws
+    allowed, after each batch); the last update's ``result`` is the fit."""
     model = Model(params)
     field = Tables(model.num, model.gpc, model.den, np.ascontiguousarray(model.forcing), params.t0, params.period)
-    return drift_fit_tables(field, window, params=params, **kw)
+    return stream(lambda emit, stop: drift_fit_tables(field, window, params=params, progress=emit, cancel=stop,
+                                                      final=True, **kw), cancel)  # fmt: skip
+
+
+def drift_fit(
+    params: Params,
+    window: Sequence[int],
+    *,
+    progress: Callable[[Step[DriftFit]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> DriftFit:
+    """Fit polynomials to the drift of the Bilimovich system (see :func:`drift_fit_tables`); ``progress``
+    gets every update of :func:`iter_drift_fit`."""
+    return run_updates(iter_drift_fit(params, window, cancel=cancel, **kw), progress)
 
 
 def drift_fit_tables(
@@ -298,10 +347,11 @@ def drift_fit_tables(
     max_draws: int | None = None,
     criterion: str = "on_curve",
     numerics: Numerics | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[Step[DriftFit]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     params: Params | None = None,
-) -> DriftFit:
+    final: bool = False,
+) -> Any:
     """Fit polynomials to ``q_k``, ``r_k`` over ``window = (k0, k1)``, averaged over drifting members.
 
     Parameters
@@ -316,8 +366,11 @@ def drift_fit_tables(
     criterion : which trajectories count as drifting (:func:`on_drift`): ``"on_curve"``
         through the whole window, or ``"leaves"`` the compact region within it.
     numerics : integration settings; the escape ``bound`` must exceed the drift's reach.
-    progress : ``progress(members found, draws)`` after each batch; ``cancel`` polled between batches.
+    progress : called with a :class:`~explorer_core.progress.Step` (draws tried of the draws allowed, the
+        members found as its ``detail``) after each batch; ``cancel`` polled between batches: a cancelled
+        fit has ``completed`` False and the members not found in ``lost`` (no member at all: NaN means).
     params : recorded in the result (``None`` for a field that is not a Bilimovich system).
+    final : return the last update (a ``Step`` carrying the fit, :func:`iter_drift_fit`) instead of the fit.
 
     Raises
     ------
@@ -354,6 +407,8 @@ def drift_fit_tables(
         max_draws = max_draws or 50 * m
         batches = None
     members, series, rejected, failed, draws = [], [], 0, 0, 0
+    cancelled = False
+    allowed = pool.shape[0] if ics is not None else max_draws
 
     def consider(ic_batch: np.ndarray) -> None:
         nonlocal rejected, failed
@@ -373,20 +428,26 @@ def drift_fit_tables(
     else:
         while len(members) < m and draws < max_draws:
             if cancel is not None and cancel():
+                cancelled = True
                 break
             n = min(max(2 * config.N_WORKERS, 2 * (m - len(members))), max_draws - draws)
             batch = np.column_stack([rng.uniform(box[0], box[1], n), rng.uniform(box[2], box[3], n)])
             consider(batch)
             draws += n
             if progress is not None:
-                progress(len(members), draws)
+                progress(Step(Progress(draws, max_draws, "draws", time.perf_counter() - start), len(members)))
         del members[m:], series[m:]
-    if not members:
+    lost = []
+    wanted = m if ics is None else 0
+    if len(members) < wanted:
+        why = "cancelled" if cancelled else f"{draws} draws spent: {rejected} not drifting, {failed} failed or escaped"
+        lost.append(Loss("members not found", wanted - len(members), why))
+    if not members and not cancelled:
         raise ParameterError(
             f"no trajectory is on the drift over k = {k0}..{k1}: {draws} tried, {rejected} not drifting "
             f"(criterion {criterion!r}), {failed} failed or escaped (raise the bound?)"
         )
-    ser = np.array(series)
+    ser = np.array(series).reshape(len(series), k1 + 1, 2)
     k = np.arange(k0, k1 + 1)
     cq, cr, rq, rr, gr = [], [], [], [], []
     for x in ser:
@@ -398,22 +459,27 @@ def drift_fit_tables(
         rr.append(float(np.sqrt(np.mean(res * res))))
         norms = np.log(np.hypot(x[k0 : k1 + 1, 0], x[k0 : k1 + 1, 1]))
         gr.append(float(np.polyfit(k, norms, 1)[0]))
-    return DriftFit(
+    fit = DriftFit(
         params=params,
         t0=float(field.t0),
         period=float(field.period),
         window=(k0, k1),
         degree=(dq, dr),
         criterion=criterion,
-        members=np.array(members),
+        members=np.array(members).reshape(len(members), 2),
         rejected=rejected,
         failed=failed,
         series=ser,
-        coef_q=np.array(cq),
-        coef_r=np.array(cr),
+        coef_q=np.array(cq).reshape(len(cq), dq + 1),
+        coef_r=np.array(cr).reshape(len(cr), dr + 1),
         rms_q=np.array(rq),
         rms_r=np.array(rr),
         growth_rate=np.array(gr),
         numerics=numerics,
         elapsed_s=time.perf_counter() - start,
+        completed=not cancelled,
+        lost=lost,
     )
+    if not final:
+        return fit
+    return Step(Progress(draws if cancelled else allowed, allowed, "draws", fit.elapsed_s), len(members), fit)

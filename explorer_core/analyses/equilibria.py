@@ -39,6 +39,7 @@ import functools
 import itertools
 import math
 import os
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -46,8 +47,10 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from explorer_core import export
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
+from explorer_core.progress import Progress, Step, run
 from explorer_core.system.model import ROW_Q, ROW_R, Model, coefficients_at
 from explorer_core.system.params import ParameterError, Params
 
@@ -605,6 +608,10 @@ class Tracks(Drawable):
     lost: tuple[Loss, ...] = ()
 
     @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
+    @property
     def n_branches(self) -> int:
         return int(self.branch.max()) + 1 if self.branch.size else 0
 
@@ -643,11 +650,20 @@ class Tracks(Drawable):
             "n_samples": int(self.sample_t.size),
             "count_samples": {str(int(c)): int(f) for c, f in zip(counts, freq, strict=True)},
             "n_branches": self.n_branches,
+            "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "branches": [
                 {"branch": b["branch"], "n": int(b["t"].size), "start": end(b, 0), "end": end(b, -1)}
                 for b in self.branches()
             ],
         }
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: :meth:`to_csv`; ``.json``: the summary."""
+        return export.write_by_suffix(
+            path, {".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "set of tracks"
+        )
 
     def rows_at(self, t: float) -> np.ndarray:
         """Indices of the rows at sample time ``t`` (exact match), e.g. ``rows_at(tracks.t_start)``."""
@@ -730,14 +746,35 @@ def equilibrium_tracks(
     n_t: int = 400,
     t_start: float | None = None,
     *,
+    progress: Callable[[Step[Tracks]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> Tracks:
+    """Equilibria of the frozen field followed over one period (:func:`iter_equilibrium_tracks`'s
+    arguments); ``progress`` gets each of its updates."""
+    return run(iter_equilibrium_tracks(model_or_params, n_t, t_start, cancel=cancel, **kw), progress)
+
+
+#: Updates :func:`iter_equilibrium_tracks` yields over a period (at most; one per grid interval if fewer).
+TRACK_UPDATES = 100
+
+
+def iter_equilibrium_tracks(
+    model_or_params: Model | Params,
+    n_t: int = 400,
+    t_start: float | None = None,
+    *,
     jump: float = 0.05,
     max_depth: int = 12,
     max_refine: int | None = None,
     inf_norm: float = 1e8,
     rtol: float = 1e-12,
     cancel: Callable[[], bool] | None = None,
-) -> Tracks:
+) -> Iterator[Step[Tracks]]:
     """Equilibria of the frozen field followed over one period ``[t_start, t_start + T]``.
+
+    Yields a :class:`~explorer_core.progress.Step` (grid intervals done of ``n_t - 1``) about
+    :data:`TRACK_UPDATES` times; the last one's ``result`` is the :class:`Tracks`.
 
     Parameters
     ----------
@@ -764,9 +801,9 @@ def equilibrium_tracks(
         Polled between grid intervals; once it returns True the work stops and the tracks
         computed so far come back with ``completed=False`` and the rest of the period in ``lost``.
 
-    Returns
-    -------
-    Tracks
+    Yields
+    ------
+    Step[Tracks]
     """
     model = _as_model(model_or_params)
     if isinstance(n_t, bool) or not isinstance(n_t, int | np.integer):
@@ -799,7 +836,13 @@ def equilibrium_tracks(
     links: dict[tuple[float, int], tuple[float, int]] = {}
     budget = max_refine
     lost: tuple[Loss, ...] = ()
+    start = time.perf_counter()
+    every = max(1, (n_t - 1) // TRACK_UPDATES)
+    done = 0
     for k in range(n_t - 1):
+        if k and k % every == 0:
+            yield Step(Progress(k, n_t - 1, "intervals", time.perf_counter() - start))
+        done = k
         if cancel is not None and cancel():
             why = f"cancelled: the tracks cover t in [{grid[0]:.6g}, {grid[k]:.6g}] of [{grid[0]:.6g}, {grid[-1]:.6g}]"
             lost = (Loss("grid intervals", n_t - 1 - k, why),)
@@ -820,6 +863,7 @@ def equilibrium_tracks(
                 pairs, _ = _match(solve(ta), solve(tb), max(jump, _LOOSE_JUMP))
             for i, j in pairs:
                 links[(ta, i)] = (tb, j)
+        done = k + 1
 
     times = sorted(cache)
     branch_of: dict[tuple[float, int], int] = {}
@@ -838,7 +882,7 @@ def equilibrium_tracks(
     rows.sort()
     n = len(rows)
     eig = np.array([cache[t].eigenvalues[i] for _, t, i in rows], dtype=complex).reshape(n, 2)
-    return Tracks(
+    tracks = Tracks(
         model=model,
         t_start=float(t_start),
         period=float(period),
@@ -854,6 +898,7 @@ def equilibrium_tracks(
         completed=not lost,
         lost=lost,
     )
+    yield Step(Progress(done, n_t - 1, "intervals", time.perf_counter() - start), None, tracks)
 
 
 # ---------------------------------------------------------------------------

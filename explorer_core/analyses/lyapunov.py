@@ -36,15 +36,16 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.drawing import Drawable
-from explorer_core.progress import Progress
+from explorer_core.losses import Loss
+from explorer_core.progress import Progress, run, stream
 from explorer_core.solve import rk, tangent
 from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
@@ -108,18 +109,28 @@ def kaplan_yorke(l1: float, l2: float) -> float:
 
 @dataclass(frozen=True)
 class LyapunovProgress:
-    """Passed to the ``progress`` callback after each chunk of periods."""
+    """Yielded by :func:`iter_lyapunov` (passed to ``progress``) after each chunk of periods; the last
+    one carries the result."""
 
     phase: str  # "transient" or "measure"
-    done_periods: int
-    total_periods: int
+    done_periods: int  # of this phase
+    total_periods: int  # of this phase
     running: np.ndarray  # (n, 2) current estimates per unit time (0 where none yet)
     status: np.ndarray
     elapsed_s: float
+    transient: int = 0  # periods of the transient (so that the progress counts both phases)
+    result: LyapunovResult | None = None
 
     @property
     def progress(self) -> Progress:
-        return Progress(self.done_periods, self.total_periods, f"periods ({self.phase})", self.elapsed_s)
+        done = self.done_periods + (self.transient if self.phase == "measure" else 0)
+        total = self.transient + (self.total_periods if self.phase == "measure" else 0)
+        if self.phase == "transient":  # the measurement's periods are not known here: see periods_after
+            total += self.periods_after
+        return Progress(done, total, "periods", self.elapsed_s)
+
+    #: measured periods that follow the transient (set on transient updates)
+    periods_after: int = 0
 
 
 @dataclass(frozen=True)
@@ -159,6 +170,28 @@ class LyapunovResult(Drawable):
     nsteps: np.ndarray
     elapsed_s: float
     completed: bool = True
+    #: what the result lost: periods not measured (cancelled), members that failed
+    lost: list[Loss] = field(default_factory=list)
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
+    def history(self) -> Iterator[tuple[int, int, float, float, float]]:
+        """Rows ``member, k, L1, L2, divergence_mean``: every member's running estimates after each period."""
+        for i in range(self.ics.shape[0]):
+            est = self.running(i)
+            m = est.shape[0]
+            dmean = np.cumsum(self.divs[i, :m]) / (np.arange(1, m + 1) * self.period)
+            for k in range(m):
+                yield i, self.transient + k + 1, est[k, 0], est[k, 1], dmean[k]
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: the running estimates (:meth:`history`); ``.json``: the summary."""
+        csv_ = lambda p: export.write_csv(p, ("member", "k", "L1", "L2", "divergence_mean"), self.history())  # noqa: E731
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "Lyapunov result"
+        )
 
     @property
     def ok(self) -> np.ndarray:
@@ -250,6 +283,8 @@ class LyapunovResult(Drawable):
             "transient": self.transient,
             "periods": self.periods,
             "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict(),
             "numerics": self.numerics.as_dict(),
@@ -358,7 +393,8 @@ def lyapunov_tables(
             return
         k = np.maximum(npts, 1)[:, None]
         running = logs.sum(axis=1) / (k * period)
-        progress(LyapunovProgress(phase, done, total, running, batch.status.copy(), time.perf_counter() - start))
+        progress(LyapunovProgress(phase, done, total, running, batch.status.copy(), time.perf_counter() - start,
+                                  transient, periods_after=periods if phase == "transient" else 0))  # fmt: skip
 
     done = 0
     for size in chunks(transient):
@@ -407,6 +443,47 @@ def lyapunov_tables(
     }
 
 
+def iter_lyapunov(
+    params: Params,
+    ics: Any,
+    periods: int,
+    *,
+    transient: int = 0,
+    numerics: Numerics | None = None,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+) -> Iterator[LyapunovProgress]:
+    """:func:`lyapunov_spectrum` as a stream of :class:`LyapunovProgress` (after each chunk of periods,
+    the transient's counted with the measurement's); the last update's ``result`` is the result."""
+    numerics = numerics or Numerics()
+
+    def work(emit: Callable[[LyapunovProgress], None], stop: Callable[[], bool]) -> LyapunovProgress:
+        model = Model(params)
+        out = lyapunov_tables(model.num, model.gpc, model.den, model.forcing, params.t0, params.period, ics,
+                              periods, transient=transient, numerics=numerics, progress=emit, cancel=stop,
+                              workers=workers)  # fmt: skip
+        res = LyapunovResult(params=params, numerics=numerics, **out, lost=_losses(out))
+        k = np.maximum(res.npts, 1)[:, None]
+        measured = int(res.periods) if res.completed else int(res.npts.max(initial=0))
+        return LyapunovProgress("measure", measured, res.periods, res.logs.sum(axis=1) / (k * res.period),
+                                res.status, res.elapsed_s, res.transient, result=res)  # fmt: skip
+
+    return stream(work, cancel)
+
+
+def _losses(out: dict[str, Any]) -> list[Loss]:
+    """What a measurement lost: members the integrator stopped, periods not measured when cancelled."""
+    lost = []
+    status = out["status"]
+    for code in np.unique(status[status != _OK]):
+        why = f"the integrator stopped ({Status(int(code)).label}) before the measurement's end"
+        lost.append(Loss("members", int(np.count_nonzero(status == code)), why))
+    if not out["completed"]:
+        left = int(np.sum(out["periods"] - out["npts"][status == _OK]))
+        lost.append(Loss("periods not measured", left, "cancelled"))
+    return lost
+
+
 def lyapunov_spectrum(
     params: Params,
     ics: Any,
@@ -428,29 +505,14 @@ def lyapunov_spectrum(
     periods : measured periods after the transient (the averaging time is ``periods * T``).
     transient : periods integrated first (the tangent basis aligns meanwhile) and not counted.
     numerics : method and tolerances (error control covers the tangent vectors too).
-    progress : called after each chunk of periods with a :class:`LyapunovProgress`.
-    cancel : polled between chunks; True stops and returns what was measured (``completed=False``).
+    progress : called with every update of :func:`iter_lyapunov` (a :class:`LyapunovProgress`).
+    cancel : polled between chunks; True stops and returns what was measured (``completed=False``,
+        the periods not measured in ``lost``).
     workers : threads (default: both cores).
 
     Returns
     -------
     LyapunovResult
     """
-    numerics = numerics or Numerics()
-    model = Model(params)
-    out = lyapunov_tables(
-        model.num,
-        model.gpc,
-        model.den,
-        model.forcing,
-        params.t0,
-        params.period,
-        ics,
-        periods,
-        transient=transient,
-        numerics=numerics,
-        progress=progress,
-        cancel=cancel,
-        workers=workers,
-    )
-    return LyapunovResult(params=params, numerics=numerics, **out)
+    it = iter_lyapunov(params, ics, periods, transient=transient, numerics=numerics, cancel=cancel, workers=workers)
+    return run(it, progress)

@@ -41,11 +41,12 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, Orbit, find_orbits
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
+from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
 from explorer_core.solve.poincare import PoincareMap
@@ -175,6 +176,11 @@ class Manifolds(Drawable):
         return Progress(done, self.length, "arc length", self.elapsed_s)
 
     @property
+    def result(self) -> Manifolds:
+        """The update is the result (as grown so far; the last one of :func:`iter_manifolds` is final)."""
+        return self
+
+    @property
     def lost(self) -> list[Loss]:
         """Branches that stopped short of the length for want of resources or by failure, and members lost."""
         why = {"escaped": "every member escaped", "failed": "every member's integration failed",
@@ -219,6 +225,12 @@ class Manifolds(Drawable):
                 label = b.piece_label(k)
                 for s, q, r in piece:
                     yield label, b.kind, float(s), float(q), float(r)
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: :meth:`to_csv`; ``.json``: the summary."""
+        return export.write_by_suffix(
+            path, {".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "set of manifolds"
+        )
 
     def to_csv(self, path: str) -> int:
         """CSV ``branch,kind,s,q,r`` (``kind`` = stable | unstable, ``s`` the arc length); returns the rows."""
@@ -682,13 +694,11 @@ def iter_manifolds(
     yield snapshot(True)
 
 
-def manifolds(params: Params, orbit: Orbit, **kw: Any) -> Manifolds:
-    """The final result of :func:`iter_manifolds` (same arguments)."""
-    result = None
-    for result in iter_manifolds(params, orbit, **kw):  # noqa: B007 - the last one is the result
-        pass
-    assert result is not None
-    return result
+def manifolds(
+    params: Params, orbit: Orbit, *, progress: Callable[[Manifolds], None] | None = None, **kw: Any
+) -> Manifolds:
+    """The final result of :func:`iter_manifolds` (same arguments); ``progress`` gets each of its updates."""
+    return run_updates(iter_manifolds(params, orbit, **kw), progress)
 
 
 # ---------------------------------------------------------------------------

@@ -46,17 +46,18 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.progress import Progress
+from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
-from explorer_core.solve.integrators import coefficients, lockstep_groups, run
+from explorer_core.solve.integrators import coefficients, lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics
 from explorer_core.solve.poincare import PoincareMap, newton
-from explorer_core.solve.rk import LYAPUNOV, Coefficients
+from explorer_core.solve.rk import Coefficients
 from explorer_core.status import Status, count_names, status_names
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
@@ -515,13 +516,13 @@ def chaos_bound(logs: np.ndarray, block: int = SETTLE_CHUNK) -> tuple[float, flo
 def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
     """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile)."""
     regime, period, lyap, status = out
-    kw = spec.numerics.kernel_kwargs()
-    kw["bound"] = min(kw["bound"], ESCAPE_BOUND)
+    bound = min(spec.numerics.bound, ESCAPE_BOUND)
     total = spec.transient + spec.periods
     window = settle_window(spec.p_max)
     short = min(window, spec.p_max + SETTLE_POINTS)  # points that must return before Newton is asked
     y0 = tangent.start(spec.ics[at[:, 1]], 0.0, 1.0).y
     for idx, coefs, batch in lockstep_groups(params, y0):
+        pmap = PoincareMap.rows(coefs, batch.t0, batch.period, spec.numerics, workers=1, block=1)
         n = idx.size
         points = np.zeros((n, spec.periods, 2))  # the measurement's section points
         every = np.zeros((n, total))  # log R_11 of every period (the measurement's: from spec.transient on)
@@ -535,8 +536,7 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
         while done < total and live.size:
             step = min(SETTLE_CHUNK, total - done)
             part = batch.take(live)
-            rec, npts = run(LYAPUNOV, coefs._replace(row=np.ascontiguousarray(coefs.row[live])), part, step,
-                            workers=1, block=1, **kw)  # fmt: skip
+            rec, npts = pmap.advance_lyapunov(part, step, members=live, bound=bound)
             batch.put(live, part)
             for c in range(step):  # this chunk's records into the ring and the measurement
                 kk = done + c
@@ -793,6 +793,13 @@ class Chart(Drawable):
             "elapsed_s": round(self.elapsed_s, 6),
         }
 
+    def write(self, path: str) -> dict[str, Any]:
+        """``.npz``: :meth:`to_npz`; ``.csv``: :meth:`to_csv`; ``.json``: the summary."""
+        npz = lambda p: export.write_through(p, self.to_npz)  # noqa: E731
+        return export.write_by_suffix(
+            path, {".npz": npz, ".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "chart"
+        )
+
     def to_npz(self, path: str) -> None:
         """Arrays plus the spec as JSON, so the file says what it holds."""
         np.savez_compressed(
@@ -832,7 +839,7 @@ class Chart(Drawable):
 class ChartUpdate:
     """Yielded by :func:`iter_chart` after each tile; ``chart`` is the live (partial) chart."""
 
-    tile: TileResult
+    tile: TileResult | None  # None on the last update of a chart cancelled before any tile finished
     done_tiles: int
     total_tiles: int
     chart: Chart
@@ -840,6 +847,11 @@ class ChartUpdate:
     @property
     def progress(self) -> Progress:
         return Progress(self.done_tiles, self.total_tiles, "tiles", self.chart.elapsed_s)
+
+    @property
+    def result(self) -> Chart:
+        """The live chart (the last update's is the result)."""
+        return self.chart
 
 
 def iter_chart(
@@ -881,6 +893,10 @@ def iter_chart(
                 chart.elapsed_s = time.perf_counter() - start
                 chart.completed = done == len(tiles)
                 yield ChartUpdate(res, done, len(tiles), chart)
+    if done == 0:  # cancelled before any tile: the last update still carries the chart (the contract)
+        chart.elapsed_s = time.perf_counter() - start
+        chart.completed = False
+        yield ChartUpdate(None, done, len(tiles), chart)
 
 
 #: Cells around a pixel's own that must share its code before :func:`refine_level` fills it (0: the cell only).
@@ -929,6 +945,10 @@ def _iter_refined(
                 chart.elapsed_s = time.perf_counter() - start
                 chart.completed = pending == 0 and level == 1
                 yield ChartUpdate(res, done, planned, chart)
+    if done == 0:  # cancelled before any tile: the last update still carries the chart (the contract)
+        chart.elapsed_s = time.perf_counter() - start
+        chart.completed = False
+        yield ChartUpdate(None, done, planned, chart)
 
 
 def regime_chart(
@@ -943,11 +963,6 @@ def regime_chart(
     refine: bool = False,
 ) -> Chart:
     """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``."""
-    chart = Chart.empty(spec)
     kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "executor": executor,
           "refine": refine}  # fmt: skip
-    for upd in iter_chart(spec, **kw):
-        chart = upd.chart
-        if progress is not None:
-            progress(upd)
-    return chart
+    return run_updates(iter_chart(spec, **kw), progress)

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core.solve import rk
-from explorer_core.solve.integrators import Batch, coefficients, run
+from explorer_core.solve.integrators import Batch, coefficients, run, run_at
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.section import SectionChunk, iter_section
 from explorer_core.solve.tangent import Monodromy, monodromy, monodromy_at
@@ -85,16 +85,46 @@ class PoincareMap:
 
     def start(self, ics: np.ndarray, direction: int = 1) -> Batch:
         """Trajectories at ``ics`` (n, 2) on the section at ``t0`` (``direction=-1``: iterates of ``P^-1``)."""
+        ics = np.asarray(ics, dtype=float).reshape(-1, 2)
+        if self.coefs is not None:  # a map of coefficient rows: one t0 and period for all
+            return Batch.start(ics, self.t0, direction * self.period)
         p = self.params[0] if self.shared else None
         if p is None:
-            raise ValueError("start a batch of a shared map (PoincareMap.of)")
-        return Batch.start(np.asarray(ics, dtype=float).reshape(-1, 2), p.t0, direction * p.period)
+            raise ValueError("start a batch of a shared map (PoincareMap.of) or of coefficient rows (PoincareMap.rows)")
+        return Batch.start(ics, p.t0, direction * p.period)
 
     def advance(self, batch: Batch, n: int, *, store: bool = True, **kw: Any) -> tuple[np.ndarray, np.ndarray]:
         """Move the live members of ``batch`` on by ``n`` iterates: ``(points (m, n, 2), npts (m,))``; statuses in
-        ``batch.status``. ``kw`` overrides the map's numerics for this call (e.g. a tighter escape ``bound``)."""
+        ``batch.status``. ``kw`` overrides the map's numerics for this call (e.g. a tighter escape ``bound``).
+        A map of coefficient rows (:meth:`rows`) moves member ``i`` under row ``coefs.row[i]``."""
         kk = {**self.numerics.kernel_kwargs(), "workers": self.workers, **kw}
-        return run(rk.FIELD, coefficients(self.model, n=batch.n), batch, int(n), store=store, **kk)
+        coefs = self.coefs if self.coefs is not None else coefficients(self.model, n=batch.n)
+        return run(rk.FIELD, coefs, batch, int(n), store=store, **kk)
+
+    def advance_lyapunov(
+        self, batch: Batch, n: int, members: np.ndarray | None = None, **kw: Any
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Move a batch of the Lyapunov system (the state with its tangent basis, :func:`tangent.start`) on by
+        ``n`` periods of a map of coefficient rows: ``(records (m, n, .), npts (m,))``, the records holding
+        ``log R_ii`` and ``int div`` of each period. Member ``i`` runs under row ``coefs.row[members[i]]``
+        (default: ``coefs.row[i]``), in blocks of the map's ``block``; ``kw`` overrides the numerics."""
+        if self.coefs is None:
+            raise ValueError("advance_lyapunov takes a map of coefficient rows (PoincareMap.rows)")
+        coefs = (
+            self.coefs if members is None else self.coefs._replace(row=np.ascontiguousarray(self.coefs.row[members]))
+        )
+        kk = {**self.numerics.kernel_kwargs(), "workers": self.workers, "block": self.block, **kw}
+        return run(rk.LYAPUNOV, coefs, batch, int(n), **kk)
+
+    def image(self, x: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(P^n(x), status)`` at the rows of ``x`` (m, 2): point ``j`` under member ``j`` (a shared map: all
+        under its system), members that share the section times in lock-step blocks of ``block``."""
+        x = np.asarray(x, dtype=float).reshape(-1, 2)
+        if self.coefs is not None:
+            raise ValueError("image takes a map of Params (PoincareMap.of or .members)")
+        y, _, status, _ = run_at(rk.FIELD, list(self.params), x, int(n), workers=self.workers, block=self.block,
+                                 **self.numerics.kernel_kwargs())  # fmt: skip
+        return y, status
 
     def derivative(self, x: np.ndarray, n: int, members: np.ndarray | None = None) -> Monodromy:
         """``P^n``, ``DP^n`` and ``int div dt`` at the rows of ``x`` (m, 2); point ``j`` under member ``members[j]``

@@ -40,8 +40,9 @@ from scipy.integrate import solve_ivp
 
 from explorer_core.analyses.lyapunov import LyapunovResult, attractor_ensemble, lyapunov_spectrum
 from explorer_core.scenes import get_scene
-from explorer_core.solve.integrators import Batch, Status, advance
+from explorer_core.solve.integrators import Status
 from explorer_core.solve.numerics import Numerics, random_ics
+from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.section import section
 from explorer_core.solve.stability import relative_error, spectral_rate, stability_interval
 from explorer_core.studies.reproduce import check_stages, run_stages
@@ -160,24 +161,23 @@ def _run(
 
     ``per_period`` advances one period at a time and returns steps per period (n, periods).
     """
-    model = Model(params)
+    pmap = PoincareMap.of(params, numerics, workers=1)
     ics = np.asarray(y0, dtype=float).reshape(-1, 2)
-    batch = Batch.start(ics, params.t0, params.period)
-    kw = numerics.kernel_kwargs()
+    batch = pmap.start(ics)
     out = np.full((ics.shape[0], periods, 2), np.nan)
     start = time.perf_counter()
     if per_period:
         steps = np.zeros((ics.shape[0], periods), dtype=np.int64)
         for k in range(periods):
             before = batch.nsteps.copy()
-            pts, npts = advance(model, batch, 1, workers=1, block=1, **kw)
+            pts, npts = pmap.advance(batch, 1, block=1)
             steps[:, k] = batch.nsteps - before
             ok = npts > 0
             out[ok, k] = pts[ok, 0]
             if not np.any(batch.status == Status.OK):
                 break
     else:
-        pts, npts = advance(model, batch, periods, workers=1, block=1, **kw)
+        pts, npts = pmap.advance(batch, periods, block=1)
         for i, m in enumerate(npts):
             out[i, :m] = pts[i, :m]
         steps = batch.nsteps.copy()

@@ -23,7 +23,7 @@ from __future__ import annotations
 import csv
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -37,6 +37,8 @@ from explorer_core.analyses.lyapunov import LyapunovResult, attractor_ensemble, 
 from explorer_core.analyses.orbits import find_orbits
 from explorer_core.analyses.regimes import CHAOTIC, PERIODIC, Chart, chart_spec, regime_chart
 from explorer_core.analyses.sweeps import detect_period, sweep_values
+from explorer_core.losses import Loss
+from explorer_core.progress import Progress, Step, run
 from explorer_core.scenes import Scene, get_scene
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.section import Section, section
@@ -128,6 +130,12 @@ class Reproduction:
     rows: list[Row] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
     completed: bool = True
+    #: stages not run (cancelled)
+    lost: list[Loss] = field(default_factory=list)
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
 
     def table_markdown(self) -> str:
         head = "| figure | quantity | paper | ours | uncertainty | settings | note |\n|---|---|---|---|---|---|---|\n"
@@ -154,6 +162,8 @@ class Reproduction:
             "doubling": self.doubling,
             "cascade": [b.as_dict() for b in self.cascade.bifurcations] if self.cascade is not None else [],
             "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
         }
 
 
@@ -638,22 +648,14 @@ STAGES = (
 )
 
 
-def reproduce(
+def iter_reproduce(
     size: str | Size = "quick",
     *,
     stages: tuple[str, ...] | None = None,
-    progress: Callable[[str, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
-) -> Reproduction:
-    """Compute every figure's data and the table of numbers (see the module docstring).
-
-    Parameters
-    ----------
-    size : ``"full"``, ``"quick"``, ``"tiny"`` or a :class:`Size`.
-    stages : subset of ``sections, lyapunov, drift, bifurcation, chart`` (default all).
-    progress : ``progress(stage, elapsed_s)`` when a stage finishes.
-    cancel : polled between (and inside long) stages; the result then has ``completed=False``.
-    """
+) -> Iterator[Step[Reproduction]]:
+    """:func:`reproduce` as a stream of :class:`~explorer_core.progress.Step` in ``stages`` (``detail``:
+    the stage that finished and its seconds); the last update's ``result`` is the reproduction."""
     if isinstance(size, str):
         if size not in SIZES:
             raise ParameterError(f"size must be one of {', '.join(SIZES)}, got {size!r}")
@@ -666,8 +668,37 @@ def reproduce(
         return cancel is not None and bool(cancel())
 
     runs = [(name, lambda fn=fn: fn(rep, stop)) for name, fn in STAGES if name in chosen]
-    rep.completed = run_stages(runs, rep.timings, progress, stop)
-    return rep
+    last = Step(Progress(0, len(runs), "stages"))
+    for last in iter_stages(runs, rep.timings, stop):
+        if last.result is None:
+            yield last
+    rep.completed = bool(last.result)
+    if not rep.completed:
+        left = [name for name, _ in runs if name not in rep.timings]
+        if left:
+            rep.lost.append(Loss("stages not run", len(left), f"cancelled ({', '.join(left)})"))
+        else:
+            rep.lost.append(Loss("stages", 1, "cancelled inside the last stage (its results may be partial)"))
+    yield Step(last.progress, None, rep)
+
+
+def reproduce(
+    size: str | Size = "quick",
+    *,
+    stages: tuple[str, ...] | None = None,
+    progress: Callable[[Step[Reproduction]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Reproduction:
+    """Compute every figure's data and the table of numbers (see the module docstring).
+
+    Parameters
+    ----------
+    size : ``"full"``, ``"quick"``, ``"tiny"`` or a :class:`Size`.
+    stages : subset of ``sections, lyapunov, drift, bifurcation, chart`` (default all).
+    progress : called with every update of :func:`iter_reproduce` (after each stage).
+    cancel : polled between (and inside long) stages; the result then has ``completed=False``.
+    """
+    return run(iter_reproduce(size, stages=stages, cancel=cancel), progress)
 
 
 def check_stages(stages: Sequence[str] | None, names: Sequence[str]) -> tuple[str, ...]:
@@ -679,19 +710,38 @@ def check_stages(stages: Sequence[str] | None, names: Sequence[str]) -> tuple[st
     return stages
 
 
+def iter_stages(
+    runs: Sequence[tuple[str, Callable[[], None]]], timings: dict[str, float], stop: Callable[[], bool]
+) -> Iterator[Step[bool]]:
+    """Run the named stages in order, timing each; a :class:`~explorer_core.progress.Step` (``detail``: the
+    stage and its seconds) after each, and a last one whose ``result`` is False if stopped before the end."""
+    start = time.perf_counter()
+    done = 0
+    detail = None
+    for name, work in runs:
+        if stop():
+            break
+        t = time.perf_counter()
+        work()
+        timings[name] = time.perf_counter() - t
+        done += 1
+        detail = (name, timings[name])
+        yield Step(Progress(done, len(runs), "stages", time.perf_counter() - start), detail)
+    # (a Step's result must not be None on the last update: the flag is a bool, never None)
+    finished = not stop() and done == len(runs)
+    yield Step(Progress(done, len(runs), "stages", time.perf_counter() - start), detail, finished)
+
+
 def run_stages(
     runs: Sequence[tuple[str, Callable[[], None]]],
     timings: dict[str, float],
     progress: Callable[[str, float], None] | None,
     stop: Callable[[], bool],
 ) -> bool:
-    """Run the named stages in order, timing each and reporting it; False if stopped before the end."""
-    for name, run in runs:
-        if stop():
-            return False
-        t = time.perf_counter()
-        run()
-        timings[name] = time.perf_counter() - t
+    """:func:`iter_stages` with ``progress(stage, elapsed_s)`` after each stage; False if stopped before the end."""
+    for upd in iter_stages(runs, timings, stop):
+        if upd.result is not None:
+            return upd.result
         if progress is not None:
-            progress(name, timings[name])
-    return not stop()
+            progress(*upd.detail)
+    return False
