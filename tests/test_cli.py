@@ -392,3 +392,19 @@ def test_one_error_path(monkeypatch, tmp_path) -> None:
     monkeypatch.setitem(cli.COMMANDS, "scenes", cli.COMMANDS["scenes"].__class__("", None, unwritable))
     rc, _, err = run_cli("scenes")
     assert rc == 2 and err == "bilimovich scenes: error: Permission denied: /x.csv\n"
+
+
+def test_method_vern9_is_selectable_and_agrees_with_solve_ivp(tmp_path) -> None:
+    """Verner's 9(8) pair (issue 22) from the command line; its points against solve_ivp at 1e-13."""
+    from naive import ivp_map
+
+    from explorer_core.scenes import get_scene
+
+    out = tmp_path / "v.csv"
+    rc, _, err = run_cli("section", "--scene", "fig1C", "--ic", "0.1,0.2", "--periods", "20", "--transient", "0",
+                         "--method", "vern9", "--rtol", "1e-11", "--atol", "1e-13", "--out", str(out))  # fmt: skip
+    assert rc == 0, err
+    pts = np.genfromtxt(out, delimiter=",", skip_header=1)[:, 2:]
+    params = get_scene("fig1C").params
+    ref = np.array([ivp_map(params, (0.1, 0.2), k) for k in range(1, 21)])
+    assert np.max(np.abs(pts - ref)) < 1e-8

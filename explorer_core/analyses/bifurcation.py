@@ -27,7 +27,6 @@ map, whose period-doubling points are known.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 import time
@@ -291,26 +290,27 @@ class OrbitDiagram(Drawable):
     def to_csv(self, path: str) -> int:
         """Rows ``sweep,value_index,value,ic,k,q,r,status``: every drawn point, plus one row
         with empty ``k,q,r`` for each trajectory that is not drawn (escaped, failed, invalid)."""
+        # Written as text a trajectory at a time (csv.writer's row per point took 2.2 s of the 4.6 s Fig. 10
+        # diagram); the same bytes: csv's \r\n line ends, repr of each float (the shortest that reads back).
         rows = 0
+        end = "\r\n"
+        ks = [str(self.transient + 1 + j) for j in range(self.n_points)]
         with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["sweep", "value_index", "value", "ic", "k", "q", "r", "status"])
+            fh.write("sweep,value_index,value,ic,k,q,r,status" + end)
             drawn = self.drawn()
             for s in range(self.sweeps.size):
                 for v in range(self.values.size):
+                    head = f"{self.sweeps[s]},{v},{float(self.values[v])!r},"
                     for i in range(self.ics.shape[0]):
                         if drawn[s, v, i]:
-                            for j in range(self.n_points):
-                                q, r = self.points[s, v, i, j]
-                                w.writerow(
-                                    (self.sweeps[s], v, repr(float(self.values[v])), i, self.transient + 1 + j,
-                                     repr(float(q)), repr(float(r)), "ok")
-                                )  # fmt: skip
-                                rows += 1
+                            pts = self.points[s, v, i, : self.n_points].tolist()
+                            lines = (f"{head}{i},{k},{q!r},{r!r},ok{end}" for k, (q, r) in zip(ks, pts, strict=True))
+                            fh.write("".join(lines))
+                            rows += len(pts)
                         else:
                             # ok but short of its points: only a cancel stops an ok trajectory
                             lab = Status.of(int(self.status[s, v, i]) or Status.CANCELLED).label
-                            w.writerow((self.sweeps[s], v, repr(float(self.values[v])), i, "", "", "", lab))
+                            fh.write(f"{head}{i},,,,{lab}{end}")
                             rows += 1
         return rows
 
