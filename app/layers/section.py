@@ -90,6 +90,8 @@ class SectionLayer(Layer):
         self.outcome = ""
         self.run_n = req.ics.shape[0]
         query = self.host.state.to_query()  # the settings of this run: its points' export header
+        if req.periods != self.host.state.periods:  # a played parameter's frame: fewer periods than a still
+            query["periods"] = str(req.periods)
         if req.density:
             job = self.density.job(req, start_layers, query)
         else:
