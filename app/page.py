@@ -246,8 +246,10 @@ class Page:
         tour = self.tours.get(st.tour)
         if tour is not None:
             step = min(st.tour_step, len(tour.steps))
-            out.update(id=tour.id, title=tour.title, step=step, steps=len(tour.steps),
-                       text=tour.steps[step - 1].text)  # fmt: skip
+            s = tour.steps[step - 1]
+            # plays: the step sets up a played parameter (its row stays in presentation mode)
+            out.update(id=tour.id, title=tour.title, step=step, steps=len(tour.steps), text=s.text,
+                       plays=any(k.startswith("play") for k in s.settings))  # fmt: skip
         return out
 
     # --- the figures' events --------------------------------------------------------------------

@@ -108,6 +108,11 @@ progress[hidden] { display: none; }
 .tour .tour-text { margin: 4px 0 2px; line-height: 1.35; }
 .app.present .tour .tour-text { font-size: 1.05em; }
 header select.tour-choice { font: inherit; padding: 2px; max-width: 220px; }
+.app.present header label.tour-upload { display: none; }
+.app.present.touring .pane-section > .bar { display: none; }
+.app.present.touring:not(.tour-plays) .play-bar { display: none; }
+.app.present .tour { padding: 4px 10px; }
+.app.present .tour .tour-text { margin: 2px 0 0; }
 header label.tour-upload { cursor: pointer; border: 1px solid rgba(255,255,255,.45); border-radius: 4px; padding: 3px 8px; }
 header label.tour-upload input { display: none; }
 .tour-message { font-size: .9em; color: #3a4554; }
@@ -260,7 +265,7 @@ export function render({model, el}) {
   // Play a parameter: its settings are controls (area "play"); Play/Pause and Step are actions.
   const playBtn = h("button", {class: "act btn-play", text: "▶ Play"})
   playBtn.addEventListener("click", () => send({action: playBtn.dataset.playing === "1" ? "pause" : "play"}))
-  const stepBtn = h("button", {class: "act light btn-step", text: "Step ⏭", title: "One frame on, as a still"})
+  const stepBtn = h("button", {class: "act light btn-step", text: "Step +1", title: "One frame on, as a still"})
   stepBtn.addEventListener("click", () => send({action: "step"}))
   const playStatus = h("span", {class: "play-status", "aria-live": "polite"})
   const playBar = h("div", {class: "play-bar"})
@@ -512,7 +517,7 @@ export function render({model, el}) {
     }
     const p = s.play || {}
     playBtn.dataset.playing = p.playing ? "1" : "0"
-    playBtn.textContent = p.playing ? "⏸ Pause" : "▶ Play"
+    playBtn.textContent = p.playing ? "Pause" : "▶ Play"
     playBtn.setAttribute("aria-pressed", String(!!p.playing))
     playStatus.textContent = p.message || (p.frame >= 0 ? `frame ${p.frame + 1}/${p.frames}: ${p.label} = ` +
       `${(+p.value).toPrecision(5)}` + (p.playing ? `, ${p.fps} frames/s` : "") : `${p.label} from ` +
@@ -530,6 +535,9 @@ export function render({model, el}) {
     }
     tourChoice.value = tr.id || ""
     tourBox.hidden = !tr.id
+    // A tour in presentation mode: the plot gets the room; the bars come back outside it or when a step plays.
+    app.classList.toggle("touring", !!tr.id)
+    app.classList.toggle("tour-plays", !!tr.plays)
     if (tr.id) {
       tourTitle.textContent = tr.title
       tourCount.textContent = `step ${tr.step} of ${tr.steps}`
