@@ -205,3 +205,22 @@ def test_a_bad_range_is_refused_naming_the_value() -> None:
     page.commit("play_to", "1")
     page.handle({"action": "play"})
     assert not page.player.playing and "nothing to play" in page.ui.view["section"]["play"]["message"]
+
+
+def test_a_frame_draws_the_tracks_with_fewer_samples_and_the_same_equilibria_at_t0() -> None:
+    """A frame's tracks take FRAME_TRACK_SAMPLES samples over the period (a still: TRACK_SAMPLES); the
+    equilibria at t0 (the diamonds) do not depend on how many: the same points as the still's."""
+    from app.layers.frozen import FRAME_TRACK_SAMPLES, TRACK_SAMPLES
+
+    page, jobs, clock = page_for({"tracks": "1", "alpha": str(VALUES[0])})
+    still = {k: list(v) for k, v in page.fig.equilibria.data.items()}
+    assert page.session.layers["tracks"].inputs()[1] == TRACK_SAMPLES and still["q"]
+    page.handle({"action": "play"})
+    assert page.session.layers["tracks"].inputs()[1] == FRAME_TRACK_SAMPLES
+    jobs.drain()
+    frame = {k: list(v) for k, v in page.fig.equilibria.data.items()}
+    assert frame["type"] == still["type"]
+    np.testing.assert_allclose(frame["q"], still["q"], atol=1e-9)
+    np.testing.assert_allclose(frame["r"], still["r"], atol=1e-9)
+    page.handle({"action": "pause"})
+    assert page.session.layers["tracks"].inputs()[1] == TRACK_SAMPLES
