@@ -183,3 +183,20 @@ def test_the_page_wires_buttons_and_arrow_keys_to_the_tour_and_play() -> None:
         assert words in ESM, words
     assert check_message({"action": "tour_step", "value": "next"}) == {"action": "tour_step", "value": "next"}
     assert check_message({"action": "tour", "value": "x" * 201}) is None
+
+
+def test_every_step_shown_in_a_page_sets_its_settings_marks_and_url() -> None:
+    """Each step of each paper tour through the page (the jobs left queued: only the settings are checked)."""
+    published: list[dict[str, str]] = []
+    page = Page({"n": "2", "periods": "5"}, lambda fn: fn(), executor=Jobs(), publish_url=published.append,
+                schedule=lambda d, fn: None)  # fmt: skip
+    for tour in TOURS.values():
+        for n, step in enumerate(tour.steps, 1):
+            page.show_tour(tour.id, 1) if n == 1 else page.handle({"action": "tour_step", "value": "next"})
+            q = published[-1]
+            assert (q["tour"], q["step"]) == (tour.id, str(n))
+            for k, v in step.settings.items():
+                assert q.get(k) == v or float(q[k]) == float(v), (tour.id, n, k, q.get(k))
+            assert page.state.tab == step.settings.get("tab", "section")
+            assert page.fig.marks_data()["label"] == [m.label for m in step.look]
+            assert not page.ui.view["section"]["errors"], (tour.id, n)
