@@ -224,3 +224,17 @@ def test_a_frame_draws_the_tracks_with_fewer_samples_and_the_same_equilibria_at_
     np.testing.assert_allclose(frame["r"], still["r"], atol=1e-9)
     page.handle({"action": "pause"})
     assert page.session.layers["tracks"].inputs()[1] == TRACK_SAMPLES
+
+
+def test_the_played_value_is_marked_on_the_bifurcation_diagram() -> None:
+    """A line at the value in use on the diagram follows the frames (the chart's cross already follows the state,
+    once a chart is computed: app.analyses.ChartTab._mark)."""
+    page, jobs, clock = page_for()
+    page.handle({"action": "tab", "tab": "bifurcation"})
+    page.handle({"action": "tab", "tab": "section"})
+    page.handle({"action": "play"})
+    jobs.drain()
+    clock.advance(0.1)
+    jobs.drain()
+    assert page.state.alpha != pytest.approx(-0.4)  # moved on from the value the page opened with
+    assert page.tabs["bifurcation"].now.location == pytest.approx(page.state.alpha)
