@@ -109,8 +109,10 @@ progress[hidden] { display: none; }
 .app.present .tour .tour-text { font-size: 1.05em; }
 header select.tour-choice { font: inherit; padding: 2px; max-width: 220px; }
 .app.present header label.tour-upload { display: none; }
-.app.present.touring .pane-section > .bar { display: none; }
-.app.present.touring:not(.tour-plays) .play-bar { display: none; }
+/* One header row at 1280x720 in presentation mode: the tour menu only while a tour shows (choose one before). */
+.app.present:not(.touring) header select.tour-choice { display: none; }
+.app.present.touring:not(.tour-plays) .pane-section > .bar { display: none; }
+.app.present .play-bar { display: none; }
 .app.present .tour { padding: 4px 10px; }
 .app.present .tour .tour-text { margin: 2px 0 0; }
 header label.tour-upload { cursor: pointer; border: 1px solid rgba(255,255,255,.45); border-radius: 4px; padding: 3px 8px; }
@@ -455,6 +457,14 @@ export function render({model, el}) {
     showView()
   }
   function setPresentation(on) {
+    // Presentation mode at 1280x720: the play row's settings (from the link) give their row to the plot; Play and
+    // Step join the section's buttons and what plays is said on the status line.
+    if (on) {
+      secBar.append(playBtn, stepBtn)
+    } else {
+      playBar.insertBefore(stepBtn, playStatus)
+      playBar.insertBefore(playBtn, stepBtn)
+    }
     app.classList.toggle("present", on)
     app.classList.toggle("side-collapsed", on)
     presentBtn.textContent = on ? "Leave presentation" : "Presentation mode"
@@ -481,7 +491,10 @@ export function render({model, el}) {
   function showView() {
     const v = model.view
     const s = v.section || {}
-    status.textContent = s.status || ""
+    const pl = s.play || {}
+    const playing = pl.playing && pl.frame >= 0 ? `frame ${pl.frame + 1}/${pl.frames}: ${pl.label} = ` +
+      `${(+pl.value).toPrecision(5)}, ${pl.fps} frames/s  |  ` : ""
+    status.textContent = (app.classList.contains("present") ? playing : "") + (s.status || "")
     lines(secErrors, s.errors || [])
     warnings.replaceChildren(...(s.warnings || []).map((w) =>
       h("div", {class: `warn-box level-${w.level} reliability-${w.level}`}, h("b", {text: w.level + ": "}),

@@ -238,3 +238,13 @@ def test_the_played_value_is_marked_on_the_bifurcation_diagram() -> None:
     jobs.drain()
     assert page.state.alpha != pytest.approx(-0.4)  # moved on from the value the page opened with
     assert page.tabs["bifurcation"].now.location == pytest.approx(page.state.alpha)
+
+
+def test_a_frame_is_drawn_whole_not_streamed() -> None:
+    """Each frame replaces the points once, with all of them (streamed, a frame would flash its first chunk)."""
+    page, jobs, clock = page_for({"n": "60"})
+    sizes: list[int] = []
+    page.fig.points.on_change("data", lambda attr, old, new: sizes.append(len(new["q"])))
+    page.handle({"action": "play"})
+    jobs.drain()
+    assert len(sizes) == 1 and sizes[0] == page.session.n_points > 0.9 * 60 * FRAME_PERIODS

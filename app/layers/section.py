@@ -100,6 +100,9 @@ class SectionLayer(Layer):
         self.check_reliability(req)  # a priori: the new numerics against the states on screen
 
     def _points_job(self, req: SectionRequest, start_layers: Callable[[], None] | None, query: dict[str, str]) -> Any:
+        # A played parameter's frame is drawn whole (streamed, each frame would flash its first chunk alone).
+        whole = getattr(self.host, "frame_periods", None) is not None
+
         def job(cancelled: Callable[[], bool], emit: Emit) -> None:
             self.trace("section job starts")
             last_status = None
@@ -116,7 +119,7 @@ class SectionLayer(Layer):
                                       numerics=req.numerics, max_chunk=MAX_CHUNK, cancel=cancelled):  # fmt: skip
                 pending.append(chunk.long())
                 last_status = chunk.status
-                if cadence.due():
+                if not whole and cadence.due():
                     flush(chunk.status, chunk.done_periods, chunk.total_periods)
                 cadence.layers_if_late()
             if pending and last_status is not None:
