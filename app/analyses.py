@@ -238,11 +238,21 @@ class BifurcationTab(AnalysisTab):
         self._data = None
         self._cont = None
         session.state.param.watch(lambda e: session.runner.ui(self._draw), "bif_coord")
+        #: The current value of the swept parameter (a vertical line; it follows a played parameter).
+        self.now: Any = None
+        session.state.param.watch(lambda *e: session.runner.ui(self._mark_now), ["bif_param", *_SWEPT])
+
+    def _mark_now(self) -> None:
+        if self.now is not None:
+            self.now.location = float(getattr(self.session.state, self.session.state.bif_param))
 
     def _build(self) -> Plot:
-        from bokeh.models import HoverTool
+        from bokeh.models import HoverTool, Span
 
         f = _fig(x_axis_label=self.session.state.bif_param, y_axis_label=f"{self.session.state.bif_coord}_k")
+        self.now = Span(location=float(getattr(self.session.state, self.session.state.bif_param)), dimension="height",
+                        line_color="#0a58ca", line_width=2, line_alpha=0.8, name="bifurcation_current")  # fmt: skip
+        f.add_layout(self.now)
         mapper = LinearColorMapper(palette=[Category10[3][0], Category10[3][1]], low=0, high=1)
         f.scatter("x", "y", source=self.source, size=1.6, line_color=None,
                   fill_color={"field": "c", "transform": mapper})  # fmt: skip

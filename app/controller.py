@@ -14,6 +14,7 @@ the work ends. Values reach the state only through :func:`app.state.commit`.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -26,11 +27,12 @@ from app.layers import KEEP, LAYERS, Layer
 from app.layers.base import plain
 from app.layers.section import SectionLayer
 from app.runner import Emit, Runner
-from app.state import CONTROLS, MAX_CLICKED, TABS, ExplorerState, SectionRequest, commit
+from app.state import _ORDER, BY_NAME, CONTROLS, MAX_CLICKED, SYSTEM_FIELDS, TABS, ExplorerState, SectionRequest, commit
 from app.views import SectionFigure, SeriesData
 from explorer_core.system.params import ParameterError, Params
 
 ANALYSIS_FIELDS = tuple(c.name for c in CONTROLS if c.area in TABS[1:])
+PLAY_FIELDS = tuple(c.name for c in CONTROLS if c.area == "play")
 _UNSET = object()
 
 
@@ -87,6 +89,10 @@ class ExplorerSession(param.Parameterized):
             runner.declare(layer.channels)
         #: The inputs of each deduplicating layer's last job (see refresh).
         self._inputs: dict[str, Any] = {}
+        #: While a parameter is played (app/play.py): periods per trajectory of a frame (None: the state's),
+        #: and the last frame's orbits (q, r, period) that the orbits layer continues to the next frame.
+        self.frame_periods: int | None = None
+        self.follow_orbits: tuple[tuple[float, float, int], ...] = ()
         runner.set_on_busy(self.on_busy)
         state.param.watch(self._on_section_change, list(self.section.fields))
         for layer in self.layers.values():
@@ -94,7 +100,10 @@ class ExplorerSession(param.Parameterized):
         state.param.watch(self._on_view_change, ["q_range", "r_range"])
         state.param.watch(lambda *e: self._on_selected(), ["selected"])
         state.param.watch(lambda *e: self.recompute(), ["clicked"])
-        state.param.watch(lambda *e: self._publish_query(), ["selected", "tab", "presentation", *ANALYSIS_FIELDS])
+        state.param.watch(
+            lambda *e: self._publish_query(),
+            ["selected", "tab", "presentation", "tour", "tour_step", *PLAY_FIELDS, *ANALYSIS_FIELDS],
+        )
 
     def layer(self, name: str) -> Layer:
         return self.layers[name]
@@ -244,6 +253,28 @@ class ExplorerSession(param.Parameterized):
         self.recompute()
         self._follow_section()
 
+    def apply_settings(self, scene_id: str, updates: dict[str, Any], **fields: Any) -> None:
+        """A scene, then values from a link (checked as a URL's are: a refused one keeps the scene's), then
+        ``fields`` (e.g. the tour's step); everything recomputed once."""
+        with self._suspended():
+            self.state.apply_scene(scene_id)
+            changed = False
+            for name in sorted(updates, key=lambda n: _ORDER.index(n) if n in _ORDER else len(_ORDER)):
+                try:
+                    if name in BY_NAME:
+                        self.state.check(name, updates[name])
+                except ParameterError:
+                    continue
+                changed |= name in SYSTEM_FIELDS and updates[name] != getattr(self.state, name)
+                setattr(self.state, name, updates[name])
+            self.state.param.update(**fields, **({"scene": "custom"} if changed else {}))
+        self._set_view()
+        self.recompute()
+        for layer in self.layers.values():
+            if not layer.on_section and not layer.after_section:
+                self.refresh(layer)
+        self._follow_section()
+
     def set_view_from_plot(self, q_range: tuple[float, float], r_range: tuple[float, float]) -> None:
         """The user panned/zoomed: remember the window (URL) and redo what depends on the view."""
         with self._suspended():
@@ -268,6 +299,8 @@ class ExplorerSession(param.Parameterized):
             self._publish_query()
             return
         self.error = ""
+        if self.frame_periods is not None and not req.density and req.periods > self.frame_periods:
+            req = dataclasses.replace(req, periods=self.frame_periods)  # a frame of a played parameter
         self.section.start(req, start_layers=lambda: self._follow_section(from_job=True))
         for layer in self.layers.values():
             if layer.on_section:

@@ -71,7 +71,14 @@ def create_app() -> tuple[Any, Location | None]:
         server_session = getattr(doc.session_context, "_session", None) if doc is not None else None
         return server_session is None or server_session.connection_count > 0
 
-    page = Page(query, deliver, publish_url=publish, alive=connected)
+    def schedule(delay: float, fn) -> None:
+        # A played parameter's next frame (app/play.py), on the document's thread after ``delay`` seconds.
+        if doc is None:
+            fn()
+            return
+        doc.add_timeout_callback(fn, max(0, int(1e3 * delay)))
+
+    page = Page(query, deliver, publish_url=publish, alive=connected, schedule=schedule, wait_for_browser=True)
     # Messages from the browser run on the document's thread, like every other change of the page.
     page.ui._on_message = lambda msg: deliver(pacing.urgent(lambda: page.handle(msg)))
 

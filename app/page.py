@@ -24,8 +24,10 @@ from bokeh.models import Column
 from app.analyses import AnalysisTab, BifurcationTab, ChartTab, LyapunovTab
 from app.bench_tab import BenchTab
 from app.controller import ExplorerSession
+from app.play import Player, Schedule
 from app.runner import FairScheduler, Runner
-from app.state import BY_NAME, BY_URL, CONTROLS, TABS, state_from_query
+from app.state import BY_NAME, BY_URL, CONTROLS, TABS, parse_query, state_from_query
+from app.tours import TOURS, Tour, TourError, parse_tours, read_tour_url
 from app.ui import ExplorerUI
 from app.views import SectionFigure, SeriesData
 from explorer_core.scenes import get_scene
@@ -44,6 +46,12 @@ TAB_NAMES = {"bifurcation": "Bifurcation diagram", "chart": "Chart of regimes"}
 #: The orbit search's button: an action, then a mode that stays on (redone after every pan or zoom).
 FIND_OFF = ("Find orbits in view", "Newton on P^n(x) - x from a grid of starting points over the plot window")
 FIND_ON = ("Orbits in view: on", "A mode: the search is redone after every pan or zoom; 'Clear orbits' ends it")
+#: What a tour's step starts from besides its scene: the layers' settings and picks, the played parameter and the
+#: tab as on a new page (a step sets what it needs over them).
+STEP_DEFAULTS: dict[str, Any] = {
+    **{c.name: c.default for c in CONTROLS if c.area in ("layers", "play")},
+    "orbit_seeds": [], "orbit_view": False, "manifold_saddles": [], "tab": "section",
+}  # fmt: skip
 #: Session parameters that change what the section tab shows: all of them (what the layers publish included).
 SESSION_VIEW = [p for p in ExplorerSession.param if p != "name"]
 
@@ -60,6 +68,8 @@ class Page:
         alive: Callable[[], bool] | None = None,
         executor: Executor | None = None,
         scheduler: FairScheduler | None = None,
+        schedule: Schedule | None = None,
+        wait_for_browser: bool = False,
     ) -> None:
         self.deliver = deliver
         state, self.url_errors = state_from_query(query)
@@ -71,6 +81,11 @@ class Page:
         self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
         self.tabs: dict[str, AnalysisTab] = {}
         self.messages: dict[str, str] = {}
+        self.player = Player(self.session, schedule or _timer(deliver), on_change=lambda: self._refresh_views(),
+                             wait_for_browser=wait_for_browser)  # fmt: skip
+        #: The tours on offer: the paper's, and a teacher's own (tour_url= or an uploaded file) over them.
+        self.tours: dict[str, Tour] = dict(TOURS)
+        self.tour_message = ""
         self._analysis_box = Column(sizing_mode="stretch_both", name="analysis_box")
         self.ui = ExplorerUI(
             on_message=self.handle,
@@ -93,6 +108,16 @@ class Page:
 
     def start(self) -> None:
         """The page is loaded: compute the section (and open the tab the URL names)."""
+        if self.state.tour_url:
+            self._load_tours(lambda: read_tour_url(self.state.tour_url))
+        if self.state.tour:
+            if self.state.tour in self.tours:
+                self.show_tour(self.state.tour, self.state.tour_step)  # a link to a tour's step shows that step
+                if self.state.tab != "section":
+                    self._open_tab(self.state.tab)
+                return
+            self.tour_message = f"URL parameter tour: no tour {self.state.tour!r}"
+            self.state.tour = ""
         self.session.recompute()
         if self.state.tab != "section":
             self._open_tab(self.state.tab)
@@ -130,6 +155,20 @@ class Page:
             self.state.presentation = msg["on"]
         elif action == "download":
             self._download(msg.get("what", ""))
+        elif action == "play":
+            self.player.play()
+        elif action == "pause":
+            self.player.pause()
+        elif action == "step":
+            self.player.step()
+        elif action == "shown" and msg.get("value", "").isdigit():
+            self.player.shown(int(msg["value"]))
+        elif action == "tour":
+            self.show_tour(msg.get("value", ""), 1)
+        elif action == "tour_step" and msg.get("value") in ("next", "back"):
+            self.show_tour(self.state.tour, self.state.tour_step + (1 if msg["value"] == "next" else -1))
+        elif action == "tour_file":
+            self._load_tours(lambda: parse_tours(msg.get("value", ""), "the uploaded file"))
         elif action == "load_bench":
             self._open_tab("bench").load_results(quiet=False)  # type: ignore[attr-defined]
         elif action == "bench_choice":
@@ -164,6 +203,54 @@ class Page:
             data = self.tabs["chart"].npz_bytes()  # type: ignore[attr-defined]
             if data is not None:
                 self.ui.send_download("chart.npz", "application/octet-stream", data)
+
+    # --- tours ----------------------------------------------------------------------------------------
+
+    def show_tour(self, tour_id: str, step: int) -> None:
+        """Show step ``step`` (from 1) of a tour: its settings on top of its scene, its marks on the plot, the
+        tour and step in the URL; an empty id closes the tour (the settings stay)."""
+        if self.player.playing:
+            self.player.pause()
+        tour = self.tours.get(tour_id)
+        if tour is None:
+            self.fig.set_marks([])
+            self.state.param.update(tour="", tour_step=1)
+            self.session._publish_query()
+            self._refresh_views()
+            return
+        step = min(max(1, step), len(tour.steps))
+        s = tour.steps[step - 1]
+        updates, _ = parse_query(s.settings)  # checked when the file was loaded
+        # Each step stands alone (a link to it shows the same): the layers and the tab as a new page has them,
+        # then the step's settings over its scene.
+        self.session.apply_settings(tour.scene, {**STEP_DEFAULTS, **updates}, tour=tour.id, tour_step=step)
+        self.fig.set_marks([(m.q, m.r, m.label) for m in s.look])
+        self.messages.clear()
+        self.url_errors = []
+        self.ui.values = self._values()
+        self._refresh_views()
+
+    def _load_tours(self, read: Callable[[], dict[str, Tour]]) -> None:
+        try:
+            own = read()
+        except (TourError, OSError) as exc:
+            self.tour_message = str(exc)
+        else:
+            self.tours = {**TOURS, **own}
+            self.tour_message = f"loaded {len(own)} tours: {', '.join(t.title for t in own.values())}"[:300]
+        self._refresh_views()
+
+    def _tour_view(self) -> dict[str, Any]:
+        st = self.state
+        out: dict[str, Any] = {"choices": [[t.id, t.title] for t in self.tours.values()], "message": self.tour_message}
+        tour = self.tours.get(st.tour)
+        if tour is not None:
+            step = min(st.tour_step, len(tour.steps))
+            s = tour.steps[step - 1]
+            # plays: the step sets up a played parameter (its row stays in presentation mode)
+            out.update(id=tour.id, title=tour.title, step=step, steps=len(tour.steps), text=s.text,
+                       plays=any(k.startswith("play") for k in s.settings))  # fmt: skip
+        return out
 
     # --- the figures' events --------------------------------------------------------------------
 
@@ -288,6 +375,8 @@ class Page:
             "density": s.density_shown,
             "basin_legend": s.basin_legend,
             "colour_note": _colour_note(self.fig.tprime_hidden_by),
+            "play": self.player.view(),
+            "tour": self._tour_view(),
         }
 
     def _tab_view(self, name: str) -> dict[str, Any]:
@@ -320,6 +409,18 @@ class Page:
         if tab == "section":
             return any(self.runner.busy(c) for c in self.session.channels)
         return self.runner.busy(tab)
+
+
+def _timer(deliver: Callable[[Callable[[], None]], None]) -> Schedule:
+    """Run a callable on the document thread after a delay (a thread's timer; the server uses the document's)."""
+    import threading
+
+    def schedule(delay: float, fn: Callable[[], None]) -> None:
+        t = threading.Timer(delay, lambda: deliver(fn))
+        t.daemon = True
+        t.start()
+
+    return schedule
 
 
 def _colour_note(hidden_by: str) -> str:

@@ -56,6 +56,11 @@ MAX_TEXT = 200
 #: Analysis limits (work per run).
 LIMITS = {"lyap_periods": 20000, "ensemble": 16, "bif_values": 400, "bif_points": 400, "transient": 5000,
           "grid": 120, "chart_periods": 3000, "bench_periods": 500}  # fmt: skip
+#: Frames across a played range, and frames per second asked (app/play.py).
+MAX_PLAY_FRAMES = 2000
+MAX_PLAY_FPS = 30
+#: Steps of a tour (app/tours.json).
+MAX_TOUR_STEPS = 6
 #: Largest magnitude of a swept parameter or a typed initial condition (beyond, nothing is meaningful).
 MAX_MAGNITUDE = 1e6
 
@@ -151,6 +156,16 @@ def _optional_point(name: str, text: str) -> tuple[float, ...]:
     if max(abs(q), abs(r)) > MAX_MAGNITUDE:
         raise ParameterError(f"{name} must lie within ±{MAX_MAGNITUDE:g}, got {str(text)[:40]!r}")
     return q, r
+
+
+def _optional_number(name: str, text: str) -> tuple[float, ...]:
+    """A number, or () when blank (a played range's end: blank is the slider's value ∓ a step of the range)."""
+    if not str(text).strip():
+        return ()
+    v = _finite(name, str(text).strip())
+    if abs(v) > MAX_MAGNITUDE:
+        raise ParameterError(f"{name} must lie within ±{MAX_MAGNITUDE:g}, got {str(text)[:40]!r}")
+    return (v,)
 
 
 def _optional_range(name: str, text: str) -> tuple[float, ...]:
@@ -451,6 +466,52 @@ CONTROLS: tuple[Control, ...] = (
         50,
         url_when="changed",
     ),
+    # Play a parameter (app/play.py): one compact row over the section.
+    Control(
+        "play_param",
+        "Play",
+        "select",
+        "play",
+        "play",
+        options=tuple((f, LABELS.get(f, f).split(" (")[0].split("  ")[0]) for f in SYSTEM_FIELDS),
+        default="alpha",
+        url_when=lambda s: s.play_param != "alpha" or bool(s.play_from or s.play_to),
+        doc="the parameter played across a range",
+    ),
+    Control(
+        "play_from",
+        "from",
+        "text",
+        "play",
+        "play_from",
+        parse=_optional_number,
+        placeholder="value − 0.05",
+        default=(),
+        url_when="changed",
+    ),
+    Control(
+        "play_to",
+        "to",
+        "text",
+        "play",
+        "play_to",
+        parse=_optional_number,
+        placeholder="value + 0.05",
+        default=(),
+        url_when="changed",
+    ),
+    _ints("play_frames", "frames", "play", "play_n", 2, MAX_PLAY_FRAMES, 40, url_when="changed"),
+    _ints("play_fps", "frames/s", "play", "play_fps", 1, MAX_PLAY_FPS, 8, url_when="changed"),
+    Control(
+        "play_dir",
+        "direction",
+        "radio",
+        "play",
+        "play_dir",
+        options=(("forward", "→"), ("backward", "←"), ("bounce", "↔")),
+        default="forward",
+        url_when="changed",
+    ),
 )
 BY_NAME: dict[str, Control] = {c.name: c for c in CONTROLS}
 BY_URL: dict[str, Control] = {c.url: c for c in CONTROLS if c.url}
@@ -496,6 +557,9 @@ class ExplorerState(param.Parameterized):
     manifold_saddles = param.List(default=[], item_type=tuple, doc="(q, r, period) of the saddles with manifolds")
     tab = param.Selector(default="section", objects=list(TABS))
     presentation = param.Boolean(default=False, doc="larger fonts, sidebar collapsed (for a projector)")
+    tour = param.String(default="", doc="the guided tour shown (app/tours.json or tour_url), '' for none")
+    tour_step = param.Integer(default=1, bounds=(1, MAX_TOUR_STEPS), doc="the tour's step shown, from 1")
+    tour_url = param.String(default="", doc="a same-origin path of a teacher's own tours file")
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
@@ -667,6 +731,11 @@ class ExplorerState(param.Parameterized):
             raise ParameterError(
                 f"{plain_label(name)} must be a trajectory 0..{self.n_trajectories() - 1}, got {value}"
             )
+        elif name in ("play_from", "play_to") and value:
+            try:
+                self.system(**{self.play_param: value[0]})
+            except ParameterError as exc:
+                raise ParameterError(f"{self.play_param} = {value[0]:g} is not a valid system: {exc}") from None
         elif name in ("bif_range", "chart_xrange", "chart_yrange") and value:
             p = {"bif_range": self.bif_param, "chart_xrange": self.chart_x, "chart_yrange": self.chart_y}[name]
             for end in value:  # the set of valid values of one parameter is an interval: its ends suffice
@@ -893,6 +962,22 @@ def _choice(options: Mapping[str, dict[str, Any]]) -> Callable[[str], dict[str, 
     return decode
 
 
+def _tour_id(t: str) -> dict[str, Any]:
+    if not _ID.match(t):
+        raise ParameterError(f"a tour's id is letters, digits, '_', '.', '-' (at most 40), got {t[:40]!r}")
+    return {"tour": t}
+
+
+#: A teacher's tours file: a path on this server (never a URL of another site: nothing is fetched from outside).
+_TOUR_PATH = re.compile(r"^/[A-Za-z0-9_./-]{1,200}\.json$")
+
+
+def _tour_path(t: str) -> dict[str, Any]:
+    if not _TOUR_PATH.match(t) or "//" in t or ".." in t:
+        raise ParameterError(f"must be a path on this server ending in .json (e.g. /tours/mine.json), got {t[:60]!r}")
+    return {"tour_url": t}
+
+
 _TPRIME = {"inst": {"show_tprime": True, "tprime_kind": "instantaneous"},
            "period": {"show_tprime": True, "tprime_kind": "per-period"}, "off": {"show_tprime": False}}  # fmt: skip
 _TPRIME_KEY = {"instantaneous": "inst", "per-period": "period"}
@@ -919,6 +1004,10 @@ URL_KEYS: tuple[UrlKey, ...] = (
            lambda s: bool(s.manifold_saddles), "saddles with manifolds"),
     UrlKey("tab", ("tab",), lambda s: s.tab, _choice({t: {"tab": t} for t in TABS}), lambda s: s.tab != "section",
            "tab"),
+    UrlKey("tour", ("tour",), lambda s: s.tour, _tour_id, lambda s: bool(s.tour), "tour"),
+    UrlKey("step", ("tour_step",), lambda s: str(s.tour_step),
+           lambda t: {"tour_step": _whole("step", t, 1, MAX_TOUR_STEPS)}, lambda s: bool(s.tour), "tour step"),
+    UrlKey("tour_url", ("tour_url",), lambda s: s.tour_url, _tour_path, lambda s: bool(s.tour_url), "tours file"),
     UrlKey("present", ("presentation",), lambda s: "1",
            _choice({"1": {"presentation": True}, "0": {"presentation": False}}), lambda s: s.presentation,
            "presentation"),

@@ -91,6 +91,34 @@ progress[hidden] { display: none; }
 .app.present .status-line { font-size: 1em; }
 /* At 1280x720 the table sits just under the plot: smaller rows show the header and 3-4 orbits without scrolling. */
 .app.present .orbits { font-size: .8em; }
+/* Play a parameter: one compact row over the section. */
+.play-bar { display: flex; flex-wrap: wrap; gap: 6px; align-items: flex-end; }
+.play-bar .ctl { margin: 0; }
+.play-bar .ctl label, .play-bar .ctl .lab { font-size: .85em; margin: 0; }
+.play-bar .ctl.text input.txt { width: 6.5em; }
+.play-bar .ctl.int input.num { width: 4em; }
+.play-bar .ctl.select select { width: auto; }
+.play-bar .ctl-msg { position: absolute; z-index: 5; }
+.play-status { font-size: .9em; color: #3a4554; align-self: center; }
+/* A guided tour: its step over the section, readable from the back of a room in presentation mode. */
+.tour { border: 2px solid #0a58ca; border-radius: 6px; background: #f0f6ff; padding: 6px 10px; flex: none; }
+.tour[hidden] { display: none; }
+.tour .tour-head { display: flex; gap: 8px; align-items: center; font-weight: 600; color: #0a58ca; }
+.tour .tour-head .spacer { flex: 1; }
+.tour .tour-text { margin: 4px 0 2px; line-height: 1.35; }
+.app.present .tour .tour-text { font-size: 1.05em; }
+header select.tour-choice { font: inherit; padding: 2px; max-width: 220px; }
+.app.present header label.tour-upload { display: none; }
+/* One header row at 1280x720 in presentation mode: the tour menu only while a tour shows (choose one before). */
+.app.present:not(.touring) header select.tour-choice { display: none; }
+.app.present.touring:not(.tour-plays) .pane-section > .bar { display: none; }
+.app.present .play-bar { display: none; }
+.app.present .tour { padding: 4px 10px; }
+.app.present .tour .tour-text { margin: 2px 0 0; }
+header label.tour-upload { cursor: pointer; border: 1px solid rgba(255,255,255,.45); border-radius: 4px; padding: 3px 8px; }
+header label.tour-upload input { display: none; }
+.tour-message { font-size: .9em; color: #3a4554; }
+.tour-message:empty { display: none; }
 `
 
 const TAB_TITLES = {section: "Poincaré section", lyapunov: "Lyapunov spectrum", bifurcation: "Bifurcation diagram",
@@ -192,8 +220,19 @@ export function render({model, el}) {
     setPresentation(on)
     send({action: "presentation", on})
   })
+  // Tours: choose one (the paper's and a teacher's own), or upload a tours file (read here, sent as text).
+  const tourChoice = h("select", {class: "tour-choice", "aria-label": "Guided tour"})
+  tourChoice.addEventListener("change", () => send({action: "tour", value: tourChoice.value}))
+  const tourFile = h("input", {type: "file", accept: ".json,application/json"})
+  tourFile.addEventListener("change", async () => {
+    const f = tourFile.files && tourFile.files[0]
+    if (f) send({action: "tour_file", value: await f.text()})
+    tourFile.value = ""
+  })
+  const tourUpload = h("label", {class: "tour-upload", title: "Load your own tours file (JSON, as app/tours.json)"},
+                       document.createTextNode("Load tours…"), tourFile)
   const header = h("header", {}, sideBtn, h("span", {class: "title", text: "Bilimovich Explorer"}), nav,
-                   h("span", {class: "spacer"}), presentBtn)
+                   h("span", {class: "spacer"}), tourChoice, tourUpload, presentBtn)
 
   const side = h("aside", {class: "side"})
   const byArea = {}
@@ -225,6 +264,38 @@ export function render({model, el}) {
   const secBar = h("div", {class: "bar"})
   for (const s of byArea.section || []) secBar.append(control(s))
   secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn)
+  // Play a parameter: its settings are controls (area "play"); Play/Pause and Step are actions.
+  const playBtn = h("button", {class: "act btn-play", text: "▶ Play"})
+  playBtn.addEventListener("click", () => send({action: playBtn.dataset.playing === "1" ? "pause" : "play"}))
+  const stepBtn = h("button", {class: "act light btn-step", text: "Step +1", title: "One frame on, as a still"})
+  stepBtn.addEventListener("click", () => send({action: "step"}))
+  const playStatus = h("span", {class: "play-status", "aria-live": "polite"})
+  const playBar = h("div", {class: "play-bar"})
+  for (const s of byArea.play || []) playBar.append(control(s))
+  playBar.append(playBtn, stepBtn, playStatus)
+  let lastShown = -1
+  // The guided tour's step.
+  const tourBack = h("button", {class: "act light btn-tour-back", text: "← Back"})
+  tourBack.addEventListener("click", () => send({action: "tour_step", value: "back"}))
+  const tourNext = h("button", {class: "act btn-tour-next", text: "Next →"})
+  tourNext.addEventListener("click", () => send({action: "tour_step", value: "next"}))
+  const tourClose = h("button", {class: "act light btn-tour-close", text: "✕", title: "Leave the tour"})
+  tourClose.addEventListener("click", () => send({action: "tour", value: ""}))
+  const tourTitle = h("span", {class: "tour-title"})
+  const tourCount = h("span", {class: "tour-count"})
+  const tourText = h("div", {class: "tour-text", "aria-live": "polite"})
+  const tourBox = h("div", {class: "tour", hidden: true, role: "region", "aria-label": "Guided tour"},
+                    h("div", {class: "tour-head"}, tourTitle, tourCount, h("span", {class: "spacer"}), tourBack,
+                      tourNext, tourClose), tourText)
+  const tourMsg = h("div", {class: "tour-message"})
+  // Arrow keys move through the tour (not while typing in a box).
+  document.addEventListener("keydown", (e) => {
+    if (tourBox.hidden || e.altKey || e.ctrlKey || e.metaKey) return
+    const t = e.composedPath()[0]
+    if (t && (t.tagName === "INPUT" || t.tagName === "SELECT" || t.tagName === "TEXTAREA")) return
+    if (e.key === "ArrowRight" || e.key === "PageDown") { send({action: "tour_step", value: "next"}); e.preventDefault() }
+    if (e.key === "ArrowLeft" || e.key === "PageUp") { send({action: "tour_step", value: "back"}); e.preventDefault() }
+  })
   const secErrors = h("div", {class: "error-box main-error", role: "alert"})
   const warnings = h("div", {class: "warnings reliability-warning"})
   const status = h("div", {class: "status-line", "aria-live": "polite"})
@@ -257,7 +328,7 @@ export function render({model, el}) {
   const colourNote = h("div", {class: "legend colour-note", hidden: true})
   const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
   const orbTable = h("div", {class: "orbits", hidden: true})
-  const paneSection = h("section", {class: "pane pane-section"}, secBar, secErrors, warnings, status,
+  const paneSection = h("section", {class: "pane pane-section"}, tourBox, tourMsg, secBar, playBar, secErrors, warnings, status,
                         h("div", {class: "plots"}, plotSection, plotSeries), orbStatus, orbTable, eqLegend, orbLegend,
                         densLegend, manLegend, manStatus, basStatus, basLegend, colourNote)
 
@@ -386,6 +457,14 @@ export function render({model, el}) {
     showView()
   }
   function setPresentation(on) {
+    // Presentation mode at 1280x720: the play row's settings (from the link) give their row to the plot; Play and
+    // Step join the section's buttons and what plays is said on the status line.
+    if (on) {
+      secBar.append(playBtn, stepBtn)
+    } else {
+      playBar.insertBefore(stepBtn, playStatus)
+      playBar.insertBefore(playBtn, stepBtn)
+    }
     app.classList.toggle("present", on)
     app.classList.toggle("side-collapsed", on)
     presentBtn.textContent = on ? "Leave presentation" : "Presentation mode"
@@ -412,7 +491,10 @@ export function render({model, el}) {
   function showView() {
     const v = model.view
     const s = v.section || {}
-    status.textContent = s.status || ""
+    const pl = s.play || {}
+    const playing = pl.playing && pl.frame >= 0 ? `frame ${pl.frame + 1}/${pl.frames}: ${pl.label} = ` +
+      `${(+pl.value).toPrecision(5)}, ${pl.fps} frames/s  |  ` : ""
+    status.textContent = (app.classList.contains("present") ? playing : "") + (s.status || "")
     lines(secErrors, s.errors || [])
     warnings.replaceChildren(...(s.warnings || []).map((w) =>
       h("div", {class: `warn-box level-${w.level} reliability-${w.level}`}, h("b", {text: w.level + ": "}),
@@ -446,6 +528,37 @@ export function render({model, el}) {
         h("tr", {}, h("td", {text: String(o.period)}), h("td", {text: o.type}), h("td", {text: f(o.q)}),
           h("td", {text: f(o.r)}), h("td", {text: o.mu})))))
     }
+    const p = s.play || {}
+    playBtn.dataset.playing = p.playing ? "1" : "0"
+    playBtn.textContent = p.playing ? "Pause" : "▶ Play"
+    playBtn.setAttribute("aria-pressed", String(!!p.playing))
+    playStatus.textContent = p.message || (p.frame >= 0 ? `frame ${p.frame + 1}/${p.frames}: ${p.label} = ` +
+      `${(+p.value).toPrecision(5)}` + (p.playing ? `, ${p.fps} frames/s` : "") : `${p.label} from ` +
+      `${(+p.range[0]).toPrecision(4)} to ${(+p.range[1]).toPrecision(4)} in ${p.frames} frames`)
+    if (p.playing && p.number >= 0 && p.number !== lastShown) {
+      // This frame's data came before this view (one websocket, in order): drawn at the next paint.
+      lastShown = p.number
+      requestAnimationFrame(() => send({action: "shown", value: String(p.number)}))
+    }
+    const tr = s.tour || {}
+    const choices = [["", "Guided tour…"], ...(tr.choices || [])]
+    if (tourChoice.options.length !== choices.length ||
+        choices.some(([v], i) => tourChoice.options[i].value !== v)) {
+      tourChoice.replaceChildren(...choices.map(([v, t]) => h("option", {value: v, text: t})))
+    }
+    tourChoice.value = tr.id || ""
+    tourBox.hidden = !tr.id
+    // A tour in presentation mode: the plot gets the room; the bars come back outside it or when a step plays.
+    app.classList.toggle("touring", !!tr.id)
+    app.classList.toggle("tour-plays", !!tr.plays)
+    if (tr.id) {
+      tourTitle.textContent = tr.title
+      tourCount.textContent = `step ${tr.step} of ${tr.steps}`
+      tourText.textContent = tr.text
+      tourBack.disabled = tr.step <= 1
+      tourNext.disabled = tr.step >= tr.steps
+    }
+    tourMsg.textContent = tr.message || ""
     sceneInfo.textContent = s.scene_info || ""
     seriesCap.textContent = s.series_caption || ""
     if (currentTab !== "section") {

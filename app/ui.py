@@ -9,7 +9,8 @@ server answers: the value in use, and why a typed value was refused.
 
 Messages from the page (``send_msg``) are dicts, checked here before anything uses them:
 ``{"commit": name, "text": str}`` or ``{"action": ..., ...}`` (stop, clear, run, tab,
-presentation, download, load_bench, bench_choice, find_orbits, clear_orbits, clear_manifolds).
+presentation, download, load_bench, bench_choice, find_orbits, clear_orbits, clear_manifolds; play, pause,
+step, shown: a played parameter's frame drawn; tour, tour_step, tour_file: the guided tours).
 """
 
 from __future__ import annotations
@@ -31,7 +32,10 @@ from app.views import TYPE_COLORS
 log = logging.getLogger(__name__)
 
 ACTIONS = frozenset({"stop", "clear", "run", "tab", "presentation", "download", "load_bench", "bench_choice",
-                     "find_orbits", "clear_orbits", "clear_manifolds"})  # fmt: skip
+                     "find_orbits", "clear_orbits", "clear_manifolds", "play", "pause", "step", "shown", "tour",
+                     "tour_step", "tour_file"})  # fmt: skip
+#: An uploaded tours file is the one long text a page sends (app/tours.py checks it).
+MAX_UPLOAD = 200_000
 
 
 def _spec() -> dict[str, Any]:
@@ -74,7 +78,7 @@ def check_message(data: Any) -> dict[str, Any] | None:
     for key in ("tab", "what", "value"):
         if key in data:
             v = data[key]
-            if not isinstance(v, str) or len(v) > MAX_TEXT:
+            if not isinstance(v, str) or len(v) > (MAX_UPLOAD if action == "tour_file" else MAX_TEXT):
                 return None
             out[key] = v
     if "on" in data:

@@ -43,6 +43,7 @@ from bokeh.models import (
     ResetTool,
     SaveTool,
     Scatter,
+    Text,
     Toolbar,
     UnionRenderers,
     WheelZoomTool,
@@ -72,6 +73,8 @@ ORBIT_KIND = {
     "flip saddle": "saddle",
 }
 ORBIT_COLOUR = "#c2006b"
+#: What a tour says to look at (a ring and its words): a colour no layer uses.
+MARK_COLOUR = "#0a58ca"
 #: Invariant manifolds of saddles: unstable and stable (apart from the T' map's red and blue).
 MANIFOLD_COLOURS = {"unstable": "#e8590c", "stable": "#0b7285"}
 N_COLORS = 20
@@ -214,7 +217,7 @@ class SectionFigure:
         # The layers a new page does not show (basins, density, manifolds, periodic orbits) are built
         # when first used and join the plot then, in their place (a string here): a new page builds
         # ~55 models fewer and sends ~30 fewer (Bokeh spends ~0.4 ms a model: docs/load.md).
-        self._order: list[Any] = [tp, "basins", "density", tracks, pts, sel, eq, ics, "manifolds", "orbits"]
+        self._order: list[Any] = [tp, "basins", "density", tracks, pts, sel, eq, ics, "manifolds", "orbits", "marks"]
         self._built: dict[str, list[GlyphRenderer]] = {}
         self._shown: set[str] = set()
         fig.renderers.extend([r for r in self._order if not isinstance(r, str)])
@@ -290,6 +293,27 @@ class SectionFigure:
         self.legend.items = [*self.legend.items, *(LegendItem(label={"field": "label"}, renderers=[r])
                                                    for r in orb[1::2])]  # fmt: skip
         return orb
+
+    def _build_marks(self) -> list[GlyphRenderer]:
+        # What a tour's step says to look at: a thick ring and its words, over everything.
+        self._marks = self._source({"q": [], "r": [], "label": []}, "marks_source")
+        ring = _renderer(self._marks, Scatter(x="q", y="r", marker="circle", size=34, fill_alpha=0.0,
+                                              line_color=MARK_COLOUR, line_width=4), name="tour_marks")  # fmt: skip
+        words = _renderer(self._marks, Text(x="q", y="r", text="label", x_offset=20, y_offset=-10,
+                                            text_font_size="13pt", text_font_style="bold", text_color=MARK_COLOUR,
+                                            background_fill_color="white", background_fill_alpha=0.75),
+                          name="tour_labels")  # fmt: skip
+        return [ring, words]
+
+    def set_marks(self, marks: list[tuple[float, float, str]]) -> None:
+        """Points to look at (a tour's step), ringed and labelled; [] removes them (built on first use)."""
+        if not marks and "marks" not in self._built:
+            return
+        self._activate("marks")
+        self._marks.data = {"q": [m[0] for m in marks], "r": [m[1] for m in marks], "label": [m[2] for m in marks]}
+
+    def marks_data(self) -> dict[str, list]:
+        return dict(self._marks.data) if "marks" in self._built else {"q": [], "r": [], "label": []}
 
     def _build_equilibria_hover(self) -> list[GlyphRenderer]:
         # Joins the toolbar with the first equilibria drawn (not a model of the new page).

@@ -22,6 +22,8 @@ from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import Params
 
 TRACK_SAMPLES = 360
+#: Samples of a played parameter's frame (app/play.py): a third of a still's (the tracks' cost: 38 ms, not 135).
+FRAME_TRACK_SAMPLES = 120
 TPRIME_GRID = 160
 PER_PERIOD_GRID = 80
 
@@ -46,20 +48,21 @@ class TracksLayer(_Frozen):
     channels: ClassVar[dict[str, str]] = {"tracks": LAYER}
     fields = ("show_tracks",)
 
-    def inputs(self) -> Params | object | None:
+    def inputs(self) -> tuple[Params, int] | object | None:
         params = self.system_params()
         if params is None:
             return KEEP
-        return params if self.host.state.show_tracks else None
+        frame = getattr(self.host, "frame_periods", None) is not None  # a frame of a played parameter
+        return (params, FRAME_TRACK_SAMPLES if frame else TRACK_SAMPLES) if self.host.state.show_tracks else None
 
-    def job(self, params: Params, cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
-        tr = equilibrium_tracks(params, n_t=TRACK_SAMPLES, cancel=cancelled)
+    def job(self, inputs: tuple[Params, int], cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
+        tr = equilibrium_tracks(inputs[0], n_t=inputs[1], cancel=cancelled)
         if tr.completed:  # else a newer setting: its own tracks job is on the way
             yield segments_by_type(tr.branches()), tr.section()
 
-    def apply(self, params: Params, result: tuple[list, Any]) -> None:
+    def apply(self, inputs: tuple[Params, int], result: tuple[list, Any]) -> None:
         segments, at_t0 = result
-        self.params = params
+        self.params = inputs[0]
         self.host.fig.set_tracks(segments)
         self.host.fig.set_equilibria(at_t0.q, at_t0.r, at_t0.types)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import io
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -29,6 +29,9 @@ class OrbitInputs:
     #: "" for the whole search (it replaces the orbits shown); a click's words for one seed (merged).
     where: str = ""
     query: dict[str, str] = field(default_factory=dict, compare=False)
+    #: While a parameter is played (app/play.py): the last frame's orbits, (q, r, period) each, continued to
+    #: this frame by Newton from where they were, each for its own period (not the grid over the view).
+    follow: tuple[tuple[float, float, int], ...] = ()
 
 
 class OrbitsLayer(Layer):
@@ -47,14 +50,15 @@ class OrbitsLayer(Layer):
     def inputs(self) -> OrbitInputs | object | None:
         st = self.host.state
         seeds = [tuple(s) for s in st.orbit_seeds]
-        if st.orbit_view:
+        follow = tuple(getattr(self.host, "follow_orbits", ()) or ())
+        if st.orbit_view and not follow:
             seeds += [tuple(x) for x in grid_seeds((*st.q_range, *st.r_range), *ORBIT_GRID)]
-        if not st.show_orbits or not seeds:
+        if not st.show_orbits or not (seeds or follow):
             return None
         params = self.system_params()
         if params is None:
             return KEEP
-        return OrbitInputs(params, tuple(seeds), tuple(range(1, st.orbit_period + 1)), "", st.to_query())
+        return OrbitInputs(params, tuple(seeds), tuple(range(1, st.orbit_period + 1)), "", st.to_query(), follow)
 
     def on_view(self) -> bool:
         return bool(self.host.state.orbit_view)
@@ -66,9 +70,34 @@ class OrbitsLayer(Layer):
         return inputs
 
     def job(self, inputs: OrbitInputs, cancelled: Callable[[], bool]) -> Iterator[OrbitSearch]:
-        res = find_orbits(inputs.params, list(inputs.seeds), list(inputs.periods), cancel=cancelled)
-        if not cancelled():
-            yield res
+        if not inputs.follow:
+            res = find_orbits(inputs.params, list(inputs.seeds), list(inputs.periods), cancel=cancelled)
+            if not cancelled():
+                yield res
+            return
+        # Followed: each period's orbits from their last points (one Newton each), then the clicked seeds.
+        parts = []
+        for n in sorted({p for _, _, p in inputs.follow}):
+            pts = [(q, r) for q, r, p in inputs.follow if p == n]
+            parts.append(find_orbits(inputs.params, pts, [n], cancel=cancelled))
+        if inputs.seeds:
+            parts.append(find_orbits(inputs.params, list(inputs.seeds), list(inputs.periods), cancel=cancelled))
+        if cancelled():
+            return
+        found: list[Orbit] = []
+        for o in (o for part in parts for o in part.orbits):
+            if not any(same_orbit(o, k) for k in found):
+                found.append(o)
+        periods = sorted({p for part in parts for p in part.extra.get("periods", [])})
+        yield replace(
+            parts[0],
+            orbits=found,
+            failures=[f for part in parts for f in part.failures],
+            seeds=sum(part.seeds for part in parts),
+            elapsed_s=sum(part.elapsed_s for part in parts),
+            completed=all(part.completed for part in parts),
+            extra={**parts[0].extra, "periods": periods},
+        )
 
     def current(self, inputs: OrbitInputs) -> bool:
         return inputs.params == self.host.system()  # else found for a system no longer on screen

@@ -90,6 +90,8 @@ class SectionLayer(Layer):
         self.outcome = ""
         self.run_n = req.ics.shape[0]
         query = self.host.state.to_query()  # the settings of this run: its points' export header
+        if req.periods != self.host.state.periods:  # a played parameter's frame: fewer periods than a still
+            query["periods"] = str(req.periods)
         if req.density:
             job = self.density.job(req, start_layers, query)
         else:
@@ -98,6 +100,9 @@ class SectionLayer(Layer):
         self.check_reliability(req)  # a priori: the new numerics against the states on screen
 
     def _points_job(self, req: SectionRequest, start_layers: Callable[[], None] | None, query: dict[str, str]) -> Any:
+        # A played parameter's frame is drawn whole (streamed, each frame would flash its first chunk alone).
+        whole = getattr(self.host, "frame_periods", None) is not None
+
         def job(cancelled: Callable[[], bool], emit: Emit) -> None:
             self.trace("section job starts")
             last_status = None
@@ -114,7 +119,7 @@ class SectionLayer(Layer):
                                       numerics=req.numerics, max_chunk=MAX_CHUNK, cancel=cancelled):  # fmt: skip
                 pending.append(chunk.long())
                 last_status = chunk.status
-                if cadence.due():
+                if not whole and cadence.due():
                     flush(chunk.status, chunk.done_periods, chunk.total_periods)
                 cadence.layers_if_late()
             if pending and last_status is not None:

@@ -1,0 +1,250 @@
+"""Play a parameter (issue 23, item 1): frames advance while playing, stop on pause, Step moves one frame, a slow
+frame never lets frames pile up, a frame has fewer periods than a still, the orbits are followed from frame to
+frame, and the played parameter, range, speed and direction round-trip through the URL."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import pytest
+
+from app.page import Page
+from app.play import ACK_TIMEOUT, FRAME_PERIODS
+from app.runner import WARM
+from app.state import state_from_query
+from explorer_core.analyses.orbits import find_orbits
+
+
+@pytest.fixture(autouse=True)
+def _warm() -> None:
+    WARM.set()
+
+
+class Jobs:
+    """An executor that runs the jobs only when drained: a frame is slow for as long as we like."""
+
+    def __init__(self) -> None:
+        self.queue: list[Callable[[], None]] = []
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> None:
+        self.queue.append(lambda: fn(*args, **kwargs))
+
+    def drain(self) -> None:
+        while self.queue:
+            self.queue.pop(0)()
+
+
+class Clock:
+    """The document's timeout callbacks, on a clock the test moves."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+        self.due: list[tuple[float, Callable[[], None]]] = []
+
+    def __call__(self) -> float:
+        return self.now
+
+    def schedule(self, delay: float, fn: Callable[[], None]) -> None:
+        self.due.append((self.now + delay, fn))
+
+    def advance(self, dt: float) -> None:
+        self.now += dt
+        ready = [d for d in self.due if d[0] <= self.now + 1e-12]
+        self.due = [d for d in self.due if d[0] > self.now + 1e-12]
+        for _, fn in ready:
+            fn()
+
+
+BASE = {"scene": "fig10", "n": "3", "periods": "300", "transient": "0", "tracks": "0", "tprime": "off",
+        "play_from": "-0.42", "play_to": "-0.35", "play_n": "8", "play_fps": "10"}  # fmt: skip
+
+
+def page_for(query: dict[str, str] | None = None, **kw: Any) -> tuple[Page, Jobs, Clock]:
+    jobs, clock = Jobs(), Clock()
+    page = Page({**BASE, **(query or {})}, lambda fn: fn(), executor=jobs, schedule=clock.schedule, **kw)
+    page.player._clock = clock
+    page.start()
+    jobs.drain()
+    return page, jobs, clock
+
+
+VALUES = np.linspace(-0.42, -0.35, 8)
+
+
+def test_frames_advance_while_playing_and_stop_on_pause() -> None:
+    page, jobs, clock = page_for()
+    page.handle({"action": "play"})
+    first = page.player.frame
+    assert page.state.alpha == pytest.approx(VALUES[first])  # the frame nearest the value in use (-0.4)
+    seen = [page.state.alpha]
+    for _ in range(4):
+        jobs.drain()  # the frame is drawn
+        clock.advance(0.1)  # 1 / play_fps later the next is asked for
+        seen.append(page.state.alpha)
+    np.testing.assert_allclose(seen, VALUES[first : first + 5])
+    assert page.ui.view["section"]["play"]["playing"] and page.ui.view["section"]["play"]["first_ms"] == 0
+    page.handle({"action": "pause"})
+    jobs.drain()
+    stopped = page.state.alpha
+    clock.advance(5.0)
+    jobs.drain()
+    assert page.state.alpha == stopped and not page.player.playing
+    assert page.ui.view["section"]["play"]["playing"] is False
+
+
+def test_a_frame_has_fewer_periods_than_a_still_and_pause_computes_the_still() -> None:
+    page, jobs, clock = page_for()
+    assert page.session.n_points == 3 * 300
+    page.handle({"action": "play"})
+    jobs.drain()
+    assert page.session.n_points == 3 * FRAME_PERIODS
+    # the export of a frame says how many periods it has (not the still's 300 of the URL)
+    assert f"periods={FRAME_PERIODS}" in page.session.csv_bytes().getvalue().decode().splitlines()[0]
+    page.handle({"action": "pause"})
+    jobs.drain()
+    assert page.session.n_points == 3 * 300
+
+
+def test_step_moves_one_frame_in_the_direction_set() -> None:
+    page, jobs, clock = page_for({"alpha": str(VALUES[3])})
+    page.handle({"action": "step"})
+    jobs.drain()
+    assert page.state.alpha == pytest.approx(VALUES[4]) and not page.player.playing
+    page.commit("play_dir", "backward")
+    page.handle({"action": "step"})
+    page.handle({"action": "step"})
+    jobs.drain()
+    assert page.state.alpha == pytest.approx(VALUES[2])
+    assert page.session.n_points == 3 * 300  # a step is a still
+    clock.advance(10.0)
+    assert page.state.alpha == pytest.approx(VALUES[2])  # nothing plays on
+
+
+def test_bounce_turns_at_the_ends() -> None:
+    page, jobs, clock = page_for({"alpha": str(VALUES[6]), "play_dir": "bounce"})
+    page.handle({"action": "play"})
+    seen = [page.player.frame]
+    for _ in range(4):
+        jobs.drain()
+        clock.advance(0.1)
+        seen.append(page.player.frame)
+    assert seen == [6, 7, 6, 5, 4]
+
+
+def test_no_pile_up_when_a_frame_is_slow() -> None:
+    """A frame not drawn yet: however long it takes, no next frame is asked for; when it is drawn, one is."""
+    page, jobs, clock = page_for()
+    page.handle({"action": "play"})
+    frame = page.player.frame
+    queued = len(jobs.queue)
+    assert queued >= 1
+    clock.advance(30.0)  # 300 frame intervals: the frame is still computing
+    assert page.player.frame == frame and len(jobs.queue) == queued and not clock.due
+    jobs.drain()
+    assert len(clock.due) == 1  # drawn late: the next is due at once (no catching up on the missed frames)
+    clock.advance(0.0)
+    assert page.player.frame == frame + 1
+
+
+def test_in_a_browser_the_next_frame_waits_for_the_page_to_show_the_last() -> None:
+    page, jobs, clock = page_for(wait_for_browser=True)
+    page.handle({"action": "play"})
+    jobs.drain()
+    frame = page.player.frame
+    number = page.ui.view["section"]["play"]["number"]
+    assert number >= 1
+    clock.advance(0.5)  # computed, not shown yet: a slow browser
+    assert page.player.frame == frame
+    page.handle({"action": "shown", "value": str(number)})
+    clock.advance(0.1)
+    assert page.player.frame == frame + 1
+    jobs.drain()
+    clock.advance(ACK_TIMEOUT + 0.2)  # the page never answered: the player goes on after ACK_TIMEOUT
+    clock.advance(0.0)
+    assert page.player.frame == frame + 2
+
+
+def test_the_orbits_are_followed_from_frame_to_frame() -> None:
+    """With the orbits layer on, each frame's Newton starts from the last frame's orbits (not the grid); the
+    period-1 orbits found agree with an independent search from a grid at the frame's value."""
+    page, jobs, clock = page_for({"alpha": str(VALUES[7]), "orbits": "1", "orb_all": "1", "orb_n": "1",
+                                  "play_dir": "backward"})  # fmt: skip
+    before = [(o["q"], o["r"]) for o in page.session.orbits]
+    assert before  # the grid found period-1 orbits at alpha = -0.35
+    page.handle({"action": "play"})
+    jobs.drain()
+    clock.advance(0.1)  # second frame: follows the first frame's orbits
+    inputs = page.session.layers["orbits"].inputs()
+    assert len(inputs.follow) == len(page.session.orbits) and inputs.follow
+    jobs.drain()
+    followed = sorted((round(o["q"], 6), round(o["r"], 6)) for o in page.session.orbits)
+    grid = find_orbits(page.state.system(), [(q, r) for q in np.linspace(-2, 1.5, 10)
+                                             for r in np.linspace(-3.5, 0.5, 10)], [1])  # fmt: skip
+    for q, r in followed:
+        assert any(abs(o.points[0, 0] - q) < 1e-6 and abs(o.points[0, 1] - r) < 1e-6 for o in grid.orbits)
+    assert page.state.alpha == pytest.approx(VALUES[6])  # the first frame is the value in use, then one back
+
+
+def test_the_play_settings_round_trip_through_the_url() -> None:
+    page, jobs, clock = page_for({"play": "g1", "play_from": "0.5", "play_to": "1.5", "play_n": "30",
+                                  "play_fps": "12", "play_dir": "bounce"})  # fmt: skip
+    q = page.state.to_query()
+    assert (q["play"], q["play_from"], q["play_to"], q["play_n"], q["play_fps"], q["play_dir"]) == (
+        "g1", "0.5", "1.5", "30", "12", "bounce")  # fmt: skip
+    again, errors = state_from_query(q)
+    assert not errors and again.to_query() == q
+
+
+def test_a_bad_range_is_refused_naming_the_value() -> None:
+    page, jobs, clock = page_for({"play": "I11", "play_from": "1", "play_to": "2"})
+    msg = page.commit("play_from", "-3")
+    assert msg and "-3" in msg and "I11" in msg and page.state.play_from == (1.0,)
+    assert "play_fps" in str(state_from_query({"play_fps": "0"})[1])
+    page.commit("play_to", "1")
+    page.handle({"action": "play"})
+    assert not page.player.playing and "nothing to play" in page.ui.view["section"]["play"]["message"]
+
+
+def test_a_frame_draws_the_tracks_with_fewer_samples_and_the_same_equilibria_at_t0() -> None:
+    """A frame's tracks take FRAME_TRACK_SAMPLES samples over the period (a still: TRACK_SAMPLES); the
+    equilibria at t0 (the diamonds) do not depend on how many: the same points as the still's."""
+    from app.layers.frozen import FRAME_TRACK_SAMPLES, TRACK_SAMPLES
+
+    page, jobs, clock = page_for({"tracks": "1", "alpha": str(VALUES[0])})
+    still = {k: list(v) for k, v in page.fig.equilibria.data.items()}
+    assert page.session.layers["tracks"].inputs()[1] == TRACK_SAMPLES and still["q"]
+    page.handle({"action": "play"})
+    assert page.session.layers["tracks"].inputs()[1] == FRAME_TRACK_SAMPLES
+    jobs.drain()
+    frame = {k: list(v) for k, v in page.fig.equilibria.data.items()}
+    assert frame["type"] == still["type"]
+    np.testing.assert_allclose(frame["q"], still["q"], atol=1e-9)
+    np.testing.assert_allclose(frame["r"], still["r"], atol=1e-9)
+    page.handle({"action": "pause"})
+    assert page.session.layers["tracks"].inputs()[1] == TRACK_SAMPLES
+
+
+def test_the_played_value_is_marked_on_the_bifurcation_diagram() -> None:
+    """A line at the value in use on the diagram follows the frames (the chart's cross already follows the state,
+    once a chart is computed: app.analyses.ChartTab._mark)."""
+    page, jobs, clock = page_for()
+    page.handle({"action": "tab", "tab": "bifurcation"})
+    page.handle({"action": "tab", "tab": "section"})
+    page.handle({"action": "play"})
+    jobs.drain()
+    clock.advance(0.1)
+    jobs.drain()
+    assert page.state.alpha != pytest.approx(-0.4)  # moved on from the value the page opened with
+    assert page.tabs["bifurcation"].now.location == pytest.approx(page.state.alpha)
+
+
+def test_a_frame_is_drawn_whole_not_streamed() -> None:
+    """Each frame replaces the points once, with all of them (streamed, a frame would flash its first chunk)."""
+    page, jobs, clock = page_for({"n": "60"})
+    sizes: list[int] = []
+    page.fig.points.on_change("data", lambda attr, old, new: sizes.append(len(new["q"])))
+    page.handle({"action": "play"})
+    jobs.drain()
+    assert len(sizes) == 1 and sizes[0] == page.session.n_points > 0.9 * 60 * FRAME_PERIODS
