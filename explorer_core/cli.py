@@ -325,7 +325,7 @@ def cmd_section(args: argparse.Namespace) -> int:
                       progress=run.update)  # fmt: skip
     summary = _with_scene(sec.summary(), args)
     if args.out:
-        summary["csv"] = {"path": args.out, "rows": sec.to_csv(args.out)}
+        summary["csv"] = sec.write(args.out)
     warnings = []
     if args.json or not args.quiet:  # when the method is unreliable for this run, say so (--quiet silences it)
         from explorer_core.analyses.reliability import assess_section
@@ -432,7 +432,7 @@ def cmd_tprime(args: argparse.Namespace) -> int:
     else:
         tmap = tprime_map(params, args.t if args.t is not None else params.t0, q_range, r_range, args.grid)
     if args.out:
-        export.write_through(args.out, tmap.to_npz)
+        tmap.write(args.out)
     if args.json or not args.out:
         ok = tmap.values[tmap.ok]
         _print_json({"kind": tmap.kind, "t": tmap.t, "grid": [tmap.q.size, tmap.r.size], "fractions": tmap.fractions(),
@@ -562,10 +562,6 @@ def _point_in_bound(text: str, name: str, numerics: Numerics) -> tuple[float, fl
     return q, r
 
 
-def _multiplier_cells(mu: Any) -> list[float]:
-    return [float(mu[0].real), float(mu[0].imag), float(mu[1].real), float(mu[1].imag)]
-
-
 def cmd_orbits(args: argparse.Namespace) -> int:
     from explorer_core.analyses import orbits as orb
 
@@ -615,10 +611,8 @@ def cmd_orbits(args: argparse.Namespace) -> int:
                "params": params.as_dict(), "numerics": numerics.as_dict()}  # fmt: skip
     _with_scene(summary, args)
     if args.out:
-        rows = ([i, o.period, o.kind, o.stable, j, q, r, *_multiplier_cells(o.multipliers)]
-                for i, o in enumerate(found) for j, (q, r) in enumerate(o.points))  # fmt: skip
-        header = ["orbit", "period", "type", "stable", "j", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im"]
-        summary["csv"] = {"path": args.out, "rows": export.write_csv(args.out, header, rows)}
+        search = orb.OrbitSearch(params, numerics, found, failures, len(pairs), elapsed, not run())
+        summary["csv"] = search.write(args.out)
 
     def lines() -> list[str]:
         out = []

@@ -246,3 +246,30 @@ def test_a_drift_fit_cancelled_before_any_member_returns_an_empty_fit() -> None:
     assert fit.members.shape == (0, 2) and not fit.completed and not fit.complete
     assert fit.lost == [Loss("members not found", 3, "cancelled")]
     assert json.loads(export.dumps(fit.summary()))["members"] == 0
+
+
+def test_section_orbits_and_tprime_write_their_own_files(tmp_path: Any) -> None:
+    """The results the CLI used to write inline (section, orbit search, T' map) write themselves too."""
+    from explorer_core.analyses.orbits import find_orbits
+    from explorer_core.analyses.tprime import tprime_map
+    from explorer_core.solve.section import section
+
+    sec = section(FIG8B, np.array([[-0.04, -2.4], [0.1, -2.0]]), 5)
+    orbits = find_orbits(FIG8B, np.array([[-0.04, -2.4]]), [1])
+    tmap = tprime_map(FIG8B, 0.0, (-1.0, 1.0), (-3.0, -1.0), 8)
+    for result, suffixes in ((sec, (".csv", ".json")), (orbits, (".csv", ".json")), (tmap, (".npz",))):
+        for suffix in suffixes:
+            path = str(tmp_path / f"{type(result).__name__}{suffix}")
+            assert result.write(path)["path"] == path
+            if suffix == ".csv":
+                table = np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding=None)
+                assert table.size >= 1 and "np.float64" not in open(path).read()
+                assert np.issubdtype(table.dtype["q"], np.floating)
+            elif suffix == ".npz":
+                with np.load(path) as data:
+                    assert np.allclose(data["values"], tmap.values, equal_nan=True)
+            else:
+                with open(path) as fh:
+                    assert json.load(fh)
+        with pytest.raises(export.OutputError, match="written as"):
+            result.write(str(tmp_path / "out.png"))

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.drawing import Drawable
 from explorer_core.solve import poincare
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
@@ -136,6 +136,12 @@ class OrbitSearch(Drawable):
             "numerics": self.numerics.as_dict(),
             **self.extra,
         }
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: :meth:`to_csv`; ``.json``: the summary."""
+        return export.write_by_suffix(
+            path, {".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "orbit search"
+        )
 
     def to_csv(self, path: str) -> int:
         """One row per orbit point: ``orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im``."""

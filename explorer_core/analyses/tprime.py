@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.drawing import Drawable
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.poincare import PoincareMap
@@ -63,7 +63,11 @@ class TPrimeMap(Drawable):
             "failed": float(np.count_nonzero(~self.ok) / self.ok.size),
         }
 
-    def to_npz(self, path: str) -> None:
+    def write(self, path: str) -> dict[str, Any]:
+        """``.npz``: :meth:`to_npz`, at exactly ``path``."""
+        return export.write_by_suffix(path, {".npz": lambda p: export.write_through(p, self.to_npz)}, "T' map")
+
+    def to_npz(self, path: Any) -> None:
         """Arrays plus the parameters as JSON, so the file says what it holds."""
         np.savez_compressed(
             path,

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.drawing import Drawable
 from explorer_core.progress import Progress
 from explorer_core.solve.integrators import Batch, Status, advance
@@ -199,6 +199,12 @@ class Section(Drawable):
             "params": self.params.as_dict(),
             "numerics": self.numerics.as_dict(),
         }
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: :meth:`to_csv`; ``.json``: the summary."""
+        return export.write_by_suffix(
+            path, {".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "section"
+        )
 
     def to_csv(self, path: str) -> int:
         """Write ``traj,k,q,r`` rows (valid points only); returns the row count."""
