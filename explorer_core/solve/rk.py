@@ -22,9 +22,12 @@ benchmark. What varies is data:
 Members of a block share one step sequence; a step is accepted only if every member's own error norm
 is <= 1, so each meets its tolerance (a block of one is an ordinary adaptive integrator). Every
 period ends exactly on the section time ``t_base + k period`` (computed, never accumulated): the last
-step is clipped to it. Failures are data: a member that escapes, overflows, or alone forces the step
-below the round-off floor gets its :class:`Status` and leaves the block, keeping its last section
-state; the others go on.
+step is clipped to it. Time is kept inside the period (0 to ``period``) and the coefficients are taken at
+``t_base`` plus it, the same phase of the periodic forcing: a stage time keeps its digits however many
+periods in (as ``t0 + k T + t`` it was rounded to ulp(t), the error floor of long runs), and the map from
+section ``k`` is the same computation for every ``k``. Failures are data: a member that escapes, overflows,
+or alone forces the step below the round-off floor gets its :class:`Status` and leaves the block, keeping its
+last section state; the others go on.
 
 Layout, for speed: live members are kept packed at the front of the block (a failed one is swapped
 with the last live one) and stages are stored as ``(stage, component, member)``, so every inner loop
@@ -459,16 +462,18 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
         for j in range(clock.n_periods):
             if n_live == 0:
                 break
-            ta = t_base + (k_first + j) * period
-            tb = t_base + (k_first + j + 1) * period
-            t = ta
+            # Time inside the period, from 0 to ``period``: the forcing's phase at t_base + (k_first + j) period
+            # + t is that at t_base + t, and a stage time t + c h then keeps its digits (at t ~ 6000, 1000
+            # periods in, ulp(t) ~ 1e-12 jittered every coefficient evaluation: the error floor of long runs).
+            tb = period
+            t = 0.0
             if system == LYAPUNOV:
                 for p in range(n_live):
                     ys[6, p] = 0.0  # the divergence integral restarts every period
                     lg[0, p] = 0.0
                     lg[1, p] = 0.0
             if t != c_time:
-                _coefs(num, gpc, den, forcing, row, shared, t, slot, n_live, c)
+                _coefs(num, gpc, den, forcing, row, shared, t_base + t, slot, n_live, c)
                 c_time = t
             for p in range(n_live):
                 for comp in range(dim):
@@ -488,18 +493,18 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                 habs = span
                 for p in range(n_live):
                     r = row[slot[p]]
-                    hp = _initial_step(system, dim, tab.order, num, gpc, den, forcing, r, t, d, span, ys, k, s, p,
-                                       rtol, atol, cw)  # fmt: skip
+                    hp = _initial_step(system, dim, tab.order, num, gpc, den, forcing, r, t_base + t, d, span, ys, k,
+                                       s, p, rtol, atol, cw)  # fmt: skip
                     habs = min(habs, hp)
             steps = 0
             saw_nonfinite = False
             while n_live > 0:
-                hmin = 10.0 * _EPS * max(abs(t), span)
+                hmin = 10.0 * _EPS * max(abs(t_base + (k_first + j) * period), span)
                 if fixed > 0:
                     if steps == fixed:
                         break
                     hstep = span / fixed
-                    t = ta + d * steps * hstep  # step times from ta, not accumulated
+                    t = d * steps * hstep  # step times from the period's start, not accumulated
                     last = steps + 1 == fixed
                 else:
                     remaining = (tb - t) * d
@@ -515,13 +520,13 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                 for st in range(1, s):
                     ts = t + c_vec[st] * hs
                     if ts != c_time:
-                        _coefs(num, gpc, den, forcing, row, shared, ts, slot, n, c)
+                        _coefs(num, gpc, den, forcing, row, shared, t_base + ts, slot, n, c)
                         c_time = ts
                     _combine(a_mat, st, hs, st, k, dim, n, acc)
                     _eval(system, shared, c, ys, acc, 0, n, k, st)
                 tn = tb if last else t + hs
                 if tn != c_time:
-                    _coefs(num, gpc, den, forcing, row, shared, tn, slot, n, c)
+                    _coefs(num, gpc, den, forcing, row, shared, t_base + tn, slot, n, c)
                     c_time = tn
                 _combine(b_row, 0, hs, s, k, dim, n, acc)
                 if fixed <= 0:  # the error estimate needs the new state beside the old one
