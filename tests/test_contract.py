@@ -273,3 +273,14 @@ def test_section_orbits_and_tprime_write_their_own_files(tmp_path: Any) -> None:
                     assert json.load(fh)
         with pytest.raises(export.OutputError, match="written as"):
             result.write(str(tmp_path / "out.png"))
+
+
+def test_continuation_from_seeds_continues_every_orbit_found() -> None:
+    """Three period-1 orbits of Fig. 8B (saddle, flip saddle, unstable focus): each continued. Fails on 2cce8ac,
+    where the second orbit's position was looked up with list.index, whose == compared arrays: ValueError (the
+    app's orbit diagram with 'follow the orbits' logged it)."""
+    seeds = np.array([[-1.457, -4.130], [-0.0377, -2.398], [-0.019, 0.077]])
+    res = continuation.continue_from_seeds(FIG8B, "alpha", (-0.45, -0.44), seeds, periods=(1,), max_orbits=4)
+    starts = [b.states[0] for b in res.branches if b.parent is None]
+    assert len(starts) == 3, starts
+    assert res.complete

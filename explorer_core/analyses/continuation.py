@@ -1239,14 +1239,14 @@ def _continue_from_seeds(
         p = Progress(seen[0], len(found), "orbits", time.perf_counter() - t0)
         progress(Step(p, upd.detail))  # type: ignore[misc]
 
-    for orb in found:
+    # (by position: an Orbit's == compares arrays, so found.index() raised for any but the first)
+    for i, orb in enumerate(found):
         if cancel is not None and cancel():
             out.completed = False
-            out.lost.append(Loss("orbits found but not continued", len(found) - found.index(orb), "cancelled"))
+            out.lost.append(Loss("orbits found but not continued", len(found) - i, "cancelled"))
             break
         if _on_a_branch(out, orb, a):
             continue  # already followed: the orbit is a point of a branch computed for an earlier seed
-        i = found.index(orb)
         res = _continue_orbit(params, param, value_range, orb.points[0], orb.period, switch=switch,
                               max_period=max(max_period, orb.period), numerics=numerics, cancel=cancel,
                               workers=workers, progress=None if progress is None else (lambda u, i=i: step(u, i)),
