@@ -79,7 +79,8 @@ CASES = [
           (-0.35, -0.38), FIXED_POINT_035, 1, switch=True, max_period=2),
     _case("continue_from_seeds", continuation.iter_continue_from_seeds, continuation.continue_from_seeds, FIG10,
           "alpha", (-0.35, -0.36), [FIXED_POINT_035], periods=(1,), switch=False),
-    _case("drift", drift.iter_drift_fit, drift.drift_fit, get_scene("fig3").params, (200, 300), degree=(0, 2), m=3,
+    # m = 6: two batches of draws (with m = 3 the first batch of 6 can hold all three: nothing left to cancel)
+    _case("drift", drift.iter_drift_fit, drift.drift_fit, get_scene("fig3").params, (200, 300), degree=(0, 2), m=6,
           box=(-3, 3, 6, 10), seed=1),
     _case("equilibrium_tracks", equilibria.iter_equilibrium_tracks, equilibria.equilibrium_tracks, FIG10, 120),
     _case("reproduce", reproduce.iter_reproduce, reproduce.reproduce, "tiny", stages=("sections", "lyapunov")),
