@@ -109,7 +109,7 @@ class ContinuationOptions:
     curve_ds_max: float = 0.05
     growth: float = 1.5
     shrink: float = 0.5
-    contraction: float = 0.3
+    contraction: float = 0.5
     max_points: int = MAX_POINTS
     corrector_tol: float = CORRECTOR_TOL
     max_iter: int = 8
