@@ -26,7 +26,8 @@ import numpy as np
 from bokeh.palettes import Category10
 
 from app.analyses import CHART_LEGEND, CURVE_STYLE
-from app.layers.basins import BASIN_COLOURS, OUTCOME_COLOURS, OUTCOME_NAMES
+from app.layers.basins import BASIN_COLOURS, OUTCOME_COLOURS, OUTCOME_NAMES, attractor_words
+from app.layers.frozen import segments_by_type
 from app.layers.orbits import orbit_row
 from app.views import (
     BASIN_ALPHA,
@@ -182,18 +183,8 @@ def draw_equilibria(e: Equilibria, **opts: Any) -> hv.Overlay:
 
 
 def track_segments(tr: Tracks) -> list[tuple[np.ndarray, np.ndarray, str]]:
-    """Each branch split where its type changes (consecutive pieces share a sample, so they join)."""
-    out = []
-    for b in tr.branches():
-        q, r, types = b["q"], b["r"], b["types"]
-        start = 0
-        for i in range(1, len(types) + 1):
-            if i == len(types) or types[i] != types[start]:
-                end = min(i + 1, len(types))
-                if end - start >= 2:
-                    out.append((q[start:end], r[start:end], types[start]))
-                start = i
-    return out
+    """Each branch split where its type changes, as the app draws it (consecutive pieces share a sample)."""
+    return segments_by_type(tr.branches())
 
 
 def draw_tracks(tr: Tracks, **opts: Any) -> hv.Overlay:
@@ -326,15 +317,7 @@ def basin_colours(b: Basins) -> dict[int, str]:
 
 def basin_words(b: Basins, a: Any) -> str:
     """The app's legend words for an attractor."""
-    if not a.attracting:
-        what = "conservative island (not an attractor)"
-    elif a.kind == "periodic":
-        what = f"period-{a.period} cycle"
-    else:
-        what = a.kind.replace("_", "-") + " attractor"
-    if a.orbit_type:
-        what += f" ({a.orbit_type})"
-    return f"{what}: {100 * b.fraction.get(a.id, 0.0):.1f}%"
+    return f"{attractor_words(a)}: {100 * b.fraction.get(a.id, 0.0):.1f}%"
 
 
 def draw_basins(b: Basins, **opts: Any) -> hv.Overlay:

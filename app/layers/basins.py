@@ -27,6 +27,17 @@ OUTCOME_NAMES = {
 }
 
 
+def attractor_words(a: Any) -> str:
+    """What an attractor is, in the legend's words (the app's and the notebook's)."""
+    if not a.attracting:  # invariant curves of a conservative island: no attractor
+        what = "conservative island (not an attractor)"
+    elif a.kind == "periodic":
+        what = f"period-{a.period} cycle"
+    else:
+        what = a.kind.replace("_", "-") + " attractor"
+    return what + (f" ({a.orbit_type})" if a.orbit_type else "")
+
+
 @dataclass(frozen=True)
 class BasinInputs:
     params: Params
@@ -87,14 +98,7 @@ class BasinsLayer(Layer):
         for a in b.attractors:
             if a.kind == "escape":
                 continue
-            if not a.attracting:  # invariant curves of a conservative island: no attractor
-                what = "conservative island (not an attractor)"
-            elif a.kind == "periodic":
-                what = f"period-{a.period} cycle"
-            else:
-                what = a.kind.replace("_", "-") + " attractor"
-            if a.orbit_type:
-                what += f" ({a.orbit_type})"
+            what = attractor_words(a)
             if len(a.points):
                 what += f" at ({a.points[0, 0]:.4g}, {a.points[0, 1]:.4g})"
             legend.append([as_drawn(colours[a.id]), f"{what}: {100 * b.fraction.get(a.id, 0.0):.1f}%"])
