@@ -10,8 +10,21 @@ import contextlib
 import os
 from pathlib import Path
 
-#: Default integration method for sections ("rk4", "dp5" or "dop853").
-DEFAULT_METHOD = "dop853"
+#: Default integration method: ``"auto"`` is resolved by the tolerance when the settings are made
+#: (:func:`explorer_core.solve.tableaus.resolve_method`): Verner 9(8) for VERN9_MIN_RTOL <= rtol <= VERN9_MAX_RTOL,
+#: DOP853 elsewhere. Other names ("rk4", "dp5", "dop853", "vern9", "taylor") are used as given.
+DEFAULT_METHOD = "auto"
+#: Loosest tolerance at which "auto" takes vern9. Measured (benchmarks/method_choice.py, one process, methods
+#: alternated, median of 5, load 1-4, 2026-11-25; vern9's time / DOP853's): plain sections 0.94 / 0.89 / 0.79 /
+#: 0.67 at rtol 1e-7 / 1e-8 / 1e-9 / 1e-10; the tangent system loses at 1e-8 (chart of regimes 1.38, 1e-7: 1.10)
+#: and wins from 1e-9 on (chart 0.74 / 0.88 at 1e-9 / 1e-10; Lyapunov spectrum 0.97 / 0.87 / 0.78 / 0.87 at
+#: 1e-8 / 1e-9 / 1e-10 / 1e-12); orbits and continuation (1e-12) 0.95 and 0.80, manifolds (1e-10) 0.84, the
+#: Fig. 10 orbit diagram 0.72 / 0.82 at 1e-9 / 1e-10. So vern9 from 1e-9 down; the charts and basins (1e-8)
+#: stay on DOP853.
+VERN9_MAX_RTOL = 1e-9
+#: Tightest tolerance at which "auto" takes vern9: below 1e-13 its error estimate picks up round-off and its
+#: steps grow (solve/tableaus.py), DOP853 does not.
+VERN9_MIN_RTOL = 1e-13
 #: Default relative/absolute tolerance of the adaptive methods. Chosen so that
 #: regular orbits are reproduced to ~1e-6 after 200 periods (see README).
 DEFAULT_RTOL = 1e-10

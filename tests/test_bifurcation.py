@@ -183,9 +183,11 @@ def test_fixed_seeding_in_lockstep_is_the_value_by_value_diagram() -> None:
     assert np.array_equal(one.points, b.points) and np.array_equal(one.final, b.final)
     assert b.completed and b.status_counts() == a.status_counts() == {"ok": 48}
     pa, pb = a.periods(tol=1e-5), b.periods(tol=1e-5)
-    # Other step sequences: at alpha = -0.4017 a transient that ends within the 400 periods on one of them
-    # (period 2) has not ended on the other (its 64 points show no period yet).
-    assert (pa != pb).sum() <= 1
+    # Other step sequences: a transient that ends within the 400 periods on one of them has not ended on the
+    # other (its 64 points show no period yet): at one value with DOP853 (alpha = -0.4017), at two with vern9.
+    # Where both show a period it is the same.
+    differ = pa != pb
+    assert differ.sum() <= 2 and np.all((pa[differ] == 0) | (pb[differ] == 0))
     assert {0, 1, 2, 4} <= set(pa.ravel().tolist())
     for s, v, i in zip(*np.nonzero((pa > 0) & (pa == pb)), strict=True):
         p = int(pa[s, v, i])

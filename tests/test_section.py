@@ -108,7 +108,9 @@ def test_cancel_stops_and_keeps_what_was_computed() -> None:
 
 def test_failed_trajectory_points_never_returned() -> None:
     params = Params(inertia=(1, 2, 4, 0, 0, 0), alpha=0.1)
-    sec = section(params, [(0.0, 8.0), (0.2, 0.1)], 300, numerics=Numerics(bound=30.0))
+    # (0, 8) wanders chaotically before the drift takes it past the bound; when depends on the method's
+    # digits (vern9 at 1e-10 keeps it inside for 300 periods), so the method is pinned: this tests the section.
+    sec = section(params, [(0.0, 8.0), (0.2, 0.1)], 300, numerics=Numerics(method="dop853", bound=30.0))
     assert sec.status_labels()[0] == "escaped"
     traj, k, q, r = sec.long()
     assert np.all(np.isfinite(q)) and np.all(np.isfinite(r))

@@ -55,7 +55,7 @@ from explorer_core.system.params import ParameterError, Params
 
 KINDS = ("unstable", "stable")
 #: Integration of the members: along the manifold errors only move points along it, across it they shrink.
-MANIFOLD_NUMERICS = Numerics(method="dop853", rtol=1e-10, atol=1e-10)
+MANIFOLD_NUMERICS = Numerics(rtol=1e-10, atol=1e-10)  # "auto": vern9 (config.VERN9_MAX_RTOL)
 #: Default refinement, in pixels of the view (Krauskopf & Osinga's Delta and alpha_max).
 DELTA_PX = 3.0
 ALPHA_MAX = 0.3

@@ -38,7 +38,7 @@ from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
 
 #: Integration settings for orbits: the residual can only be as small as ``P^n`` is accurate.
-ORBIT_NUMERICS = Numerics(method="dop853", rtol=1e-12, atol=1e-12)
+ORBIT_NUMERICS = Numerics(rtol=1e-12, atol=1e-12)  # "auto": vern9 (config.VERN9_MAX_RTOL)
 #: Longest period searched (``P^n`` of a chaotic region has multipliers ~ e^(lambda n T): Newton's basin shrinks).
 MAX_PERIOD = 64
 #: Newton stops when the residual ``|P^n(x) - x|`` is below ``ftol (1 + |x|)``.
@@ -293,7 +293,7 @@ def find_orbits(
     ----------
     seeds : (m, 2) points of the section at ``t0``.
     periods : one period or several (each seed is tried with each); at most :data:`MAX_PERIOD`.
-    numerics : integration of ``P^n`` (default :data:`ORBIT_NUMERICS`, DOP853 at 1e-12).
+    numerics : integration of ``P^n`` (default :data:`ORBIT_NUMERICS`, vern9 at 1e-12 by the "auto" rule).
     ftol : convergence: ``|P^n(x) - x| <= ftol (1 + |x|)``.
     max_step : the trust radius: a Newton step moves at most this far.
     patience : a seed stops after this many iterations without halving its residual (None: only

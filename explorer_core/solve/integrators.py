@@ -35,7 +35,7 @@ import numpy as np
 from explorer_core import config
 from explorer_core.solve import rk, taylor
 from explorer_core.solve.rk import FIELD, Status
-from explorer_core.solve.tableaus import METHODS, Method, get_method
+from explorer_core.solve.tableaus import METHODS, Method, get_method, resolve_method
 from explorer_core.system.model import Model
 from explorer_core.system.params import Params, check_time
 
@@ -216,7 +216,7 @@ def run(
     npts : (n,) int array
         Number of periods each trajectory completed in this call.
     """
-    meth = get_method(method)
+    meth = get_method(resolve_method(method, float(rtol), bool(adaptive)))
     n = batch.n
     n_periods = int(n_periods)
     if batch.y.shape[1] != rk.STATE_SIZE[system]:

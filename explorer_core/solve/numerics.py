@@ -15,13 +15,17 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
-from explorer_core.solve.tableaus import get_method
+from explorer_core.solve.tableaus import get_method, resolve_method
 from explorer_core.system.params import ParameterError
 
 
 @dataclass(frozen=True)
 class Numerics:
-    """How to integrate: method, tolerances, budgets. Validated on construction."""
+    """How to integrate: method, tolerances, budgets. Validated on construction.
+
+    ``method="auto"`` (the default, ``config.DEFAULT_METHOD``) is replaced on construction by the method that
+    wins at ``rtol`` (:func:`~explorer_core.solve.tableaus.resolve_method`: vern9 at 1e-9..1e-13, else dop853).
+    """
 
     method: str = config.DEFAULT_METHOD
     rtol: float = config.DEFAULT_RTOL
@@ -33,15 +37,16 @@ class Numerics:
     adaptive: bool = True
 
     def __post_init__(self) -> None:
-        try:
-            object.__setattr__(self, "method", get_method(self.method).name)
-        except ValueError as exc:
-            raise ParameterError(str(exc)) from None
         for name, lo, hi in (("rtol", 1e-15, 1.0), ("atol", 1e-300, 1e6)):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and lo <= v <= hi):
                 raise ParameterError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
             object.__setattr__(self, name, float(v))
+        # "auto" becomes the concrete method here, so what is saved and shown says which method ran.
+        try:
+            object.__setattr__(self, "method", resolve_method(self.method, self.rtol, bool(self.adaptive)))
+        except ValueError as exc:
+            raise ParameterError(str(exc)) from None
         for name, lo, hi in (("steps_per_period", 1, 10_000_000), ("max_steps", 10, 1_000_000_000)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:

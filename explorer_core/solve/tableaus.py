@@ -8,7 +8,8 @@ used by scipy.integrate, which the tests compare against). VERN9: Verner's 9(8) 
 pair (2010), checked against every order condition in the tests; at tolerances 1e-8 and below it
 needs 4-17 % fewer field evaluations per period than DOP853 with 1.2-5x smaller errors at the same
 tolerance (benchmarks/high_accuracy.py), so it is the method for accurate work (orbits, Lyapunov
-spectra, long runs); the default stays DOP853 (config.DEFAULT_METHOD) until the pinned results move.
+spectra, long runs): the default method ``"auto"`` (config.DEFAULT_METHOD, :func:`resolve_method`) takes it from
+rtol config.VERN9_MAX_RTOL down to config.VERN9_MIN_RTOL, where the analyses measured faster with it.
 Below rtol ~1e-13 its error estimate (weights up to 2.6) picks up round-off -- most likely of the stage
 times ``t + c h`` at large ``t`` (ulp(t) ~ 1e-12 after 1000 periods) -- and its steps grow with ``t``: at
 1e-14, 44 -> 72 steps per period over 400 periods alone, 72 -> 286 in lock-step blocks of 32 (DOP853:
@@ -24,6 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from explorer_core import config
 
 # Classical RK4.
 RK4_A = np.array(
@@ -440,9 +443,23 @@ METHODS: dict[str, Method] = {
 }
 
 
+#: The method name resolved by the tolerance (:func:`resolve_method`).
+AUTO = "auto"
+
+
 def get_method(name: str) -> Method:
     """The method called ``name``; a ValueError names the bad value and the choices."""
     try:
         return METHODS[str(name).lower()]
     except KeyError:
-        raise ValueError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}") from None
+        raise ValueError(f"unknown method {name!r}; choose one of {AUTO}, {', '.join(METHODS)}") from None
+
+
+def resolve_method(name: str, rtol: float, adaptive: bool = True) -> str:
+    """The concrete method that ``name`` stands for at ``rtol``: ``"auto"`` is ``"vern9"`` where it needs less
+    work than DOP853 (``config.VERN9_MIN_RTOL <= rtol <= config.VERN9_MAX_RTOL``, measured in
+    benchmarks/method_choice.py) and ``"dop853"`` elsewhere and at fixed steps (``adaptive=False``); any other
+    name is checked and returned as the method's own name."""
+    if str(name).lower() == AUTO:
+        return "vern9" if adaptive and config.VERN9_MIN_RTOL <= rtol <= config.VERN9_MAX_RTOL else "dop853"
+    return get_method(name).name
