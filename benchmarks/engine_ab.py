@@ -14,7 +14,8 @@ the kernels and not the thread pool.
 
 ``--suite analyses`` times the analyses as a user runs them (default workers: both cores): periodic orbits
 from a grid of seeds, the Fig. 10 continuation with branch switching, a chart of regimes, basins and the
-Fig. 8B flip saddle's manifolds (the "nothing slower by more than 5 %" check of the one-contract issue).
+Fig. 8B flip saddle's manifolds (the "nothing slower by more than 5 %" check of the one-contract issue), the
+Fig. 10 orbit diagram and a Lyapunov spectrum at the default numerics (whose method the "auto" rule chooses).
 """
 
 from __future__ import annotations
@@ -87,12 +88,27 @@ def analyses_cases() -> dict:
         m = manifolds(fig8b.params, flip, length=10.0, view=view, pixels=(800, 600))
         return [sum(p.shape[0] for p in b.pieces) for b in m.branches]
 
+    def diagram():
+        from explorer_core.analyses.bifurcation import bifurcation_diagram
+        from explorer_core.analyses.sweeps import sweep_values
+
+        res = bifurcation_diagram(fig10.params, "alpha", sweep_values((-0.42, -0.35), 100), points=200, transient=500,
+                                  ics=[(-0.0959, -1.962)])  # fmt: skip
+        return res.npts
+
+    def spectrum():
+        from explorer_core.analyses.lyapunov import lyapunov_spectrum
+
+        return lyapunov_spectrum(fig8b.params, [(-0.5, -1.0), (-0.4, -1.1)], 2000).exponents
+
     return {
         "orbits (fig8B, 8x8 seeds, periods 1-3)": orbits,
         "continuation (fig10, alpha -0.35..-0.42, switch)": cont,
         "chart (fig8B 12x8 px, 2 ICs, 200+200, rtol 1e-8)": chart,
         "basins (alpha -0.5, I11 1.6, 40x40)": basin,
         "manifolds (fig8B flip saddle, length 10, 800x600)": manifold,
+        "orbit diagram (fig10, 100 values x (500 + 200), default numerics)": diagram,
+        "Lyapunov spectrum (fig8B, 2 ICs x 2000, default numerics)": spectrum,
     }
 
 
