@@ -191,7 +191,9 @@ def drift_state(r_abs: float, params: Params | None = None) -> np.ndarray:
     transverse rate is ``|r| / 3``, so after one period the point is on it.
     """
     params = params or get_scene(DRIFT_SCENE).params
-    pts, status, _, _ = _run(params, [(DRIFT_Q, -float(r_abs))], 1, Numerics(rtol=REF_TOL, atol=REF_TOL, bound=1e300))
+    pts, status, _, _ = _run(
+        params, [(DRIFT_Q, -float(r_abs))], 1, Numerics(method="dop853", rtol=REF_TOL, atol=REF_TOL, bound=1e300)
+    )
     if status[0] != Status.OK:
         raise ParameterError(f"the drift start at |r| = {r_abs} failed ({Status(int(status[0])).label})")
     return pts[0, 0].copy()
@@ -407,7 +409,7 @@ def local_map(
     if reference == "ivp":
         ref = np.array([_ivp_points(params, y, 1)[0][0] for y in starts])
     elif reference == "dop853":
-        ref = _run(params, starts, 1, Numerics(rtol=REF_TOL, atol=REF_TOL, bound=1e300))[0][:, 0]
+        ref = _run(params, starts, 1, Numerics(method="dop853", rtol=REF_TOL, atol=REF_TOL, bound=1e300))[0][:, 0]
     else:
         raise ParameterError(f"reference must be 'ivp' or 'dop853', got {reference!r}")
     ref_s = time.perf_counter() - t
@@ -458,8 +460,8 @@ def rk4_on_drift(size: str | Size = "full", cancel: Cancel | None = None) -> Rk4
     params = get_scene(DRIFT_SCENE).params
     start = drift_state(20.0, params)
     big = 1e300  # no escape bound: failures show as themselves
-    ref_pts, _, ref_steps, _ = _run(params, start, sz.drift_periods, Numerics(rtol=REF_TOL, atol=REF_TOL, bound=big),
-                                    per_period=True)  # fmt: skip
+    ref_num = Numerics(method="dop853", rtol=REF_TOL, atol=REF_TOL, bound=big)
+    ref_pts, _, ref_steps, _ = _run(params, start, sz.drift_periods, ref_num, per_period=True)
     reference = ref_pts[0]
     ivp, nfev = _ivp_points(params, start, sz.ivp_periods)
     diff = relative_error(reference[: sz.ivp_periods], ivp)
@@ -478,7 +480,7 @@ def rk4_on_drift(size: str | Size = "full", cancel: Cancel | None = None) -> Rk4
     adaptive: dict[str, dict[str, Any]] = {}
     for name, tol in (("dop853 1e-10", 1e-10), ("dop853 1e-6", 1e-6)):
         pts, st, sp, el = _run(
-            params, start, sz.drift_periods, Numerics(rtol=tol, atol=tol, bound=big), per_period=True
+            params, start, sz.drift_periods, Numerics(method="dop853", rtol=tol, atol=tol, bound=big), per_period=True
         )
         err = relative_error(pts[0], reference)
         adaptive[name] = {
@@ -564,7 +566,7 @@ class AdaptiveCost:
 def _tolerance_calibration(periods: int) -> dict[str, Any]:
     """Global error after ``P`` periods over ``tol (1 + |x|) P`` on the island orbits of Fig. 1A (rtol = atol)."""
     params = get_scene(DRIFT_SCENE).params
-    ref = section(params, ISLAND_ICS, periods, numerics=Numerics(rtol=REF_TOL, atol=REF_TOL))
+    ref = section(params, ISLAND_ICS, periods, numerics=Numerics(method="dop853", rtol=REF_TOL, atol=REF_TOL))
     size = np.max(np.abs(ref.points), axis=(1, 2))
     out: dict[str, Any] = {
         "ics": [list(p) for p in ISLAND_ICS],
@@ -610,7 +612,7 @@ def _section_scaling(sz: Size) -> dict[str, Any]:
     """
     params = get_scene("fig1C").params
     box = get_scene("fig1C").box
-    num = Numerics()
+    num = Numerics(method="dop853")  # the study measures DOP853 (its labels say so)
     n_fixed = sz.scaling_ics[len(sz.scaling_ics) // 2]
     p_fixed = sz.scaling_periods[len(sz.scaling_periods) // 2]
     ics = random_ics(n_fixed, box, seed=0)
@@ -774,7 +776,7 @@ def collapse_onset(
             except ParameterError:
                 labels.append("refused")
                 continue
-            sec = section(params, [(0.5, 0.5)], 1, numerics=Numerics(rtol=tol, atol=tol))
+            sec = section(params, [(0.5, 0.5)], 1, numerics=Numerics(method="dop853", rtol=tol, atol=tol))
             lab = Status(int(sec.status[0])).label
             labels.append(lab)
             if first is None and lab == "step_collapsed":
@@ -916,12 +918,14 @@ def float_precision(size: str | Size = "full", cancel: Cancel | None = None) -> 
     sz = get_size(size)
     params = get_scene(DRIFT_SCENE).params
     ics = np.array(ISLAND_ICS[:4])
-    ref = section(params, ics, sz.float_periods, numerics=Numerics(rtol=REF_TOL, atol=REF_TOL))
+    ref = section(params, ics, sz.float_periods, numerics=Numerics(method="dop853", rtol=REF_TOL, atol=REF_TOL))
     ref_pts = np.transpose(ref.points, (1, 0, 2))  # (periods, n, 2)
     err, chaotic, secs = {}, {}, {}
     cparams = get_scene(ATTRACTOR_SCENE).params
     cics = attractor_ensemble(cparams, ATTRACTOR_IC, 4, transient=100, offset=1e-3)
-    cref = section(cparams, cics, sz.float_chaos_periods, numerics=Numerics(rtol=REF_TOL, atol=REF_TOL))
+    cref = section(
+        cparams, cics, sz.float_chaos_periods, numerics=Numerics(method="dop853", rtol=REF_TOL, atol=REF_TOL)
+    )
     cref_pts = np.transpose(cref.points, (1, 0, 2))
     for name, (dt, clock) in FLOAT_VARIANTS.items():
         if cancel is not None and cancel():
@@ -1014,7 +1018,7 @@ def lyapunov_sensitivity(size: str | Size = "full", cancel: Cancel | None = None
     sz = get_size(size)
     params = get_scene(ATTRACTOR_SCENE).params
     ics = attractor_ensemble(params, ATTRACTOR_IC, sz.lyap_members, transient=1000, offset=1e-3,
-                             numerics=Numerics(rtol=1e-12, atol=1e-12))  # fmt: skip
+                             numerics=Numerics(method="dop853", rtol=1e-12, atol=1e-12))  # fmt: skip
     settings = lyapunov_settings(sz)
     names, results = [], []
     for name, num in settings:
