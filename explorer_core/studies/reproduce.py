@@ -213,7 +213,8 @@ def _lyapunov(rep: Reproduction, stop: Callable[[], bool]) -> None:
         sc = get_scene(sid)
         ic = _find_attractor_ic(sc, size.lyap_search, max(200, min(1000, size.lyap_periods)))
         settings = (
-            f"{size.lyap_members} members x {size.lyap_periods} periods after {size.lyap_transient}; DOP853 1e-10"
+            f"{size.lyap_members} members x {size.lyap_periods} periods after {size.lyap_transient}; "
+            f"{numerics.method} 1e-10"
         )
         fig = "Fig. 4" + sid[-1] if sid.startswith("fig4") else "Fig. 8B"
         paper = PAPER["fig4"] if sid.startswith("fig4") else PAPER["fig8B"]
@@ -551,7 +552,8 @@ def _cascade(rep: Reproduction, sc: Scene, bisected: list[dict[str, float]], sto
     cas = continue_orbit(start, "alpha", (hi, lo), seeds[0].points[0], 1, switch=True, max_period=16, cancel=stop)
     rep.cascade = cas
     pds = [b for b in cas.bifurcations if b.kind == "period_doubling"]
-    st = "continuation of the period-1 orbit, DOP853 1e-12; Newton on the defining system"
+    num = cas.numerics
+    st = f"continuation of the period-1 orbit, {num.method} {num.rtol:g}; Newton on the defining system"
     for k, b in enumerate(pds):
         diag = next((f for f in bisected if f["from"] == b.period), None)
         note = "beyond the orbit diagram's resolution"
