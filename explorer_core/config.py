@@ -18,7 +18,8 @@ DEFAULT_METHOD = "auto"
 #: alternated, median of 5, load 1-4, 2026-11-25; vern9's time / DOP853's): plain sections 0.94 / 0.89 / 0.79 /
 #: 0.67 at rtol 1e-7 / 1e-8 / 1e-9 / 1e-10; the tangent system loses at 1e-8 (chart of regimes 1.38, 1e-7: 1.10)
 #: and wins from 1e-9 on (chart 0.74 / 0.88 at 1e-9 / 1e-10; Lyapunov spectrum 0.97 / 0.87 / 0.78 / 0.87 at
-#: 1e-8 / 1e-9 / 1e-10 / 1e-12); orbits and continuation (1e-12) 0.95 and 0.80, manifolds (1e-10) 0.84, the
+#: 1e-8 / 1e-9 / 1e-10 / 1e-12); continuation (1e-12) 0.77-0.80, periodic orbits about even (0.89-1.08, one
+#: 17 ms case 1.24), manifolds (1e-10) 0.84-0.90, the
 #: Fig. 10 orbit diagram 0.72 / 0.82 at 1e-9 / 1e-10. So vern9 from 1e-9 down; the charts and basins (1e-8)
 #: stay on DOP853.
 VERN9_MAX_RTOL = 1e-9
