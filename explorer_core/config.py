@@ -19,9 +19,8 @@ DEFAULT_METHOD = "auto"
 #: 0.67 at rtol 1e-7 / 1e-8 / 1e-9 / 1e-10; the tangent system loses at 1e-8 (chart of regimes 1.38, 1e-7: 1.10)
 #: and wins from 1e-9 on (chart 0.74 / 0.88 at 1e-9 / 1e-10; Lyapunov spectrum 0.97 / 0.87 / 0.78 / 0.87 at
 #: 1e-8 / 1e-9 / 1e-10 / 1e-12); continuation (1e-12) 0.77-0.80, periodic orbits about even (0.89-1.08, one
-#: 17 ms case 1.24), manifolds (1e-10) 0.84-0.90, the
-#: Fig. 10 orbit diagram 0.72 / 0.82 at 1e-9 / 1e-10. So vern9 from 1e-9 down; the charts and basins (1e-8)
-#: stay on DOP853.
+#: 17 ms case 1.24), manifolds (1e-10) 0.84-0.90, the Fig. 10 orbit diagram 0.72 / 0.82 at 1e-9 / 1e-10.
+#: So vern9 from 1e-9 down; the charts and basins (1e-8) stay on DOP853.
 VERN9_MAX_RTOL = 1e-9
 #: Tightest tolerance at which "auto" takes vern9: below 1e-13 its error estimate picks up round-off and its
 #: steps grow (solve/tableaus.py), DOP853 does not.
