@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from jobs import Jobs
 
 from app.page import Page
 from app.play import ACK_TIMEOUT, FRAME_PERIODS
@@ -20,20 +21,6 @@ from explorer_core.analyses.orbits import find_orbits
 @pytest.fixture(autouse=True)
 def _warm() -> None:
     WARM.set()
-
-
-class Jobs:
-    """An executor that runs the jobs only when drained: a frame is slow for as long as we like."""
-
-    def __init__(self) -> None:
-        self.queue: list[Callable[[], None]] = []
-
-    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> None:
-        self.queue.append(lambda: fn(*args, **kwargs))
-
-    def drain(self) -> None:
-        while self.queue:
-            self.queue.pop(0)()
 
 
 class Clock:

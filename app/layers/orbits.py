@@ -9,10 +9,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from app.layers.base import KEEP, Layer, num, stale_note
+from app.layers.base import KEEP, Layer, stale_note
 from app.runner import LAYER, POINTS
 from app.state import MAX_MAGNITUDE, MAX_ORBIT_SEEDS, SYSTEM_FIELDS, url_keys
 from explorer_core.analyses.orbits import Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
+from explorer_core.export import cell
 from explorer_core.system.params import Params
 
 #: Seeds of the "every orbit in view" search: a grid over the plot window.
@@ -189,7 +190,7 @@ class OrbitsLayer(Layer):
             m = o.multipliers
             for j, (q, r) in enumerate(o.points):
                 nums = (q, r, m[0].real, m[0].imag, m[1].real, m[1].imag, o.det, o.liouville, o.residual)
-                buf.write(f"{i},{int(o.period)},{o.kind},{int(o.stable)},{j},{','.join(num(x) for x in nums)}\n")
+                buf.write(f"{i},{int(o.period)},{o.kind},{int(o.stable)},{j},{','.join(cell(x) for x in nums)}\n")
         return io.BytesIO(buf.getvalue().encode())
 
 
