@@ -174,6 +174,31 @@ def test_the_orbits_are_followed_from_frame_to_frame() -> None:
     assert page.state.alpha == pytest.approx(VALUES[6])  # the first frame is the value in use, then one back
 
 
+def test_an_orbit_born_at_a_period_doubling_between_frames_is_followed_too() -> None:
+    """Fig. 10's period-1 orbit doubles at alpha = -0.37534 (continuation, README). Played from -0.35 down with
+    the orbits followed, the frame past the doubling shows the period-2 orbit born there (seeded along the flip
+    multiplier's eigenvector), and it is an orbit an independent grid search finds at that value. (Before, only
+    the last frame's orbits were continued: the period-2 orbit never appeared while playing.)"""
+    page, jobs, clock = page_for({"alpha": "-0.35", "play_from": "-0.35", "play_to": "-0.4", "play_n": "6",
+                                  "orbits": "1", "orb_all": "1", "orb_n": "2"})  # fmt: skip
+    assert not any(o["period"] == 2 for o in page.session.orbits)  # none at -0.35
+    page.handle({"action": "play"})
+    for _ in range(4):  # -0.35, -0.36, -0.37, -0.38
+        jobs.drain()
+        if page.state.alpha < -0.3753:
+            break
+        clock.advance(0.1)
+    jobs.drain()
+    assert page.state.alpha == pytest.approx(-0.38)
+    born = [o for o in page.session.orbits if o["period"] == 2]
+    assert born, page.session.orbits
+    grid = find_orbits(page.state.system(), [(q, r) for q in np.linspace(-1.0, 0.8, 10)
+                                             for r in np.linspace(-3.2, -0.8, 10)], [2])  # fmt: skip
+    pairs = [o for o in grid.orbits if o.period == 2]
+    for o in born:
+        assert any(np.min(np.hypot(g.points[:, 0] - o["q"], g.points[:, 1] - o["r"])) < 1e-6 for g in pairs)
+
+
 def test_the_play_settings_round_trip_through_the_url() -> None:
     page, jobs, clock = page_for({"play": "g1", "play_from": "0.5", "play_to": "1.5", "play_n": "30",
                                   "play_fps": "12", "play_dir": "bounce"})  # fmt: skip
