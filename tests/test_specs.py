@@ -293,3 +293,29 @@ def test_the_cli_reports_a_refused_value_in_one_line(argv: list[str], needles: t
     assert err.startswith(f"bilimovich {argv[0]}: error: ") and "Traceback" not in err
     for needle in needles:
         assert needle in err, (needle, err)
+
+
+# --- the contract, with a spec ----------------------------------------------------------------------------------
+
+SPECS = {
+    "continuation": (lambda: continuation_spec(FIG10, "alpha", (-0.35, -0.38), FIXED_POINT_035, 1, switch=True,
+                                               max_period=2), iter_continue_orbit, continue_orbit),
+    "lyapunov": (lambda: lyapunov_spec(FIG8B, [(-1.0, -2.0), (-0.9, -2.1)], 64, transient=40), iter_lyapunov,
+                 lyapunov_spectrum),
+    "drift": (lambda: drift_spec(FIG3, (200, 300), degree=(0, 2), m=6, box=(-3, 3, 6, 10), seed=1), iter_drift_fit,
+              drift_fit),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", list(SPECS))
+def test_a_spec_runs_under_the_contract(name: str) -> None:
+    """``X(spec, progress=)`` gives every update, the last carrying the result; ``iter_X(spec, cancel=)`` cancelled
+    after its first update returns what it computed, incomplete, with its spec, and does not raise."""
+    make, iterate, call = SPECS[name]
+    spec = make()
+    seen: list[Any] = []
+    result = call(spec, progress=seen.append)
+    assert seen and seen[-1].result is result and result.spec == spec and result.complete
+    cut: list[Any] = []
+    part = run(iterate(spec, cancel=lambda: len(cut) >= 1), cut.append)
+    assert part.spec == spec and not part.complete and not part.completed and part.lost
