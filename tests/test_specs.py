@@ -319,3 +319,21 @@ def test_a_spec_runs_under_the_contract(name: str) -> None:
     cut: list[Any] = []
     part = run(iterate(spec, cancel=lambda: len(cut) >= 1), cut.append)
     assert part.spec == spec and not part.complete and not part.completed and part.lost
+
+
+def test_the_summary_says_what_was_asked() -> None:
+    """The JSON of a result carries its spec (the fit's random box and seed, the ensemble's offset, the
+    continuation's seed and period were in no summary before); the keys that were there are unchanged."""
+    spec = lyapunov_spec(FIG8B, [(-0.5, -1.0)], 5, ensemble=2, offset=1e-4, seed=3)
+    s = json.loads(export.dumps(lyapunov_spectrum(spec).summary()))
+    assert s["spec"] == json.loads(export.dumps(spec.as_dict())) and s["spec"]["offset"] == 1e-4
+    assert s["ensemble"] == {"size": 2, "ok": 2} and s["periods"] == 5
+    rc, out, err = run_cli("fit", "--scene", "fig3", "--window", "200,210", "--degree", "0,2", "--ic", "0,8", "--json")
+    assert rc == 0, err
+    d = json.loads(out)
+    assert d["spec"]["window"] == [200, 210] and d["spec"]["ics"] == [[0.0, 8.0]] and d["window"] == [200, 210]
+    rc, out, err = run_cli("continue", "--scene", "fig10", "--param", "alpha", "--range=-0.35,-0.352",
+                           "--from=-0.0959,-1.962", "--ds", "0.05", "--json")  # fmt: skip
+    assert rc == 0, err
+    d = json.loads(out)
+    assert d["spec"]["seed"] == [-0.0959, -1.962] and d["spec"]["period"] == 1 and d["range"] == [-0.35, -0.352]

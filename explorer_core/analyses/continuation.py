@@ -452,6 +452,8 @@ class Continuation(Drawable):
             out["param2"] = self.param2
             out["range2"] = [float(v) for v in self.range2 or ()]
             out["curves"] = [c.as_dict(self.param, self.param2) for c in self.curves]
+        if self.spec is not None:  # what was asked: the seed, period, switching, ... (enough to run it again)
+            out["spec"] = self.spec.as_dict()
         return out
 
     as_dict = summary

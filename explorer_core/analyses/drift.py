@@ -248,7 +248,7 @@ class DriftFit:
                     "complete": False, "lost": [loss.as_dict() for loss in self.lost],
                     "elapsed_s": round(self.elapsed_s, 6),
                     "params": self.params.as_dict() if self.params is not None else None,
-                    "numerics": self.numerics.as_dict()}  # fmt: skip
+                    "numerics": self.numerics.as_dict(), **self._spec()}  # fmt: skip
         cq, cr = self.mean()
         sq, sr = self.spread()
         tq, tr = self.mean_in_time()
@@ -278,7 +278,12 @@ class DriftFit:
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict() if self.params is not None else None,
             "numerics": self.numerics.as_dict(),
+            **self._spec(),
         }
+
+    def _spec(self) -> dict[str, Any]:
+        """What was asked (the random draws' box, seed and budget too), for the summary."""
+        return {"spec": self.spec.as_dict()} if self.spec is not None else {}
 
 
 def poly_text(coef: np.ndarray, var: str = "k", digits: int = 7) -> str:

@@ -291,6 +291,7 @@ class LyapunovResult(Drawable):
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict(),
             "numerics": self.numerics.as_dict(),
+            **({"spec": self.spec.as_dict()} if self.spec is not None else {}),  # what was asked (the ensemble's)
         }
 
 
