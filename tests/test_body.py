@@ -266,3 +266,22 @@ def test_a_lock_step_block_of_bodies_with_different_parameters_meets_each_ones_s
         assert nframes[i] == s.frames - 1
         np.testing.assert_allclose(frames[i, : nframes[i], :2], s.omega[1:, 1:], atol=1e-9)
         np.testing.assert_allclose(frames[i, : nframes[i], 2:], s.quaternion[1:], atol=1e-9)
+
+
+def test_at_alpha_zero_the_energy_is_conserved() -> None:
+    """``T' = alpha lambda = 0``: the constraint does no work (PHYSICS.md), while the body turns."""
+    params = REGULAR[0].with_(alpha=0.0)
+    s = body_series(params, (0.3, -0.8), 20, samples=16, numerics=TIGHT)
+    assert s.complete
+    np.testing.assert_allclose(s.energy, s.energy[0], rtol=1e-10)
+    assert np.abs(s.rotation()[-1] - np.eye(3)).max() > 0.1
+
+
+def test_a_series_does_not_depend_on_which_period_the_section_phase_is_counted_from() -> None:
+    """Metamorphic: ``t0`` one forcing period later is the same system (``g`` is periodic) and the same series."""
+    params, ic = REGULAR
+    a = body_series(params, ic, 10, samples=8, numerics=TIGHT)
+    b = body_series(params.with_(t0=params.t0 + params.period), ic, 10, samples=8, numerics=TIGHT)
+    np.testing.assert_allclose(b.t - params.period, a.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(b.quaternion, a.quaternion, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(b.omega, a.omega, rtol=0, atol=1e-10)
