@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from naive import NaiveField, ivp_body
 
-from explorer_core.analyses.body import BodySeries, body_series, principal_axes
+from explorer_core.analyses.body import BodySeries, body_series, iter_body_series, principal_axes
 from explorer_core.scenes import get_scene
 from explorer_core.solve import rk
 from explorer_core.solve.integrators import Batch, coefficients, run
@@ -285,3 +285,20 @@ def test_a_series_does_not_depend_on_which_period_the_section_phase_is_counted_f
     np.testing.assert_allclose(b.t - params.period, a.t, rtol=0, atol=1e-12)
     np.testing.assert_allclose(b.quaternion, a.quaternion, rtol=0, atol=1e-10)
     np.testing.assert_allclose(b.omega, a.omega, rtol=0, atol=1e-10)
+
+
+def test_the_series_streams_its_progress_under_the_contract() -> None:
+    params, ic = REGULAR
+    seen = []
+    s = body_series(params, ic, 150, samples=4, k0=10, progress=seen.append)
+    done = [u.progress.done for u in seen]
+    assert done == [10, 74, 138, 160] and all(u.progress.total == 160 for u in seen)
+    assert [u.result is None for u in seen] == [True, True, True, False] and seen[-1].result is s and s.complete
+    stop = []
+    cut = body_series(
+        params, ic, 150, samples=4, k0=10, progress=lambda u: stop.append(u), cancel=lambda: len(stop) >= 2
+    )
+    assert not cut.complete and cut.status == Status.CANCELLED and cut.frames == 64 * 4 + 1
+    assert stop[-1].progress.done == 74 and stop[-1].result is cut
+    with pytest.raises(ParameterError, match="samples must be"):
+        iter_body_series(params, ic, 5, samples=2)  # checked at once, before the first update

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,6 +25,8 @@ import numpy as np
 from explorer_core import config, export
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
+from explorer_core.progress import Progress, Step
+from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import advance_body, body_start
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.poincare import PoincareMap
@@ -236,6 +238,7 @@ def body_series(
     samples: int = 48,
     k0: int = 0,
     numerics: Numerics | None = None,
+    progress: Callable[[Step[BodySeries]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> BodySeries:
     """The body's orientation, angular velocity and energy along the trajectory from ``ic`` (at ``t0``).
@@ -244,25 +247,52 @@ def body_series(
     gives), then the body's system from there for ``periods`` periods, ``samples`` frames each; the
     orientation at ``t0 + k0 T`` is the identity by definition of the series. An escape or a failed step
     ends the series early (``status``, ``complete=False``, a :class:`Loss`); ``cancel`` is polled every
-    :data:`CHUNK_PERIODS` periods (a cancelled series keeps the frames computed).
+    :data:`CHUNK_PERIODS` periods (a cancelled series keeps the frames computed). ``progress`` gets every
+    update of :func:`iter_body_series`.
 
     Raises ParameterError (naming the value) for periods outside 1..10_000, samples outside 4..512, more than
     200_000 frames, an initial condition not finite or outside the escape bound, or the method taylor.
     """
-    start = time.perf_counter()
+    updates = iter_body_series(params, ic, periods, samples=samples, k0=k0, numerics=numerics, cancel=cancel)
+    return run_updates(updates, progress)
+
+
+def iter_body_series(
+    params: Params,
+    ic: Any,
+    periods: int,
+    *,
+    samples: int = 48,
+    k0: int = 0,
+    numerics: Numerics | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Iterator[Step[BodySeries]]:
+    """:func:`body_series` as updates (the contract of :mod:`explorer_core.progress`): one after the ``k0``
+    periods before the start and one per :data:`CHUNK_PERIODS` periods, in periods of ``k0 + periods``; the
+    last carries the series. The inputs are checked at once (a ParameterError before the first update)."""
     numerics = numerics or Numerics()
     x0 = _check(params, ic, periods, samples, k0, numerics)
-    periods, samples, k0 = int(periods), int(samples), int(k0)
+    return _iter_body_series(params, x0, int(periods), int(samples), int(k0), numerics, cancel)
+
+
+def _iter_body_series(
+    params: Params, x0: np.ndarray, periods: int, samples: int, k0: int, numerics: Numerics, cancel: Any
+) -> Iterator[Step[BodySeries]]:
+    start = time.perf_counter()
     moments, axes = principal_axes(params)
     total = periods * samples + 1
     lost: list[Loss] = []
 
-    def empty(status: Status, why: str) -> BodySeries:
+    def where(done_periods: int) -> Progress:
+        return Progress(done_periods, k0 + periods, "periods", time.perf_counter() - start)
+
+    def empty(status: Status, why: str) -> Step[BodySeries]:
         lost.append(Loss("frames", total, why))
         z = np.empty((0, 3))
-        return BodySeries(params, np.full(2, math.nan), k0, periods, samples, np.empty(0), z, np.empty((0, 4)),
-                          np.empty(0), moments, axes, status, False, lost, time.perf_counter() - start, numerics,
-                          x0.copy())  # fmt: skip
+        series = BodySeries(params, np.full(2, math.nan), k0, periods, samples, np.empty(0), z, np.empty((0, 4)),
+                            np.empty(0), moments, axes, status, False, lost, time.perf_counter() - start, numerics,
+                            x0.copy())  # fmt: skip
+        return Step(where(0 if status == Status.CANCELLED else k0 + periods), result=series)
 
     x = x0.copy()
     if k0 > 0:
@@ -270,11 +300,14 @@ def body_series(
         chunks = list(pmap.iterate(x0[None], 1, transient=k0 - 1, cancel=cancel))  # one chunk: the point k0
         chunk = chunks[-1] if chunks else None
         if chunk is None:
-            return empty(Status.CANCELLED, f"cancelled before the start (period {k0})")
+            yield empty(Status.CANCELLED, f"cancelled before the start (period {k0})")
+            return
         if chunk.npts[0] < 1:
             word = Status.of(int(chunk.status[0])).word
-            return empty(Status.of(int(chunk.status[0])), f"the trajectory ended ({word}) before period {k0}")
+            yield empty(Status.of(int(chunk.status[0])), f"the trajectory ended ({word}) before period {k0}")
+            return
         x = chunk.points[0, 0].copy()
+        yield Step(where(k0))
 
     out = np.empty((total, 6))
     out[0, :2] = x
@@ -294,6 +327,8 @@ def body_series(
         if batch.status[0] != Status.OK:
             status = Status.of(int(batch.status[0]))
             break
+        if first + n < periods:
+            yield Step(where(k0 + first + n))
     f = np.arange(done)
     s = f % samples
     t = params.t0 + (k0 + f // samples) * params.period + params.period * (s / samples)
@@ -309,6 +344,8 @@ def body_series(
     q, r = out[:done, 0], out[:done, 1]
     omega = np.column_stack([params.alpha + g_phase[s] * q, q, r])
     energy = 0.5 * np.einsum("fi,ij,fj->f", omega, params.inertia_matrix, omega)
-    return BodySeries(params, x, k0, periods, samples, t, omega, out[:done, 2:].copy(), energy, moments, axes, status,
-                      done == total, lost, time.perf_counter() - start, numerics, x0.copy(),
-                      int(batch.nsteps[0]))  # fmt: skip
+    series = BodySeries(params, x, k0, periods, samples, t, omega, out[:done, 2:].copy(), energy, moments, axes,
+                        status, done == total, lost, time.perf_counter() - start, numerics, x0.copy(),
+                        int(batch.nsteps[0]))  # fmt: skip
+    # A run that ended early (escape, failure) has nothing left to compute: its last update is at the end.
+    yield Step(where(k0 + periods if status != Status.CANCELLED else k0 + (done - 1) // samples), result=series)
