@@ -21,9 +21,10 @@ const BODY_CSS = `
 .body-view .body-bar { display: flex; flex-wrap: wrap; gap: 6px; align-items: center; font-size: .92em; }
 .body-view .body-bar button { font: inherit; padding: 2px 9px; border-radius: 4px; border: 1px solid #2c5f8a;
   background: #fff; color: #2c5f8a; cursor: pointer; }
-.body-view .body-bar button.body-play { background: #2c5f8a; color: #fff; min-width: 5.5em; }
+.body-view .body-bar button.body-play { background: #2c5f8a; color: #fff; min-width: 4.2em; }
 .body-view .body-bar button:disabled { opacity: .45; cursor: not-allowed; }
 .body-view .body-bar select { font: inherit; padding: 1px; }
+.app.present .body-view .body-bar, .app.present .body-view .body-status { font-size: .8em; }
 .body-view .body-status { font-size: .9em; color: #3a4554; min-height: 1.2em; }
 .body-view .body-status.lost { color: #842029; }
 `
@@ -34,6 +35,8 @@ const OMEGA_COLOUR = "#111111"
 //: Periods per second offered; the first shown is DEFAULT_SPEED.
 const SPEEDS = [0.05, 0.1, 0.25, 0.5, 1, 2, 4]
 const DEFAULT_SPEED = 0.25
+//: The inertia ellipsoid's largest semi-axis (the unit sphere's radius is 1; the box's largest side is 1).
+const ELLIPSOID_SIZE = 0.62
 
 function b64Floats(text) {
   // Little-endian float32, as app/bodyview.py writes them (every browser the app supports is little-endian).
@@ -106,9 +109,10 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
   const root = mk("div", {class: "body-view", role: "region", "aria-label": "The body in 3-D"})
   const canvasBox = mk("div", {class: "body-canvas-box"})
   const canvas = mk("canvas", {class: "body-canvas", role: "img",
-                               "aria-label": "The rigid body, its principal axes, omega and the unit sphere"})
+                               "aria-label": "The rigid body, its principal axes, omega and the unit sphere",
+                               title: "Drag to turn the view"})
   canvasBox.append(canvas)
-  const playBtn = mk("button", {class: "body-play", title: "Play or pause the body's motion"}, "▶ Play")
+  const playBtn = mk("button", {class: "body-play", title: "Play or pause the body's motion"}, "Play")
   const backBtn = mk("button", {class: "body-step-back", title: "One recorded frame back"}, "◀")
   const stepBtn = mk("button", {class: "body-step", title: "One recorded frame on"}, "▶|")
   const speedSel = mk("select", {class: "body-speed", "aria-label": "Speed in periods per second"})
@@ -117,11 +121,14 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
   const axisSel = mk("select", {class: "body-trace-axis", "aria-label": "Principal axis traced on the sphere"})
   for (const [i, t] of ["axis 1 (smallest moment)", "axis 2", "axis 3 (largest moment)"].entries()) {
     axisSel.append(mk("option", {value: String(i), title: `the trace of principal ${t} on the sphere`},
-                      `trace of ${t.split(" (")[0]}`))
+                      `trace: ${t.split(" (")[0]}`))
   }
   axisSel.value = "2"
+  const shapeSel = mk("select", {class: "body-shape", "aria-label": "The body drawn as"})
+  shapeSel.append(mk("option", {value: "box", title: "the uniform box with these principal moments"}, "box"),
+                  mk("option", {value: "ellipsoid", title: "the inertia ellipsoid (I w, w) = 1"}, "ellipsoid"))
   const bar = mk("div", {class: "body-bar"})
-  bar.append(playBtn, backBtn, stepBtn, speedSel, axisSel)
+  bar.append(playBtn, backBtn, stepBtn, speedSel, axisSel, shapeSel)
   const status = mk("div", {class: "body-status", "aria-live": "polite"})
   root.append(canvasBox, bar, status)
   host.append(root)
@@ -133,6 +140,8 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
   let playing = false
   let speed = DEFAULT_SPEED
   let traceAxis = 2
+  let shape = "box"
+  let shapeChosen = false  // by the user: kept for the next series (else: the box if one has these moments)
   let yaw = -0.6, pitch = 0.35
   let last = null          // time of the last animation frame
   let raf = 0
@@ -147,7 +156,8 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     const out = {
       frames: F, samples: d.samples | 0, k0: d.k0 | 0, tStart: +d.t_start, period: +d.period,
       t: b64Floats(d.t), omega: b64Floats(d.omega), quaternion: b64Floats(d.quaternion), energy: b64Floats(d.energy),
-      moments: d.moments, axes: d.axes, sides: d.box_sides, status: d.status || "", complete: !!d.complete,
+      moments: d.moments, axes: d.axes, sides: d.box_sides, boxExists: d.box_exists !== false,
+      ellipsoid: d.ellipsoid_axes || [1, 1, 1], status: d.status || "", complete: !!d.complete,
       lost: d.lost || [],
     }
     if (out.t.length !== F || out.omega.length !== 3 * F || out.quaternion.length !== 4 * F || out.energy.length !== F) {
@@ -234,10 +244,9 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     ctx.font = font(14, "600")
     const labels = ctx.measureText(parts.join("   ")).width <= w - 16 ? [parts.join("   ")]
       : [parts.slice(0, 2).join("   "), parts.slice(2).join("   ")]
-    // The sphere beside the legend (bottom left) when the canvas is wide, over it when not.
-    const top = (8 + 18 * labels.length) * scale, lh = 16 * scale, legW = 235 * scale, legH = 5 * lh + 8
-    const wide = w - legW >= 0.9 * (h - top)
-    const x0 = wide ? legW : 0, y1 = wide ? h : h - legH
+    // The sphere between the label (top) and the legend (two rows at the bottom).
+    const top = (8 + 18 * labels.length) * scale, lh = 16 * scale, legH = 2 * lh + 8
+    const x0 = 0, y1 = h - legH
     const cx = (x0 + w) / 2, cy = (top + y1) / 2
     const s = Math.max(10, 0.46 * Math.min(w - x0, y1 - top))  // the unit sphere's radius in pixels
     const P = (v) => {  // space -> [screen x, screen y, depth (> 0: behind the centre)]
@@ -318,6 +327,8 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     // The principal axes (space directions) and the box (vertices in the principal frame, then body, space).
     const dirs = [0, 1, 2].map((i) => mv(R, axisBody(i)))
     const half = data.sides.map((x) => x / 2)
+    const ell = data.ellipsoid.map((x) => ELLIPSOID_SIZE * x)
+    const ext = shape === "ellipsoid" ? ell : half  // where each axis leaves the body
     function arrow(a, b, colour, width, head) {
       ctx.strokeStyle = colour
       ctx.fillStyle = colour
@@ -335,7 +346,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     }
     function axis(i) {
       const d = dirs[i]
-      const a = P(d.map((x) => x * half[i])), b = P(d)
+      const a = P(d.map((x) => x * ext[i])), b = P(d)
       arrow(a, b, AXIS_COLOURS[i], 2.6, 11 * scale)
       ctx.fillStyle = AXIS_COLOURS[i]
       ctx.font = font(13, "bold")
@@ -355,14 +366,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
         faces.push({i, pts: [corner(-1, -1), corner(1, -1), corner(1, 1), corner(-1, 1)], normal})
       }
       for (const f of faces) {
-        // Lambert shading from a light above-left in front of the viewer; tinted by the axis the face is normal to.
-        const light = [-0.45, -0.75, 0.5], ln = Math.hypot(...light)
-        const lam = Math.max(0, -(f.normal[0] * light[0] + f.normal[1] * light[1] + f.normal[2] * light[2]) / ln)
-        const c = AXIS_COLOURS[f.i]
-        const rgb = [1, 3, 5].map((o) => parseInt(c.slice(o, o + 2), 16))
-        const shade = 0.72 + 0.28 * lam
-        const mix = rgb.map((x) => Math.round((0.5 * x + 0.5 * 255) * shade))
-        ctx.fillStyle = `rgb(${mix[0]},${mix[1]},${mix[2]})`
+        ctx.fillStyle = tint(f.i, lambert(f.normal))
         ctx.strokeStyle = "#3a4554"
         ctx.lineWidth = 1.3
         ctx.beginPath()
@@ -373,11 +377,69 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
       }
     }
 
+    function tint(i, lam) {
+      // A face (or a patch of the ellipsoid) normal to principal axis i, lit from above-left in front.
+      const c = AXIS_COLOURS[i]
+      const rgb = [1, 3, 5].map((o) => parseInt(c.slice(o, o + 2), 16))
+      const shade = 0.72 + 0.28 * lam
+      const mix = rgb.map((x) => Math.round((0.5 * x + 0.5 * 255) * shade))
+      return `rgb(${mix[0]},${mix[1]},${mix[2]})`
+    }
+    const light = [-0.45, -0.75, 0.5].map((x) => x / Math.hypot(-0.45, -0.75, 0.5))
+    const lambert = (n) => Math.max(0, -(n[0] * light[0] + n[1] * light[1] + n[2] * light[2]))
+    function ellipsoid() {
+      // The inertia ellipsoid (I w, w) = 1 (semi-axes 1 / sqrt(I_i), scaled): a mesh whose front patches are drawn
+      // (a convex body hides its back), each tinted by the principal axis its normal is nearest, and its three
+      // principal sections.
+      const NU = 32, NV = 16
+      const at = (u, v) => [ell[0] * Math.cos(v) * Math.cos(u), ell[1] * Math.cos(v) * Math.sin(u), ell[2] * Math.sin(v)]
+      const space = (p) => [0, 1, 2].map((c) => p[0] * dirs[0][c] + p[1] * dirs[1][c] + p[2] * dirs[2][c])
+      const grid = []
+      for (let b = 0; b <= NV; b++) {
+        const row = []
+        for (let a = 0; a <= NU; a++) row.push(P(space(at(2 * Math.PI * a / NU, -Math.PI / 2 + Math.PI * b / NV))))
+        grid.push(row)
+      }
+      for (let b = 0; b < NV; b++) for (let a = 0; a < NU; a++) {
+        const p = at(2 * Math.PI * (a + 0.5) / NU, -Math.PI / 2 + Math.PI * (b + 0.5) / NV)
+        const np = [p[0] / (ell[0] * ell[0]), p[1] / (ell[1] * ell[1]), p[2] / (ell[2] * ell[2])]
+        const nl = Math.hypot(...np)
+        const n = mv(V, space(np.map((x) => x / nl)))
+        if (n[1] >= 0) continue  // facing away
+        const i = [0, 1, 2].reduce((m, c) => (Math.abs(np[c]) > Math.abs(np[m]) ? c : m), 0)
+        ctx.fillStyle = ctx.strokeStyle = tint(i, lambert(n))
+        ctx.lineWidth = 0.8
+        const q = [grid[b][a], grid[b][a + 1], grid[b + 1][a + 1], grid[b + 1][a]]
+        ctx.beginPath()
+        q.forEach((pt, m) => (m ? ctx.lineTo(pt[0], pt[1]) : ctx.moveTo(pt[0], pt[1])))
+        ctx.closePath()
+        ctx.fill()
+        ctx.stroke()
+      }
+      // The principal sections (front halves): where the tinted patches meet, the body's "equators".
+      ctx.strokeStyle = "rgba(40,50,65,0.75)"
+      ctx.lineWidth = 1.2
+      for (const [i, j] of [[0, 1], [1, 2], [2, 0]]) {
+        ctx.beginPath()
+        let pen = false
+        for (let m = 0; m <= 96; m++) {
+          const u = 2 * Math.PI * m / 96, pp = [0, 0, 0], nn = [0, 0, 0]
+          pp[i] = ell[i] * Math.cos(u); pp[j] = ell[j] * Math.sin(u)
+          nn[i] = Math.cos(u) / ell[i]; nn[j] = Math.sin(u) / ell[j]
+          const front = mv(V, space(nn))[1] < 0
+          const pt = P(space(pp))
+          if (front) { if (pen) ctx.lineTo(pt[0], pt[1]); else ctx.moveTo(pt[0], pt[1]); pen = true } else pen = false
+        }
+        ctx.stroke()
+      }
+    }
+
     sphere(true)
     traceLine(true)
     const behind = [0, 1, 2].filter((i) => mv(V, dirs[i])[1] > 0)
-    for (const i of behind) axis(i)  // pointing away: the box hides where they leave it
-    box()
+    for (const i of behind) axis(i)  // pointing away: the body hides where they leave it
+    if (shape === "ellipsoid") ellipsoid()
+    else box()
     for (const i of [0, 1, 2]) if (!behind.includes(i)) axis(i)
     sphere(false)
     traceLine(false)
@@ -399,26 +461,28 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     ctx.fillStyle = "#1d2430"
     ctx.font = font(14, "600")
     labels.forEach((line, n) => ctx.fillText(line, 8, (18 + 18 * n) * scale))
-    // The legend, bottom left: the axes with their moments, omega, the trace.
-    const rows = [[AXIS_COLOURS[0], `axis 1, moment ${fmtNum(data.moments[0], 4)}`],
-                  [AXIS_COLOURS[1], `axis 2, moment ${fmtNum(data.moments[1], 4)}`],
-                  [AXIS_COLOURS[2], `axis 3, moment ${fmtNum(data.moments[2], 4)}`],
-                  [OMEGA_COLOUR, "ω (space frame)"],
-                  [AXIS_COLOURS[traceAxis], `trace of axis ${traceAxis + 1} on the unit sphere`]]
-    ctx.font = font(12)
-    rows.forEach(([c, t], n) => {
+    // The legend, two rows at the bottom: the axes with their moments, omega, the trace (each word in its colour).
+    const m = data.moments.map((x) => fmtNum(x, 4))
+    const rows = [[[AXIS_COLOURS[0], "1"], [AXIS_COLOURS[1], "2"], [AXIS_COLOURS[2], "3"],
+                   [null, `principal axes, moments ${m[0]}, ${m[1]}, ${m[2]}`]],
+                  [[OMEGA_COLOUR, "ω"], [null, "in space   "], [AXIS_COLOURS[traceAxis], "trace"],
+                   [null, `of axis ${traceAxis + 1} on the sphere`]]]
+    rows.forEach((row, n) => {
       const y = h - 8 - (rows.length - 1 - n) * lh
-      ctx.strokeStyle = c
-      ctx.lineWidth = n === 4 ? 1.8 : 2.6
-      ctx.beginPath(); ctx.moveTo(8, y - 4 * scale); ctx.lineTo(26 * scale, y - 4 * scale); ctx.stroke()
-      ctx.fillStyle = "#1d2430"
-      ctx.fillText(t, 32 * scale, y)
+      let x = 8
+      for (const [c, t] of row) {
+        if (c) {
+          ctx.strokeStyle = c
+          ctx.lineWidth = 2.6
+          ctx.beginPath(); ctx.moveTo(x, y - 4 * scale); ctx.lineTo(x + 14 * scale, y - 4 * scale); ctx.stroke()
+          x += 17 * scale
+        }
+        ctx.font = font(12, c ? "bold" : "")
+        ctx.fillStyle = c || "#1d2430"
+        ctx.fillText(t, x, y)
+        x += ctx.measureText(t).width + 6 * scale
+      }
     })
-    ctx.fillStyle = "#6b7685"
-    ctx.font = font(11)
-    ctx.textAlign = "right"
-    ctx.fillText("drag to turn", w - 6, h - 6)
-    ctx.textAlign = "left"
   }
 
   // --- the animation ---------------------------------------------------------------------------------------
@@ -464,7 +528,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     playing = on && !!data
     last = null
     stamps.length = 0
-    playBtn.textContent = playing ? "Pause" : "▶ Play"
+    playBtn.textContent = playing ? "Pause" : "Play"
     playBtn.setAttribute("aria-pressed", String(playing))
     paint()
   }
@@ -481,6 +545,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
   backBtn.addEventListener("click", () => step(-1))
   speedSel.addEventListener("change", () => { speed = +speedSel.value; last = null })
   axisSel.addEventListener("change", () => { traceAxis = +axisSel.value; paint() })
+  shapeSel.addEventListener("change", () => { shape = shapeSel.value; shapeChosen = true; paint() })
   let drag = null
   canvas.addEventListener("pointerdown", (e) => { drag = [e.clientX, e.clientY]; canvas.setPointerCapture(e.pointerId) })
   canvas.addEventListener("pointermove", (e) => {
@@ -506,6 +571,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
       if (payload && payload.frames) {
         data = decode(payload)
         traces = [null, null, null]
+        if (!shapeChosen) shapeSel.value = shape = data.boxExists ? "box" : "ellipsoid"
         pos = 0
         period = -1
         setPlaying(keep || !had)  // a new series plays at once
@@ -548,6 +614,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     get draws() { return draws },
     get period() { return period },
     get speed() { return speed },
+    get shape() { return shape },
     /** The recorded quaternion (w, x, y, z) of frame i, as the page holds it (float32). */
     quaternion(i) { return data ? quatAt(i) : null },
     /** The orientation drawn now (slerped between recorded frames). */

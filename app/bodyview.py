@@ -93,6 +93,7 @@ def encode_series(series: BodySeries, k_start: int = 0) -> dict[str, Any]:
         "axes": [[float(v) for v in row] for row in np.asarray(series.axes)],
         "box_sides": [float(s) for s in series.box_sides()],
         "box_exists": bool(series.box_exists),
+        "ellipsoid_axes": [float(a) for a in series.ellipsoid_axes()],
         "status": series.status.label,
         "complete": bool(series.complete),
         "lost": [loss.as_dict() for loss in series.lost],
@@ -114,6 +115,7 @@ def decode_series(payload: dict[str, Any]) -> dict[str, Any]:
         "axes": np.array(payload["axes"]),
         "box_sides": np.array(payload["box_sides"]),
         "box_exists": payload["box_exists"],
+        "ellipsoid_axes": np.array(payload["ellipsoid_axes"]),
         "status": payload["status"],
         "complete": payload["complete"],
         "lost": payload["lost"],
@@ -236,11 +238,11 @@ class BodyView:
         frames = payload["frames"]
         last = inputs.k_start + (frames - 1) / max(1, series.samples)
         text = (f"k = {inputs.k_start}..{last:g}: {frames} frames ({series.samples} a period), computed in "
-                f"{elapsed:.2f} s, {payload_bytes(payload) / 1e3:.0f} kB sent once")  # fmt: skip
+                f"{1e3 * elapsed:.0f} ms, {payload_bytes(payload) / 1e3:.0f} kB sent once")  # fmt: skip
         if not series.box_exists:
             m = series.moments
-            text += (f". No uniform box has these principal moments ({m[2]:.4g} > {m[0]:.4g} + {m[1]:.4g}: the "
-                     "triangle inequality fails): the box is drawn flat along axis 3")  # fmt: skip
+            text += (f". No rigid body has the moments {m[0]:.4g}, {m[1]:.4g}, {m[2]:.4g} (every body has I3 ≤ I1 + "
+                     "I2): shown as the inertia ellipsoid")  # fmt: skip
         if not series.complete:
             why = "; ".join(f"{loss.what}: {loss.why}" for loss in series.lost) or series.status.word
             text = f"the series ends early ({series.status.word}, at k = {last:g}): {why}. " + text
