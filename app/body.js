@@ -25,6 +25,8 @@ const BODY_CSS = `
 .body-view .body-bar button:disabled { opacity: .45; cursor: not-allowed; }
 .body-view .body-bar select { font: inherit; padding: 1px; }
 .app.present .body-view .body-bar, .app.present .body-view .body-status { font-size: .8em; }
+/* One line in presentation mode (the whole text in its tooltip): the view fits 1280x720. */
+.app.present .body-view .body-status { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
 .body-view .body-status { font-size: .9em; color: #3a4554; min-height: 1.2em; }
 .body-view .body-status.lost { color: #842029; }
 `
@@ -177,13 +179,19 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
   }
   const axisBody = (i) => [data.axes[0][i], data.axes[1][i], data.axes[2][i]]  // column i: axis i in the body frame
 
+  //: Points of a trace between two recorded frames (slerped, as the animation turns the body between them).
+  const TRACE_SUB = 4
+
   function trace(i) {
-    // Axis i in the space frame at every recorded frame (rotations of the recorded quaternions).
+    // Axis i in the space frame at every recorded frame and TRACE_SUB - 1 slerped orientations between them.
     if (!traces[i]) {
-      const F = data.frames, a = axisBody(i), out = new Float64Array(3 * F)
+      const F = data.frames, a = axisBody(i), out = new Float64Array(3 * ((F - 1) * TRACE_SUB + 1))
       for (let j = 0; j < F; j++) {
-        const v = mv(quatMatrix(...quatAt(j)), a)
-        out[3 * j] = v[0]; out[3 * j + 1] = v[1]; out[3 * j + 2] = v[2]
+        for (let m = 0; m < (j < F - 1 ? TRACE_SUB : 1); m++) {
+          const q = m ? slerp(quatAt(j), quatAt(j + 1), m / TRACE_SUB) : quatAt(j)
+          const v = mv(quatMatrix(...q), a), o = 3 * (j * TRACE_SUB + m)
+          out[o] = v[0]; out[o + 1] = v[1]; out[o + 2] = v[2]
+        }
       }
       traces[i] = out
     }
@@ -304,13 +312,10 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
       ctx.lineWidth = back ? 1.2 : 1.8
       ctx.beginPath()
       let pen = false
-      const n = st.i
-      for (let j = 0; j <= n + 1 && j < data.frames; j++) {
+      const n = Math.floor((st.i + st.f) * TRACE_SUB), last = tr.length / 3 - 1
+      for (let j = 0; j <= n + 1 && j <= last; j++) {
         let v = [tr[3 * j], tr[3 * j + 1], tr[3 * j + 2]]
-        if (j === n + 1) {  // up to the interpolated orientation shown
-          if (!st.f) break
-          v = mv(R, axisBody(traceAxis))
-        }
+        if (j === n + 1) v = mv(R, axisBody(traceAxis))  // up to the orientation shown
         const p = P(v)
         if ((p[2] > 0) === back) {
           if (pen) ctx.lineTo(p[0], p[1]); else ctx.moveTo(p[0], p[1])
@@ -366,7 +371,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
         faces.push({i, pts: [corner(-1, -1), corner(1, -1), corner(1, 1), corner(-1, 1)], normal})
       }
       for (const f of faces) {
-        ctx.fillStyle = tint(f.i, lambert(f.normal))
+        ctx.fillStyle = tint([0, 1, 2].map((c) => (c === f.i ? 1 : 0)), lambert(f.normal))
         ctx.strokeStyle = "#3a4554"
         ctx.lineWidth = 1.3
         ctx.beginPath()
@@ -377,10 +382,11 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
       }
     }
 
-    function tint(i, lam) {
-      // A face (or a patch of the ellipsoid) normal to principal axis i, lit from above-left in front.
-      const c = AXIS_COLOURS[i]
-      const rgb = [1, 3, 5].map((o) => parseInt(c.slice(o, o + 2), 16))
+    const RGB = AXIS_COLOURS.map((c) => [1, 3, 5].map((o) => parseInt(c.slice(o, o + 2), 16)))
+    function tint(weights, lam) {
+      // A face (or a patch of the ellipsoid) coloured by the principal axes it is normal to (weights summing to 1),
+      // lit from above-left in front.
+      const rgb = [0, 1, 2].map((c) => weights[0] * RGB[0][c] + weights[1] * RGB[1][c] + weights[2] * RGB[2][c])
       const shade = 0.72 + 0.28 * lam
       const mix = rgb.map((x) => Math.round((0.5 * x + 0.5 * 255) * shade))
       return `rgb(${mix[0]},${mix[1]},${mix[2]})`
@@ -389,7 +395,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     const lambert = (n) => Math.max(0, -(n[0] * light[0] + n[1] * light[1] + n[2] * light[2]))
     function ellipsoid() {
       // The inertia ellipsoid (I w, w) = 1 (semi-axes 1 / sqrt(I_i), scaled): a mesh whose front patches are drawn
-      // (a convex body hides its back), each tinted by the principal axis its normal is nearest, and its three
+      // (a convex body hides its back), each tinted by the principal axes its normal points along, and its three
       // principal sections.
       const NU = 32, NV = 16
       const at = (u, v) => [ell[0] * Math.cos(v) * Math.cos(u), ell[1] * Math.cos(v) * Math.sin(u), ell[2] * Math.sin(v)]
@@ -406,8 +412,8 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
         const nl = Math.hypot(...np)
         const n = mv(V, space(np.map((x) => x / nl)))
         if (n[1] >= 0) continue  // facing away
-        const i = [0, 1, 2].reduce((m, c) => (Math.abs(np[c]) > Math.abs(np[m]) ? c : m), 0)
-        ctx.fillStyle = ctx.strokeStyle = tint(i, lambert(n))
+        const wt = np.map((x) => (x / nl) ** 8), ws = wt[0] + wt[1] + wt[2]  // sharp, without steps
+        ctx.fillStyle = ctx.strokeStyle = tint(wt.map((x) => x / ws), lambert(n))
         ctx.lineWidth = 0.8
         const q = [grid[b][a], grid[b][a + 1], grid[b + 1][a + 1], grid[b + 1][a]]
         ctx.beginPath()
@@ -588,6 +594,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     /** A line under the canvas (what the server says: computing, why there is no series). */
     setStatus(text, lost = false) {
       status.textContent = text || ""
+      status.title = text || ""
       status.classList.toggle("lost", !!lost)
       if (!data) paint()
     },

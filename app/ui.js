@@ -66,7 +66,7 @@ button.act.light[aria-pressed="true"]:disabled { opacity: 1; background: #dbe9f5
 .series-head { display: flex; gap: 10px; align-items: baseline; flex-wrap: wrap; }
 .series-head .ctl { margin: 0; white-space: nowrap; }
 /* The body in 3-D needs height: the plots take the screen below the bars (the legends scroll under them). */
-.app.body-open .plots { min-height: max(300px, calc(100vh - 250px)); }
+.app.body-open .plots { min-height: max(300px, calc(100vh - 320px)); }
 .series-chart { flex: 1 1 0; min-height: 70px; position: relative; }
 .series-chart svg { position: absolute; inset: 0; width: 100%; height: 100%; overflow: visible; }
 .series-chart text { font-size: 11px; fill: #3a4554; }

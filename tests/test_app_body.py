@@ -250,3 +250,19 @@ def test_no_series_while_a_parameter_plays_or_for_a_trajectory_without_points() 
     page.body.refresh()
     jobs.drain()
     assert page.ui.body
+
+
+def test_a_series_that_ends_early_says_what_it_lost() -> None:
+    from app.bodyview import BodyInputs, BodyView
+
+    params = state_from_query({"scene": "fig1A"})[0].system()  # a noncompact attractive curve: r drifts away
+    series = body_series(params, np.array([0.0, 8.0]), PERIODS, samples=SAMPLES,
+                         numerics=Numerics(method="dop853", rtol=1e-10, atol=1e-10, bound=9.0))  # fmt: skip
+    assert not series.complete
+    payload = encode_series(series, k_start=0)
+    back = decode_series(payload)
+    assert back["frames"] == series.t.size < PERIODS * SAMPLES + 1 and back["complete"] is False
+    assert back["lost"] == [loss.as_dict() for loss in series.lost] and back["status"] == "escaped"
+    inputs = BodyInputs(params, 0, 0, 0.0, 8.0, PERIODS, 9.0)
+    text = BodyView.describe(series, inputs, payload, 0.01)
+    assert text.startswith("the series ends early (escaped, at k = ") and series.lost[0].why in text
