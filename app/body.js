@@ -506,7 +506,8 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
   function frame(now) {
     raf = 0
     wanted = false
-    if (root.hidden) { last = null; return }  // painted again when shown
+    // Not displayed (closed, or another tab open): no drawing; painted again when shown (show()).
+    if (root.hidden || root.offsetParent === null) { last = null; return }
     if (!data) { draw(); return }
     if (playing) {
       if (last !== null) {
