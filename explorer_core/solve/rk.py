@@ -278,19 +278,19 @@ def _coefs(num, gpc, den, forcing, row, shared, t, slot, n, c) -> None:
 
 
 @_leaf
-def _coefs_set_body(num, gpc, den, forcing, alpha, s, t, c, o) -> None:
-    # BODY: the field's coefficients (the same arithmetic as _coefs_set) and g(t), alpha beside them.
+def _coefs_set_body(num, gpc, den, forcing, al, s, t, c, o) -> None:
+    # BODY: the field's coefficients (the same arithmetic as _coefs_set) and g(t), alpha (al) beside them.
     g, gp = forcing_of(forcing, s, t)
     coefficients_of(num, gpc, den, s, g, gp, c, o)
     c[o, 0, _G] = g
-    c[o, 0, _ALPHA] = alpha[s]
+    c[o, 0, _ALPHA] = al
 
 
 @_leaf
 def _coefs_body(num, gpc, den, forcing, alpha, row, shared, t, slot, n, c) -> None:
     """:func:`_coefs` for BODY: the same coefficients, and ``g(t)``, ``alpha`` in columns ``_G``, ``_ALPHA``."""
     if shared:
-        _coefs_set_body(num, gpc, den, forcing, alpha, 0, t, c, 0)
+        _coefs_set_body(num, gpc, den, forcing, alpha[0], 0, t, c, 0)
     elif n > 0:
         w = forcing[row[slot[0]], 3]
         cw = math.cos(w * t)
@@ -382,12 +382,11 @@ def _rms(v, row, p, ys, rtol, atol, dim) -> float:
 
 
 @_leaf
-def _initial_step(
-    system, dim, order, num, gpc, den, forcing, alpha, r, t, d, span, ys, k, s, p, rtol, atol, cw
-) -> float:
-    """Hairer's starting step for member ``p`` (``k[0, :, p]`` holds ``f`` at ``t``; parameter set ``r``).
+def _initial_step(system, dim, order, num, gpc, den, forcing, al, r, t, d, span, ys, k, s, p, rtol, atol, cw) -> float:
+    """Hairer's starting step for member ``p`` (``k[0, :, p]`` holds ``f`` at ``t``; parameter set ``r``, whose alpha
+    is ``al``: BODY reads it).
 
-    Uses ``k[s, :, p]``, ``k[s - 1, :, p]`` and ``cw`` (1, 2, 6) as scratch (no stage is live yet).
+    Uses ``k[s, :, p]``, ``k[s - 1, :, p]`` and ``cw`` (1, 2, COEF_COLUMNS) as scratch (no stage is live yet).
     """
     for comp in range(dim):
         k[s - 1, comp, p] = ys[comp, p]  # the state as a "stage", so one _rms serves y, f and f1 - f0
@@ -398,7 +397,7 @@ def _initial_step(
     for comp in range(dim):
         k[s - 1, comp, p] = d * h0 * k[0, comp, p]  # the offset of the trial point from ys
     if system == BODY:
-        _coefs_set_body(num, gpc, den, forcing, alpha, r, t + d * h0, cw, 0)
+        _coefs_set_body(num, gpc, den, forcing, al, r, t + d * h0, cw, 0)
     else:
         _coefs_set(num, gpc, den, forcing, r, t + d * h0, cw, 0)
     _eval(system, True, cw, ys, k[s - 1], p, p + 1, k, s)
@@ -571,8 +570,9 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                 habs = span
                 for p in range(n_live):
                     r = row[slot[p]]
-                    hp = _initial_step(system, dim, tab.order, num, gpc, den, forcing, alpha, r, t_base + t, d, span,
-                                       ys, k, s, p, rtol, atol, cw)  # fmt: skip
+                    al = alpha[r] if system == BODY else 0.0  # (only BODY's coefficients carry alpha)
+                    hp = _initial_step(system, dim, tab.order, num, gpc, den, forcing, al, r, t_base + t, d, span, ys,
+                                       k, s, p, rtol, atol, cw)  # fmt: skip
                     habs = min(habs, hp)
             steps = 0
             saw_nonfinite = False
