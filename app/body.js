@@ -236,12 +236,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     ctx.fillRect(0, 0, w, h)
     draws++
     const font = (px, weight = "") => `${weight} ${Math.round(px * scale)}px system-ui, "DejaVu Sans", sans-serif`
-    if (!data) {
-      ctx.fillStyle = "#3a4554"
-      ctx.font = font(13)
-      ctx.fillText(status.textContent || "no series yet", 10, 22)
-      return
-    }
+    if (!data) return  // the line under the canvas says why
     const V = viewMatrix(yaw, pitch)
     const st = state()
     const R = quatMatrix(...st.q)
@@ -473,20 +468,25 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
                    [null, `principal axes, moments ${m[0]}, ${m[1]}, ${m[2]}`]],
                   [[OMEGA_COLOUR, "ω"], [null, "in space   "], [AXIS_COLOURS[traceAxis], "trace"],
                    [null, `of axis ${traceAxis + 1} on the sphere`]]]
+    const rowWidth = (row, k) => row.reduce((x, [c, t]) => {
+      ctx.font = font(12 * k, c ? "bold" : "")
+      return x + (c ? 17 * scale * k : 0) + ctx.measureText(t).width + 6 * scale * k
+    }, 0)
     rows.forEach((row, n) => {
       const y = h - 8 - (rows.length - 1 - n) * lh
+      const k = Math.max(0.7, Math.min(1, (w - 16) / rowWidth(row, 1)))  // a narrow canvas: smaller words
       let x = 8
       for (const [c, t] of row) {
         if (c) {
           ctx.strokeStyle = c
           ctx.lineWidth = 2.6
-          ctx.beginPath(); ctx.moveTo(x, y - 4 * scale); ctx.lineTo(x + 14 * scale, y - 4 * scale); ctx.stroke()
-          x += 17 * scale
+          ctx.beginPath(); ctx.moveTo(x, y - 4 * scale); ctx.lineTo(x + 14 * scale * k, y - 4 * scale); ctx.stroke()
+          x += 17 * scale * k
         }
-        ctx.font = font(12, c ? "bold" : "")
+        ctx.font = font(12 * k, c ? "bold" : "")
         ctx.fillStyle = c || "#1d2430"
         ctx.fillText(t, x, y)
-        x += ctx.measureText(t).width + 6 * scale
+        x += ctx.measureText(t).width + 6 * scale * k
       }
     })
   }
