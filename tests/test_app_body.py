@@ -266,3 +266,15 @@ def test_a_series_that_ends_early_says_what_it_lost() -> None:
     inputs = BodyInputs(params, 0, 0, 0.0, 8.0, PERIODS, 9.0)
     text = BodyView.describe(series, inputs, payload, 0.01)
     assert text.startswith("the series ends early (escaped, at k = ") and series.lost[0].why in text
+
+
+def test_the_renderer_is_in_the_pages_module_and_fetches_nothing() -> None:
+    # Offline: app/body.js is joined into the page's one ES module (served with the page), and loads nothing.
+    from pathlib import Path
+
+    from app.ui import ESM
+
+    source = (Path(__file__).resolve().parents[1] / "app" / "body.js").read_text(encoding="utf-8")
+    assert source in ESM and ESM.index(source) < ESM.index("export function render")
+    for word in ("import ", "import(", "fetch(", "XMLHttpRequest", "http:", "https:", "<script"):
+        assert word not in source, word
