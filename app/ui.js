@@ -581,8 +581,11 @@ export function render({model, el}) {
     const b = s.body || {}
     seriesCap.textContent = (b.open ? b.caption : s.series_caption) || ""
     bodyView.show(!!b.open)
-    app.classList.toggle("body-open", !!b.open)
-    for (const c of charts) c.box.hidden = !!b.open
+    if (app.classList.contains("body-open") !== !!b.open) {
+      app.classList.toggle("body-open", !!b.open)
+      for (const c of charts) c.box.hidden = !!b.open
+      if (!b.open) requestAnimationFrame(drawSeries)  // drawn while hidden at no size: again now they show
+    }
     if (b.open) bodyView.setStatus(b.status, b.lost)
     if (currentTab !== "section") {
       const a = v[currentTab] || {}

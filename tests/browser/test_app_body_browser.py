@@ -125,4 +125,10 @@ def test_closing_the_view_drops_the_series_and_its_point(page, app_url) -> None:
     page.wait_for_function(f"() => {HOOK}.frames === 0", timeout=30_000)
     assert page.evaluate("() => Bokeh.documents[0].get_model_by_name('body_source').get_length()") == 0
     page.wait_for_function("() => !new URLSearchParams(location.search).has('body')", timeout=30_000)
+    # The k-series are back in its place, drawn.
+    page.wait_for_function(
+        "() => Array.from(document.querySelectorAll('*')).some(e => e.shadowRoot && "
+        "e.shadowRoot.querySelector('.series-q polyline'))",
+        timeout=30_000,
+    )
     assert not page.errors
