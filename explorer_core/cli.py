@@ -238,6 +238,24 @@ class _Run:
             sys.stderr.flush()
 
 
+#: The CLI's option (``args`` dest) of a builder's keyword where the names differ.
+_DESTS = {"value_range": "range", "seed": "from_", "ics": "ic", "m": "members"}
+
+
+def _build(args: argparse.Namespace, builder: Callable[..., Any], *a: Any, **kw: Any) -> Any:
+    """An analysis' spec from its builder: a value it refuses is one usage line naming the option's flag
+    (``--offset: offset must be in (0, 1] ...``), its keywords written as flags (``ds_min`` as ``ds-min``)."""
+    try:
+        return builder(*a, **kw)
+    except ParameterError as exc:
+        text, key = str(exc), getattr(exc, "option", None) or ""
+        for name in (k for k in vars(args) if "_" in k.strip("_")):
+            text = re.sub(rf"\b{name}\b", name.replace("_", "-"), text)
+        dest = next((d for d in (_DESTS.get(key), key) if d and hasattr(args, d)), None)  # lyapunov's seed: --seed
+        flag = f"--{dest.strip('_').replace('_', '-')}: " if dest else ""
+        raise UsageError(flag + text) from None
+
+
 def _print_json(obj: Any) -> None:
     sys.stdout.write(export.dumps(obj) + "\n")
     sys.stdout.flush()
@@ -452,7 +470,7 @@ def _lyapunov_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_lyapunov(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.lyapunov import attractor_ensemble, lyapunov_spectrum
+    from explorer_core.analyses.lyapunov import lyapunov_spec, lyapunov_spectrum
 
     params, scene = _params(args)
     ics = _ics(args)
@@ -461,17 +479,10 @@ def cmd_lyapunov(args: argparse.Namespace) -> int:
             raise UsageError("give an initial condition: --ic Q,R")
         ics = np.array(scene.points[:1])
     transient = args.transient if args.transient is not None else (scene.transient if scene else 100)
-    numerics = _numerics(args, None, args.periods)
-    if args.ensemble > 1:
-        if not 0 < args.offset <= 1:  # relative to 1 + |x|: more than that is not "near the attractor"
-            raise UsageError(f"--offset must be in (0, 1], got {args.offset:g}")
-        if ics.shape[0] > 1:
-            raise UsageError("--ensemble M takes one --ic (the members are placed on its attractor)")
-        ics = attractor_ensemble(params, ics[0], args.ensemble, transient=transient, offset=args.offset,
-                                 seed=args.seed, numerics=numerics)  # fmt: skip
+    spec = _build(args, lyapunov_spec, params, ics, args.periods, transient=transient, ensemble=args.ensemble,
+                  numerics=_numerics(args, None, args.periods), offset=args.offset, seed=args.seed)  # fmt: skip
     with _Run(args) as run:
-        res = lyapunov_spectrum(params, ics, args.periods, transient=transient, numerics=numerics, cancel=run,
-                                progress=run.update)  # fmt: skip
+        res = lyapunov_spectrum(spec, cancel=run, progress=run.update)
     summary = _with_scene(res.summary(), args)
     if args.history:
         res.write(args.history)
@@ -639,37 +650,20 @@ def _continue_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_continue(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.continuation import continue_orbit
+    from explorer_core.analyses.continuation import continuation_spec, continue_orbit
     from explorer_core.analyses.orbits import ORBIT_NUMERICS
-    from explorer_core.analyses.sweeps import check_param
 
     params, _ = _params(args)
-    name = check_param(args.param)
-    lo, hi = _span(args.range, "--range")
-    for v in (lo, hi):  # positive-definite tensors are convex: both ends valid means the whole range is
-        try:
-            params.with_(**{name: v})
-        except ParameterError as exc:
-            raise UsageError(f"--range {args.range}: {name} = {v:g} is not a valid system ({exc})") from None
-    numerics = _numerics(args, None, 1, base=ORBIT_NUMERICS)
     if args.from_ is None:
         raise UsageError("give --from Q,R: a point near the period-N orbit at the range's first value")
-    q, r = _point_in_bound(args.from_, "--from", numerics)
-    if (args.param2 is None) != (args.range2 is None):
-        raise UsageError("--param2 and --range2 go together")
-    steps = {"ds": args.ds, "ds_min": args.ds_min, "ds_max": args.ds_max}
-    for key, v in steps.items():
-        if v is not None and v <= 0:
-            raise UsageError(f"--{key.replace('_', '-')} must be > 0, got {v:g}")
-    ds, ds_min, ds_max = (v if v is not None else d for v, d in zip(steps.values(), (0.02, 1e-7, 0.1), strict=True))
-    if not ds_min <= ds <= ds_max:
-        raise UsageError(f"the steps must have ds-min <= ds <= ds-max, got {ds_min:g}, {ds:g}, {ds_max:g}")
+    spec = _build(args, continuation_spec, params, args.param, _span(args.range, "--range"),
+                  _floats(args.from_, 2, "--from"), args.period, switch=args.switch, max_period=args.max_period,
+                  max_points=args.max_points, ds=args.ds, ds_min=args.ds_min, ds_max=args.ds_max,
+                  numerics=_numerics(args, None, 1, base=ORBIT_NUMERICS), param2=args.param2,
+                  range2=_span(args.range2, "--range2") if args.range2 else None, check_end=True)  # fmt: skip
     with _Run(args) as run:
-        res = continue_orbit(params, name, (lo, hi), (q, r), args.period, switch=args.switch,
-                             max_period=args.max_period, numerics=numerics, param2=args.param2, cancel=run,
-                             max_points=args.max_points,
-                             range2=_span(args.range2, "--range2") if args.range2 else None,
-                             progress=run.update, **steps)  # fmt: skip
+        res = continue_orbit(spec, cancel=run, progress=run.update)
+    name = spec.param
     summary = res.summary()
     if args.out:
         summary["csv"] = res.write(args.out)
@@ -841,19 +835,14 @@ def _fit_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.drift import drift_fit
+    from explorer_core.analyses.drift import drift_fit, drift_spec
 
     params, scene = _params(args)
-    k0, k1 = _ints(args.window, "--window", "K0,K1", 0, config.MAX_PERIODS)
-    degree = _ints(args.degree, "--degree", "DQ,DR", 0, 32)
-    ics = _ics(args)
-    box = _box(args.box, "--box", scene.box if scene else None)
-    if ics is None and box is None:
-        raise UsageError("give --ic Q,R (repeatable) or --box QMIN,QMAX,RMIN,RMAX for random members")
+    spec = _build(args, drift_spec, params, _ints(args.window, "--window", "K0,K1"), m=args.members, ics=_ics(args),
+                  degree=_ints(args.degree, "--degree", "DQ,DR"), box=_box(args.box, "--box", scene.box if scene
+                  else None), seed=args.seed, criterion=args.criterion, numerics=_numerics(args, None, 1))  # fmt: skip
     with _Run(args) as run:
-        fit = drift_fit(params, (k0, k1), degree=tuple(degree), m=args.members, ics=ics, box=box, seed=args.seed,
-                        criterion=args.criterion, numerics=_numerics(args, None, k1), cancel=run,
-                        progress=run.update)  # fmt: skip
+        fit = drift_fit(spec, cancel=run, progress=run.update)
     summary = fit.summary()
     if args.out:
         fit.write(args.out)
