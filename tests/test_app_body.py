@@ -7,11 +7,11 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import pytest
+from jobs import Jobs
 from scipy.integrate import solve_ivp
 
 from app.bodyview import PERIODS, SAMPLES, decode_series, encode_series, payload_bytes
@@ -26,20 +26,6 @@ from explorer_core.system.params import Params
 @pytest.fixture(autouse=True)
 def _warm() -> None:
     WARM.set()
-
-
-class Jobs:
-    """An executor that runs the jobs only when drained (a job in flight for as long as the test likes)."""
-
-    def __init__(self) -> None:
-        self.queue: list[Callable[[], None]] = []
-
-    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> None:
-        self.queue.append(lambda: fn(*args, **kwargs))
-
-    def drain(self) -> None:
-        while self.queue:
-            self.queue.pop(0)()
 
 
 BASE = {"scene": "fig1C", "n": "4", "periods": "60", "tracks": "0", "tprime": "off", "orbits": "0",
