@@ -58,14 +58,21 @@ def click_body(page, css: str) -> None:
 
 
 def test_the_body_view_draws_animates_at_30_fps_and_stops_on_pause(page, app_url) -> None:
+    sent: list[str] = []  # messages from the page to the server
+    page.on("websocket", lambda ws: ws.on("framesent", lambda payload: sent.append(str(payload)[:200])))
     open_body(page, app_url)
     assert query_of(page)["body"] == "1"
-    assert drawn_pixels(page) > 5000  # the sphere, the box, the axes, omega, the trace, the labels
+    assert drawn_pixels(page) > 5000  # the sphere, the body, the axes, omega, the trace, the labels
     assert body(page, "frames") == 20 * 48 + 1 and body(page, "playing")
-    f0 = body(page, "position")
-    time.sleep(1.5)
+    page.locator(".body-view .body-speed").first.select_option("1")  # a period a second (48 recorded frames)
+    assert body(page, "speed") == 1
+    time.sleep(0.5)
+    before, f0, p0 = len(sent), body(page, "position"), body(page, "period")
+    time.sleep(2.5)
     f1 = body(page, "position")
-    assert f1 > f0  # frames advance while playing (0.25 periods/s: 12 recorded frames a second)
+    assert f1 > f0  # frames advance while playing
+    assert body(page, "period") > p0  # a new period: its section point moved in the plot...
+    assert sent[before:] == []  # ... and nothing went to the server, per frame or per period
     fps = body(page, "fps")
     print(f"client frames per second: {fps:.1f}")
     assert fps >= 20
