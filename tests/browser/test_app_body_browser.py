@@ -83,6 +83,16 @@ def test_the_body_view_draws_animates_at_30_fps_and_stops_on_pause(page, app_url
     assert body(page, "position") == paused
     click_body(page, ".body-step")
     assert body(page, "frame") == round(paused) + 1
+    # Dragging turns the view (paused: the body's orientation stays, the picture changes).
+    still = page.locator(".body-view canvas").first.screenshot()
+    box = page.locator(".body-view canvas").first.bounding_box()
+    page.mouse.move(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    page.mouse.down()
+    page.mouse.move(box["x"] + box["width"] / 2 + 80, box["y"] + box["height"] / 2 + 30, steps=6)
+    page.mouse.up()
+    page.wait_for_timeout(200)
+    assert page.locator(".body-view canvas").first.screenshot() != still
+    assert body(page, "frame") == round(paused) + 1 and not body(page, "playing")
     assert not page.errors
 
 
