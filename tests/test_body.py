@@ -17,9 +17,12 @@ from naive import NaiveField, ivp_body
 
 from explorer_core.analyses.body import BodySeries, body_series, principal_axes
 from explorer_core.scenes import get_scene
+from explorer_core.solve import rk
+from explorer_core.solve.integrators import Batch, coefficients, run
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.section import section
 from explorer_core.status import Status
+from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
 TIGHT = Numerics(rtol=1e-12, atol=1e-12)
@@ -243,3 +246,23 @@ def test_files_read_back_as_numbers(tmp_path) -> None:
     summary = json.loads((tmp_path / "body.json").read_text())
     assert summary["status"] == "ok" and summary["complete"] is True and summary["lost"] == []
     assert summary["samples"] == 4 and len(summary["axes"]) == 3
+
+
+def test_a_lock_step_block_of_bodies_with_different_parameters_meets_each_ones_series() -> None:
+    """The block kernel: members with their own alpha and forcing rows (g, alpha beside each member's coefficients),
+    one escaping mid-run (it leaves the packed block, the others go on), each as its own series."""
+    p1, ic1 = REGULAR
+    p2 = p1.with_(alpha=-0.42, g0=0.1)
+    members = [(p1, ic1), (p2, (0.2, -1.5)), (FIG1A, (0.0, 13.5)), (p1.with_(alpha=0.3), (0.4, 0.1))]
+    rows = np.array([0, 1, 2, 3])
+    coefs = coefficients([Model(p) for p, _ in members], rows)
+    batch = Batch.start(np.array([ic for _, ic in members]), p1.t0, p1.period, dim=rk.STATE_SIZE[rk.BODY])
+    batch.y[:, 2] = 1.0
+    numerics = Numerics(rtol=1e-12, atol=1e-12, bound=20.0)
+    frames, nframes = run(rk.BODY, coefs, batch, 30, samples=8, block=4, workers=1, **numerics.kernel_kwargs())
+    assert batch.status.tolist() == [Status.OK, Status.OK, Status.ESCAPED, Status.OK]
+    for i, (p, ic) in enumerate(members):
+        s = body_series(p, ic, 30, samples=8, numerics=numerics)
+        assert nframes[i] == s.frames - 1
+        np.testing.assert_allclose(frames[i, : nframes[i], :2], s.omega[1:, 1:], atol=1e-9)
+        np.testing.assert_allclose(frames[i, : nframes[i], 2:], s.quaternion[1:], atol=1e-9)

@@ -294,16 +294,15 @@ def body_series(
         if batch.status[0] != Status.OK:
             status = Status.of(int(batch.status[0]))
             break
+    f = np.arange(done)
+    s = f % samples
+    t = params.t0 + (k0 + f // samples) * params.period + params.period * (s / samples)
     if done < total:
         if status == Status.CANCELLED:
             lost.append(Loss("frames", total - done, "cancelled"))
         else:
-            t_end = params.t0 + (k0 + (done - 1) // samples) * params.period
-            lost.append(Loss("frames", total - done, f"the trajectory ended ({status.word}) after t = {t_end:.6g}"))
-
-    f = np.arange(done)
-    s = f % samples
-    t = params.t0 + (k0 + f // samples) * params.period + params.period * (s / samples)
+            why = f"the trajectory ended ({status.word}) after the frame at t = {t[-1]:.6g}"
+            lost.append(Loss("frames", total - done, why))
     # g at the phase of each frame, as the engine took it (t0 + T s / samples): samples values, repeated.
     model = Model(params)
     g_phase = np.array([model.g(params.t0 + params.period * (j / samples))[0] for j in range(samples)])
