@@ -529,7 +529,7 @@ def _bifurcation_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_bifurcation(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.bifurcation import bifurcation_diagram
+    from explorer_core.analyses.bifurcation import bifurcation_diagram, diagram_spec
     from explorer_core.analyses.sweeps import sweep_values
 
     params, scene = _params(args)
@@ -538,12 +538,11 @@ def cmd_bifurcation(args: argparse.Namespace) -> int:
     values = sweep_values(tuple(_span(args.range, "--range")), args.n_values)
     ics = _ics(args)
     sweeps = tuple(s.strip() for s in args.sweeps.split(",")) if args.sweeps else ("forward", "backward")
+    spec = _build(args, diagram_spec, params, args.param, values, points=args.points, transient=args.transient,
+                  seeding=args.seeding, ics=_scene_point(scene) if ics is None else ics, sweeps=sweeps,
+                  numerics=_numerics(args, None, args.transient + args.points))  # fmt: skip
     with _Run(args) as run:
-        diag = bifurcation_diagram(params, args.param, values, points=args.points, transient=args.transient,
-                                   seeding=args.seeding, ics=_scene_point(scene) if ics is None else ics, sweeps=sweeps,
-                                   numerics=_numerics(args, None, args.transient + args.points), cancel=run,
-                                   progress=run.update,
-                                   executor=_executor(args))  # fmt: skip
+        diag = bifurcation_diagram(spec, cancel=run, progress=run.update, executor=_executor(args))
     summary = diag.summary()
     if args.scheduler:
         summary["scheduler"] = args.scheduler
@@ -799,8 +798,8 @@ def cmd_basins(args: argparse.Namespace) -> int:
         opts["cell_box"] = _box(args.cell_box, "--cell-box", None)
     if args.cells:
         opts["cells"] = _ints(args.cells, "--cells", "NQ,NR")
-    base = basin_spec(params, box, grid, **opts)
-    spec = basin_spec(params, box, grid, numerics=_numerics(args, None, 1, base=base.numerics), **opts)
+    base = _build(args, basin_spec, params, box, grid, **opts)
+    spec = _build(args, basin_spec, params, box, grid, numerics=_numerics(args, None, 1, base=base.numerics), **opts)
     with _Run(args) as run:
         result = run_updates(iter_basins(spec, cancel=run), run.update)
     summary = _with_scene(result.summary(), args)

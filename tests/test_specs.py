@@ -337,3 +337,67 @@ def test_the_summary_says_what_was_asked() -> None:
     assert rc == 0, err
     d = json.loads(out)
     assert d["spec"]["seed"] == [-0.0959, -1.962] and d["spec"]["period"] == 1 and d["range"] == [-0.35, -0.352]
+
+
+# --- the orbit diagram and basins take a spec too -------------------------------------------------------------
+
+
+def test_an_orbit_diagram_of_a_spec_is_the_keyword_form() -> None:
+    from explorer_core.analyses.bifurcation import DiagramSpec, bifurcation_diagram, diagram_spec
+
+    vals = np.linspace(-0.40, -0.36, 5)
+    kw = {"points": 16, "transient": 40, "ics": [(-0.5, -1.0)]}
+    spec = diagram_spec(FIG10, "alpha", vals, **kw)
+    assert isinstance(spec, DiagramSpec) and spec.sweeps == ("forward", "backward")
+    assert pickle.loads(pickle.dumps(spec)).sweep.param == "alpha"
+    a, b = bifurcation_diagram(spec), bifurcation_diagram(FIG10, "alpha", vals, **kw)
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.status, b.status)
+    with pytest.raises(TypeError, match="comes alone"):
+        bifurcation_diagram(spec, points=3)
+    assert diagram_spec(FIG10, "alpha", vals, seeding="fixed").sweeps == ("fixed",)
+
+
+@pytest.mark.parametrize(
+    ("kw", "needle"),
+    [({"points": 0}, "points must be"), ({"transient": -1}, "transient must be"), ({"seeding": "random"}, "seeding"),
+     ({"sweeps": ("up",)}, "sweeps must be"), ({"values": [NAN]}, "finite")],
+)  # fmt: skip
+def test_diagram_spec_names_each_bad_value(kw: dict[str, Any], needle: str) -> None:
+    from explorer_core.analyses.bifurcation import diagram_spec
+
+    values = kw.pop("values", [-0.4])
+    with pytest.raises(ParameterError, match=needle):
+        diagram_spec(FIG10, "alpha", values, **kw)
+
+
+def test_basins_of_a_spec_is_the_keyword_form() -> None:
+    from explorer_core.analyses.basins import basin_spec, basins
+
+    box, grid = (-1.0, 0.5, -3.0, -1.0), (4, 3)
+    spec = basin_spec(FIG10.with_(alpha=-0.36), box, grid, max_periods=400)
+    a, b = basins(spec), basins(FIG10.with_(alpha=-0.36), box, grid, max_periods=400)
+    np.testing.assert_array_equal(a.label, b.label)
+    with pytest.raises(TypeError, match="comes alone"):
+        basins(spec, box)
+
+
+def test_the_cli_refuses_a_bad_diagram_or_basin_value_in_one_line() -> None:
+    for argv in (
+        [
+            "bifurcation",
+            "--scene",
+            "fig10",
+            "--param",
+            "alpha",
+            "--range=-0.4,-0.36",
+            "--n-values",
+            "3",
+            "--sweeps",
+            "up",
+            "--json",
+        ],
+        ["basins", "--scene", "fig10", "--grid", "3,3", "--box=-1,0.5,-3,-1", "--cells", "5000,5", "--json"],
+    ):
+        rc, out, err = run_cli(*argv)  # fmt: skip
+        assert rc == 2 and out == "" and err.count("\n") == 1 and "Traceback" not in err, (rc, err)

@@ -50,7 +50,7 @@ import numpy as np
 
 from explorer_core import export
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, UNIT_TOL, classify, minimal_period, multipliers, newton
-from explorer_core.analyses.specs import Checking
+from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.analyses.sweeps import check_param
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -978,7 +978,7 @@ def iter_continue_orbit(
     ``branches`` (the branches and curves done, the current one counted by the share of the range its
     furthest point covers, of those started or queued); ``detail`` is ``(points, value)``. The last
     update's ``result`` is the continuation. The spec (or the keyword form's) is checked at the call."""
-    spec = _spec_of(spec, args, kw)
+    spec = spec_of(ContinuationSpec, continuation_spec, spec, args, kw)
 
     def work(emit: Callable[[Step[Continuation]], None], stop: Callable[[], bool]) -> Step[Continuation]:
         last = _Last(emit)
@@ -986,15 +986,6 @@ def iter_continue_orbit(
         return last.step(res, "branches", len(res.branches) + len(res.curves))
 
     return stream(work, cancel)
-
-
-def _spec_of(spec: ContinuationSpec | Params, args: tuple, kw: dict[str, Any]) -> ContinuationSpec:
-    """The spec given, or the one :func:`continuation_spec` builds from the keyword form's arguments."""
-    if not isinstance(spec, ContinuationSpec):
-        return continuation_spec(spec, *args, **kw)
-    if args or kw:
-        raise TypeError(f"a ContinuationSpec comes alone, not with {', '.join(map(str, args)) or ', '.join(kw)}")
-    return spec
 
 
 class _Last:

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.polynomial import polynomial as P
 
 from explorer_core import config, export
-from explorer_core.analyses.specs import Checking
+from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, stream
 from explorer_core.progress import run as run_updates
@@ -418,15 +418,6 @@ def drift_spec(
     return DriftSpec(params, (k0, k1), (dq, dr), m, pool, box, seed, max_draws, criterion, numerics)
 
 
-def _spec_of(spec: DriftSpec | Params, args: tuple, kw: dict[str, Any]) -> DriftSpec:
-    """The spec given, or the one :func:`drift_spec` builds from the keyword form's arguments."""
-    if not isinstance(spec, DriftSpec):
-        return drift_spec(spec, *args, **kw)
-    if args or kw:
-        raise TypeError(f"a DriftSpec comes alone, not with {', '.join(map(str, args)) or ', '.join(kw)}")
-    return spec
-
-
 def iter_drift_fit(
     spec: DriftSpec | Params, *args: Any, cancel: Callable[[], bool] | None = None, **kw: Any
 ) -> Iterator[Step[DriftFit]]:
@@ -434,7 +425,7 @@ def iter_drift_fit(
     allowed, after each batch); the last update's ``result`` is the fit. ``iter_drift_fit(spec)``, or the
     keyword form ``iter_drift_fit(params, window, **options)`` (the spec built by :func:`drift_spec`, checked
     at the call)."""
-    spec = _spec_of(spec, args, kw)
+    spec = spec_of(DriftSpec, drift_spec, spec, args, kw)
     if spec.params is None:
         raise ParameterError("a drift fit of the Bilimovich system needs its params (drift_fit_tables fits a field)")
     params = spec.params

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config, export
-from explorer_core.analyses.specs import Checking
+from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, run, stream
@@ -526,15 +526,6 @@ def lyapunov_spec(
     return LyapunovSpec(params, ics_, periods, transient, numerics, ensemble, float(offset), seed)
 
 
-def _spec_of(spec: LyapunovSpec | Params, args: tuple, kw: dict[str, Any]) -> LyapunovSpec:
-    """The spec given, or the one :func:`lyapunov_spec` builds from the keyword form's arguments."""
-    if not isinstance(spec, LyapunovSpec):
-        return lyapunov_spec(spec, *args, **kw)
-    if args or kw:
-        raise TypeError(f"a LyapunovSpec comes alone, not with {', '.join(map(str, args)) or ', '.join(kw)}")
-    return spec
-
-
 def iter_lyapunov(
     spec: LyapunovSpec | Params,
     *args: Any,
@@ -546,7 +537,7 @@ def iter_lyapunov(
     the transient's counted with the measurement's); the last update's ``result`` is the result.
     ``iter_lyapunov(spec)``, or the keyword form ``iter_lyapunov(params, ics, periods, transient=,
     numerics=)`` (the spec built by :func:`lyapunov_spec`, checked at the call)."""
-    spec = _spec_of(spec, args, kw)
+    spec = spec_of(LyapunovSpec, lyapunov_spec, spec, args, kw)
     params, numerics = spec.params, spec.numerics
 
     def work(emit: Callable[[LyapunovProgress], None], stop: Callable[[], bool]) -> LyapunovProgress:

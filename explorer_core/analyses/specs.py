@@ -10,9 +10,13 @@ names for the options (the CLI's flags) can say which of them was refused.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from types import TracebackType
+from typing import Any, TypeVar
 
 from explorer_core.system.params import ParameterError
+
+S = TypeVar("S")
 
 
 class Checking:
@@ -31,3 +35,14 @@ class Checking:
         if isinstance(exc, ParameterError) and getattr(exc, "option", None) is None:
             exc.option = self.option  # type: ignore[attr-defined]
         return False
+
+
+def spec_of(kind: type[S], build: Callable[..., S], first: Any, args: tuple, kw: dict[str, Any]) -> S:
+    """The spec an analysis is called with: ``first`` itself when it is a ``kind`` (which comes alone), else the
+    one ``build`` makes of the keyword form's arguments ``build(first, *args, **kw)``."""
+    if not isinstance(first, kind):
+        return build(first, *args, **kw)
+    if args or kw:
+        given = ", ".join(map(repr, args)) or ", ".join(kw)
+        raise TypeError(f"a {kind.__name__} comes alone, not with {given}")
+    return first
