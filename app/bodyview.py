@@ -163,6 +163,7 @@ class BodyView:
             return None, "the body's motion is computed when the played parameter pauses"
         try:
             params = st.system()
+            bound = st.numerics().bound  # the section's escape bound: the body escapes where its points do
         except ParameterError:
             return None, "no body: the system is not valid (see the message above)"
         if self.runner.busy(s.section.name) or s.section.params != params:
@@ -175,8 +176,7 @@ class BodyView:
         ks, qs, rs = k[sel][order], q[sel][order], r[sel][order]
         periods = max(1, min(PERIODS, ks.size - 1))
         i = max(0, ks.size - 1 - periods)
-        inputs = BodyInputs(params, int(st.selected), int(ks[i]), float(qs[i]), float(rs[i]), periods,
-                            st.numerics().bound)  # fmt: skip
+        inputs = BodyInputs(params, int(st.selected), int(ks[i]), float(qs[i]), float(rs[i]), periods, bound)
         return inputs, ""
 
     def refresh(self) -> None:
