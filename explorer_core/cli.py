@@ -885,6 +885,48 @@ def cmd_symmetry(args: argparse.Namespace) -> int:
     return _finish(args, summary, lines, result=check, completed=True)
 
 
+def _body_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition at t0 (default: the scene's first)")
+    p.add_argument("--periods", type=_count("periods", 1, 10_000), default=20, help="periods of the series")
+    p.add_argument("--samples", type=_count("samples", 4, 512), default=48, help="frames per period (default 48)")
+    p.add_argument("--k0", type=_count("k0", 0, config.MAX_PERIODS), default=0,
+                   help="start after this many periods (the orientation is the identity there)")  # fmt: skip
+
+
+def cmd_body(args: argparse.Namespace) -> int:
+    from explorer_core.analyses.body import body_series
+
+    params, scene = _params(args)
+    ics = _ics(args)
+    if ics is not None and ics.shape[0] > 1:
+        raise UsageError("--ic: the body follows one trajectory, give one Q,R")
+    ic = _scene_point(scene)[0] if ics is None else ics[0]
+    numerics = _numerics(args, None, args.k0 + args.periods)
+    with _Run(args) as run:
+        series = body_series(params, ic, args.periods, samples=args.samples, k0=args.k0, numerics=numerics,
+                             cancel=run, progress=run.update)  # fmt: skip
+    summary = _with_scene(series.summary(), args)
+    for path in args.out or []:
+        series.write(path)
+    if args.out:
+        summary["out"] = args.out
+
+    def lines() -> list[str]:
+        s = summary
+        if not series.frames:
+            return [f"status {s['status']}: no frame recorded"]
+        (w, x, y, z), e = series.quaternion[-1], s["energy"]
+        return [f"{s['frames']} frames ({s['samples']} a period), t {s['t'][0]:.6g} .. {s['t'][1]:.6g}, "
+                f"status {s['status']}",
+                f"principal moments {', '.join(f'{m:.6g}' for m in s['moments'])}"
+                + ("" if s["box_exists"] else " (no box has them: they break the triangle inequality)"),
+                f"orientation at the end (w, x, y, z) = ({w:.10g}, {x:.10g}, {y:.10g}, {z:.10g}); "
+                f"|Q| drift {s['quaternion_norm_drift']:.2g}",
+                f"T from {e['first']:.10g} to {e['last']:.10g} (min {e['min']:.6g}, max {e['max']:.6g})"]  # fmt: skip
+
+    return _finish(args, summary, lines, result=series, what="frames")
+
+
 def _serve_args(p: argparse.ArgumentParser) -> None:
     env = os.environ  # defaults from the environment, so a container (exec-form CMD) can be configured
     p.add_argument("--port", type=_count("port", 1, 65535), default=env.get("BILIMOVICH_PORT", "5006"))
@@ -1118,6 +1160,8 @@ COMMANDS: dict[str, Command] = {
                       NPZ, "arrays q (NX), r (NY), label (NY x NX)"),
     "fit": Command("polynomial fits of the drift q_k, r_k over a window of k, and the implied map", _fit_args,
                    cmd_fit, CSV, "the members' series member,k,q,r"),
+    "body": Command("the rigid body's orientation along a trajectory (quaternions, omega, T; frames in a period)",
+                    _body_args, cmd_body, (".csv", ".npz", ".json"), "frame,k,t,p,q,r,w,x,y,z,T (.csv), or .npz/.json"),
     "symmetry": Command("check the involution t -> -t, q -> q, r -> -r on sections", _symmetry_args, cmd_symmetry,
                         flags=("json",)),
     "serve": Command("run the web explorer (panel serve app/main.py)", _serve_args, cmd_serve, system=False,
