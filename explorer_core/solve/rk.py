@@ -576,8 +576,9 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                     habs = min(habs, hp)
             steps = 0
             saw_nonfinite = False
+            # The smallest step this period resolves (a constant of the period: computed once, not per step).
+            hmin = 10.0 * _EPS * max(abs(t_base + (k_first + j) * period), span)
             while n_live > 0:
-                hmin = 10.0 * _EPS * max(abs(t_base + (k_first + j) * period), span)
                 if fixed > 0:
                     if steps == fixed:
                         break
