@@ -102,7 +102,7 @@ class ExplorerSession(param.Parameterized):
         state.param.watch(lambda *e: self.recompute(), ["clicked"])
         state.param.watch(
             lambda *e: self._publish_query(),
-            ["selected", "tab", "presentation", "tour", "tour_step", *PLAY_FIELDS, *ANALYSIS_FIELDS],
+            ["selected", "show_body", "tab", "presentation", "tour", "tour_step", *PLAY_FIELDS, *ANALYSIS_FIELDS],
         )
 
     def layer(self, name: str) -> Layer:

@@ -23,6 +23,8 @@ from bokeh.models import Column
 
 from app.analyses import AnalysisTab, BifurcationTab, ChartTab, LyapunovTab
 from app.bench_tab import BenchTab
+from app.bodyview import CHANNEL as BODY_CHANNEL
+from app.bodyview import BodyView
 from app.controller import ExplorerSession
 from app.play import Player, Schedule
 from app.runner import FairScheduler, Runner
@@ -49,7 +51,7 @@ FIND_ON = ("Orbits in view: on", "A mode: the search is redone after every pan o
 #: What a tour's step starts from besides its scene: the layers' settings and picks, the played parameter and the
 #: tab as on a new page (a step sets what it needs over them).
 STEP_DEFAULTS: dict[str, Any] = {
-    **{c.name: c.default for c in CONTROLS if c.area in ("layers", "play")},
+    **{c.name: c.default for c in CONTROLS if c.area in ("layers", "play", "body")},
     "orbit_seeds": [], "orbit_view": False, "manifold_saddles": [], "tab": "section",
 }  # fmt: skip
 #: Session parameters that change what the section tab shows: all of them (what the layers publish included).
@@ -87,6 +89,8 @@ class Page:
         self.tours: dict[str, Tour] = dict(TOURS)
         self.tour_message = ""
         self._analysis_box = Column(sizing_mode="stretch_both", name="analysis_box")
+        #: The body in 3-D of the selected trajectory (computed once, animated by the page).
+        self.body = BodyView(self.session, self._ship_body, on_change=lambda: self._refresh_views())
         self.ui = ExplorerUI(
             on_message=self.handle,
             values=self._values(),
@@ -137,6 +141,7 @@ class Page:
         if action == "stop":
             if tab == "section":
                 self.session.stop()
+                self.body.stop()
             elif tab in self.tabs:
                 self.tabs[tab].stop()
         elif action == "run" and tab in TAB_CLASSES:
@@ -287,7 +292,9 @@ class Page:
         self._refresh_views()
 
     def _job_failed(self, channel: str, exc: BaseException) -> None:
-        if channel in self.tabs:
+        if channel == BODY_CHANNEL:
+            self.body.failed(exc)
+        elif channel in self.tabs:
             self.tabs[channel].failed(exc)
         else:
             self.session.failed_job(channel, exc)
@@ -323,6 +330,12 @@ class Page:
 
     def _on_session(self, *events: Any) -> None:
         self._refresh_views()
+
+    def _ship_body(self, payload: dict[str, Any]) -> None:
+        """The body's series to the page once ({}: the view drops the one it shows); its point joins the plot."""
+        if payload:
+            self.fig.show_body_point()
+        self.ui.body = payload
 
     def _on_series(self, data: dict[str, list[float]]) -> None:
         ui = getattr(self, "ui", None)
@@ -377,6 +390,7 @@ class Page:
             "colour_note": _colour_note(self.fig.tprime_hidden_by),
             "play": self.player.view(),
             "tour": self._tour_view(),
+            "body": {**self.body.view(), "caption": f"Trajectory {sel}{who}: the rigid body turning"},
         }
 
     def _tab_view(self, name: str) -> dict[str, Any]:

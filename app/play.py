@@ -2,7 +2,8 @@
 
 A frame is the section (and the layers on) for one value of the played parameter, with only as many periods per
 trajectory as a moving picture needs (:data:`FRAME_PERIODS`, not a still's); the periodic orbits on screen are
-continued from frame to frame (the orbits layer's Newton starts from the last frame's orbits). The next frame is
+continued from frame to frame (the orbits layer's Newton starts from the last frame's orbits, and an orbit that
+has passed a period doubling is searched for the orbit born there). The next frame is
 asked for only once the last one is drawn: every job of the section view is over and, in a browser, the page
 has said it shows the frame (:meth:`Player.shown`). So frames never pile up: a slow machine or browser sees
 fewer frames, not a lag; the speed asked is a most (frames are not sent faster than ``play_fps``).

@@ -355,6 +355,16 @@ CONTROLS: tuple[Control, ...] = (
     ),
     _ints("selected", "Trajectory shown in the k-series", "section", "sel", 0, MAX_RANDOM + MAX_CLICKED, 0),
     Control(
+        "show_body",
+        "Body in 3-D",
+        "check",
+        "body",
+        "body",
+        default=False,
+        url_when="changed",
+        doc="the rigid body of the selected trajectory turning, its axes, omega and an axis's trace (app/body.js)",
+    ),
+    Control(
         "lyap_ic",
         "Initial condition q,r (blank: the selected trajectory's last point)",
         "text",

@@ -63,6 +63,10 @@ button.act.light[aria-pressed="true"]:disabled { opacity: 1; background: #dbe9f5
 .plot-section, .plot-series, .plot-analysis { min-height: 0; min-width: 0; position: relative; display: flex; }
 .plot-series { flex-direction: column; }
 .plot-series .cap { font-size: .92em; color: #3a4554; }
+.series-head { display: flex; gap: 10px; align-items: baseline; flex-wrap: wrap; }
+.series-head .ctl { margin: 0; white-space: nowrap; }
+/* The body in 3-D needs height: the plots take the screen below the bars (the legends scroll under them). */
+.app.body-open .plots { min-height: max(300px, calc(100vh - 320px)); }
 .series-chart { flex: 1 1 0; min-height: 70px; position: relative; }
 .series-chart svg { position: absolute; inset: 0; width: 100%; height: 100%; overflow: visible; }
 .series-chart text { font-size: 11px; fill: #3a4554; }
@@ -202,7 +206,7 @@ export function render({model, el}) {
   }
 
   // --- skeleton ---------------------------------------------------------------------------------
-  const style = h("style", {text: CSS})
+  const style = h("style", {text: CSS + BODY_CSS})
   const app = h("div", {class: "app"})
   const tabButtons = {}
   const nav = h("nav", {class: "tabs", role: "tablist"})
@@ -303,7 +307,20 @@ export function render({model, el}) {
   const seriesCap = h("div", {class: "cap series-caption"})
   const charts = [["q", "q_k", "#1f77b4"], ["r", "r_k", "#ff7f0e"], ["T", "T_k (energy)", "#2ca02c"]].map(
     ([key, label, colour]) => ({key, label, colour, box: h("div", {class: `series-chart series-${key}`})}))
-  const plotSeries = h("div", {class: "plot-series"}, seriesCap, ...charts.map((c) => c.box))
+  // The right column's head: the body view's toggle (area "body") and what the column shows.
+  const seriesHead = h("div", {class: "series-head"}, ...(byArea.body || []).map((s) => control(s)), seriesCap)
+  const plotSeries = h("div", {class: "plot-series"}, seriesHead, ...charts.map((c) => c.box))
+  // The body in 3-D (app/body.js) in the k-series' place while it is open; it moves the section point of the period
+  // it shows in the section plot itself (the figure's body_source, written in place: no message to the server).
+  function bodyPoint(q, r) {
+    const doc = window.Bokeh && Bokeh.documents && Bokeh.documents[0]
+    const src = doc && doc.get_model_by_name("body_source")
+    if (!src) return
+    const cols = q === null ? {q: [], r: []} : {q: [q], r: [r]}
+    for (const [k, v] of Object.entries(cols)) src.data instanceof Map ? src.data.set(k, v) : (src.data[k] = v)
+    src.change.emit()
+  }
+  const bodyView = createBodyView(plotSeries, {onPoint: bodyPoint})
   const eqLegend = h("div", {class: "legend"})
   for (const [t, c] of model.spec.eq_colors) {
     eqLegend.append(h("span", {text: "◆", style: `color:${c};margin-left:8px`}), document.createTextNode(" " + t))
@@ -466,6 +483,7 @@ export function render({model, el}) {
       playBar.insertBefore(playBtn, stepBtn)
     }
     app.classList.toggle("present", on)
+    bodyView.setScale(on ? 1.3 : 1)
     app.classList.toggle("side-collapsed", on)
     presentBtn.textContent = on ? "Leave presentation" : "Presentation mode"
   }
@@ -560,7 +578,15 @@ export function render({model, el}) {
     }
     tourMsg.textContent = tr.message || ""
     sceneInfo.textContent = s.scene_info || ""
-    seriesCap.textContent = s.series_caption || ""
+    const b = s.body || {}
+    seriesCap.textContent = (b.open ? b.caption : s.series_caption) || ""
+    bodyView.show(!!b.open)
+    if (app.classList.contains("body-open") !== !!b.open) {
+      app.classList.toggle("body-open", !!b.open)
+      for (const c of charts) c.box.hidden = !!b.open
+      if (!b.open) requestAnimationFrame(drawSeries)  // drawn while hidden at no size: again now they show
+    }
+    if (b.open) bodyView.setStatus(b.status, b.lost)
     if (currentTab !== "section") {
       const a = v[currentTab] || {}
       aHelp.textContent = a.help || ""
@@ -592,6 +618,7 @@ export function render({model, el}) {
   model.on("messages", showMessages)
   model.on("view", showView)
   model.on("series", drawSeries)
+  model.on("body", () => bodyView.setData(model.body))
   model.on("tab", () => { if (model.tab !== currentTab) showTab(model.tab) })
   model.on("presentation", () => setPresentation(model.presentation))
   model.on("msg:custom", (msg) => {
@@ -606,6 +633,7 @@ export function render({model, el}) {
     }
   })
   setPresentation(!!model.presentation)
+  if (model.body && model.body.frames) bodyView.setData(model.body)
   showTab(model.tab || "section")
   showMessages()
 }

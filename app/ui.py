@@ -57,7 +57,8 @@ def _spec() -> dict[str, Any]:
 
 
 SPEC = _spec()
-ESM = (Path(__file__).with_name("ui.js")).read_text(encoding="utf-8")
+#: The page's one ES module: the body in 3-D (app/body.js: plain functions) and the page (app/ui.js) after it.
+ESM = "\n".join(Path(__file__).with_name(f).read_text(encoding="utf-8") for f in ("body.js", "ui.js"))
 
 
 def check_message(data: Any) -> dict[str, Any] | None:
@@ -100,6 +101,7 @@ class ExplorerUI(JSComponent):
     tab = param.String(default="section")
     presentation = param.Boolean(default=False)
     series = param.Dict(default={}, doc="k, q, r, T of the selected trajectory (drawn by the page)")
+    body = param.Dict(default={}, doc="the body's series for the 3-D view (app/bodyview.py; {}: none)")
     section_plot = Child()
     analysis_plot = Child()
 

@@ -75,6 +75,8 @@ ORBIT_KIND = {
 ORBIT_COLOUR = "#c2006b"
 #: What a tour says to look at (a ring and its words): a colour no layer uses.
 MARK_COLOUR = "#0a58ca"
+#: The section point of the period the body view shows (a filled star: no other mark is one).
+BODY_COLOUR = "#ffd21f"
 #: Invariant manifolds of saddles: unstable and stable (apart from the T' map's red and blue).
 MANIFOLD_COLOURS = {"unstable": "#e8590c", "stable": "#0b7285"}
 N_COLORS = 20
@@ -217,7 +219,8 @@ class SectionFigure:
         # The layers a new page does not show (basins, density, manifolds, periodic orbits) are built
         # when first used and join the plot then, in their place (a string here): a new page builds
         # ~55 models fewer and sends ~30 fewer (Bokeh spends ~0.4 ms a model: docs/load.md).
-        self._order: list[Any] = [tp, "basins", "density", tracks, pts, sel, eq, ics, "manifolds", "orbits", "marks"]
+        self._order: list[Any] = [tp, "basins", "density", tracks, pts, sel, eq, ics, "manifolds", "orbits", "body",
+                                 "marks"]  # fmt: skip
         self._built: dict[str, list[GlyphRenderer]] = {}
         self._shown: set[str] = set()
         fig.renderers.extend([r for r in self._order if not isinstance(r, str)])
@@ -304,6 +307,17 @@ class SectionFigure:
                                             background_fill_color="white", background_fill_alpha=0.75),
                           name="tour_labels")  # fmt: skip
         return [ring, words]
+
+    def _build_body(self) -> list[GlyphRenderer]:
+        # The section point of the period the body view shows (app/body.js): its data is written by the page
+        # alone, in place (no message per period); the server only puts the glyph in the plot.
+        self._body = self._source({"q": [], "r": []}, "body_source")
+        star = Scatter(x="q", y="r", marker="star", size=22, fill_color=BODY_COLOUR, line_color="black", line_width=1.5)
+        return [_renderer(self._body, star, name="body_point")]
+
+    def show_body_point(self) -> None:
+        """Put the body view's highlighted section point in the plot (built on first use; the page moves it)."""
+        self._activate("body")
 
     def set_marks(self, marks: list[tuple[float, float, str]]) -> None:
         """Points to look at (a tour's step), ringed and labelled; [] removes them (built on first use)."""

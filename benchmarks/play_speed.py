@@ -9,6 +9,11 @@ frame is computed (``play.number``), it answers ``shown`` at once (a browser wou
 Measured on the client: the time from the Play message to the first frame's view, and the frames delivered
 per second over ``--seconds`` (distinct frame numbers received / time). ``--layers none`` turns the T′ map and
 the frozen-field tracks off (the orbits layer is off in both: Fig. 10's scene has no orbit seeds).
+
+``--sessions N`` (N > 1) opens N such sessions one after the other, then presses Play in all of them at once: a
+class playing together. Meanwhile ``/liveness`` is asked every 0.1 s (``load_test.Liveness``, a separate process);
+the report gives its answer times while they play and each session's frames per second (what a slow machine
+gives every session: fewer frames, never a backlog).
 """
 
 from __future__ import annotations
@@ -39,8 +44,16 @@ async def measure(url: str, seconds: float, frames: int, fps: int, layers: str) 
     from load_test import Server
 
     tab = Tab(Server(url, 0, os.devnull), "play")
-    query = QUERY.format(frames=frames, fps=fps) + ("&tprime=off&tracks=0" if layers == "none" else "")
-    await tab.open(query=query)
+    await tab.open(query=_query(frames, fps, layers))
+    return await _play_for(tab, seconds, frames, fps, layers)
+
+
+def _query(frames: int, fps: int, layers: str) -> str:
+    return QUERY.format(frames=frames, fps=fps) + ("&tprime=off&tracks=0" if layers == "none" else "")
+
+
+async def _play_for(tab: Tab, seconds: float, frames: int, fps: int, layers: str) -> dict[str, Any]:
+    """Press Play in ``tab``, answer ``shown`` to every frame for ``seconds``, press Pause; what it saw."""
     t0 = time.perf_counter()
     await tab.message({"action": "play"})
     seen: dict[int, float] = {}
@@ -67,16 +80,45 @@ async def measure(url: str, seconds: float, frames: int, fps: int, layers: str) 
             "load_1min": os.getloadavg()[0]}  # fmt: skip
 
 
+async def measure_class(server: Any, sessions: int, seconds: float, frames: int, fps: int,
+                        layers: str) -> dict[str, Any]:  # fmt: skip
+    """``sessions`` tabs open (one after the other), then all play at once; /liveness while they play."""
+    from load_test import Liveness
+
+    tabs = [Tab(server, f"play{i}") for i in range(sessions)]
+    for tab in tabs:
+        await tab.open(timeout=300, query=_query(frames, fps, layers))
+    probe = Liveness(server)
+    probe.start()
+    await asyncio.sleep(2.0)
+    idle = probe.take()
+    each = await asyncio.gather(*(_play_for(t, seconds, frames, fps, layers) for t in tabs))
+    playing = probe.take()
+    await probe.stop()
+    rates = sorted(r["frames_per_s"] for r in each)
+    firsts = sorted(r["first_frame_ms"] for r in each if r["first_frame_ms"] is not None)
+    return {"sessions": sessions, "seconds": seconds, "layers": layers, "liveness_ms_idle": idle,
+            "liveness_ms_playing": playing, "frames_per_s_per_session": {"min": rates[0],
+            "median": rates[len(rates) // 2], "max": rates[-1]}, "frames_total": sum(r["frames"] for r in each),
+            "first_frame_ms": {"median": firsts[len(firsts) // 2], "max": firsts[-1]} if firsts else None,
+            "sessions_without_frames": sum(r["frames"] == 0 for r in each),
+            "load_1min": os.getloadavg()[0]}  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=15.0)
     ap.add_argument("--frames", type=int, default=40)
     ap.add_argument("--fps", type=int, default=30, help="frames/s asked (the most the player sends)")
     ap.add_argument("--layers", choices=("default", "none"), default="default")
+    ap.add_argument("--sessions", type=int, default=1, help="sessions playing at once (> 1: a class)")
     ap.add_argument("--json", default="")
     args = ap.parse_args(argv)
-    with serve() as server:
-        res = asyncio.run(measure(server.url, args.seconds, args.frames, args.fps, args.layers))
+    with serve(session_lifetime=3000) as server:
+        if args.sessions > 1:
+            res = asyncio.run(measure_class(server, args.sessions, args.seconds, args.frames, args.fps, args.layers))
+        else:
+            res = asyncio.run(measure(server.url, args.seconds, args.frames, args.fps, args.layers))
     print(json.dumps(res))
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=1))

@@ -238,6 +238,24 @@ class _Run:
             sys.stderr.flush()
 
 
+#: The CLI's option (``args`` dest) of a builder's keyword where the names differ.
+_DESTS = {"value_range": "range", "seed": "from_", "ics": "ic", "m": "members"}
+
+
+def _build(args: argparse.Namespace, builder: Callable[..., Any], *a: Any, **kw: Any) -> Any:
+    """An analysis' spec from its builder: a value it refuses is one usage line naming the option's flag
+    (``--offset: offset must be in (0, 1] ...``), its keywords written as flags (``ds_min`` as ``ds-min``)."""
+    try:
+        return builder(*a, **kw)
+    except ParameterError as exc:
+        text, key = str(exc), getattr(exc, "option", None) or ""
+        for name in (k for k in vars(args) if "_" in k.strip("_")):
+            text = re.sub(rf"\b{name}\b", name.replace("_", "-"), text)
+        dest = next((d for d in (_DESTS.get(key), key) if d and hasattr(args, d)), None)  # lyapunov's seed: --seed
+        flag = f"--{dest.strip('_').replace('_', '-')}: " if dest else ""
+        raise UsageError(flag + text) from None
+
+
 def _print_json(obj: Any) -> None:
     sys.stdout.write(export.dumps(obj) + "\n")
     sys.stdout.flush()
@@ -452,7 +470,7 @@ def _lyapunov_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_lyapunov(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.lyapunov import attractor_ensemble, lyapunov_spectrum
+    from explorer_core.analyses.lyapunov import lyapunov_spec, lyapunov_spectrum
 
     params, scene = _params(args)
     ics = _ics(args)
@@ -461,17 +479,10 @@ def cmd_lyapunov(args: argparse.Namespace) -> int:
             raise UsageError("give an initial condition: --ic Q,R")
         ics = np.array(scene.points[:1])
     transient = args.transient if args.transient is not None else (scene.transient if scene else 100)
-    numerics = _numerics(args, None, args.periods)
-    if args.ensemble > 1:
-        if not 0 < args.offset <= 1:  # relative to 1 + |x|: more than that is not "near the attractor"
-            raise UsageError(f"--offset must be in (0, 1], got {args.offset:g}")
-        if ics.shape[0] > 1:
-            raise UsageError("--ensemble M takes one --ic (the members are placed on its attractor)")
-        ics = attractor_ensemble(params, ics[0], args.ensemble, transient=transient, offset=args.offset,
-                                 seed=args.seed, numerics=numerics)  # fmt: skip
+    spec = _build(args, lyapunov_spec, params, ics, args.periods, transient=transient, ensemble=args.ensemble,
+                  numerics=_numerics(args, None, args.periods), offset=args.offset, seed=args.seed)  # fmt: skip
     with _Run(args) as run:
-        res = lyapunov_spectrum(params, ics, args.periods, transient=transient, numerics=numerics, cancel=run,
-                                progress=run.update)  # fmt: skip
+        res = lyapunov_spectrum(spec, cancel=run, progress=run.update)
     summary = _with_scene(res.summary(), args)
     if args.history:
         res.write(args.history)
@@ -518,7 +529,7 @@ def _bifurcation_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_bifurcation(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.bifurcation import bifurcation_diagram
+    from explorer_core.analyses.bifurcation import bifurcation_diagram, diagram_spec
     from explorer_core.analyses.sweeps import sweep_values
 
     params, scene = _params(args)
@@ -527,12 +538,11 @@ def cmd_bifurcation(args: argparse.Namespace) -> int:
     values = sweep_values(tuple(_span(args.range, "--range")), args.n_values)
     ics = _ics(args)
     sweeps = tuple(s.strip() for s in args.sweeps.split(",")) if args.sweeps else ("forward", "backward")
+    spec = _build(args, diagram_spec, params, args.param, values, points=args.points, transient=args.transient,
+                  seeding=args.seeding, ics=_scene_point(scene) if ics is None else ics, sweeps=sweeps,
+                  numerics=_numerics(args, None, args.transient + args.points))  # fmt: skip
     with _Run(args) as run:
-        diag = bifurcation_diagram(params, args.param, values, points=args.points, transient=args.transient,
-                                   seeding=args.seeding, ics=_scene_point(scene) if ics is None else ics, sweeps=sweeps,
-                                   numerics=_numerics(args, None, args.transient + args.points), cancel=run,
-                                   progress=run.update,
-                                   executor=_executor(args))  # fmt: skip
+        diag = bifurcation_diagram(spec, cancel=run, progress=run.update, executor=_executor(args))
     summary = diag.summary()
     if args.scheduler:
         summary["scheduler"] = args.scheduler
@@ -639,37 +649,20 @@ def _continue_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_continue(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.continuation import continue_orbit
+    from explorer_core.analyses.continuation import continuation_spec, continue_orbit
     from explorer_core.analyses.orbits import ORBIT_NUMERICS
-    from explorer_core.analyses.sweeps import check_param
 
     params, _ = _params(args)
-    name = check_param(args.param)
-    lo, hi = _span(args.range, "--range")
-    for v in (lo, hi):  # positive-definite tensors are convex: both ends valid means the whole range is
-        try:
-            params.with_(**{name: v})
-        except ParameterError as exc:
-            raise UsageError(f"--range {args.range}: {name} = {v:g} is not a valid system ({exc})") from None
-    numerics = _numerics(args, None, 1, base=ORBIT_NUMERICS)
     if args.from_ is None:
         raise UsageError("give --from Q,R: a point near the period-N orbit at the range's first value")
-    q, r = _point_in_bound(args.from_, "--from", numerics)
-    if (args.param2 is None) != (args.range2 is None):
-        raise UsageError("--param2 and --range2 go together")
-    steps = {"ds": args.ds, "ds_min": args.ds_min, "ds_max": args.ds_max}
-    for key, v in steps.items():
-        if v is not None and v <= 0:
-            raise UsageError(f"--{key.replace('_', '-')} must be > 0, got {v:g}")
-    ds, ds_min, ds_max = (v if v is not None else d for v, d in zip(steps.values(), (0.02, 1e-7, 0.1), strict=True))
-    if not ds_min <= ds <= ds_max:
-        raise UsageError(f"the steps must have ds-min <= ds <= ds-max, got {ds_min:g}, {ds:g}, {ds_max:g}")
+    spec = _build(args, continuation_spec, params, args.param, _span(args.range, "--range"),
+                  _floats(args.from_, 2, "--from"), args.period, switch=args.switch, max_period=args.max_period,
+                  max_points=args.max_points, ds=args.ds, ds_min=args.ds_min, ds_max=args.ds_max,
+                  numerics=_numerics(args, None, 1, base=ORBIT_NUMERICS), param2=args.param2,
+                  range2=_span(args.range2, "--range2") if args.range2 else None, check_end=True)  # fmt: skip
     with _Run(args) as run:
-        res = continue_orbit(params, name, (lo, hi), (q, r), args.period, switch=args.switch,
-                             max_period=args.max_period, numerics=numerics, param2=args.param2, cancel=run,
-                             max_points=args.max_points,
-                             range2=_span(args.range2, "--range2") if args.range2 else None,
-                             progress=run.update, **steps)  # fmt: skip
+        res = continue_orbit(spec, cancel=run, progress=run.update)
+    name = spec.param
     summary = res.summary()
     if args.out:
         summary["csv"] = res.write(args.out)
@@ -805,8 +798,8 @@ def cmd_basins(args: argparse.Namespace) -> int:
         opts["cell_box"] = _box(args.cell_box, "--cell-box", None)
     if args.cells:
         opts["cells"] = _ints(args.cells, "--cells", "NQ,NR")
-    base = basin_spec(params, box, grid, **opts)
-    spec = basin_spec(params, box, grid, numerics=_numerics(args, None, 1, base=base.numerics), **opts)
+    base = _build(args, basin_spec, params, box, grid, **opts)
+    spec = _build(args, basin_spec, params, box, grid, numerics=_numerics(args, None, 1, base=base.numerics), **opts)
     with _Run(args) as run:
         result = run_updates(iter_basins(spec, cancel=run), run.update)
     summary = _with_scene(result.summary(), args)
@@ -841,19 +834,14 @@ def _fit_args(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.drift import drift_fit
+    from explorer_core.analyses.drift import drift_fit, drift_spec
 
     params, scene = _params(args)
-    k0, k1 = _ints(args.window, "--window", "K0,K1", 0, config.MAX_PERIODS)
-    degree = _ints(args.degree, "--degree", "DQ,DR", 0, 32)
-    ics = _ics(args)
-    box = _box(args.box, "--box", scene.box if scene else None)
-    if ics is None and box is None:
-        raise UsageError("give --ic Q,R (repeatable) or --box QMIN,QMAX,RMIN,RMAX for random members")
+    spec = _build(args, drift_spec, params, _ints(args.window, "--window", "K0,K1"), m=args.members, ics=_ics(args),
+                  degree=_ints(args.degree, "--degree", "DQ,DR"), box=_box(args.box, "--box", scene.box if scene
+                  else None), seed=args.seed, criterion=args.criterion, numerics=_numerics(args, None, 1))  # fmt: skip
     with _Run(args) as run:
-        fit = drift_fit(params, (k0, k1), degree=tuple(degree), m=args.members, ics=ics, box=box, seed=args.seed,
-                        criterion=args.criterion, numerics=_numerics(args, None, k1), cancel=run,
-                        progress=run.update)  # fmt: skip
+        fit = drift_fit(spec, cancel=run, progress=run.update)
     summary = fit.summary()
     if args.out:
         fit.write(args.out)
@@ -895,6 +883,48 @@ def cmd_symmetry(args: argparse.Namespace) -> int:
                 *(f"  broken by: {reason}" for reason in summary["broken_by"])]  # fmt: skip
 
     return _finish(args, summary, lines, result=check, completed=True)
+
+
+def _body_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition at t0 (default: the scene's first)")
+    p.add_argument("--periods", type=_count("periods", 1, 10_000), default=20, help="periods of the series")
+    p.add_argument("--samples", type=_count("samples", 4, 512), default=48, help="frames per period (default 48)")
+    p.add_argument("--k0", type=_count("k0", 0, config.MAX_PERIODS), default=0,
+                   help="start after this many periods (the orientation is the identity there)")  # fmt: skip
+
+
+def cmd_body(args: argparse.Namespace) -> int:
+    from explorer_core.analyses.body import body_series
+
+    params, scene = _params(args)
+    ics = _ics(args)
+    if ics is not None and ics.shape[0] > 1:
+        raise UsageError("--ic: the body follows one trajectory, give one Q,R")
+    ic = _scene_point(scene)[0] if ics is None else ics[0]
+    numerics = _numerics(args, None, args.k0 + args.periods)
+    with _Run(args) as run:
+        series = body_series(params, ic, args.periods, samples=args.samples, k0=args.k0, numerics=numerics,
+                             cancel=run, progress=run.update)  # fmt: skip
+    summary = _with_scene(series.summary(), args)
+    for path in args.out or []:
+        series.write(path)
+    if args.out:
+        summary["out"] = args.out
+
+    def lines() -> list[str]:
+        s = summary
+        if not series.frames:
+            return [f"status {s['status']}: no frame recorded"]
+        (w, x, y, z), e = series.quaternion[-1], s["energy"]
+        return [f"{s['frames']} frames ({s['samples']} a period), t {s['t'][0]:.6g} .. {s['t'][1]:.6g}, "
+                f"status {s['status']}",
+                f"principal moments {', '.join(f'{m:.6g}' for m in s['moments'])}"
+                + ("" if s["box_exists"] else " (no box has them: they break the triangle inequality)"),
+                f"orientation at the end (w, x, y, z) = ({w:.10g}, {x:.10g}, {y:.10g}, {z:.10g}); "
+                f"|Q| drift {s['quaternion_norm_drift']:.2g}",
+                f"T from {e['first']:.10g} to {e['last']:.10g} (min {e['min']:.6g}, max {e['max']:.6g})"]  # fmt: skip
+
+    return _finish(args, summary, lines, result=series, what="frames")
 
 
 def _serve_args(p: argparse.ArgumentParser) -> None:
@@ -1130,6 +1160,8 @@ COMMANDS: dict[str, Command] = {
                       NPZ, "arrays q (NX), r (NY), label (NY x NX)"),
     "fit": Command("polynomial fits of the drift q_k, r_k over a window of k, and the implied map", _fit_args,
                    cmd_fit, CSV, "the members' series member,k,q,r"),
+    "body": Command("the rigid body's orientation along a trajectory (quaternions, omega, T; frames in a period)",
+                    _body_args, cmd_body, (".csv", ".npz", ".json"), "frame,k,t,p,q,r,w,x,y,z,T (.csv), or .npz/.json"),
     "symmetry": Command("check the involution t -> -t, q -> q, r -> -r on sections", _symmetry_args, cmd_symmetry,
                         flags=("json",)),
     "serve": Command("run the web explorer (panel serve app/main.py)", _serve_args, cmd_serve, system=False,

@@ -1,8 +1,8 @@
 """Compile (or load from the on-disk cache) every numba kernel of the package, so no user waits for it.
 
 The engine (:mod:`explorer_core.solve.rk`) has one kernel per system (the field, the tangent system, the
-Lyapunov basis) and block kind (lock-step blocks, or a block of one: the system and "one" are
-compile-time constants); every method and mode runs on them. Each is compiled here through the same
+Lyapunov basis, the body's orientation) and block kind (lock-step blocks, or a block of one: the system
+and "one" are compile-time constants); every method and mode runs on them. Each is compiled here through the same
 public calls the analyses make (so with the same argument types: a readonly or non-contiguous array
 would be another compilation). The other kernels: the model's scalar helpers (equilibria, the
 ``solve_ivp`` cross-checks), the manifolds' crossings, the basins' recurrence tables. (The benchmark's
@@ -26,8 +26,8 @@ def _engine() -> None:
     """Every (system, block kind) kernel of the engine, as the analyses call it."""
     import numpy as np
 
-    from explorer_core.solve import tangent
-    from explorer_core.solve.integrators import Batch, advance, coefficients
+    from explorer_core.solve import rk, tangent
+    from explorer_core.solve.integrators import Batch, advance, coefficients, run
     from explorer_core.solve.numerics import Numerics
     from explorer_core.system.model import Model
     from explorer_core.system.params import Params
@@ -42,6 +42,9 @@ def _engine() -> None:
         tangent.monodromy(coefs, ics, 1, model.params.t0, model.params.period, numerics, workers=1, block=block)
         lyap = tangent.start(ics, model.params.t0, model.params.period)
         tangent.advance_lyapunov(coefs, lyap, 1, numerics, workers=1, block=block)
+        body = Batch.start(ics, model.params.t0, model.params.period, dim=rk.STATE_SIZE[rk.BODY])
+        body.y[:, 2] = 1.0  # the body's orientation (analyses.body: one trajectory, so the kernel of one)
+        run(rk.BODY, coefs, body, 1, samples=4, workers=1, block=block, **numerics.kernel_kwargs())
 
 
 def _model() -> None:

@@ -328,3 +328,38 @@ def sympy_taylor_coefficients(params: Params, t0: float, q0: float, r0: float, o
         out[0, k] = float(qs.coeff(tau, k))
         out[1, k] = float(rs.coeff(tau, k))
     return out
+
+
+# ---------------------------------------------------------------------------
+# The body's orientation (reference for explorer_core.analyses.body).
+
+
+def ivp_body(params: Params, ic, t_start: float, t_eval, rtol: float = 1e-12, atol: float = 1e-12):
+    """``(omega (F, 3), R (F, 3, 3))`` at the times ``t_eval`` by scipy's DOP853 on the full 3-D system.
+
+    ``I omega' = (I omega) x omega + lambda a`` with all three components of ``omega`` integrated (``p`` is
+    not eliminated: the constraint ``p = alpha + g q`` holds because ``lambda`` keeps ``df/dt = 0``), the
+    multiplier from the current ``omega``, and the orientation as a 3x3 matrix, ``R' = R [omega]_x`` (body
+    -> space), 3 + 9 equations. Starts at ``t_start`` from ``(q, r) = ic``, ``p = alpha + g q``, ``R = I``.
+    No quaternion, no coefficient tables, no engine.
+    """
+    f = NaiveField(params)
+    inertia, minv = f.inertia, f.minv
+
+    def rhs(t, y):
+        om = y[:3]
+        rot = y[3:].reshape(3, 3)
+        g, gp = f.g(t)
+        a = np.array([1.0, -g, 0.0])
+        euler = minv @ np.cross(inertia @ om, om)
+        minv_a = minv @ a
+        lam = (-(a @ euler) + gp * om[1]) / (a @ minv_a)
+        skew = np.array([[0.0, -om[2], om[1]], [om[2], 0.0, -om[0]], [-om[1], om[0], 0.0]])
+        return np.concatenate([euler + lam * minv_a, (rot @ skew).ravel()])
+
+    g0, _ = f.g(t_start)
+    y0 = np.concatenate([[params.alpha + g0 * ic[0], ic[0], ic[1]], np.eye(3).ravel()])
+    t_eval = np.asarray(t_eval, float)
+    sol = solve_ivp(rhs, (t_start, t_eval[-1]), y0, method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval)
+    assert sol.success, sol.message
+    return sol.y[:3].T, sol.y[3:].T.reshape(-1, 3, 3)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from bokeh.events import Tap
+from jobs import Jobs
 
 from app.page import Page
 from app.runner import WARM
@@ -15,18 +16,6 @@ FLIP = (-0.0377, -2.3979)  # Fig. 8B's flip saddle
 @pytest.fixture(autouse=True)
 def _warm() -> None:
     WARM.set()
-
-
-class Jobs:
-    def __init__(self) -> None:
-        self.queue: list = []
-
-    def submit(self, fn, /, *args, **kwargs) -> None:
-        self.queue.append(lambda: fn(*args, **kwargs))
-
-    def drain(self) -> None:
-        while self.queue:
-            self.queue.pop(0)()
 
 
 def page_for(query: dict) -> tuple[Page, Jobs]:

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from jobs import Jobs
 
 from app.page import Page
 from app.play import ACK_TIMEOUT, FRAME_PERIODS
@@ -20,20 +21,6 @@ from explorer_core.analyses.orbits import find_orbits
 @pytest.fixture(autouse=True)
 def _warm() -> None:
     WARM.set()
-
-
-class Jobs:
-    """An executor that runs the jobs only when drained: a frame is slow for as long as we like."""
-
-    def __init__(self) -> None:
-        self.queue: list[Callable[[], None]] = []
-
-    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> None:
-        self.queue.append(lambda: fn(*args, **kwargs))
-
-    def drain(self) -> None:
-        while self.queue:
-            self.queue.pop(0)()
 
 
 class Clock:
@@ -185,6 +172,31 @@ def test_the_orbits_are_followed_from_frame_to_frame() -> None:
     for q, r in followed:
         assert any(abs(o.points[0, 0] - q) < 1e-6 and abs(o.points[0, 1] - r) < 1e-6 for o in grid.orbits)
     assert page.state.alpha == pytest.approx(VALUES[6])  # the first frame is the value in use, then one back
+
+
+def test_an_orbit_born_at_a_period_doubling_between_frames_is_followed_too() -> None:
+    """Fig. 10's period-1 orbit doubles at alpha = -0.37534 (continuation, README). Played from -0.35 down with
+    the orbits followed, the frame past the doubling shows the period-2 orbit born there (seeded along the flip
+    multiplier's eigenvector), and it is an orbit an independent grid search finds at that value. (Before, only
+    the last frame's orbits were continued: the period-2 orbit never appeared while playing.)"""
+    page, jobs, clock = page_for({"alpha": "-0.35", "play_from": "-0.35", "play_to": "-0.4", "play_n": "6",
+                                  "orbits": "1", "orb_all": "1", "orb_n": "2"})  # fmt: skip
+    assert not any(o["period"] == 2 for o in page.session.orbits)  # none at -0.35
+    page.handle({"action": "play"})
+    for _ in range(4):  # -0.35, -0.36, -0.37, -0.38
+        jobs.drain()
+        if page.state.alpha < -0.3753:
+            break
+        clock.advance(0.1)
+    jobs.drain()
+    assert page.state.alpha == pytest.approx(-0.38)
+    born = [o for o in page.session.orbits if o["period"] == 2]
+    assert born, page.session.orbits
+    grid = find_orbits(page.state.system(), [(q, r) for q in np.linspace(-1.0, 0.8, 10)
+                                             for r in np.linspace(-3.2, -0.8, 10)], [2])  # fmt: skip
+    pairs = [o for o in grid.orbits if o.period == 2]
+    for o in born:
+        assert any(np.min(np.hypot(g.points[:, 0] - o["q"], g.points[:, 1] - o["r"])) < 1e-6 for g in pairs)
 
 
 def test_the_play_settings_round_trip_through_the_url() -> None:

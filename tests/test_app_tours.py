@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from jobs import Jobs
 
 import app.tours
 from app.page import Page
@@ -23,18 +24,6 @@ FLIP = (-0.0377, -2.3979)  # Fig. 8B's period-1 flip saddle (bilimovich orbits -
 @pytest.fixture(autouse=True)
 def _warm() -> None:
     WARM.set()
-
-
-class Jobs:
-    def __init__(self) -> None:
-        self.queue: list = []
-
-    def submit(self, fn, /, *args, **kwargs) -> None:
-        self.queue.append(lambda: fn(*args, **kwargs))
-
-    def drain(self) -> None:
-        while self.queue:
-            self.queue.pop(0)()
 
 
 def page_for(query: dict[str, str]) -> tuple[Page, Jobs]:

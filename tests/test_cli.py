@@ -342,8 +342,8 @@ def test_continue_steps_csv_and_losses(tmp_path, monkeypatch) -> None:
 
     seen = {}
 
-    def fake(*args, **kwargs):
-        seen.update(kwargs)
+    def fake(spec, **kwargs):  # the CLI builds the spec (continuation_spec) and runs it
+        seen.update(ds=spec.options.ds, ds_min=spec.options.ds_min, ds_max=spec.options.ds_max)
         return _FakeContinuation()
 
     monkeypatch.setattr(continuation, "continue_orbit", fake)

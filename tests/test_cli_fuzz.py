@@ -67,6 +67,8 @@ VALID: dict[str, list[str]] = {
     "fit": ["fit", "--scene", "fig3", "--window", "200,210", "--degree", "0,2", "--ic", "0,8", "--out", "{d}/f.csv",
             "--json", "--method", "dop853"],
     "symmetry": ["symmetry", "--scene", "fig1C", "--periods", "3", "--random", "2", "--json"],
+    "body": ["body", "--scene", "fig10", "--ic=-0.0959,-1.962", "--periods", "3", "--samples", "8",
+             "--out", "{d}/b.csv", "--out", "{d}/b.npz", "--json"],
     "worker": ["worker", "status"],
     "warmup": ["warmup"],
 }  # fmt: skip

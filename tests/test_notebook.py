@@ -13,6 +13,7 @@ import os
 from pathlib import Path
 
 import pytest
+from jobs import Jobs
 
 from app.notebook import Explorer, query_of_url, text_of
 from app.runner import WARM
@@ -21,20 +22,6 @@ from explorer_core.system.params import ParameterError
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOK = ROOT / "examples" / "paper_story.ipynb"
 SMALL = {"n": ["2"], "periods": ["5"]}
-
-
-class Jobs:
-    """Jobs run when drained (the tests' executor, as in test_app_orbits)."""
-
-    def __init__(self) -> None:
-        self.queue: list = []
-
-    def submit(self, fn, /, *args, **kwargs) -> None:
-        self.queue.append(lambda: fn(*args, **kwargs))
-
-    def drain(self) -> None:
-        while self.queue:
-            self.queue.pop(0)()
 
 
 @pytest.fixture(autouse=True)

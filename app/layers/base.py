@@ -143,14 +143,9 @@ def plain(exc: BaseException, limit: int = 300) -> str:
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
-def num(x: Any) -> str:
-    """A number for a CSV cell: the shortest text that reads back to the same float (never ``np.float64(…)``)."""
-    return repr(float(x))
-
-
 def _short(v: str | None, limit: int = 40) -> str:
     v = v or "(none)"
     return v if len(v) <= limit else v[: limit - 1] + "…"
 
 
-__all__ = ["KEEP", "LAYER", "Host", "Layer", "num", "plain", "stale_note"]
+__all__ = ["KEEP", "LAYER", "Host", "Layer", "plain", "stale_note"]

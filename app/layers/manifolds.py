@@ -9,10 +9,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from app.layers.base import KEEP, Layer, num, plain, stale_note
+from app.layers.base import KEEP, Layer, plain, stale_note
 from app.runner import LAYER
 from app.state import MAX_MANIFOLDS, PLOT_PIXELS, SYSTEM_FIELDS, url_keys
 from explorer_core.analyses.manifolds import Manifolds, iter_manifolds, saddle_orbit
+from explorer_core.export import cell
 from explorer_core.system.params import ParameterError, Params
 
 #: A click picks the saddle whose point is nearest, within this fraction of the view's width and height.
@@ -155,7 +156,7 @@ class ManifoldsLayer(Layer):
         buf.write("\nsaddle,branch,kind,s,q,r\n")
         for i, m in enumerate(self.manifolds):
             for label, kind, s_, q, r in m.rows():
-                buf.write(f"{i},{label},{kind},{num(s_)},{num(q)},{num(r)}\n")
+                buf.write(f"{i},{label},{kind},{cell(s_)},{cell(q)},{cell(r)}\n")
         return io.BytesIO(buf.getvalue().encode())
 
 

@@ -9,16 +9,22 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from app.layers.base import KEEP, Layer, num, stale_note
+from app.layers.base import KEEP, Layer, stale_note
 from app.runner import LAYER, POINTS
 from app.state import MAX_MAGNITUDE, MAX_ORBIT_SEEDS, SYSTEM_FIELDS, url_keys
 from explorer_core.analyses.orbits import Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
+from explorer_core.export import cell
 from explorer_core.system.params import Params
 
 #: Seeds of the "every orbit in view" search: a grid over the plot window.
 ORBIT_GRID = (10, 10)
 #: Orbits listed in the table (all of them are drawn and in the CSV).
 ORBIT_ROWS = 40
+#: While a parameter is played, an orbit of period n found with a real multiplier past -1 (a period doubling
+#: happened since the last frame) is searched for the period-2n orbit born there, from seeds along the
+#: multiplier's eigenvector at these distances (relative to 1 + |x|): the born orbit's distance grows like the
+#: square root of the parameter's distance from the doubling, which a frame's step does not tell.
+BIRTH_STEPS = (1e-2, 3e-2, 1e-1)
 
 
 @dataclass(frozen=True)
@@ -32,6 +38,29 @@ class OrbitInputs:
     #: While a parameter is played (app/play.py): the last frame's orbits, (q, r, period) each, continued to
     #: this frame by Newton from where they were, each for its own period (not the grid over the view).
     follow: tuple[tuple[float, float, int], ...] = ()
+
+
+def birth_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[float, float]]]:
+    """Seeds, by period, of the orbits born at the period doublings of ``orbits``: for each orbit of period n with
+    a real multiplier below -1 and no orbit of period 2n near it (2n up to ``max_period``), points along that
+    multiplier's eigenvector (:data:`BIRTH_STEPS`). A seed Newton takes back to the orbit itself gives that
+    orbit again (least period), drawn once."""
+    out: dict[int, list[tuple[float, float]]] = {}
+    for o in orbits:
+        n2 = 2 * int(o.period)
+        mu = o.multipliers[int(np.argmin(np.abs(o.multipliers + 1.0)))]
+        if n2 > max_period or abs(mu.imag) > 1e-12 or mu.real >= -1.0:
+            continue
+        x = o.points[0]
+        scale = 1.0 + float(np.abs(x).max())
+        if any(p.period == n2 and np.linalg.norm(p.points - x, axis=1).min() < 0.3 * scale for p in orbits):
+            continue  # its doubled orbit is followed already
+        w, vecs = np.linalg.eig(o.matrix)
+        v = np.real(vecs[:, int(np.argmin(np.abs(w + 1.0)))])
+        v /= np.linalg.norm(v)
+        out.setdefault(n2, []).extend((float(x[0] + h * scale * v[0]), float(x[1] + h * scale * v[1]))
+                                      for h in BIRTH_STEPS)  # fmt: skip
+    return out
 
 
 class OrbitsLayer(Layer):
@@ -75,13 +104,18 @@ class OrbitsLayer(Layer):
             if not cancelled():
                 yield res
             return
-        # Followed: each period's orbits from their last points (one Newton each), then the clicked seeds.
+        # Followed: each period's orbits from their last points (one Newton each), then the clicked seeds, then
+        # the orbits born at a period doubling since the last frame.
         parts = []
         for n in sorted({p for _, _, p in inputs.follow}):
             pts = [(q, r) for q, r, p in inputs.follow if p == n]
             parts.append(find_orbits(inputs.params, pts, [n], cancel=cancelled))
         if inputs.seeds:
             parts.append(find_orbits(inputs.params, list(inputs.seeds), list(inputs.periods), cancel=cancelled))
+        # The orbits born at a doubling since the last frame (a grid would find them; following alone would not).
+        births = birth_seeds([o for part in parts for o in part.orbits], max(inputs.periods))
+        for n, seeds in sorted(births.items()):
+            parts.append(find_orbits(inputs.params, seeds, [n], cancel=cancelled))
         if cancelled():
             return
         found: list[Orbit] = []
@@ -189,7 +223,7 @@ class OrbitsLayer(Layer):
             m = o.multipliers
             for j, (q, r) in enumerate(o.points):
                 nums = (q, r, m[0].real, m[0].imag, m[1].real, m[1].imag, o.det, o.liouville, o.residual)
-                buf.write(f"{i},{int(o.period)},{o.kind},{int(o.stable)},{j},{','.join(num(x) for x in nums)}\n")
+                buf.write(f"{i},{int(o.period)},{o.kind},{int(o.stable)},{j},{','.join(cell(x) for x in nums)}\n")
         return io.BytesIO(buf.getvalue().encode())
 
 

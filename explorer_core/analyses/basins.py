@@ -71,6 +71,7 @@ from numba import njit
 from explorer_core import config, export
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
+from explorer_core.analyses.specs import spec_of
 from explorer_core.analyses.sweeps import detect_period
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -1277,21 +1278,21 @@ def iter_basins(
 
 
 def basins(
-    params: Params,
-    box: Sequence[float],
-    grid: Sequence[int],
-    *,
+    spec: BasinSpec | Params,
+    *args: Any,
     cancel: Callable[[], bool] | None = None,
     progress: Callable[[BasinsUpdate], None] | None = None,
     **kw: Any,
 ) -> Basins:
-    """Basins of attraction of the Poincare map over ``box`` on a ``grid = (NX, NY)`` of pixel centres.
+    """Basins of attraction of the Poincare map over ``box`` on a ``grid = (NX, NY)`` of pixel centres:
+    ``basins(spec)`` with a :class:`BasinSpec`, or the keyword form ``basins(params, box, grid, **options)``,
+    which builds the spec with :func:`basin_spec`.
 
     Parameters
     ----------
-    params : the system.
-    box : ``(q0, q1, r0, r1)``.
-    grid : ``(NX, NY)``.
+    spec : a :class:`BasinSpec`, or the system (the keyword form).
+    box : ``(q0, q1, r0, r1)`` (keyword form).
+    grid : ``(NX, NY)`` (keyword form).
     cancel : polled after every chunk of periods (a cancelled result has ``completed=False``).
     progress : called with every :class:`BasinsUpdate` of :func:`iter_basins`.
     **kw : the options of :func:`basin_spec` (numerics, cells, recurrence counts, ...).
@@ -1305,4 +1306,4 @@ def basins(
     G. Datseris and A. Wagemakers, "Effortless estimation of basins of attraction", Chaos 32, 023104
     (2022) (the recurrences); the attracting cycles by Newton, :mod:`explorer_core.analyses.orbits`.
     """
-    return run_updates(iter_basins(basin_spec(params, box, grid, **kw), cancel=cancel), progress)
+    return run_updates(iter_basins(spec_of(BasinSpec, basin_spec, spec, args, kw), cancel=cancel), progress)

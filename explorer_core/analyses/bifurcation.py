@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config, export
+from explorer_core.analyses.specs import spec_of
 from explorer_core.analyses.sweeps import check_param, detect_period, params_at
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -545,48 +546,18 @@ def sweep_chunk(
     )
 
 
-def iter_bifurcation_diagram(
-    params: Params,
-    param: str,
-    values: Any,
-    *,
-    cancel: Callable[[], bool] | None = None,
-    **kw: Any,
-) -> Iterator[SweepProgress]:
-    """:func:`bifurcation_diagram` (same arguments) as a stream of :class:`SweepProgress` (values done of
-    values to compute); the last update's ``result`` is the diagram."""
+@dataclass(frozen=True)
+class DiagramSpec:
+    """What defines an orbit diagram (paper, Fig. 10): the orbits at every value (:class:`SweepSpec`), how each
+    value is seeded (``"continuation"``: forward/backward sweeps from the previous final state; ``"fixed"``:
+    every value from the ICs) and which continuation sweeps run. Made by :func:`diagram_spec`."""
 
-    def work(emit: Callable[[SweepProgress], None], stop: Callable[[], bool]) -> SweepProgress:
-        last = [0, 0]
-
-        def report(p: SweepProgress) -> None:
-            last[:] = [p.done, p.total]
-            emit(p)
-
-        d = _diagram(params, param, values, progress=report, cancel=stop, **kw)
-        d = dataclasses.replace(d, lost=d.losses())
-        done = last[0] if not d.completed else max(last[1], int(np.count_nonzero(d.valid)))
-        return SweepProgress(done, max(done, last[1], int(np.count_nonzero(d.valid))), d.elapsed_s, d)
-
-    return stream(work, cancel)
+    sweep: SweepSpec
+    seeding: str
+    sweeps: tuple[str, ...]
 
 
-def bifurcation_diagram(
-    params: Params,
-    param: str,
-    values: Any,
-    *,
-    progress: Callable[[SweepProgress], None] | None = None,
-    cancel: Callable[[], bool] | None = None,
-    **kw: Any,
-) -> OrbitDiagram:
-    """Orbit diagram of the Poincare map over ``param`` (paper, Fig. 10): :func:`_diagram`'s arguments;
-    ``progress`` gets every update of :func:`iter_bifurcation_diagram`. A cancelled diagram has
-    ``completed=False`` and the trajectories not computed in ``lost``."""
-    return run_updates(iter_bifurcation_diagram(params, param, values, cancel=cancel, **kw), progress)
-
-
-def _diagram(
+def diagram_spec(
     params: Params,
     param: str,
     values: Any,
@@ -597,27 +568,99 @@ def _diagram(
     ics: Any = None,
     sweeps: Sequence[str] = SWEEPS,
     numerics: Numerics | None = None,
-    progress: Callable[[SweepProgress], None] | None = None,
-    cancel: Callable[[], bool] | None = None,
-    workers: int | None = None,
-    executor: Executor | None = None,
-    lockstep: bool = True,
-) -> OrbitDiagram:
-    """Orbit diagram of the Poincare map over ``param`` (paper, Fig. 10).
+) -> DiagramSpec:
+    """A validated :class:`DiagramSpec`; every bad value raises :class:`ParameterError` naming it.
 
     Parameters
     ----------
     params : the system at the other parameters' values.
     param : one of :data:`SWEEP_PARAMS` (case-insensitive).
     values : the parameter values (1-D, in sweep order for ``forward``), e.g.
-        :func:`sweep_values` ``((lo, hi), n)``.
+        :func:`sweep_values` ``((lo, hi), n)``. A value that is not a valid system is no error: the
+        diagram says so at that value (``errors``).
     points : section points kept per value and initial condition.
     transient : periods run first at every value.
-    seeding : ``"continuation"`` (forward/backward sweeps from the previous final state)
-        or ``"fixed"`` (every value from ``ics``).
+    seeding : ``"continuation"`` or ``"fixed"``.
     ics : (n, 2) initial conditions at ``t0`` (default ``[(0.1, 0.1)]``).
     sweeps : the continuation sweeps to run (``"forward"``, ``"backward"``); both run at once.
     numerics : integration settings (escape bound included).
+    """
+    param = check_param(param)
+    vals = np.asarray(values, dtype=float).ravel()
+    if vals.size == 0 or not np.all(np.isfinite(vals)):
+        raise ParameterError(f"values must be a non-empty list of finite numbers, got {values!r}")
+    if isinstance(points, bool) or not isinstance(points, int | np.integer) or not 1 <= points <= 1_000_000:
+        raise ParameterError(f"points must be an integer in [1, 1000000], got {points!r}")
+    if isinstance(transient, bool) or not isinstance(transient, int | np.integer) or not 0 <= transient:
+        raise ParameterError(f"transient must be a non-negative integer, got {transient!r}")
+    names = check_sweeps(seeding, sweeps)
+    ics = check_ics([(0.1, 0.1)] if ics is None else ics)
+    numerics = numerics or Numerics()
+    n_sweeps = 1 if seeding == "fixed" else len(tuple(sweeps))
+    if n_sweeps * vals.size * ics.shape[0] * points > config.MAX_POINTS:
+        raise ParameterError(f"{vals.size} values x {ics.shape[0]} ICs x {points} points exceeds {config.MAX_POINTS}")
+    sweep = SweepSpec(params, param, vals, ics, int(transient), int(points), numerics)
+    return DiagramSpec(sweep, seeding, names)
+
+
+def iter_bifurcation_diagram(
+    spec: DiagramSpec | Params,
+    *args: Any,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+    executor: Executor | None = None,
+    lockstep: bool = True,
+    **kw: Any,
+) -> Iterator[SweepProgress]:
+    """:func:`bifurcation_diagram` (same arguments) as a stream of :class:`SweepProgress` (values done of
+    values to compute); the last update's ``result`` is the diagram. The spec (or the keyword form's) is
+    checked at the call."""
+    spec = spec_of(DiagramSpec, diagram_spec, spec, args, kw)
+
+    def work(emit: Callable[[SweepProgress], None], stop: Callable[[], bool]) -> SweepProgress:
+        last = [0, 0]
+
+        def report(p: SweepProgress) -> None:
+            last[:] = [p.done, p.total]
+            emit(p)
+
+        d = _diagram(spec, progress=report, cancel=stop, workers=workers, executor=executor, lockstep=lockstep)
+        d = dataclasses.replace(d, lost=d.losses())
+        done = last[0] if not d.completed else max(last[1], int(np.count_nonzero(d.valid)))
+        return SweepProgress(done, max(done, last[1], int(np.count_nonzero(d.valid))), d.elapsed_s, d)
+
+    return stream(work, cancel)
+
+
+def bifurcation_diagram(
+    spec: DiagramSpec | Params,
+    *args: Any,
+    progress: Callable[[SweepProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> OrbitDiagram:
+    """Orbit diagram of the Poincare map over ``param`` (paper, Fig. 10): ``bifurcation_diagram(spec)`` with a
+    :class:`DiagramSpec`, or the keyword form ``bifurcation_diagram(params, param, values, **options)`` (the
+    options of :func:`diagram_spec`); ``workers``, ``executor`` and ``lockstep`` say how it runs
+    (:func:`_diagram`); ``progress`` gets every update of :func:`iter_bifurcation_diagram`. A cancelled
+    diagram has ``completed=False`` and the trajectories not computed in ``lost``."""
+    return run_updates(iter_bifurcation_diagram(spec, *args, cancel=cancel, **kw), progress)
+
+
+def _diagram(
+    dspec: DiagramSpec,
+    *,
+    progress: Callable[[SweepProgress], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+    executor: Executor | None = None,
+    lockstep: bool = True,
+) -> OrbitDiagram:
+    """The orbit diagram of ``dspec``.
+
+    Parameters
+    ----------
+    dspec : what to compute (:func:`diagram_spec`).
     progress, cancel : called / polled after each value.
     workers : threads (default: both cores).
     executor : ``None`` (this process: values one by one, both sweeps at once), or an executor
@@ -627,20 +670,8 @@ def _diagram(
         (:func:`fixed_lockstep`); False: one value at a time, as the executors do.
     """
     start = time.perf_counter()
-    param = check_param(param)
-    vals = np.asarray(values, dtype=float).ravel()
-    if vals.size == 0 or not np.all(np.isfinite(vals)):
-        raise ParameterError(f"values must be a non-empty list of finite numbers, got {values!r}")
-    if isinstance(points, bool) or not isinstance(points, int | np.integer) or not 1 <= points <= 1_000_000:
-        raise ParameterError(f"points must be an integer in [1, 1000000], got {points!r}")
-    if isinstance(transient, bool) or not isinstance(transient, int | np.integer) or not 0 <= transient:
-        raise ParameterError(f"transient must be a non-negative integer, got {transient!r}")
-    ics = check_ics([(0.1, 0.1)] if ics is None else ics)
-    numerics = numerics or Numerics()
-    n_sweeps = 1 if seeding == "fixed" else len(tuple(sweeps))
-    if n_sweeps * vals.size * ics.shape[0] * points > config.MAX_POINTS:
-        raise ParameterError(f"{vals.size} values x {ics.shape[0]} ICs x {points} points exceeds {config.MAX_POINTS}")
-    spec = SweepSpec(params, param, vals, ics, int(transient), int(points), numerics)
+    spec, seeding, sweeps = dspec.sweep, dspec.seeding, dspec.sweeps
+    vals, ics = spec.values, spec.ics
     errors = tuple("" if isinstance(p, Params) else p for p in (spec.params_at(v) for v in range(vals.size)))
     valid = np.array([not e for e in errors])
     if executor is not None:
@@ -652,7 +683,7 @@ def _diagram(
             spec.orbits if seeding == "fixed" else spec.orbits_settled,
             vals.size,
             ics,
-            int(points),
+            spec.n_points,
             valid=valid,
             seeding=seeding,
             sweeps=sweeps,
@@ -661,20 +692,20 @@ def _diagram(
             cancel=cancel,
         )
     return OrbitDiagram(
-        params=params,
-        param=param,
+        params=spec.params,
+        param=spec.param,
         values=vals,
         sweeps=out["sweeps"],
         seeding=seeding,
         ics=ics,
-        transient=int(transient),
-        n_points=int(points),
+        transient=spec.transient,
+        n_points=spec.n_points,
         points=out["points"],
         npts=out["npts"],
         status=out["status"],
         final=out["final"],
         errors=errors,
-        numerics=numerics,
+        numerics=spec.numerics,
         elapsed_s=time.perf_counter() - start,
         completed=not np.any(out["status"] == Status.NOT_RUN),
     )

@@ -50,6 +50,7 @@ import numpy as np
 
 from explorer_core import export
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, UNIT_TOL, classify, minimal_period, multipliers, newton
+from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.analyses.sweeps import check_param
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -151,6 +152,154 @@ class ContinuationOptions:
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+@dataclass(frozen=True)
+class ContinuationSpec:
+    """Everything that defines a continuation (validated by :func:`continuation_spec`; plain data: picklable,
+    comparable). ``params``: the system at the other parameters' values; ``seed`` a point near the
+    period-``period`` orbit at ``range[0]``; ``window1``: ``param``'s range on the two-parameter curves
+    (None: ``range``)."""
+
+    params: Params
+    param: str
+    range: tuple[float, float]
+    seed: tuple[float, float]
+    period: int
+    switch: bool = False
+    max_period: int = DEFAULT_MAX_PERIOD
+    options: ContinuationOptions = field(default_factory=ContinuationOptions)
+    numerics: Numerics = ORBIT_NUMERICS
+    param2: str | None = None
+    range2: tuple[float, float] | None = None
+    window1: tuple[float, float] | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "param": self.param, "range": list(self.range),
+                "seed": list(self.seed), "period": self.period, "switch": self.switch, "max_period": self.max_period,
+                "options": self.options.as_dict(), "numerics": self.numerics.as_dict(), "param2": self.param2,
+                "range2": None if self.range2 is None else list(self.range2),
+                "window1": None if self.window1 is None else list(self.window1)}  # fmt: skip
+
+
+def _two(name: str, value: Any, what: str) -> tuple[float, float]:
+    """Two finite numbers (a range), or a ParameterError naming ``name`` and ``value``."""
+    try:
+        a, b = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be two numbers {what}, got {value!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(b - a)):
+        raise ParameterError(f"{name} must be two finite numbers {what} (a finite width), got {value!r}")
+    return a, b
+
+
+def continuation_spec(
+    params: Params,
+    param: str,
+    value_range: Sequence[float],
+    seed: Sequence[float],
+    period: int,
+    *,
+    switch: bool = False,
+    max_period: int = DEFAULT_MAX_PERIOD,
+    options: ContinuationOptions | None = None,
+    ds: float | None = None,
+    ds_min: float | None = None,
+    ds_max: float | None = None,
+    max_points: int | None = None,
+    numerics: Numerics | None = None,
+    param2: str | None = None,
+    range2: Sequence[float] | None = None,
+    window1: Sequence[float] | None = None,
+    check_end: bool = False,
+) -> ContinuationSpec:
+    """A validated :class:`ContinuationSpec`; every bad value raises :class:`ParameterError` naming it (and
+    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`).
+
+    Parameters
+    ----------
+    params : the system at the other parameters' values (``param`` is set to ``value_range[0]``).
+    param : ``alpha``, an inertia entry, ``g0``, ``g1``, ``g2`` or ``omega``.
+    value_range : ``(A, B)``, different and finite: from ``A`` (a valid system; where the orbit is seeded)
+        to ``B``. A branch that leaves the valid systems stops there, a loss of the result; ``check_end=True``
+        refuses a ``B`` that is no valid system instead (the CLI's check: positive-definite tensors are
+        convex, so with both ends valid the whole range is).
+    seed : one point ``(q, r)`` near the orbit at ``A``, inside the escape bound of ``numerics``.
+    period : the orbit's period, in ``[1, 1024]``; ``max_period`` (``>= period``) caps a cascade.
+    switch : at each period doubling, also follow the doubled branch (up to ``max_period``).
+    options : the engine's settings (:class:`ContinuationOptions`); ``ds``, ``ds_min``, ``ds_max`` and
+        ``max_points``, when given, replace theirs (``ds_max`` alone also bounds the first step).
+    numerics : integration (default :data:`~explorer_core.analyses.orbits.ORBIT_NUMERICS`).
+    param2, range2 : together or neither: also follow every fold and period doubling found as a curve in
+        ``(param, param2)``, ``param2`` (not ``param``) over ``range2 = (C, D)``, ``C < D``, and ``param``
+        over ``window1`` (default: the range).
+    """
+    with Checking() as at:
+        at("param")
+        param = check_param(param)
+        at("value_range")
+        a, b = _two("range", value_range, "A,B")
+        if a == b:
+            raise ParameterError(f"range must be two different numbers, got {value_range!r}")
+        for end, v in (("first value", a), ("end", b))[: 2 if check_end else 1]:
+            try:
+                params.with_(**{param: v})
+            except ParameterError as exc:
+                raise ParameterError(f"the range's {end} {param} = {v:g} is not a valid system: {exc}") from None
+        at("period")
+        period = check_int("period", period, 1, 1024)
+        at("max_period")
+        max_period = check_int("max_period", max_period, period, 1024)
+        at("options")
+        if not isinstance(options, ContinuationOptions | None):
+            raise ParameterError(f"options must be a ContinuationOptions, got {options!r}")
+        opts = options or ContinuationOptions()
+        given = {}
+        for key, v in (("ds", ds), ("ds_min", ds_min), ("ds_max", ds_max), ("max_points", max_points)):
+            if v is not None:
+                at(key)
+                given[key] = check_int(key, v, 2, 1_000_000) if key == "max_points" else _positive(key, v)
+        if given:
+            at("ds" if "ds" in given else next(iter(given)))
+            if "ds" not in given and "ds_max" in given:  # an old-style ds_max alone bounds the default first step
+                given["ds"] = min(float(opts.ds), float(given["ds_max"]))
+            opts = ContinuationOptions(**{**asdict(opts), **given})
+        at("numerics")
+        numerics = ORBIT_NUMERICS if numerics is None else numerics
+        if not isinstance(numerics, Numerics):
+            raise ParameterError(f"numerics must be a Numerics, got {numerics!r}")
+        at("seed")
+        x0 = check_ics(seed)
+        if x0.shape[0] != 1:
+            raise ParameterError(f"seed must be one point (q, r), got {x0.shape[0]}")
+        q, r = (float(v) for v in x0[0])
+        if max(abs(q), abs(r)) > numerics.bound:
+            raise ParameterError(f"seed {q:g},{r:g} is outside the escape bound {numerics.bound:g}")
+        at("param2")
+        if (param2 is None) != (range2 is None):
+            raise ParameterError(f"param2 and range2 go together (both or neither), got {param2!r} and {range2!r}")
+        rng2 = None
+        if param2 is not None:
+            param2 = check_param(param2)
+            if param2 == param:
+                raise ParameterError(f"param2 must differ from param, got {param2!r} twice")
+            at("range2")
+            c, d = _two("range2", range2, "C,D")
+            if not c < d:
+                raise ParameterError(f"range2 must have C < D, got {range2!r}")
+            rng2 = (c, d)
+        at("window1")
+        w1 = None if window1 is None else _two("window1", window1, "A,B")
+        w1 = None if w1 is None else (min(w1), max(w1))
+    return ContinuationSpec(params, param, (a, b), (q, r), period, bool(switch), max_period, opts, numerics,
+                            param2, rng2, w1)  # fmt: skip
+
+
+def _positive(name: str, v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating) or not math.isfinite(v) \
+            or v <= 0:  # fmt: skip
+        raise ParameterError(f"{name} must be a positive finite number, got {v!r}")
+    return float(v)
 
 
 class _Stop(Exception):
@@ -272,6 +421,8 @@ class Continuation(Drawable):
     messages: list[str] = field(default_factory=list)
     lost: list[Loss] = field(default_factory=list)
     options: ContinuationOptions = field(default_factory=ContinuationOptions)
+    #: what was asked (None for the orbits of several seeds, :func:`continue_from_seeds`)
+    spec: ContinuationSpec | None = None
 
     @property
     def complete(self) -> bool:
@@ -301,6 +452,8 @@ class Continuation(Drawable):
             out["param2"] = self.param2
             out["range2"] = [float(v) for v in self.range2 or ()]
             out["curves"] = [c.as_dict(self.param, self.param2) for c in self.curves]
+        if self.spec is not None:  # what was asked: the seed, period, switching, ... (enough to run it again)
+            out["spec"] = self.spec.as_dict()
         return out
 
     as_dict = summary
@@ -798,39 +951,38 @@ def _switch(eng: _Engine, prob2: _BranchProblem, at: _Point) -> tuple[np.ndarray
 
 
 def continue_orbit(
-    params: Params,
-    param: str,
-    value_range: Sequence[float],
-    seed: Sequence[float],
-    period: int,
-    *,
+    spec: ContinuationSpec | Params,
+    *args: Any,
     progress: Callable[[Step[Continuation]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
     **kw: Any,
 ) -> Continuation:
-    """Follow the period-``period`` orbit near ``seed`` over ``param`` (:func:`_continue_orbit`'s
-    arguments); ``progress`` gets every update of :func:`iter_continue_orbit`."""
-    return run(iter_continue_orbit(params, param, value_range, seed, period, cancel=cancel, **kw), progress)
+    """Follow the period-``period`` orbit near ``seed`` over ``param`` (:func:`_continue_orbit`);
+    ``progress`` gets every update of :func:`iter_continue_orbit`.
+
+    ``continue_orbit(spec)`` with a :class:`ContinuationSpec`, or the keyword form ``continue_orbit(params,
+    param, value_range, seed, period, **options)``, which builds the spec with :func:`continuation_spec`.
+    """
+    return run(iter_continue_orbit(spec, *args, cancel=cancel, workers=workers, **kw), progress)
 
 
 def iter_continue_orbit(
-    params: Params,
-    param: str,
-    value_range: Sequence[float],
-    seed: Sequence[float],
-    period: int,
-    *,
+    spec: ContinuationSpec | Params,
+    *args: Any,
     cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
     **kw: Any,
 ) -> Iterator[Step[Continuation]]:
     """:func:`continue_orbit` as a stream of :class:`~explorer_core.progress.Step`: after every point, in
     ``branches`` (the branches and curves done, the current one counted by the share of the range its
     furthest point covers, of those started or queued); ``detail`` is ``(points, value)``. The last
-    update's ``result`` is the continuation."""
+    update's ``result`` is the continuation. The spec (or the keyword form's) is checked at the call."""
+    spec = spec_of(ContinuationSpec, continuation_spec, spec, args, kw)
 
     def work(emit: Callable[[Step[Continuation]], None], stop: Callable[[], bool]) -> Step[Continuation]:
         last = _Last(emit)
-        res = _continue_orbit(params, param, value_range, seed, period, progress=last, cancel=stop, **kw)
+        res = _continue_orbit(spec, progress=last, cancel=stop, workers=workers)
         return last.step(res, "branches", len(res.branches) + len(res.curves))
 
     return stream(work, cancel)
@@ -870,42 +1022,18 @@ class _Meter:
 
 
 def _continue_orbit(
-    params: Params,
-    param: str,
-    value_range: Sequence[float],
-    seed: Sequence[float],
-    period: int,
+    spec: ContinuationSpec,
     *,
-    switch: bool = False,
-    max_period: int = DEFAULT_MAX_PERIOD,
-    options: ContinuationOptions | None = None,
-    ds: float | None = None,
-    ds_min: float | None = None,
-    ds_max: float | None = None,
-    max_points: int | None = None,
-    numerics: Numerics | None = None,
-    param2: str | None = None,
-    range2: Sequence[float] | None = None,
-    window1: Sequence[float] | None = None,
     progress: Callable[[int, float], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
 ) -> Continuation:
-    """Follow the period-``period`` orbit near ``seed`` over ``param`` from ``value_range[0]`` to ``value_range[1]``.
+    """Follow the period-``spec.period`` orbit near ``spec.seed`` over ``spec.param`` from ``spec.range[0]`` to
+    ``spec.range[1]`` (see :func:`continuation_spec` for the settings).
 
-    Parameters
-    ----------
-    params : the system at the other parameters' values (``param`` is set to ``value_range[0]``).
-    param : ``alpha``, an inertia entry, ``g0``, ``g1``, ``g2`` or ``omega``.
-    seed : a point near the orbit at the first value (Newton converges from it).
-    switch : at each period doubling, also follow the doubled branch (up to ``max_period``).
-    options : the engine's settings (:class:`ContinuationOptions`); ``ds``, ``ds_min``, ``ds_max`` and
-        ``max_points``, when given, replace theirs.
-    param2, range2 : also follow every fold and period doubling found as a curve in ``(param, param2)``
-        with ``param2`` over ``range2`` and ``param`` over ``window1`` (default: the range).
-    progress : called with a :class:`~explorer_core.progress.Step` after every point (see
-        :func:`iter_continue_orbit`); cancel: polled at every point. A cancelled run returns what it
-        computed, with ``completed`` False and the rest in ``lost``.
+    ``progress`` is called with a :class:`~explorer_core.progress.Step` after every point (see
+    :func:`iter_continue_orbit`); ``cancel`` is polled at every point. A cancelled run returns what it
+    computed, with ``completed`` False and the rest in ``lost``.
 
     Every branch stops at the range's end, at its birth point (a doubled orbit collapsing onto the orbit it
     was born from), on escape or integration failure, on leaving the valid parameters (e.g. a tensor
@@ -913,29 +1041,10 @@ def _continue_orbit(
     ``stop`` says which, and every stop but the first two is in ``lost``.
     """
     start = time.perf_counter()
-    param = check_param(param)
-    try:
-        a, b = (float(v) for v in value_range)
-    except (TypeError, ValueError):
-        raise ParameterError(f"range must be two numbers A,B, got {value_range!r}") from None
-    if not (math.isfinite(a) and math.isfinite(b) and a != b):
-        raise ParameterError(f"range must be two different finite numbers, got {value_range!r}")
-    period = check_int("period", period, 1, 1024)
-    max_period = check_int("max_period", max_period, period, 1024)
-    given = {k: v for k, v in (("ds", ds), ("ds_min", ds_min), ("ds_max", ds_max), ("max_points", max_points))
-             if v is not None}  # fmt: skip
-    opts = options or ContinuationOptions()
-    if given:
-        base_opts = asdict(opts)
-        if "ds" not in given and "ds_max" in given:  # an old-style ds_max alone bounds the default first step
-            given["ds"] = min(float(opts.ds), float(given["ds_max"]))
-        opts = ContinuationOptions(**{**base_opts, **given})
-    x0 = check_ics(seed)[0]
-    numerics = numerics or ORBIT_NUMERICS
-    try:
-        base = params.with_(**{param: a})
-    except ParameterError as exc:
-        raise ParameterError(f"the range's first value {param} = {a} is not a valid system: {exc}") from None
+    params, param, (a, b), period, opts, numerics = spec.params, spec.param, spec.range, spec.period, spec.options, \
+        spec.numerics  # fmt: skip
+    switch, max_period, x0 = spec.switch, spec.max_period, np.array(spec.seed, dtype=float)
+    base = params.with_(**{param: a})
     sys = _System(base, [param], numerics, workers)
     eng = _Engine(opts, cancel)
 
@@ -950,7 +1059,7 @@ def _continue_orbit(
     if d != period:
         raise ParameterError(f"the orbit found from {x0.tolist()} has period {d}, not {period}: ask for --period {d}")
 
-    res = Continuation(params, param, (a, b), numerics, [], [], options=opts)
+    res = Continuation(params, param, (a, b), numerics, [], [], options=opts, spec=spec)
     queue: list[tuple[int, np.ndarray, float, int | None]] = [(period, x_start, a, None)]
     meter = _Meter(progress, a, b)
     stopped = False
@@ -1012,19 +1121,11 @@ def _continue_orbit(
     if stopped:
         if queue:
             res.lost.append(Loss("branches not started", len(queue), "cancelled"))
-        if param2 is not None:
+        if spec.param2 is not None:
             res.lost.append(Loss("two-parameter curves", 1, "cancelled before they were followed"))
-    if param2 is not None and not stopped:
-        res.param2 = check_param(param2)
-        if res.param2 == param:
-            raise ParameterError(f"param2 must differ from param, got {param2!r} twice")
-        try:
-            c, d = (float(v) for v in (range2 or ()))
-        except (TypeError, ValueError):
-            raise ParameterError(f"range2 must be two numbers C,D, got {range2!r}") from None
-        if not (math.isfinite(c) and math.isfinite(d) and c < d):
-            raise ParameterError(f"range2 must be finite with C < D, got {range2!r}")
-        res.range2 = (c, d)
+    if spec.param2 is not None and not stopped:
+        res.param2, res.range2 = spec.param2, spec.range2
+        c, d = spec.range2  # type: ignore[misc]
         todo = [bif for bif in res.bifurcations if bif.kind in ("fold", "period_doubling")]
         for bif in list(res.bifurcations):
             if bif.kind in ("fold", "period_doubling"):
@@ -1033,7 +1134,7 @@ def _continue_orbit(
                     stopped = True
                     res.lost.append(Loss(f"the {bif.kind} curve from {param} = {bif.value:.12g}", 1, "cancelled"))
                     continue
-                w1 = (a, b) if window1 is None else (float(min(window1)), float(max(window1)))
+                w1 = (a, b) if spec.window1 is None else spec.window1
                 curve, losses = _follow_curve(eng, base, param, res.param2, bif, w1, (c, d), numerics, workers)
                 res.curves.append(curve)
                 res.lost += losses
@@ -1247,10 +1348,11 @@ def _continue_from_seeds(
             break
         if _on_a_branch(out, orb, a):
             continue  # already followed: the orbit is a point of a branch computed for an earlier seed
-        res = _continue_orbit(params, param, value_range, orb.points[0], orb.period, switch=switch,
-                              max_period=max(max_period, orb.period), numerics=numerics, cancel=cancel,
-                              workers=workers, progress=None if progress is None else (lambda u, i=i: step(u, i)),
-                              param2=param2, range2=range2, window1=window1, options=options)  # fmt: skip
+        one = continuation_spec(params, param, value_range, orb.points[0], orb.period, switch=switch,
+                                max_period=max(max_period, orb.period), numerics=numerics, param2=param2,
+                                range2=range2, window1=window1, options=options)  # fmt: skip
+        res = _continue_orbit(one, cancel=cancel, workers=workers,
+                              progress=None if progress is None else (lambda u, i=i: step(u, i)))  # fmt: skip
         shift = len(out.branches)
         nb = len(out.bifurcations)
         out.branches += res.branches
@@ -1401,9 +1503,10 @@ def _chart_boundaries(
                 break
             step = None if progress is None else (lambda u, s=2 * np_ + e: meter(s, u))
             try:
-                res = _continue_orbit(params, spec.x_param, (x0, end), found[0].points[0], found[0].period,
-                                      numerics=numerics, param2=spec.y_param, range2=yr, window1=xr,
-                                      cancel=cancel, workers=workers, progress=step)  # fmt: skip
+                one = continuation_spec(params, spec.x_param, (x0, end), found[0].points[0], found[0].period,
+                                        numerics=numerics, param2=spec.y_param, range2=yr,
+                                        window1=xr)  # fmt: skip
+                res = _continue_orbit(one, cancel=cancel, workers=workers, progress=step)
             except ParameterError:
                 continue
             out.append(res)

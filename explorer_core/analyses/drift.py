@@ -35,11 +35,12 @@ import numpy as np
 from numpy.polynomial import polynomial as P
 
 from explorer_core import config, export
+from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, stream
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import tables
-from explorer_core.solve.numerics import Numerics, check_box, check_ics
+from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import Status
 from explorer_core.system.model import Model
@@ -171,6 +172,8 @@ class DriftFit:
     completed: bool = True  # False: cancelled
     #: members wanted but not found (cancelled, or the draws spent)
     lost: list[Loss] = field(default_factory=list)
+    #: what was asked
+    spec: DriftSpec | None = None
 
     @property
     def complete(self) -> bool:
@@ -245,7 +248,7 @@ class DriftFit:
                     "complete": False, "lost": [loss.as_dict() for loss in self.lost],
                     "elapsed_s": round(self.elapsed_s, 6),
                     "params": self.params.as_dict() if self.params is not None else None,
-                    "numerics": self.numerics.as_dict()}  # fmt: skip
+                    "numerics": self.numerics.as_dict(), **self._spec()}  # fmt: skip
         cq, cr = self.mean()
         sq, sr = self.spread()
         tq, tr = self.mean_in_time()
@@ -275,7 +278,12 @@ class DriftFit:
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict() if self.params is not None else None,
             "numerics": self.numerics.as_dict(),
+            **self._spec(),
         }
+
+    def _spec(self) -> dict[str, Any]:
+        """What was asked (the random draws' box, seed and budget too), for the summary."""
+        return {"spec": self.spec.as_dict()} if self.spec is not None else {}
 
 
 def poly_text(coef: np.ndarray, var: str = "k", digits: int = 7) -> str:
@@ -311,32 +319,44 @@ def _series(field: Tables, ics: np.ndarray, k1: int, numerics: Numerics) -> tupl
     return out, np.where(ok, Status.OK, np.where(batch.status == Status.OK, Status.TOO_MANY_STEPS, batch.status))
 
 
-def iter_drift_fit(
-    params: Params, window: Sequence[int], *, cancel: Callable[[], bool] | None = None, **kw: Any
-) -> Iterator[Step[DriftFit]]:
-    """:func:`drift_fit` as a stream of :class:`~explorer_core.progress.Step` (draws tried of the draws
-    allowed, after each batch); the last update's ``result`` is the fit."""
-    model = Model(params)
-    field = Tables(model.num, model.gpc, model.den, np.ascontiguousarray(model.forcing), params.t0, params.period)
-    return stream(lambda emit, stop: drift_fit_tables(field, window, params=params, progress=emit, cancel=stop,
-                                                      final=True, **kw), cancel)  # fmt: skip
+@dataclass(frozen=True)
+class DriftSpec:
+    """Everything that defines a drift fit (validated by :func:`drift_spec`; plain data: picklable,
+    comparable). ``ics`` None: random initial conditions in ``box`` (seeded by ``seed``), drawn until ``m``
+    are on the drift or ``max_draws`` are spent; given: all of them are tried (``m`` and ``box`` unused)."""
+
+    params: Params | None
+    window: tuple[int, int]
+    degree: tuple[int, int] = (1, 2)
+    m: int = 10
+    ics: tuple[tuple[float, float], ...] | None = None
+    box: tuple[float, float, float, float] | None = None
+    seed: int | None = 0
+    max_draws: int = 500
+    criterion: str = "on_curve"
+    numerics: Numerics = field(default_factory=Numerics)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": None if self.params is None else self.params.as_dict(), "window": list(self.window),
+                "degree": list(self.degree), "m": self.m,
+                "ics": None if self.ics is None else [list(x) for x in self.ics],
+                "box": None if self.box is None else list(self.box), "seed": self.seed, "max_draws": self.max_draws,
+                "criterion": self.criterion, "numerics": self.numerics.as_dict()}  # fmt: skip
 
 
-def drift_fit(
-    params: Params,
-    window: Sequence[int],
-    *,
-    progress: Callable[[Step[DriftFit]], None] | None = None,
-    cancel: Callable[[], bool] | None = None,
-    **kw: Any,
-) -> DriftFit:
-    """Fit polynomials to the drift of the Bilimovich system (see :func:`drift_fit_tables`); ``progress``
-    gets every update of :func:`iter_drift_fit`."""
-    return run_updates(iter_drift_fit(params, window, cancel=cancel, **kw), progress)
+def _whole(name: str, value: Any, what: str) -> tuple[int, int]:
+    """Two whole numbers, or a ParameterError naming ``name`` and ``value``."""
+    try:
+        vals = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        vals = ()
+    if len(vals) != 2 or not all(math.isfinite(v) and v.is_integer() for v in vals):
+        raise ParameterError(f"{name} must be two integers {what}, got {value!r}")
+    return int(vals[0]), int(vals[1])
 
 
-def drift_fit_tables(
-    field: Tables,
+def drift_spec(
+    params: Params | None,
     window: Sequence[int],
     *,
     degree: Sequence[int] = (1, 2),
@@ -347,10 +367,95 @@ def drift_fit_tables(
     max_draws: int | None = None,
     criterion: str = "on_curve",
     numerics: Numerics | None = None,
+) -> DriftSpec:
+    """A validated :class:`DriftSpec`; every bad value raises :class:`ParameterError` naming it (and
+    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`).
+
+    Parameters
+    ----------
+    params : the system (None for a field that is not a Bilimovich system, :func:`drift_fit_tables`).
+    window : inclusive ``k`` range ``(k0, k1)`` of the fit, ``0 <= k0 < k1 <= config.MAX_PERIODS`` (``k = 0``
+        is the initial condition).
+    degree : ``(degree of q, degree of r)``, each in ``[0, 12]`` and below the window's length.
+    m : members wanted, in ``[1, 10000]`` (ignored when ``ics`` is given: all of them are tried).
+    ics : explicit finite initial conditions; else uniform random ones in ``box`` (needed then) drawn in
+        batches (seeded by ``seed``, an integer >= 0 or None) until ``m`` are on the drift or ``max_draws``
+        (default ``50 m``, at most ``10^7``) are spent.
+    criterion : which trajectories count as drifting (:func:`on_drift`): ``"on_curve"`` through the whole
+        window, or ``"leaves"`` the compact region within it.
+    numerics : integration settings; the escape ``bound`` must exceed the drift's reach.
+    """
+    with Checking() as at:
+        at("window")
+        k0, k1 = _whole("window", window, "k0,k1")
+        if not 0 <= k0 < k1 <= config.MAX_PERIODS:
+            raise ParameterError(f"window must satisfy 0 <= k0 < k1 <= {config.MAX_PERIODS}, got {window!r}")
+        at("degree")
+        dq, dr = _whole("degree", degree, "(q, r)")
+        for d in (dq, dr):
+            if not 0 <= d <= 12 or d >= k1 - k0 + 1:
+                raise ParameterError(f"degree must be in [0, 12] and below the window length, got {degree!r}")
+        at("criterion")
+        if criterion not in CRITERIA:
+            raise ParameterError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
+        at("m")
+        m = check_int("m (members)", m, 1, 10_000)
+        at("ics")
+        pool = None if ics is None else tuple((float(q), float(r)) for q, r in check_ics(ics))
+        at("box")
+        if pool is None and box is None:
+            raise ParameterError("give initial conditions (ics) or a box for random ones")
+        box = None if box is None else check_box(box)
+        at("seed")
+        if seed is not None:
+            seed = check_int("seed", seed, 0, 2**63 - 1)
+        at("max_draws")
+        max_draws = 50 * m if max_draws is None else check_int("max_draws", max_draws, 1, 10**7)
+        at("numerics")
+        numerics = Numerics() if numerics is None else numerics
+        if not isinstance(numerics, Numerics):
+            raise ParameterError(f"numerics must be a Numerics, got {numerics!r}")
+    return DriftSpec(params, (k0, k1), (dq, dr), m, pool, box, seed, max_draws, criterion, numerics)
+
+
+def iter_drift_fit(
+    spec: DriftSpec | Params, *args: Any, cancel: Callable[[], bool] | None = None, **kw: Any
+) -> Iterator[Step[DriftFit]]:
+    """:func:`drift_fit` as a stream of :class:`~explorer_core.progress.Step` (draws tried of the draws
+    allowed, after each batch); the last update's ``result`` is the fit. ``iter_drift_fit(spec)``, or the
+    keyword form ``iter_drift_fit(params, window, **options)`` (the spec built by :func:`drift_spec`, checked
+    at the call)."""
+    spec = spec_of(DriftSpec, drift_spec, spec, args, kw)
+    if spec.params is None:
+        raise ParameterError("a drift fit of the Bilimovich system needs its params (drift_fit_tables fits a field)")
+    params = spec.params
+    model = Model(params)
+    field = Tables(model.num, model.gpc, model.den, np.ascontiguousarray(model.forcing), params.t0, params.period)
+    return stream(lambda emit, stop: _drift_fit(field, spec, progress=emit, cancel=stop, final=True), cancel)
+
+
+def drift_fit(
+    spec: DriftSpec | Params,
+    *args: Any,
+    progress: Callable[[Step[DriftFit]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    **kw: Any,
+) -> DriftFit:
+    """Fit polynomials to the drift of the Bilimovich system (see :func:`drift_fit_tables`); ``progress``
+    gets every update of :func:`iter_drift_fit`. ``drift_fit(spec)`` with a :class:`DriftSpec`, or the
+    keyword form ``drift_fit(params, window, **options)`` (the options of :func:`drift_spec`)."""
+    return run_updates(iter_drift_fit(spec, *args, cancel=cancel, **kw), progress)
+
+
+def drift_fit_tables(
+    field: Tables,
+    window: Sequence[int],
+    *,
     progress: Callable[[Step[DriftFit]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     params: Params | None = None,
     final: bool = False,
+    **options: Any,
 ) -> Any:
     """Fit polynomials to ``q_k``, ``r_k`` over ``window = (k0, k1)``, averaged over drifting members.
 
@@ -358,14 +463,8 @@ def drift_fit_tables(
     ----------
     field : the quadratic field's tables, section phase ``t0`` and period (any field in
         the model's format: :func:`drift_fit` passes the Bilimovich system's).
-    window : inclusive ``k`` range of the fit (``k = 0`` is the initial condition).
-    degree : ``(degree of q, degree of r)``.
-    m : members wanted (ignored when ``ics`` is given: all of them are tried).
-    ics : explicit initial conditions; else uniform random ones in ``box`` drawn in
-        batches (seeded) until ``m`` are on the drift or ``max_draws`` (default ``50 m``) are spent.
-    criterion : which trajectories count as drifting (:func:`on_drift`): ``"on_curve"``
-        through the whole window, or ``"leaves"`` the compact region within it.
-    numerics : integration settings; the escape ``bound`` must exceed the drift's reach.
+    window, **options : the window and the options of :func:`drift_spec` (degree, m, ics, box, seed,
+        max_draws, criterion, numerics).
     progress : called with a :class:`~explorer_core.progress.Step` (draws tried of the draws allowed, the
         members found as its ``detail``) after each batch; ``cancel`` polled between batches: a cancelled
         fit has ``completed`` False and the members not found in ``lost`` (no member at all: NaN means).
@@ -377,34 +476,27 @@ def drift_fit_tables(
     ParameterError
         If no member is on the drift (the message says how many were tried and why they failed).
     """
+    spec = drift_spec(params, window, **options)
+    return _drift_fit(field, spec, progress=progress, cancel=cancel, final=final)
+
+
+def _drift_fit(
+    field: Tables,
+    spec: DriftSpec,
+    *,
+    progress: Callable[[Step[DriftFit]], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    final: bool = False,
+) -> Any:
+    """The fit of :func:`drift_fit_tables` on a checked spec."""
     start = time.perf_counter()
-    try:
-        k0, k1 = (int(v) for v in window)
-    except (TypeError, ValueError):
-        raise ParameterError(f"window must be two integers k0,k1, got {window!r}") from None
-    if not 0 <= k0 < k1 <= config.MAX_PERIODS:
-        raise ParameterError(f"window must satisfy 0 <= k0 < k1, got {window!r}")
-    try:
-        dq, dr = (int(v) for v in degree)
-    except (TypeError, ValueError):
-        raise ParameterError(f"degree must be two integers (q, r), got {degree!r}") from None
-    for d in (dq, dr):
-        if not 0 <= d <= 12 or d >= k1 - k0 + 1:
-            raise ParameterError(f"degree must be in [0, 12] and below the window length, got {degree!r}")
-    if criterion not in CRITERIA:
-        raise ParameterError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
-    numerics = numerics or Numerics()
+    (k0, k1), (dq, dr), m, criterion, numerics = spec.window, spec.degree, spec.m, spec.criterion, spec.numerics
+    params, ics, box, max_draws = spec.params, spec.ics, spec.box, spec.max_draws
     if ics is not None:
-        pool = check_ics(ics)
+        pool = np.array(ics, dtype=float)
         batches = [pool]
     else:
-        if box is None:
-            raise ParameterError("give initial conditions (ics) or a box for random ones")
-        box = check_box(box)
-        if isinstance(m, bool) or not isinstance(m, int | np.integer) or not 1 <= m <= 10_000:
-            raise ParameterError(f"m must be an integer in [1, 10000], got {m!r}")
-        rng = np.random.default_rng(seed)
-        max_draws = max_draws or 50 * m
+        rng = np.random.default_rng(spec.seed)
         batches = None
     members, series, rejected, failed, draws = [], [], 0, 0, 0
     cancelled = False
@@ -479,6 +571,7 @@ def drift_fit_tables(
         elapsed_s=time.perf_counter() - start,
         completed=not cancelled,
         lost=lost,
+        spec=spec,
     )
     if not final:
         return fit

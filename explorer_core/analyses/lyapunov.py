@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config, export
+from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, run, stream
@@ -172,6 +173,8 @@ class LyapunovResult(Drawable):
     completed: bool = True
     #: what the result lost: periods not measured (cancelled), members that failed
     lost: list[Loss] = field(default_factory=list)
+    #: what was asked (None from :func:`lyapunov_tables`' raw fields)
+    spec: LyapunovSpec | None = None
 
     @property
     def complete(self) -> bool:
@@ -288,6 +291,7 @@ class LyapunovResult(Drawable):
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict(),
             "numerics": self.numerics.as_dict(),
+            **({"spec": self.spec.as_dict()} if self.spec is not None else {}),  # what was asked (the ensemble's)
         }
 
 
@@ -443,26 +447,109 @@ def lyapunov_tables(
     }
 
 
-def iter_lyapunov(
+@dataclass(frozen=True)
+class LyapunovSpec:
+    """Everything that defines a Lyapunov measurement (validated by :func:`lyapunov_spec`; plain data:
+    picklable, comparable). With ``ensemble > 1`` the members are placed on the attractor of the one
+    initial condition (:func:`attractor_ensemble`, through ``transient`` periods, offsets ``offset``
+    seeded by ``seed``) when the measurement runs."""
+
+    params: Params
+    ics: tuple[tuple[float, float], ...]
+    periods: int
+    transient: int = 0
+    numerics: Numerics = field(default_factory=Numerics)
+    ensemble: int = 1
+    offset: float = 1e-6
+    seed: int | None = 0
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "ics": [list(x) for x in self.ics], "periods": self.periods,
+                "transient": self.transient, "numerics": self.numerics.as_dict(), "ensemble": self.ensemble,
+                "offset": self.offset, "seed": self.seed}  # fmt: skip
+
+
+def lyapunov_spec(
     params: Params,
     ics: Any,
     periods: int,
     *,
     transient: int = 0,
     numerics: Numerics | None = None,
+    ensemble: int = 1,
+    offset: float = 1e-6,
+    seed: int | None = 0,
+) -> LyapunovSpec:
+    """A validated :class:`LyapunovSpec`; every bad value raises :class:`ParameterError` naming it (and
+    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`).
+
+    Parameters
+    ----------
+    params : the system.
+    ics : (M, 2) finite initial conditions at ``t0`` (several on one attractor form an ensemble).
+    periods : measured periods after the transient, in ``[1, config.MAX_PERIODS]``; members x periods at
+        most ``config.MAX_POINTS``.
+    transient : periods integrated first and not counted, in ``[0, config.MAX_PERIODS]``.
+    numerics : method and tolerances (default :class:`Numerics`).
+    ensemble : members placed on the attractor of the one initial condition (1: the ``ics`` as given).
+    offset : the members' offsets relative to ``1 + |x|``, in ``(0, 1]`` (more is not "near the attractor").
+    seed : the offsets' random seed (an integer >= 0, or None).
+    """
+    with Checking() as at:
+        at("ics")
+        arr = check_ics(ics)
+        at("periods")
+        periods = check_int("periods", periods, 1, config.MAX_PERIODS)
+        at("transient")
+        transient = check_int("transient", transient, 0, config.MAX_PERIODS)
+        at("numerics")
+        numerics = Numerics() if numerics is None else numerics
+        if not isinstance(numerics, Numerics):
+            raise ParameterError(f"numerics must be a Numerics, got {numerics!r}")
+        at("ensemble")
+        ensemble = check_int("ensemble", ensemble, 1, config.MAX_TRAJECTORIES)
+        if ensemble > 1 and arr.shape[0] != 1:
+            raise ParameterError(f"an ensemble of {ensemble} takes one initial condition (the members are placed "
+                                 f"on its attractor), got {arr.shape[0]}")  # fmt: skip
+        at("offset")
+        if isinstance(offset, bool) or not isinstance(offset, int | float | np.integer | np.floating) \
+                or not 0 < offset <= 1:  # fmt: skip
+            raise ParameterError(f"offset must be in (0, 1] (relative to 1 + |x|), got {offset!r}")
+        at("seed")
+        if seed is not None:
+            seed = check_int("seed", seed, 0, 2**63 - 1)
+        at("periods")
+        members = max(ensemble, arr.shape[0])
+        if members * periods > config.MAX_POINTS:
+            raise ParameterError(f"{members} members x {periods} periods exceeds the limit {config.MAX_POINTS}")
+    ics_ = tuple((float(q), float(r)) for q, r in arr)
+    return LyapunovSpec(params, ics_, periods, transient, numerics, ensemble, float(offset), seed)
+
+
+def iter_lyapunov(
+    spec: LyapunovSpec | Params,
+    *args: Any,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
+    **kw: Any,
 ) -> Iterator[LyapunovProgress]:
     """:func:`lyapunov_spectrum` as a stream of :class:`LyapunovProgress` (after each chunk of periods,
-    the transient's counted with the measurement's); the last update's ``result`` is the result."""
-    numerics = numerics or Numerics()
+    the transient's counted with the measurement's); the last update's ``result`` is the result.
+    ``iter_lyapunov(spec)``, or the keyword form ``iter_lyapunov(params, ics, periods, transient=,
+    numerics=)`` (the spec built by :func:`lyapunov_spec`, checked at the call)."""
+    spec = spec_of(LyapunovSpec, lyapunov_spec, spec, args, kw)
+    params, numerics = spec.params, spec.numerics
 
     def work(emit: Callable[[LyapunovProgress], None], stop: Callable[[], bool]) -> LyapunovProgress:
+        ics = np.array(spec.ics, dtype=float)
+        if spec.ensemble > 1:
+            ics = attractor_ensemble(params, ics[0], spec.ensemble, transient=spec.transient, offset=spec.offset,
+                                     seed=spec.seed, numerics=numerics)  # fmt: skip
         model = Model(params)
         out = lyapunov_tables(model.num, model.gpc, model.den, model.forcing, params.t0, params.period, ics,
-                              periods, transient=transient, numerics=numerics, progress=emit, cancel=stop,
+                              spec.periods, transient=spec.transient, numerics=numerics, progress=emit, cancel=stop,
                               workers=workers)  # fmt: skip
-        res = LyapunovResult(params=params, numerics=numerics, **out, lost=_losses(out))
+        res = LyapunovResult(params=params, numerics=numerics, **out, lost=_losses(out), spec=spec)
         k = np.maximum(res.npts, 1)[:, None]
         measured = int(res.periods) if res.completed else int(res.npts.max(initial=0))
         return LyapunovProgress("measure", measured, res.periods, res.logs.sum(axis=1) / (k * res.period),
@@ -485,26 +572,22 @@ def _losses(out: dict[str, Any]) -> list[Loss]:
 
 
 def lyapunov_spectrum(
-    params: Params,
-    ics: Any,
-    periods: int,
-    *,
-    transient: int = 0,
-    numerics: Numerics | None = None,
+    spec: LyapunovSpec | Params,
+    *args: Any,
     progress: Callable[[LyapunovProgress], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     workers: int | None = None,
+    **kw: Any,
 ) -> LyapunovResult:
     """Lyapunov exponents ``Lambda_1 >= Lambda_2`` (per unit time) for each initial condition.
 
-    Parameters
-    ----------
-    params : the system.
-    ics : (M, 2) initial conditions at ``t0``; several on one attractor form an
-        ensemble (see :func:`ensemble_ics`), whose mean and spread the result gives.
-    periods : measured periods after the transient (the averaging time is ``periods * T``).
-    transient : periods integrated first (the tangent basis aligns meanwhile) and not counted.
-    numerics : method and tolerances (error control covers the tangent vectors too).
+    ``lyapunov_spectrum(spec)`` with a :class:`LyapunovSpec`, or the keyword form
+    ``lyapunov_spectrum(params, ics, periods, transient=0, numerics=None)``, which builds the spec with
+    :func:`lyapunov_spec` (its parameters: the system, the (M, 2) initial conditions at ``t0`` -- several on
+    one attractor form an ensemble, see :func:`ensemble_ics` --, the measured periods after the transient,
+    the transient's periods, integrated first while the tangent basis aligns, and the numerics, whose error
+    control covers the tangent vectors too).
+
     progress : called with every update of :func:`iter_lyapunov` (a :class:`LyapunovProgress`).
     cancel : polled between chunks; True stops and returns what was measured (``completed=False``,
         the periods not measured in ``lost``).
@@ -514,5 +597,4 @@ def lyapunov_spectrum(
     -------
     LyapunovResult
     """
-    it = iter_lyapunov(params, ics, periods, transient=transient, numerics=numerics, cancel=cancel, workers=workers)
-    return run(it, progress)
+    return run(iter_lyapunov(spec, *args, cancel=cancel, workers=workers, **kw), progress)

@@ -29,6 +29,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from explorer_core.solve.tableaus import METHODS, Method, get_method, resolve_me
 from explorer_core.system.model import Model
 from explorer_core.system.params import Params, check_time
 
+if TYPE_CHECKING:
+    from explorer_core.solve.numerics import Numerics
+
 __all__ = [
     "FIXED_BLOCK",
     "METHODS",
@@ -46,6 +50,8 @@ __all__ = [
     "Method",
     "Status",
     "advance",
+    "advance_body",
+    "body_start",
     "coefficients",
     "get_method",
     "run",
@@ -122,7 +128,8 @@ def coefficients(models: Model | Sequence[Model], rows: np.ndarray | None = None
     lock-step block land on the same section times.
     """
     if isinstance(models, Model):
-        return tables(models.num, models.gpc, models.den, models.forcing, np.zeros(n, dtype=np.int64))
+        return tables(models.num, models.gpc, models.den, models.forcing, np.zeros(n, dtype=np.int64),
+                      alpha=[models.params.alpha])  # fmt: skip
     ms = list(models)
     if rows is None:
         raise ValueError("several models need rows (the model of each trajectory)")
@@ -137,14 +144,15 @@ def coefficients(models: Model | Sequence[Model], rows: np.ndarray | None = None
     if row.size and (row.min() < 0 or row.max() >= len(ms)):
         raise ValueError(f"rows must index the {len(ms)} models")
     return tables(*(np.stack([getattr(m, name) for m in ms], axis=0) for name in ("num", "gpc", "den", "forcing")), row,
-                  stacked=True)  # fmt: skip
+                  stacked=True, alpha=[m.params.alpha for m in ms])  # fmt: skip
 
 
-def tables(num, gpc, den, forcing, row: np.ndarray, stacked: bool = False) -> rk.Coefficients:
+def tables(num, gpc, den, forcing, row: np.ndarray, stacked: bool = False, alpha=None) -> rk.Coefficients:
     """Coefficient tables in the model's format (``num`` (3, 6, 5) etc., or stacked) as the engine reads them.
 
     Any quadratic field in this format works (e.g. a linear test field). The arrays are fresh, contiguous
-    and writable, so every call meets the one compiled kernel.
+    and writable, so every call meets the one compiled kernel. ``alpha`` (one per parameter set) is read by the
+    body's system only (``p = alpha + g q``); without it the tables serve the other systems.
     """
 
     if stacked and np.unique(np.asarray(forcing, dtype=float)[:, 3]).size > 1:
@@ -156,9 +164,9 @@ def tables(num, gpc, den, forcing, row: np.ndarray, stacked: bool = False) -> rk
         a = a if stacked else a[None]
         return np.array(a[:, :rows] if rows else a, dtype=float, order="C", copy=True)
 
-    return rk.Coefficients(
-        fresh(num, 2), fresh(gpc, 2), fresh(den, None), fresh(forcing, None), np.array(row, dtype=np.int64, copy=True)
-    )
+    alphas = np.zeros(0) if alpha is None else np.array(alpha, dtype=float, copy=True).reshape(-1)
+    return rk.Coefficients(fresh(num, 2), fresh(gpc, 2), fresh(den, None), fresh(forcing, None),
+                           np.array(row, dtype=np.int64, copy=True), alphas)  # fmt: skip
 
 
 _executor_lock = threading.Lock()
@@ -199,6 +207,7 @@ def run(
     store: bool = True,
     workers: int | None = None,
     block: int = config.BLOCK_SIZE,
+    samples: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Advance every live trajectory of ``batch`` by ``n_periods`` periods of ``system`` (see the engine, ``rk``).
 
@@ -212,16 +221,29 @@ def run(
     Returns
     -------
     records : (n, n_periods, RECORD_SIZE[system]) array
-        ``records[i, :npts[i]]`` are data (the rest is unset); ``(q, r)`` for sections.
+        ``records[i, :npts[i]]`` are data (the rest is unset); ``(q, r)`` for sections. The body's system
+        (``rk.BODY``) records ``samples`` frames per period: ``(n, n_periods samples, 6)``.
     npts : (n,) int array
-        Number of periods each trajectory completed in this call.
+        Number of periods each trajectory completed in this call (BODY: frames recorded).
     """
     meth = get_method(resolve_method(method, float(rtol), bool(adaptive)))
     n = batch.n
     n_periods = int(n_periods)
     if batch.y.shape[1] != rk.STATE_SIZE[system]:
         raise ValueError(f"system {system} has {rk.STATE_SIZE[system]} state components, the batch {batch.y.shape[1]}")
-    rec = np.empty((n, n_periods if store else 1, rk.RECORD_SIZE[system]))
+    samples = int(samples)
+    if system == rk.BODY:
+        if samples < 1:
+            raise ValueError(f"the body's frames per period must be >= 1, got {samples}")
+        if coefs.alpha.shape[0] != coefs.num.shape[0]:
+            raise ValueError(
+                f"the body's system needs alpha for each of the {coefs.num.shape[0]} parameter sets, "
+                f"got {coefs.alpha.shape[0]} (build the tables with coefficients() or tables(alpha=))"
+            )
+    elif samples != 1:
+        raise ValueError(f"only the body's system records frames inside a period, got samples={samples}")
+    frames = n_periods * samples if system == rk.BODY else n_periods
+    rec = np.empty((n, frames if store else 1, rk.RECORD_SIZE[system]))
     npts = np.zeros(n, dtype=np.int64)
     if n == 0 or n_periods <= 0:
         return rec[:, :0], npts
@@ -233,9 +255,14 @@ def run(
     if is_taylor and not adaptive:
         raise ValueError("the Taylor method has no fixed-step mode (its step follows the tolerance): adaptive=True")
     fixed = 0 if (adaptive and meth.adaptive) else int(steps_per_period)
+    if system == rk.BODY and fixed % samples:
+        raise ValueError(
+            f"fixed steps land on the body's frames only if steps_per_period ({fixed}) is a multiple "
+            f"of the frames per period ({samples})"
+        )
     tab = None if is_taylor else kernel_tableau(meth.name)
     ctl = rk.Control(float(rtol), float(atol), int(max_steps), float(bound), fixed)
-    clock = rk.Clock(batch.t0, batch.period, int(batch.k), n_periods, bool(store))
+    clock = rk.Clock(batch.t0, batch.period, int(batch.k), n_periods, bool(store), samples)
     arr = rk.Arrays(batch.y, batch.h, batch.status, batch.nsteps, rec, npts)
     parts = max(1, min(workers or config.N_WORKERS, n))
 
@@ -354,6 +381,24 @@ def lockstep_groups(params: Sequence[Params], y0: np.ndarray) -> list[tuple[np.n
     return out
 
 
+def body_start(params: Params, x: np.ndarray, k: int = 0) -> Batch:
+    """The body's system (``rk.BODY``) at section ``k`` of ``params``: ``(q, r) = x`` and the identity orientation."""
+    batch = Batch.start(np.asarray(x, dtype=float).reshape(1, 2), params.t0, params.period, k=int(k),
+                        dim=rk.STATE_SIZE[rk.BODY])  # fmt: skip
+    batch.y[:, 2] = 1.0  # the quaternion (w, x, y, z) = (1, 0, 0, 0)
+    return batch
+
+
+def advance_body(
+    params: Params, batch: Batch, n_periods: int, samples: int, numerics: Numerics
+) -> tuple[np.ndarray, np.ndarray]:
+    """Move the body's system on by ``n_periods``: ``(frames (n, n_periods samples, 6), nframes (n,))``, the state
+    ``(q, r, w, x, y, z)`` at ``samples`` equally spaced times of each period (see :func:`run`); statuses in
+    ``batch.status``."""
+    return run(rk.BODY, coefficients(Model(params), n=batch.n), batch, n_periods, samples=samples, workers=1,
+               **numerics.kernel_kwargs())  # fmt: skip
+
+
 def warmup() -> None:
     """Compile (or load from the on-disk cache) the engine: one kernel serves every method and system."""
     from explorer_core.system.params import Params
@@ -361,3 +406,5 @@ def warmup() -> None:
     model = Model(Params())
     batch = Batch.start(np.array([[0.1, 0.2], [0.3, 0.1]]), 0.0, 2 * math.pi)
     advance(model, batch, 1, workers=1, block=2)
+    body = body_start(model.params, np.array([0.1, 0.2]))  # the body's orientation (one trajectory)
+    run(rk.BODY, coefficients(model, n=1), body, 1, samples=4, workers=1)

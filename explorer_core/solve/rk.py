@@ -13,7 +13,10 @@ benchmark. What varies is data:
   DynamicalSystemsBase's ``TangentDynamicalSystem``), whose record is the whole state (the monodromy
   matrix of the map is ``Phi`` after ``n`` periods from ``Phi = I``); :data:`LYAPUNOV`, the same with
   ``Phi`` re-orthonormalised at every section time (and inside a period when it becomes ill-conditioned),
-  recording ``log R_11, log R_22`` and ``int div`` of each period;
+  recording ``log R_11, log R_22`` and ``int div`` of each period; :data:`BODY`, the field with the body's
+  orientation as a unit quaternion ``(w, x, y, z)`` (body -> space), ``Q' = 1/2 Q (x) (0, omega)`` with
+  ``omega = (alpha + g q, q, r)``, recording the state at ``Clock.samples`` equally spaced times inside
+  each period (the steps land on them exactly, as on section times), so an animation has frames;
 * the **parameters** are :class:`Coefficients`: one row of coefficient tables per parameter set, and
   the row of every trajectory, so the members of one lock-step block may have different parameters
   (charts, continuation); with a single row the coefficients are computed once per stage for the whole
@@ -53,11 +56,16 @@ from explorer_core.system.model import coefficients_of, forcing_at, forcing_of, 
 _OK, _ESCAPED, _COLLAPSED, _TOO_MANY, _NONFINITE = (int(s) for s in Status if s.engine)
 
 #: Systems the engine integrates (see the module docstring).
-FIELD, TANGENT, LYAPUNOV = 0, 1, 2
-#: State components per system: ``(q, r)``; ``(q, r, Phi[:, 0], Phi[:, 1], int div)``.
-STATE_SIZE = (2, 7, 7)
-#: Values recorded at each section time: ``(q, r)``; the whole state; ``(q, r, log R11, log R22, int div)``.
-RECORD_SIZE = (2, 7, 5)
+FIELD, TANGENT, LYAPUNOV, BODY = 0, 1, 2, 3
+#: State components per system: ``(q, r)``; ``(q, r, Phi[:, 0], Phi[:, 1], int div)``; ``(q, r, w, x, y, z)``.
+STATE_SIZE = (2, 7, 7, 6)
+#: Values recorded at each section time: ``(q, r)``; the whole state; ``(q, r, log R11, log R22, int div)``;
+#: BODY: the whole state at each of the ``samples`` frames of a period (its records are frames, not periods).
+RECORD_SIZE = (2, 7, 5, 6)
+#: Columns of a coefficient row in the kernels: the six monomials of Q (row 0) and R (row 1); BODY keeps
+#: ``g(t)`` and ``alpha`` beside them in row 0 (columns 6 and 7), for ``p = alpha + g q``.
+COEF_COLUMNS = (6, 6, 6, 8)
+_G, _ALPHA = 6, 7
 #: Inside a period the Lyapunov basis is re-orthonormalised when the sine of the angle between the
 #: tangent vectors drops below this: the perpendicular part of ``v2`` carries ``Lambda_2``, and below
 #: it its relative accuracy (about ``rtol / REORTHONORMALISE``) falls.
@@ -96,7 +104,9 @@ class Coefficients(NamedTuple):
     """The field's exact coefficient tables (:class:`explorer_core.system.model.Model`), one row per parameter set.
 
     ``num`` (P, 2, 6, 5), ``gpc`` (P, 2, 2), ``den`` (P, 3), ``forcing`` (P, 4); ``row`` (n,) the parameter
-    set of each trajectory. All rows share the section times (``t0`` and the forcing period).
+    set of each trajectory; ``alpha`` (P,) the constraint's inhomogeneity of each set, read by BODY only (for
+    ``p = alpha + g q``; the field's tables hold alpha already). All rows share the section times (``t0`` and
+    the forcing period).
     """
 
     num: np.ndarray
@@ -104,6 +114,7 @@ class Coefficients(NamedTuple):
     den: np.ndarray
     forcing: np.ndarray
     row: np.ndarray
+    alpha: np.ndarray = np.zeros(0)  # none: only BODY reads it (integrators.run checks it has a row per set)
 
 
 class Control(NamedTuple):
@@ -117,19 +128,26 @@ class Control(NamedTuple):
 
 
 class Clock(NamedTuple):
-    """Section times ``t_base + k period`` (``period < 0`` runs backward); the state is at ``k_first``."""
+    """Section times ``t_base + k period`` (``period < 0`` runs backward); the state is at ``k_first``.
+
+    ``samples``: BODY's frames per period, at ``t_base + k period + period (s / samples)``, ``s = 1 .. samples``
+    (the last is the section time); the other systems record at section times only.
+    """
 
     t_base: float
     period: float
     k_first: int
     n_periods: int
     store: bool
+    samples: int = 1
 
 
 class Arrays(NamedTuple):
     """A batch, updated in place: ``y`` (n, STATE_SIZE) the state at the last completed section time;
     ``h`` (n,) step memory (0 = choose a starting step); ``status``, ``nsteps`` (n,); ``rec``
     (n, n_periods, RECORD_SIZE) the records of this call if ``store``; ``npts`` (n,) periods completed in it.
+    BODY records frames: ``rec`` (n, n_periods samples, 6) and ``npts`` the frames recorded (a member that fails
+    inside a period keeps the frames it reached).
     """
 
     y: np.ndarray
@@ -156,11 +174,11 @@ class Work(NamedTuple):
     err3: np.ndarray  # (m,) DOP853's 3rd-order estimate
     lg: np.ndarray  # (2, m) log R_ii of the re-orthonormalisations inside a period
     slot: np.ndarray  # (m,) int64: the batch row of each packed member
-    c: np.ndarray  # (1 or m, 2, 6) the coefficients: shared, or each member's
-    cw: np.ndarray  # (1, 2, 6) the coefficients of a starting-step trial
+    c: np.ndarray  # (1 or m, 2, COEF_COLUMNS) the coefficients: shared, or each member's
+    cw: np.ndarray  # (1, 2, COEF_COLUMNS) the coefficients of a starting-step trial
 
 
-def work_arrays(stages: int, dim: int, m: int, shared: bool) -> Work:
+def work_arrays(stages: int, dim: int, m: int, shared: bool, columns: int = 6) -> Work:
     """Scratch space for blocks of up to ``m`` members of a system with ``dim`` state components."""
     return Work(
         np.empty((stages + 1, dim, m)),
@@ -171,8 +189,8 @@ def work_arrays(stages: int, dim: int, m: int, shared: bool) -> Work:
         np.empty(m),
         np.zeros((2, m)),
         np.empty(m, dtype=np.int64),
-        np.empty((1 if shared else m, 2, 6)),
-        np.empty((1, 2, 6)),
+        np.empty((1 if shared else m, 2, columns)),
+        np.empty((1, 2, columns)),
     )
 
 
@@ -183,13 +201,25 @@ def work_arrays(stages: int, dim: int, m: int, shared: bool) -> Work:
 
 
 @_leaf
-def _point(system, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, ys, acc, p, k, st) -> None:
-    """``k[st, :, p] = f(ys[:, p] + acc[:, p])`` with the coefficients ``a`` (row Q) and ``b`` (row R)."""
+def _point(system, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, g, al, ys, acc, p, k, st) -> None:
+    """``k[st, :, p] = f(ys[:, p] + acc[:, p])`` with the coefficients ``a`` (row Q) and ``b`` (row R); BODY also
+    reads ``g`` and ``al`` (alpha), the other systems ignore them."""
     q = ys[0, p] + acc[0, p]
     r = ys[1, p] + acc[1, p]
     k[st, 0, p] = quadratic(a0, a1, a2, a3, a4, a5, q, r)
     k[st, 1, p] = quadratic(b0, b1, b2, b3, b4, b5, q, r)
-    if system != FIELD:
+    if system == BODY:
+        # Q' = 1/2 Q (x) (0, omega), omega = (p, q, r) in the body frame: R(Q)' = R(Q) [omega]_x.
+        pb = al + g * q
+        w = ys[2, p] + acc[2, p]
+        x = ys[3, p] + acc[3, p]
+        y = ys[4, p] + acc[4, p]
+        z = ys[5, p] + acc[5, p]
+        k[st, 2, p] = -0.5 * (x * pb + y * q + z * r)
+        k[st, 3, p] = 0.5 * (w * pb + y * r - z * q)
+        k[st, 4, p] = 0.5 * (w * q + z * pb - x * r)
+        k[st, 5, p] = 0.5 * (w * r + x * q - y * pb)
+    elif system != FIELD:
         # The exact Jacobian: the field is quadratic, so J is affine in (q, r).
         j00 = a1 + 2.0 * a3 * q + a4 * r
         j01 = a2 + a4 * q + 2.0 * a5 * r
@@ -212,13 +242,17 @@ def _eval(system, shared, c, ys, acc, lo, hi, k, st) -> None:
     if shared:
         a0, a1, a2, a3, a4, a5 = c[0, 0, 0], c[0, 0, 1], c[0, 0, 2], c[0, 0, 3], c[0, 0, 4], c[0, 0, 5]
         b0, b1, b2, b3, b4, b5 = c[0, 1, 0], c[0, 1, 1], c[0, 1, 2], c[0, 1, 3], c[0, 1, 4], c[0, 1, 5]
+        g = c[0, 0, _G] if system == BODY else 0.0  # (only BODY's rows have these columns)
+        al = c[0, 0, _ALPHA] if system == BODY else 0.0
         for p in range(lo, hi):
-            _point(system, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, ys, acc, p, k, st)
+            _point(system, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, g, al, ys, acc, p, k, st)
     else:
         for p in range(lo, hi):
             q0, q1, q2, q3, q4, q5 = c[p, 0, 0], c[p, 0, 1], c[p, 0, 2], c[p, 0, 3], c[p, 0, 4], c[p, 0, 5]
             r0, r1, r2, r3, r4, r5 = c[p, 1, 0], c[p, 1, 1], c[p, 1, 2], c[p, 1, 3], c[p, 1, 4], c[p, 1, 5]
-            _point(system, q0, q1, q2, q3, q4, q5, r0, r1, r2, r3, r4, r5, ys, acc, p, k, st)
+            g = c[p, 0, _G] if system == BODY else 0.0
+            al = c[p, 0, _ALPHA] if system == BODY else 0.0
+            _point(system, q0, q1, q2, q3, q4, q5, r0, r1, r2, r3, r4, r5, g, al, ys, acc, p, k, st)
 
 
 @_leaf
@@ -241,6 +275,41 @@ def _coefs(num, gpc, den, forcing, row, shared, t, slot, n, c) -> None:
             s = row[slot[p]]
             g, gp = forcing_at(forcing, s, cw, sw)
             coefficients_of(num, gpc, den, s, g, gp, c, p)
+
+
+@_leaf
+def _coefs_set_body(num, gpc, den, forcing, al, s, t, c, o) -> None:
+    # BODY: the field's coefficients (the same arithmetic as _coefs_set) and g(t), alpha (al) beside them.
+    g, gp = forcing_of(forcing, s, t)
+    coefficients_of(num, gpc, den, s, g, gp, c, o)
+    c[o, 0, _G] = g
+    c[o, 0, _ALPHA] = al
+
+
+@_leaf
+def _coefs_body(num, gpc, den, forcing, alpha, row, shared, t, slot, n, c) -> None:
+    """:func:`_coefs` for BODY: the same coefficients, and ``g(t)``, ``alpha`` in columns ``_G``, ``_ALPHA``."""
+    if shared:
+        _coefs_set_body(num, gpc, den, forcing, alpha[0], 0, t, c, 0)
+    elif n > 0:
+        w = forcing[row[slot[0]], 3]
+        cw = math.cos(w * t)
+        sw = math.sin(w * t)
+        for p in range(n):
+            s = row[slot[p]]
+            g, gp = forcing_at(forcing, s, cw, sw)
+            coefficients_of(num, gpc, den, s, g, gp, c, p)
+            c[p, 0, _G] = g
+            c[p, 0, _ALPHA] = alpha[s]
+
+
+@_jit_inline
+def _coefs_of(system, num, gpc, den, forcing, alpha, row, shared, t, slot, n, c) -> None:
+    # The system is a constant where this is inlined: the other systems call _coefs as before.
+    if system == BODY:
+        _coefs_body(num, gpc, den, forcing, alpha, row, shared, t, slot, n, c)
+    else:
+        _coefs(num, gpc, den, forcing, row, shared, t, slot, n, c)
 
 
 # ---------------------------------------------------------------------------
@@ -313,10 +382,11 @@ def _rms(v, row, p, ys, rtol, atol, dim) -> float:
 
 
 @_leaf
-def _initial_step(system, dim, order, num, gpc, den, forcing, r, t, d, span, ys, k, s, p, rtol, atol, cw) -> float:
-    """Hairer's starting step for member ``p`` (``k[0, :, p]`` holds ``f`` at ``t``; parameter set ``r``).
+def _initial_step(system, dim, order, num, gpc, den, forcing, al, r, t, d, span, ys, k, s, p, rtol, atol, cw) -> float:
+    """Hairer's starting step for member ``p`` (``k[0, :, p]`` holds ``f`` at ``t``; parameter set ``r``, whose alpha
+    is ``al``: BODY reads it).
 
-    Uses ``k[s, :, p]``, ``k[s - 1, :, p]`` and ``cw`` (1, 2, 6) as scratch (no stage is live yet).
+    Uses ``k[s, :, p]``, ``k[s - 1, :, p]`` and ``cw`` (1, 2, COEF_COLUMNS) as scratch (no stage is live yet).
     """
     for comp in range(dim):
         k[s - 1, comp, p] = ys[comp, p]  # the state as a "stage", so one _rms serves y, f and f1 - f0
@@ -326,7 +396,10 @@ def _initial_step(system, dim, order, num, gpc, den, forcing, r, t, d, span, ys,
     h0 = min(h0, span)
     for comp in range(dim):
         k[s - 1, comp, p] = d * h0 * k[0, comp, p]  # the offset of the trial point from ys
-    _coefs_set(num, gpc, den, forcing, r, t + d * h0, cw, 0)
+    if system == BODY:
+        _coefs_set_body(num, gpc, den, forcing, al, r, t + d * h0, cw, 0)
+    else:
+        _coefs_set(num, gpc, den, forcing, r, t + d * h0, cw, 0)
     _eval(system, True, cw, ys, k[s - 1], p, p + 1, k, s)
     for comp in range(dim):
         k[s, comp, p] -= k[0, comp, p]
@@ -399,7 +472,7 @@ def _swap(p, last, slot, ys, yn, k, lg, c, shared) -> None:
     lg[1, p], lg[1, last] = lg[1, last], lg[1, p]
     if not shared:
         for a in range(2):
-            for b in range(6):
+            for b in range(c.shape[2]):
                 c[p, a, b], c[last, a, b] = c[last, a, b], c[p, a, b]
 
 
@@ -429,11 +502,12 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
     """Advance the trajectories ``idx`` by ``clock.n_periods`` periods, ``block`` of them at a time in lock-step."""
     # Everything out of the structures once: the loops see plain arrays and scalars.
     a_mat, b_row, c_vec, e_mat, dop853 = tab.a, tab.b, tab.c, tab.e, tab.dop853
-    num, gpc, den, forcing, row = co.num, co.gpc, co.den, co.forcing, co.row
+    num, gpc, den, forcing, row, alpha = co.num, co.gpc, co.den, co.forcing, co.row, co.alpha
     y, h, status, nsteps, rec, npts = arr.y, arr.h, arr.status, arr.nsteps, arr.rec, arr.npts
     rtol, atol, bound, fixed = ctl.rtol, ctl.atol, ctl.bound, ctl.fixed_steps
     lim = min(bound, _BIG)  # inf is never inside, whatever the bound
     t_base, period, k_first, store = clock.t_base, clock.period, clock.k_first, clock.store
+    samples = clock.samples
     k, ys, yn, acc, err, err3, lg, slot, c, cw = work
     for b0 in range(0, idx.shape[0], block):
         members = idx[b0 : b0 + block]
@@ -465,7 +539,10 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
             # Time inside the period, from 0 to ``period``: the forcing's phase at t_base + (k_first + j) period
             # + t is that at t_base + t, and a stage time t + c h then keeps its digits (at t ~ 6000, 1000
             # periods in, ulp(t) ~ 1e-12 jittered every coefficient evaluation: the error floor of long runs).
-            tb = period
+            # BODY lands on each frame time period (frame / samples) in turn (frame / samples is 1.0 exactly
+            # at the last: the section time); the other systems on the section time only.
+            frame = 1
+            tb = period * (frame / samples) if system == BODY else period
             t = 0.0
             if system == LYAPUNOV:
                 for p in range(n_live):
@@ -473,7 +550,7 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                     lg[0, p] = 0.0
                     lg[1, p] = 0.0
             if t != c_time:
-                _coefs(num, gpc, den, forcing, row, shared, t_base + t, slot, n_live, c)
+                _coefs_of(system, num, gpc, den, forcing, alpha, row, shared, t_base + t, slot, n_live, c)
                 c_time = t
             for p in range(n_live):
                 for comp in range(dim):
@@ -493,13 +570,15 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                 habs = span
                 for p in range(n_live):
                     r = row[slot[p]]
-                    hp = _initial_step(system, dim, tab.order, num, gpc, den, forcing, r, t_base + t, d, span, ys, k,
-                                       s, p, rtol, atol, cw)  # fmt: skip
+                    al = alpha[r] if system == BODY else 0.0  # (only BODY's coefficients carry alpha)
+                    hp = _initial_step(system, dim, tab.order, num, gpc, den, forcing, al, r, t_base + t, d, span, ys,
+                                       k, s, p, rtol, atol, cw)  # fmt: skip
                     habs = min(habs, hp)
             steps = 0
             saw_nonfinite = False
+            # The smallest step this period resolves (a constant of the period: computed once, not per step).
+            hmin = 10.0 * _EPS * max(abs(t_base + (k_first + j) * period), span)
             while n_live > 0:
-                hmin = 10.0 * _EPS * max(abs(t_base + (k_first + j) * period), span)
                 if fixed > 0:
                     if steps == fixed:
                         break
@@ -520,13 +599,13 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                 for st in range(1, s):
                     ts = t + c_vec[st] * hs
                     if ts != c_time:
-                        _coefs(num, gpc, den, forcing, row, shared, t_base + ts, slot, n, c)
+                        _coefs_of(system, num, gpc, den, forcing, alpha, row, shared, t_base + ts, slot, n, c)
                         c_time = ts
                     _combine(a_mat, st, hs, st, k, dim, n, acc)
                     _eval(system, shared, c, ys, acc, 0, n, k, st)
                 tn = tb if last else t + hs
                 if tn != c_time:
-                    _coefs(num, gpc, den, forcing, row, shared, t_base + tn, slot, n, c)
+                    _coefs_of(system, num, gpc, den, forcing, alpha, row, shared, t_base + tn, slot, n, c)
                     c_time = tn
                 _combine(b_row, 0, hs, s, k, dim, n, acc)
                 if fixed <= 0:  # the error estimate needs the new state beside the old one
@@ -574,6 +653,18 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                         # A clipped last step says little about the step size: keep the larger proposal.
                         factor = _factor(e_max, expo)
                         habs = max(habs, hstep * factor) if last else hstep * factor
+                    # BODY: a frame reached (adaptive: the step landed on it; fixed: every fixed / samples steps)
+                    if system == BODY and (last if fixed <= 0 else (steps * samples) % fixed == 0):
+                        f = j * samples + (frame if fixed <= 0 else (steps * samples) // fixed) - 1
+                        for p in range(n_live):
+                            i = slot[p]
+                            if store:
+                                for comp in range(dim):
+                                    rec[i, f, comp] = ys[comp, p]
+                            npts[i] = f + 1
+                        if fixed <= 0 and frame < samples:
+                            frame += 1
+                            tb = period * (frame / samples)
                     if system == LYAPUNOV and not last:
                         # Strong contraction within one period would lose the second vector to rounding
                         # before the section time: QR now (the product of the R factors is unchanged) and
@@ -630,13 +721,13 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                         rec[i, j, 2] = lg[0, p] + math.log(r11)
                         rec[i, j, 3] = lg[1, p] + math.log(r22)
                         rec[i, j, 4] = ys[6, p]
-                elif store:
+                elif store and system != BODY:  # (BODY recorded its frames as it landed on them)
                     for comp in range(dim):
                         rec[i, j, comp] = ys[comp, p]
                 nsteps[i] += steps
                 for comp in range(dim):
                     y[i, comp] = ys[comp, p]
-                npts[i] = j + 1
+                npts[i] = (j + 1) * samples if system == BODY else j + 1
                 p += 1
         for p in range(m):
             h[members[p]] = habs
@@ -659,7 +750,7 @@ def _specialise(system: int, one: bool):
 
 
 #: ``KERNELS[system][block == 1]``
-KERNELS = tuple((_specialise(system, False), _specialise(system, True)) for system in (FIELD, TANGENT, LYAPUNOV))
+KERNELS = tuple((_specialise(system, False), _specialise(system, True)) for system in (FIELD, TANGENT, LYAPUNOV, BODY))
 
 
 def advance_blocks(system: int, tab, co, clock, ctl, arr, idx, block) -> None:
@@ -669,5 +760,6 @@ def advance_blocks(system: int, tab, co, clock, ctl, arr, idx, block) -> None:
     nothing in accuracy (every member takes the same steps anyway). The kernels release the GIL:
     callers run disjoint index sets in threads (each touches only its own rows).
     """
-    work = work_arrays(tab.b.shape[1], STATE_SIZE[system], min(block, idx.shape[0]), co.num.shape[0] == 1)
+    work = work_arrays(tab.b.shape[1], STATE_SIZE[system], min(block, idx.shape[0]), co.num.shape[0] == 1,
+                       COEF_COLUMNS[system])  # fmt: skip
     KERNELS[system][block == 1](tab, co, clock, ctl, arr, idx, block, work)
