@@ -172,7 +172,7 @@ class LyapunovTab(AnalysisTab):
         # Members start within 1e-3 of the IC; the transient brings them onto the attractor.
         rng = np.random.default_rng(0)
         ics = np.array([(q, r)] + [(q + 1e-3 * a, r + 1e-3 * b) for a, b in rng.normal(size=(m - 1, 2))])
-        numerics = Numerics(method="dop853", rtol=1e-10, atol=1e-10, bound=1e4)
+        numerics = Numerics(rtol=1e-10, atol=1e-10, bound=1e4)  # the default rule: vern9 here
         history: list[tuple[int, float, float]] = []
         self.session.runner.ui(lambda: setattr(self.source, "data", {"k": [], "l1": [], "l2": []}))
 
@@ -283,7 +283,7 @@ class BifurcationTab(AnalysisTab):
             return
         n, pts, tr, seeding = st.bif_values, st.bif_points, st.bif_transient, st.bif_seeding
         values = sweep_values((lo, hi), n)
-        numerics = Numerics(method="dop853", rtol=1e-9, atol=1e-9, bound=1e3)
+        numerics = Numerics(rtol=1e-9, atol=1e-9, bound=1e3)  # the default rule: vern9 here
         follow = st.bif_orbits
 
         def job(cancelled, emit) -> None:

@@ -151,9 +151,10 @@ def _add_system_args(p: argparse.ArgumentParser) -> None:
 
 def _add_numerics_args(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("numerics")
-    g.add_argument("--method", choices=["rk4", "dp5", "dop853", "vern9", "taylor"],
-                   help=f"default {config.DEFAULT_METHOD}; vern9 (Verner 9(8)) needs fewer steps at rtol 1e-13..1e-8; "
-                        "taylor: sections only, for now")  # fmt: skip
+    g.add_argument("--method", choices=["auto", "rk4", "dp5", "dop853", "vern9", "taylor"],
+                   help=f"default {config.DEFAULT_METHOD}: vern9 (Verner 9(8)) at rtol {config.VERN9_MIN_RTOL:g}.."
+                        f"{config.VERN9_MAX_RTOL:g}, where it needs less work, else dop853; taylor: sections only, "
+                        "for now")  # fmt: skip
     g.add_argument("--rtol", type=_number("rtol"), help=f"relative tolerance (default {config.DEFAULT_RTOL:g})")
     g.add_argument("--atol", type=_number("atol"), help="absolute tolerance (default: same as rtol)")
     g.add_argument("--steps-per-period", type=_count("steps-per-period", 1, 10_000_000), help="RK4 steps")
@@ -180,6 +181,7 @@ def _numerics(args: argparse.Namespace, scene: Scene | None, periods: int, base:
     if args.rtol is not None:
         kw["rtol"] = args.rtol
         kw["atol"] = args.atol if args.atol is not None else args.rtol
+        kw["method"] = config.DEFAULT_METHOD  # the rule chooses again for the tolerance asked (unless --method)
     elif args.atol is not None:
         kw["atol"] = args.atol
     for name in ("method", "steps_per_period", "bound", "max_steps"):
@@ -694,7 +696,7 @@ def cmd_manifolds(args: argparse.Namespace) -> int:
 
     params, scene = _params(args)
     bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
-    numerics = _numerics(args, None, 1, base=Numerics(method="dop853", rtol=1e-10, atol=1e-10, bound=bound))
+    numerics = _numerics(args, None, 1, base=Numerics(rtol=1e-10, atol=1e-10, bound=bound))
     point = _floats(args.orbit, 2, "--orbit")
     kinds = [k.strip() for k in args.kinds.split(",")] if args.kinds else list(KINDS)
     if not kinds or any(k not in KINDS for k in kinds):

@@ -74,7 +74,7 @@ class Scene:
             tol = plot_tolerance(self.pixel_size(pixels), periods or self.periods + self.transient)
         else:
             raise ParameterError(f"accuracy must be 'plot' or 'high', got {accuracy!r}")
-        return Numerics(method="dop853", rtol=tol, atol=tol, bound=self.bound)
+        return Numerics(rtol=tol, atol=tol, bound=self.bound)  # the default rule: dop853 at plot tolerances
 
     def as_dict(self) -> dict[str, Any]:
         return {

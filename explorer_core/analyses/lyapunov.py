@@ -10,7 +10,7 @@ method (Benettin et al. 1980; Parker & Chua 1989, ch. 8):
   Jacobian (``Q``, ``R`` are quadratic in ``(q, r)``, so ``J`` is affine in
   ``(q, r)`` with the same time-dependent coefficient table as the field) are
   integrated together with the trajectory by the same embedded Runge-Kutta
-  pair as sections (DOP853 by default), with error control on the state **and**
+  pair as sections (the method the default rule chooses for the tolerance), with error control on the state **and**
   on the tangent vectors, landing exactly on the section times ``t0 + k T``;
 * at every section time ``Phi`` is re-orthonormalised (Gram-Schmidt, i.e. a QR
   factorisation ``Phi = Q R`` with ``R_ii > 0``) and ``log R_ii`` accumulated;
