@@ -27,12 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "browser"))
 import load_test as lt
 from harness import serve
-
-
-def loop_cpu_s(pid: int) -> float:
-    """CPU time of the process's main thread (the server's event loop), from schedstat (ns)."""
-    with open(f"/proc/{pid}/schedstat") as fh:
-        return int(fh.read().split()[0]) / 1e9
+from session_cost import loop_cpu_s
 
 
 def _ms(xs: list[float]) -> dict[str, float]:

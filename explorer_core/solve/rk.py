@@ -278,29 +278,26 @@ def _coefs(num, gpc, den, forcing, row, shared, t, slot, n, c) -> None:
 
 
 @_leaf
-def _coefs_set_body(num, gpc, den, forcing, al, s, t, c, o) -> None:
-    # BODY: the field's coefficients (the same arithmetic as _coefs_set) and g(t), alpha (al) beside them.
-    g, gp = forcing_of(forcing, s, t)
-    coefficients_of(num, gpc, den, s, g, gp, c, o)
+def _body_columns(forcing, al, s, t, c, o) -> None:
+    """BODY's row ``o`` also holds ``g(t)`` and alpha (``p = alpha + g q``) beside the field's coefficients."""
+    g, _ = forcing_of(forcing, s, t)  # bit for bit the g of the coefficients (forcing_at on the same cos, sin)
     c[o, 0, _G] = g
     c[o, 0, _ALPHA] = al
 
 
 @_leaf
+def _coefs_set_body(num, gpc, den, forcing, al, s, t, c, o) -> None:
+    _coefs_set(num, gpc, den, forcing, s, t, c, o)
+    _body_columns(forcing, al, s, t, c, o)
+
+
+@_leaf
 def _coefs_body(num, gpc, den, forcing, alpha, row, shared, t, slot, n, c) -> None:
     """:func:`_coefs` for BODY: the same coefficients, and ``g(t)``, ``alpha`` in columns ``_G``, ``_ALPHA``."""
-    if shared:
-        _coefs_set_body(num, gpc, den, forcing, alpha[0], 0, t, c, 0)
-    elif n > 0:
-        w = forcing[row[slot[0]], 3]
-        cw = math.cos(w * t)
-        sw = math.sin(w * t)
-        for p in range(n):
-            s = row[slot[p]]
-            g, gp = forcing_at(forcing, s, cw, sw)
-            coefficients_of(num, gpc, den, s, g, gp, c, p)
-            c[p, 0, _G] = g
-            c[p, 0, _ALPHA] = alpha[s]
+    _coefs(num, gpc, den, forcing, row, shared, t, slot, n, c)
+    for p in range(1 if shared else n):
+        s = 0 if shared else row[slot[p]]
+        _body_columns(forcing, alpha[s], s, t, c, p)
 
 
 @_jit_inline
