@@ -22,8 +22,11 @@ from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import Params
 
 TRACK_SAMPLES = 360
-#: Samples of a played parameter's frame (app/play.py): a third of a still's (the tracks' cost: 38 ms, not 135).
-FRAME_TRACK_SAMPLES = 120
+#: Samples of a played parameter's frame (app/play.py), and the bisections allowed where the equilibria's count
+#: changes (a still's default: 4 per sample): a frame's tracks cost ~15 ms, not 40 (120 samples, default
+#: refinement) or 135 (a still's 360); a fold in t is drawn to a sixtieth of the period, not to 2^-12 of it.
+FRAME_TRACK_SAMPLES = 60
+FRAME_TRACK_REFINE = 30
 TPRIME_GRID = 160
 PER_PERIOD_GRID = 80
 
@@ -56,7 +59,9 @@ class TracksLayer(_Frozen):
         return (params, FRAME_TRACK_SAMPLES if frame else TRACK_SAMPLES) if self.host.state.show_tracks else None
 
     def job(self, inputs: tuple[Params, int], cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
-        tr = equilibrium_tracks(inputs[0], n_t=inputs[1], cancel=cancelled)
+        frame = inputs[1] == FRAME_TRACK_SAMPLES
+        tr = equilibrium_tracks(inputs[0], n_t=inputs[1], max_refine=FRAME_TRACK_REFINE if frame else None,
+                                cancel=cancelled)  # fmt: skip
         if tr.completed:  # else a newer setting: its own tracks job is on the way
             yield segments_by_type(tr.branches()), tr.section()
 
