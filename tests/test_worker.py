@@ -85,7 +85,13 @@ def test_busy_worker_and_ctrl_c(env: dict[str, str]) -> None:
     out, err = long.communicate(timeout=120)
     assert long.returncode == 130, err
     assert "interrupted" in err
-    again = bilimovich(SMALL, env, ROOT)  # the worker lives on
+    # The worker lives on. It frees itself just after the client has its exit status: under load a command sent
+    # in that instant finds it busy and runs by itself (correctly), so wait until it says it is idle.
+    deadline = time.time() + 30
+    while "(" in (s := bilimovich(["worker", "status"], env, ROOT).stdout) and "idle" not in s:
+        assert time.time() < deadline, s
+        time.sleep(0.2)
+    again = bilimovich(SMALL, env, ROOT)
     assert again.returncode == 0 and "served by the worker" in again.stderr
 
 
