@@ -51,21 +51,23 @@ class TracksLayer(_Frozen):
     channels: ClassVar[dict[str, str]] = {"tracks": LAYER}
     fields = ("show_tracks",)
 
-    def inputs(self) -> tuple[Params, int] | object | None:
+    def inputs(self) -> tuple[Params, int, int | None] | object | None:
+        """``(params, samples, bisections)``: a frame's (fewer) or a still's (the default refinement)."""
         params = self.system_params()
         if params is None:
             return KEEP
+        if not self.host.state.show_tracks:
+            return None
         frame = getattr(self.host, "frame_periods", None) is not None  # a frame of a played parameter
-        return (params, FRAME_TRACK_SAMPLES if frame else TRACK_SAMPLES) if self.host.state.show_tracks else None
+        return (params, FRAME_TRACK_SAMPLES, FRAME_TRACK_REFINE) if frame else (params, TRACK_SAMPLES, None)
 
-    def job(self, inputs: tuple[Params, int], cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
-        frame = inputs[1] == FRAME_TRACK_SAMPLES
-        tr = equilibrium_tracks(inputs[0], n_t=inputs[1], max_refine=FRAME_TRACK_REFINE if frame else None,
-                                cancel=cancelled)  # fmt: skip
+    def job(self, inputs: tuple[Params, int, int | None], cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
+        params, samples, refine = inputs
+        tr = equilibrium_tracks(params, n_t=samples, max_refine=refine, cancel=cancelled)
         if tr.completed:  # else a newer setting: its own tracks job is on the way
             yield segments_by_type(tr.branches()), tr.section()
 
-    def apply(self, inputs: tuple[Params, int], result: tuple[list, Any]) -> None:
+    def apply(self, inputs: tuple[Params, int, int | None], result: tuple[list, Any]) -> None:
         segments, at_t0 = result
         self.params = inputs[0]
         self.host.fig.set_tracks(segments)
