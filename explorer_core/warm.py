@@ -27,7 +27,7 @@ def _engine() -> None:
     import numpy as np
 
     from explorer_core.solve import rk, tangent
-    from explorer_core.solve.integrators import Batch, advance, coefficients, run
+    from explorer_core.solve.integrators import Batch, advance, body_start, coefficients, run
     from explorer_core.solve.numerics import Numerics
     from explorer_core.system.model import Model
     from explorer_core.system.params import Params
@@ -42,8 +42,7 @@ def _engine() -> None:
         tangent.monodromy(coefs, ics, 1, model.params.t0, model.params.period, numerics, workers=1, block=block)
         lyap = tangent.start(ics, model.params.t0, model.params.period)
         tangent.advance_lyapunov(coefs, lyap, 1, numerics, workers=1, block=block)
-        body = Batch.start(ics, model.params.t0, model.params.period, dim=rk.STATE_SIZE[rk.BODY])
-        body.y[:, 2] = 1.0  # the body's orientation (analyses.body: one trajectory, so the kernel of one)
+        body = body_start(model.params, ics)  # the body's orientation
         run(rk.BODY, coefs, body, 1, samples=4, workers=1, block=block, **numerics.kernel_kwargs())
 
 

@@ -338,12 +338,14 @@ def _iter_body_series(
         else:
             why = f"the trajectory ended ({status.word}) after the frame at t = {t[-1]:.6g}"
             lost.append(Loss("frames", total - done, why))
-    # g at the phase of each frame, as the engine took it (t0 + T s / samples): samples values, repeated.
+    # omega and T from the model, at each frame's phase as the engine took it (t0 + T j / samples: g is periodic).
     model = Model(params)
-    g_phase = np.array([model.g(params.t0 + params.period * (j / samples))[0] for j in range(samples)])
     q, r = out[:done, 0], out[:done, 1]
-    omega = np.column_stack([params.alpha + g_phase[s] * q, q, r])
-    energy = 0.5 * np.einsum("fi,ij,fj->f", omega, params.inertia_matrix, omega)
+    omega, energy = np.empty((done, 3)), np.empty(done)
+    for j in range(min(samples, done)):
+        at, tj = s == j, params.t0 + params.period * (j / samples)
+        omega[at] = model.omega_vector(q[at], r[at], tj)
+        energy[at] = model.energy(q[at], r[at], tj)
     series = BodySeries(params, x, k0, periods, samples, t, omega, out[:done, 2:].copy(), energy, moments, axes,
                         status, done == total, lost, time.perf_counter() - start, numerics, x0.copy(),
                         int(batch.nsteps[0]))  # fmt: skip

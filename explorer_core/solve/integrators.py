@@ -382,8 +382,9 @@ def lockstep_groups(params: Sequence[Params], y0: np.ndarray) -> list[tuple[np.n
 
 
 def body_start(params: Params, x: np.ndarray, k: int = 0) -> Batch:
-    """The body's system (``rk.BODY``) at section ``k`` of ``params``: ``(q, r) = x`` and the identity orientation."""
-    batch = Batch.start(np.asarray(x, dtype=float).reshape(1, 2), params.t0, params.period, k=int(k),
+    """The body's system (``rk.BODY``) at section ``k`` of ``params``: ``(q, r) = x`` (one point or (n, 2)) and the
+    identity orientation."""
+    batch = Batch.start(np.asarray(x, dtype=float).reshape(-1, 2), params.t0, params.period, k=int(k),
                         dim=rk.STATE_SIZE[rk.BODY])  # fmt: skip
     batch.y[:, 2] = 1.0  # the quaternion (w, x, y, z) = (1, 0, 0, 0)
     return batch
