@@ -11,8 +11,8 @@ section point ``k_start`` (the ``PERIODS + 1``-th last point on screen; the firs
 last point, starting from that point itself (the forcing has period ``T``: starting at ``t0`` from the point at
 ``t0 + k_start T`` is the same motion, with the orientation at ``k_start`` the identity), so the highlighted
 points of the body's periods are the trajectory's points on screen (to the section's tolerance) whatever the
-transient and the number of periods. The body is integrated with DOP853 at a tolerance of :data:`TOLERANCE` (the
-orientation does not depend on the plot's pixel size).
+transient and the number of periods. The body is integrated at a tolerance of :data:`TOLERANCE` (the orientation
+does not depend on the plot's pixel size), with the method the default rule takes there (vern9).
 
 What is on screen is always the state's: a new selection, a parameter, new numerics or points, or the view closed
 drop the series shown at once (and cancel the job computing one); while the section computes or a parameter
@@ -211,7 +211,7 @@ class BodyView:
     def _start(self, inputs: BodyInputs) -> None:
         last = inputs.k_start + inputs.periods
         self._say(f"computing the body's motion over k = {inputs.k_start}..{last} ({SAMPLES} frames a period)…")
-        numerics = Numerics(method="dop853", rtol=TOLERANCE, atol=TOLERANCE, bound=inputs.bound)
+        numerics = Numerics(rtol=TOLERANCE, atol=TOLERANCE, bound=inputs.bound)
 
         def job(cancelled: Callable[[], bool], emit: Emit) -> None:
             t = time.perf_counter()

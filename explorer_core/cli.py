@@ -888,7 +888,8 @@ def cmd_symmetry(args: argparse.Namespace) -> int:
 
 
 def _body_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition at t0 (default: the scene's first)")
+    p.add_argument("--ic", action="append", metavar="Q,R",
+                   help="initial condition at t0 (default: the scene's first point, else 0.1,0.1)")  # fmt: skip
     p.add_argument("--periods", type=_count("periods", 1, 10_000), default=20, help="periods of the series")
     p.add_argument("--samples", type=_count("samples", 4, 512), default=48, help="frames per period (default 48)")
     p.add_argument("--k0", type=_count("k0", 0, config.MAX_PERIODS), default=0,
