@@ -119,7 +119,7 @@ def test_continuation_seeds_each_value_from_the_previous_final_state() -> None:
     assert d.sweeps.tolist() == ["forward", "backward"]
     # Forward value 1 starts where value 0 ended; backward value 1 where value 2 ended.
     for s, src in ((0, 0), (1, 2)):
-        pts, npts, st, fin = bilimovich_orbits(FIG10.with_(alpha=vals[1]), d.final[s, src], 30, 20, num)
+        pts, npts, st, fin, _ = bilimovich_orbits(FIG10.with_(alpha=vals[1]), d.final[s, src], 30, 20, num)
         np.testing.assert_array_equal(pts, d.points[s, 1])
         np.testing.assert_array_equal(fin, d.final[s, 1])
 
@@ -259,3 +259,52 @@ def test_settled_period_needs_every_member_on_a_cycle() -> None:
     assert settled_period(np.concatenate([cyc2, drift]), n, ok) == 0  # one still moving: not settled
     escaped = np.array([0, int(Status.ESCAPED)])
     assert settled_period(np.concatenate([cyc2, drift]), n, escaped) == 2  # an escaped member is ignored
+
+
+def test_settled_members_agree_with_the_whole_integration_from_the_same_seed() -> None:
+    """A continuation sweep stops integrating a member once it is on an attracting cycle (repeated to 1e-9, or
+    Newton's cycle that the rest of the transient would reach): from each value's own seed, its points and final
+    state are those of the whole integration to 1e-8, and a chaotic member is integrated bit for bit."""
+    from explorer_core.analyses.bifurcation import NEWTON_CYCLE, REPEATED
+
+    vals = sweep_values((-0.38, -0.374), 7)
+    d = bifurcation_diagram(FIG10, "alpha", vals, points=100, transient=300, ics=[(-0.0959, -1.962)],
+                            sweeps=("forward",), numerics=Numerics(rtol=1e-10, atol=1e-10))  # fmt: skip
+    how = d.settled[0, :, 0, 2]
+    assert NEWTON_CYCLE in how  # started near the previous value's cycle: Newton ends the transient early
+    summary = d.summary()["settled"]
+    assert summary["newton"] == int(np.count_nonzero(how == NEWTON_CYCLE))
+    assert summary["repeated"] == int(np.count_nonzero(how == REPEATED)) and summary["periods_copied"] > 0
+    for v in range(1, vals.size):
+        p, seed = FIG10.with_(alpha=vals[v]), d.final[0, v - 1]
+        full = bilimovich_orbits(p, seed, 300, 100, d.numerics)
+        np.testing.assert_array_equal(d.status[0, v], full[2])
+        if how[v]:
+            np.testing.assert_allclose(d.points[0, v], full[0], rtol=0, atol=1e-8)
+            np.testing.assert_allclose(d.final[0, v], full[3], rtol=0, atol=1e-8)
+        else:
+            np.testing.assert_array_equal(d.points[0, v], full[0])
+
+
+def test_newtons_cycle_is_taken_only_where_the_transient_would_bring_the_member() -> None:
+    """The jump's test: an attracting cycle whose linearised pull over the turns left brings the member within
+    SETTLE_TOL / JUMP_SAFETY; not with no turns left, and never a cycle that does not attract."""
+    from explorer_core.analyses.bifurcation import _newton_cycles
+    from explorer_core.solve.poincare import PoincareMap
+
+    num = Numerics(rtol=1e-10, atol=1e-10)
+    on = FIG10.with_(alpha=-0.36)  # period 1, attracting
+    pts = bilimovich_orbits(on, np.array([[-0.0959, -1.962]]), 400, 4, num)[0][0]
+    assert detect_period(pts, 4, 1e-9) == 1
+    x = pts[-1:] + 1e-4
+    pmap = PoincareMap.of(on, num)
+    near, none_left = _newton_cycles(pmap, np.vstack([x, x]), np.array([1, 1]), np.array([400, 0]))
+    assert none_left is None  # 1e-4 away and no turns left: the transient would not have reached it
+    np.testing.assert_allclose(near[0], pts[-1], rtol=0, atol=1e-8)
+    # Past the first doubling the period-1 orbit repels along the flip direction: Newton finds it, no jump.
+    past = FIG10.with_(alpha=-0.38)
+    two = bilimovich_orbits(past, np.array([[-0.0959, -1.962]]), 400, 4, num)[0][0]
+    assert detect_period(two, 4, 1e-9) == 2
+    mid = two[-2:].mean(axis=0, keepdims=True)  # between the two points: near the period-1 saddle
+    (repelled,) = _newton_cycles(PoincareMap.of(past, num), mid, np.array([1]), np.array([400]))
+    assert repelled is None

@@ -49,7 +49,7 @@ from explorer_core.progress import Progress, stream
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics
-from explorer_core.solve.poincare import PoincareMap
+from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.status import Status, count_names
 from explorer_core.system.params import ParameterError, Params
 
@@ -60,7 +60,8 @@ SWEEPS = ("forward", "backward")
 # ---------------------------------------------------------------------------
 # The engine: any "orbits at one value" function.
 
-#: ``orbits(value_index, ics (n, 2), workers) -> (points (n, m, 2), npts (n,), status (n,), final (n, 2))``
+#: ``orbits(value_index, ics (n, 2), workers) -> (points (n, m, 2), npts (n,), status (n,), final (n, 2)[,
+#: settled (n, 3)])``: the optional fifth array says where members were found on a cycle (:func:`bilimovich_orbits`).
 OrbitFn = Callable[[int, np.ndarray, int], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
 
 
@@ -88,7 +89,8 @@ def next_seed(status: np.ndarray, final: np.ndarray, ics: np.ndarray) -> np.ndar
 
 
 def empty_sweep_arrays(n_sweeps: int, valid: np.ndarray, n_ics: int, n_points: int) -> dict[str, np.ndarray]:
-    """``points, npts, status, final`` of a sweep before any value ran (``Status.NOT_RUN`` / ``Status.INVALID``)."""
+    """``points, npts, status, final, settled`` of a sweep before any value ran (``Status.NOT_RUN`` /
+    ``Status.INVALID``; nothing settled)."""
     shape = (n_sweeps, valid.size, n_ics)
     status = np.full(shape, Status.NOT_RUN, dtype=np.int64)
     status[:, ~valid] = Status.INVALID
@@ -97,6 +99,7 @@ def empty_sweep_arrays(n_sweeps: int, valid: np.ndarray, n_ics: int, n_points: i
         "npts": np.zeros(shape, dtype=np.int64),
         "status": status,
         "final": np.zeros((*shape, 2)),
+        "settled": np.zeros((*shape, 3), dtype=np.int64),
     }
 
 
@@ -131,20 +134,22 @@ def sweep_orbits(
     """Run ``orbits`` over every value, seeded by continuation or from fixed ``ics``.
 
     Returns arrays indexed ``[sweep, value, ic]``: ``points`` (+ ``(n_points, 2)``),
-    ``npts``, ``status``, ``final`` (+ ``(2,)``). With ``fixed`` seeding there is one
+    ``npts``, ``status``, ``final`` (+ ``(2,)``) and ``settled`` (+ ``(3,)``). With ``fixed`` seeding there is one
     sweep; with ``continuation`` one per entry of ``sweeps``.
     """
     sweeps = check_sweeps(seeding, sweeps)
     valid = np.ones(n_values, bool) if valid is None else np.asarray(valid, bool)
     arrays = empty_sweep_arrays(len(sweeps), valid, ics.shape[0], n_points)
-    points, npts, status, final = arrays["points"], arrays["npts"], arrays["status"], arrays["final"]
+    points, npts, status, final, settled = (arrays[k] for k in ("points", "npts", "status", "final", "settled"))
     total = int(valid.sum()) * len(sweeps)
     done = [0]
     start = time.perf_counter()
     workers = max(1, workers or config.N_WORKERS)
 
     def record(s: int, v: int, out: tuple) -> None:
-        pts, n, st, fin = out
+        pts, n, st, fin, *more = out
+        if more:
+            settled[s, v] = more[0]
         points[s, v] = pts
         npts[s, v] = n
         status[s, v] = st
@@ -199,7 +204,7 @@ def sweep_orbits(
         else:
             for s in range(len(sweeps)):
                 run_sweep(s, workers)
-    return {"sweeps": np.array(sweeps), "points": points, "npts": npts, "status": status, "final": final}
+    return {"sweeps": np.array(sweeps), **arrays}
 
 
 # ---------------------------------------------------------------------------
@@ -213,7 +218,9 @@ class OrbitDiagram(Drawable):
     ``points[s, v, i, :npts[s, v, i]]`` are the points of initial condition ``i`` at
     ``values[v]`` in sweep ``sweeps[s]``, at ``k = transient + 1, ...``; only
     trajectories with ``status == 0`` (ok) belong to the diagram (see :meth:`long`).
-    ``errors[v]`` says why ``values[v]`` is invalid (empty if valid).
+    ``errors[v]`` says why ``values[v]`` is invalid (empty if valid). ``settled[s, v, i] = (p, k)``: the
+    trajectory was found on a period-``p`` cycle after ``k`` integrated periods (continuation sweeps) and its
+    later points repeat the cycle's last ``p`` (``(0, 0)``: every point integrated).
     """
 
     params: Params
@@ -232,6 +239,7 @@ class OrbitDiagram(Drawable):
     numerics: Numerics
     elapsed_s: float
     completed: bool
+    settled: np.ndarray
     #: what the diagram lost: trajectories not computed (cancelled), invalid values, trajectories that stopped
     lost: list[Loss] = field(default_factory=list)
 
@@ -288,6 +296,16 @@ class OrbitDiagram(Drawable):
     def status_counts(self) -> dict[str, int]:
         return count_names(self.status)
 
+    def settled_summary(self) -> dict[str, int]:
+        """How much of the diagram is copied from cycles it settled on: trajectories (by how they were found)
+        and periods not integrated."""
+        p, k, how = self.settled[..., 0], self.settled[..., 1], self.settled[..., 2]
+        on = p > 0
+        copied = np.where(on, self.transient + self.n_points - k, 0)
+        return {"repeated": int(np.count_nonzero(how == REPEATED)),
+                "newton": int(np.count_nonzero(how == NEWTON_CYCLE)),
+                "periods_copied": int(copied.sum())}  # fmt: skip
+
     def to_csv(self, path: str) -> int:
         """Rows ``sweep,value_index,value,ic,k,q,r,status``: every drawn point, plus one row
         with empty ``k,q,r`` for each trajectory that is not drawn (escaped, failed, invalid)."""
@@ -332,6 +350,7 @@ class OrbitDiagram(Drawable):
                 {"value": float(v), "error": e} for v, e in zip(self.values, self.errors, strict=True) if e
             ],
             "periods": {str(s): per[k, :, 0].tolist() for k, s in enumerate(self.sweeps)},
+            "settled": self.settled_summary(),
             "completed": self.completed,
             "complete": self.complete,
             "lost": [loss.as_dict() for loss in self.lost],
@@ -341,15 +360,46 @@ class OrbitDiagram(Drawable):
         }
 
 
-#: A continuation sweep's transient may end early: checked every SETTLE_CHUNK periods, it ends when every
-#: member's last SETTLE_WINDOW points repeat after one period ``p <= SETTLE_P_MAX`` to SETTLE_TOL (relative).
-#: The numerical map is deterministic, so a member on an attracting cycle repeats it to rounding; the rest
-#: of the transient is then whole turns of the cycle (skipped) and its remainder mod ``p`` (integrated), so
-#: the recorded points start at the same phase as after the whole transient.
+#: A continuation sweep's members stop integrating once they are on an attracting cycle; they are looked at
+#: every SETTLE_CHUNK periods (transient and recorded points alike) and every later point, the recorded ones
+#: and the final state, is the cycle's point at that phase (copied, not integrated; the diagram's ``settled``
+#: says which trajectories and from where). A member is on its cycle when
+#:
+#: * **repeated**: its last SETTLE_WINDOW points repeat after one period ``p <= SETTLE_P_MAX`` to SETTLE_TOL
+#:   (relative). The numerical map is deterministic, so a member on an attracting cycle repeats it to
+#:   rounding. (A member converging slowly, a multiplier near the unit circle, settles only once its steps are
+#:   below SETTLE_TOL; its remaining motion is below ``SETTLE_TOL |mu| / (1 - |mu|)``.)
+#: * **Newton's cycle**: in the transient, its points repeat to JUMP_TOL only; Newton on ``P^p`` from its last
+#:   point finds the cycle ``x*`` and its monodromy ``M``, and the rest of the transient would bring the member
+#:   within SETTLE_TOL / JUMP_SAFETY of it: ``|M^j (x - x*)| <= SETTLE_TOL (1 + |x*|) / JUMP_SAFETY`` with ``j``
+#:   the whole turns of the cycle left in the transient (the linearisation about an attracting cycle). Members
+#:   started from the previous value's cycle repeat it to JUMP_TOL within a chunk but to SETTLE_TOL only after
+#:   ~140 periods (Fig. 10, median): the transient's work is then mostly skipped. At most JUMP_TRIES attempts
+#:   per member and value (each costs ~3 p periods of the tangent system).
 SETTLE_CHUNK = 48
 SETTLE_WINDOW = 8
 SETTLE_P_MAX = 16
 SETTLE_TOL = 1e-9
+JUMP_TOL = 1e-3
+JUMP_SAFETY = 10.0
+JUMP_TRIES = 2
+#: How a trajectory settled (``OrbitDiagram.settled[..., 2]``).
+REPEATED, NEWTON_CYCLE = 1, 2
+
+
+def repeat_period(x: np.ndarray, tol: float) -> int:
+    """The least ``p <= SETTLE_P_MAX`` after which the last SETTLE_WINDOW points of ``x`` (m, 2) repeat to
+    ``tol`` (relative, per component); 0 if none."""
+    # Not sweeps.detect_period: its tolerance is relative to the largest |x| of the window and it checks
+    # every pair; with it two chaotic-band values of the Fig. 10 sweeps settled differently (measured).
+    m = x.shape[0]
+    for p in range(1, SETTLE_P_MAX + 1):
+        if m < p + SETTLE_WINDOW:
+            break
+        a, b = x[m - SETTLE_WINDOW :], x[m - SETTLE_WINDOW - p : m - p]
+        if np.all(np.abs(a - b) <= tol * (1.0 + np.abs(a))):
+            return p
+    return 0
 
 
 def settled_period(points: np.ndarray, npts: np.ndarray, status: np.ndarray) -> int:
@@ -358,22 +408,30 @@ def settled_period(points: np.ndarray, npts: np.ndarray, status: np.ndarray) -> 
     for i in range(points.shape[0]):
         if status[i] != Status.OK:
             continue  # escaped or failed: it goes no further anyway
-        # Not sweeps.detect_period: its tolerance is relative to the largest |x| of the window and it checks
-        # every pair; with it two chaotic-band values of the Fig. 10 sweeps settled differently (measured).
-        m = int(npts[i])
-        x = points[i, :m]
-        found = 0
-        for p in range(1, SETTLE_P_MAX + 1):
-            if m < p + SETTLE_WINDOW:
-                break
-            a, b = x[m - SETTLE_WINDOW :], x[m - SETTLE_WINDOW - p : m - p]
-            if np.all(np.abs(a - b) <= SETTLE_TOL * (1.0 + np.abs(a))):
-                found = p
-                break
+        found = repeat_period(points[i, : int(npts[i])], SETTLE_TOL)
         if not found:
             return 0
         common = math.lcm(common, found)
     return common
+
+
+def _newton_cycles(pmap: PoincareMap, x: np.ndarray, periods: np.ndarray, turns: np.ndarray) -> list[np.ndarray | None]:
+    """For each member ``x[m]`` (the point at the end of a chunk) whose points repeat to JUMP_TOL after
+    ``periods[m]``: the cycle's points ``P(x*) .. P^p(x*)`` (p, 2) if Newton finds an attracting cycle ``x*``
+    near it that ``turns[m]`` more turns would bring it within SETTLE_TOL / JUMP_SAFETY of, else None."""
+    out: list[np.ndarray | None] = [None] * x.shape[0]
+    scale = 1.0 + np.abs(x).max(axis=1)
+    res = newton(pmap, x, periods, ftol=0.1 * SETTLE_TOL, max_iter=6, max_step=math.inf, patience=None,
+                 coarse=False, near=10 * JUMP_TOL * scale, dedupe=False)  # fmt: skip
+    for c in res.converged:
+        m = c.i
+        mono = c.mono.matrix[0]
+        if not np.all(np.isfinite(mono)) or np.abs(np.linalg.eigvals(mono)).max() >= 1.0:
+            continue  # not attracting: the member is in a transient near a saddle, or at a bifurcation
+        dev = np.linalg.matrix_power(mono, int(turns[m])) @ (x[m] - c.x)
+        if np.abs(dev).max() <= SETTLE_TOL * (1.0 + np.abs(c.x).max()) / JUMP_SAFETY:
+            out[m] = c.mono.points[0, : int(periods[m])].copy()
+    return out
 
 
 def bilimovich_orbits(
@@ -384,29 +442,78 @@ def bilimovich_orbits(
     numerics: Numerics,
     workers: int = 1,
     settle: bool = False,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, ...]:
     """Orbits of the Poincare map at one parameter set: transient, then ``n_points`` points.
 
-    ``settle``: the transient ends once every member has settled on an attracting cycle (see
-    :data:`SETTLE_TOL`); for continuation sweeps, whose members start on the previous value's attractor.
+    ``settle``: a member on an attracting cycle stops integrating and the rest of its trajectory, transient or
+    recorded points, is that cycle's (copied at the right phase; :data:`SETTLE_TOL`); for continuation sweeps,
+    whose members start on the previous value's attractor.
 
-    Returns ``(points (n, n_points, 2), npts (n,), status (n,), final (n, 2))``.
+    Returns ``(points (n, n_points, 2), npts (n,), status (n,), final (n, 2), settled (n, 3))``;
+    ``settled[i] = (p, k, how)``: member ``i`` was on a period-``p`` cycle after ``k`` integrated periods (how:
+    :data:`REPEATED` or :data:`NEWTON_CYCLE`) and every later point is the cycle's (``(0, 0, 0)``: every point
+    integrated).
     """
     pmap = PoincareMap.of(params, numerics, workers=workers)
     batch = pmap.start(ics)
-    left = int(transient)
-    while settle and left > SETTLE_CHUNK:
-        pts, npts_t = pmap.advance(batch, SETTLE_CHUNK)
-        left -= SETTLE_CHUNK
-        p = settled_period(pts, npts_t, batch.status)
-        if p:
-            left %= p  # whole turns of the cycle change nothing but rounding
+    n, transient, total = batch.n, int(transient), int(transient) + int(n_points)
+    settled = np.zeros((n, 3), dtype=np.int64)
+    if not settle:
+        if transient:
+            pmap.advance(batch, transient, store=False)
+        pts, npts = pmap.advance(batch, n_points)
+        pts[np.arange(n_points)[None, :] >= npts[:, None]] = 0.0  # not data (unset memory): reproducible results
+        return pts, npts, batch.status.copy(), batch.y.copy(), settled
+    # Every point is kept (700 periods of Fig. 10 are 11 kB a member): the settle test looks back over chunks.
+    traj = np.zeros((n, total, 2))
+    got = np.zeros(n, dtype=np.int64)
+    tries = np.zeros(n, dtype=np.int64)
+    done = 0
+
+    def finish(i: int, chain: np.ndarray, how: int) -> None:
+        """Member ``i``'s points after ``done`` are the cycle ``chain`` = its points at ``done + 1 .. done + p``."""
+        p = chain.shape[0]
+        k = np.arange(done + 1, total + 1)
+        traj[i, done:] = chain[(k - done - 1) % p]
+        got[i] = total
+        settled[i] = (p, done, how)
+
+    run = np.flatnonzero(batch.status == Status.OK)
+    while done < total and run.size:
+        c = min(SETTLE_CHUNK, total - done)
+        part = batch.take(run)
+        pts, npts = pmap.advance(part, c)
+        batch.put(run, part)
+        for j, i in enumerate(run):
+            traj[i, got[i] : got[i] + npts[j]] = pts[j, : npts[j]]
+            got[i] += npts[j]
+        done += c
+        run = run[batch.status[run] == Status.OK]
+        if done == total:
             break
-    if left:
-        pmap.advance(batch, left, store=False)
-    pts, npts = pmap.advance(batch, n_points)
-    pts[np.arange(n_points)[None, :] >= npts[:, None]] = 0.0  # not data (unset memory): make results reproducible
-    return pts, npts, batch.status.copy(), batch.y.copy()
+        loose = []
+        for i in run:
+            p = repeat_period(traj[i, :done], SETTLE_TOL)
+            if p:
+                finish(i, traj[i, done - p : done].copy(), REPEATED)
+            elif done < transient and tries[i] < JUMP_TRIES and (q := repeat_period(traj[i, :done], JUMP_TOL)):
+                loose.append((i, q))
+        if loose:
+            idx = np.array([i for i, _ in loose])
+            per = np.array([q for _, q in loose])
+            tries[idx] += 1
+            for i, chain in zip(idx, _newton_cycles(pmap, traj[idx, done - 1], per, (transient - done) // per),
+                                strict=True):  # fmt: skip
+                if chain is not None:
+                    finish(int(i), chain, NEWTON_CYCLE)
+        run = run[got[run] < total]
+    final = batch.y.copy()
+    whole = got == total
+    final[whole] = traj[whole, total - 1]
+    pts = np.ascontiguousarray(traj[:, transient:])
+    npts = np.clip(got - transient, 0, int(n_points))
+    pts[np.arange(n_points)[None, :] >= npts[:, None]] = 0.0
+    return pts, npts, batch.status.copy(), final, settled
 
 
 @dataclass(frozen=True)
@@ -516,6 +623,7 @@ class SweepChunk:
     npts: np.ndarray
     status: np.ndarray
     final: np.ndarray
+    settled: np.ndarray
     seed: np.ndarray  # where a continuation sweep goes on after this chunk
     elapsed_s: float
 
@@ -540,7 +648,7 @@ def sweep_chunk(
     return SweepChunk(
         sweep,
         tuple(int(v) for v in indices),
-        *(np.stack([o[k] for o in outs]) for k in range(4)),
+        *(np.stack([o[k] for o in outs]) for k in range(5)),
         seed=seed,
         elapsed_s=time.perf_counter() - start,
     )
@@ -704,6 +812,7 @@ def _diagram(
         npts=out["npts"],
         status=out["status"],
         final=out["final"],
+        settled=out["settled"],
         errors=errors,
         numerics=spec.numerics,
         elapsed_s=time.perf_counter() - start,
@@ -753,7 +862,7 @@ def sweep_tasks(
         for batch in stream:
             for (s, k), res in batch:
                 for j, v in enumerate(res.indices):
-                    for name in ("points", "npts", "status", "final"):
+                    for name in ("points", "npts", "status", "final", "settled"):
                         out[name][s, v] = getattr(res, name)[j]
                     done += 1
                     if progress is not None:

@@ -448,7 +448,7 @@ def _doubling(
     """Bisect the alpha where the period-p cycle (at ``lo``, from ``seed``) has doubled (at ``hi``)."""
     for _ in range(steps):
         mid = 0.5 * (lo + hi)
-        pts, npts, status, fin = bilimovich_orbits(params.with_(alpha=mid), seed, transient, 64, numerics)
+        pts, npts, status, fin, _ = bilimovich_orbits(params.with_(alpha=mid), seed, transient, 64, numerics)
         per = detect_period(pts[0], 16, 1e-6 * (1 + np.abs(pts[0]).max())) if status[0] == 0 else 0
         if per == p:
             lo, seed = mid, fin
