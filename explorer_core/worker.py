@@ -623,13 +623,23 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
             if item is None:
                 return
             conn, request = item
+            freed = threading.Event()
+
+            def free(freed: threading.Event = freed) -> None:
+                # Once per job: the job frees the worker just before its exit status goes out, so a command sent
+                # the instant its caller has the status finds the worker free (it waits in ``jobs`` for this
+                # job's last clean-up); before, it could meet "busy" and run by itself.
+                if not freed.is_set():
+                    freed.set()
+                    busy.clear()
+
             try:
-                _run_one(conn, request, run, leave)
+                _run_one(conn, request, run, leave, free)
             except KeyboardInterrupt:  # a cancel that arrived as the job ended: the worker goes on
                 pass
             finally:
                 conn.close()
-                busy.clear()
+                free()
     finally:
         done.set()
         server.close()
@@ -640,13 +650,18 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
 
 
 def _run_one(
-    conn: socket.socket, request: dict[str, Any], run: Callable[[list[str]], int], leave: Callable[[], None]
+    conn: socket.socket,
+    request: dict[str, Any],
+    run: Callable[[list[str]], int],
+    leave: Callable[[], None],
+    free: Callable[[], None] = lambda: None,
 ) -> None:
     """One command, in this (the main) thread: its own streams and directory; a cancel (Ctrl-C, SIGTERM or
     SIGHUP of the client, or the client gone) is a SIGINT here, which the command's handler (or Python)
     takes. A command that has not returned :data:`CANCEL_GRACE_S` after a cancel: the client gets status
     130 at once (and the job's later output is dropped); one still computing :data:`CANCEL_STOP_S` after
-    it is abandoned: this process exits (``leave`` first withdraws the socket)."""
+    it is abandoned: this process exits (``leave`` first withdraws the socket). ``free`` is called when the
+    command has returned, before its exit status is sent."""
     send_lock = threading.Lock()
     client_gone = threading.Event()
     answered = threading.Event()
@@ -718,4 +733,5 @@ def _run_one(
         dog.finish()
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         os.chdir(cwd)
+    free()
     answer("", int(status or 0))
