@@ -377,6 +377,8 @@ class OrbitDiagram(Drawable):
 #:   ~140 periods (Fig. 10, median): the transient's work is then mostly skipped. At most JUMP_TRIES attempts
 #:   per member and value (each costs ~3 p periods of the tangent system).
 SETTLE_CHUNK = 48
+#: The first look comes sooner: a member started on the previous value's cycle is usually ready for Newton.
+SETTLE_FIRST = 24
 SETTLE_WINDOW = 8
 SETTLE_P_MAX = 16
 SETTLE_TOL = 1e-9
@@ -480,7 +482,7 @@ def bilimovich_orbits(
 
     run = np.flatnonzero(batch.status == Status.OK)
     while done < total and run.size:
-        c = min(SETTLE_CHUNK, total - done)
+        c = min(SETTLE_FIRST if done == 0 else SETTLE_CHUNK, total - done)
         part = batch.take(run)
         pts, npts = pmap.advance(part, c)
         batch.put(run, part)
