@@ -320,7 +320,12 @@ export function render({model, el}) {
     for (const [k, v] of Object.entries(cols)) src.data instanceof Map ? src.data.set(k, v) : (src.data[k] = v)
     src.change.emit()
   }
-  const bodyView = createBodyView(plotSeries, {onPoint: bodyPoint})
+  const bodyView = createBodyView(plotSeries, {onPoint: bodyPoint, onSetting: commit})
+  // Its settings (area "bodyview": speed, axis traced, drawing) are controls like the others: chosen in its bar,
+  // sent, and shown as the server answers (the value in use, a refusal under the bar).
+  for (const [name, sel] of Object.entries(bodyView.settings)) {
+    controls[name] = {spec: {name}, wrap: sel, msg: bodyView.messages[name], set: (v) => bodyView.setSetting(name, v)}
+  }
   const eqLegend = h("div", {class: "legend"})
   for (const [t, c] of model.spec.eq_colors) {
     eqLegend.append(h("span", {text: "◆", style: `color:${c};margin-left:8px`}), document.createTextNode(" " + t))

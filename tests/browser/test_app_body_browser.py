@@ -149,3 +149,23 @@ def test_closing_the_view_drops_the_series_and_its_point(page, app_url) -> None:
         timeout=30_000,
     )
     assert not page.errors
+
+
+def test_a_link_with_the_body_views_settings_opens_the_view_with_them(page, app_url) -> None:
+    # A system a box has (moments 1, 3, 3), drawn as the ellipsoid, at 2 periods a second, tracing axis 1.
+    query = BODY.replace("scene=fig1C", "scene=fig1C&I22=3&I33=3") + "&body_v=2&body_axis=1&body_shape=ellipsoid"
+    open_body(page, app_url, query)
+    assert (body(page, "speed"), body(page, "traceAxis"), body(page, "shape")) == (2, 1, "ellipsoid")
+    bar = page.locator(".body-view .body-bar").first
+    shown = [bar.locator(f"select.{c}").input_value() for c in ("body-speed", "body-trace-axis", "body-shape")]
+    assert shown == ["2", "0", "ellipsoid"]  # the trace's select counts axes from 0 (its option 'axis 1')
+    assert {k: query_of(page).get(k) for k in ("body_v", "body_axis", "body_shape")} == {
+        "body_v": "2", "body_axis": "1", "body_shape": "ellipsoid"}  # fmt: skip
+    # Chosen in the bar: in use once the server has it, and in the URL.
+    bar.locator("select.body-shape").select_option("box")
+    page.wait_for_function(f"() => {HOOK}.shape === 'box'", timeout=10_000)
+    page.wait_for_function("() => !new URLSearchParams(location.search).has('body_shape')", timeout=10_000)
+    bar.locator("select.body-trace-axis").select_option("2")
+    page.wait_for_function(f"() => {HOOK}.traceAxis === 3", timeout=10_000)
+    page.wait_for_function("() => !new URLSearchParams(location.search).has('body_axis')", timeout=10_000)
+    assert not page.errors
