@@ -25,6 +25,16 @@ ORBIT_ROWS = 40
 #: multiplier's eigenvector at these distances (relative to 1 + |x|): the born orbit's distance grows like the
 #: square root of the parameter's distance from the doubling, which a frame's step does not tell.
 BIRTH_STEPS = (1e-2, 3e-2, 1e-1)
+#: While a parameter is played, a frame's trajectory whose last points repeat with period n (each within SETTLED of
+#: the point n before, relative to 1 + |x|) has settled on a cycle; one no orbit on screen is within NEAR of (an
+#: orbit born at a fold since the last frame: a pair out of nothing, away from every followed orbit) is handed to
+#: Newton for period n, at most MAX_SETTLED cycles a frame (the added work: one Newton search of one period each).
+SETTLED = 1e-3
+NEAR = 5e-2
+MAX_SETTLED = 4
+#: Recurrences checked at the end of a trajectory (its last points against those n before).
+SETTLED_TAIL = 3
+SETTLED_WORDS = "born since the last frame (a trajectory settled on it)"
 
 
 @dataclass(frozen=True)
@@ -60,6 +70,45 @@ def birth_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[fl
         v /= np.linalg.norm(v)
         out.setdefault(n2, []).extend((float(x[0] + h * scale * v[0]), float(x[1] + h * scale * v[1]))
                                       for h in BIRTH_STEPS)  # fmt: skip
+    return out
+
+
+def settled_cycles(traj: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray,
+                   max_period: int) -> list[tuple[float, float, int]]:  # fmt: skip
+    """The cycles the section's trajectories end on, ``(q, r, n)`` each (the last point and the least period
+    ``n <= max_period``), one per cycle: a trajectory whose last :data:`SETTLED_TAIL` points are each within
+    :data:`SETTLED` (relative to 1 + |x|) of the point ``n`` periods before. Chaotic, quasi-periodic, escaping or
+    still transient trajectories, and cycles longer than ``max_period``, give none."""
+    out: list[tuple[float, float, int]] = []
+    tails: list[np.ndarray] = []  # the points of each cycle found (a second trajectory on it adds nothing)
+    for t in np.unique(traj):
+        sel = traj == t
+        order = np.argsort(k[sel], kind="stable")
+        x = np.column_stack([q[sel][order], r[sel][order]])
+        for n in range(1, max_period + 1):
+            if x.shape[0] < n + SETTLED_TAIL:
+                break
+            last, before = x[-SETTLED_TAIL:], x[-SETTLED_TAIL - n : -n]
+            tol = SETTLED * (1.0 + np.abs(last).max(axis=1))
+            if not np.all(np.isfinite(last)) or np.any(np.linalg.norm(last - before, axis=1) >= tol):
+                continue
+            end = x[-1]
+            scale = NEAR * (1.0 + float(np.abs(end).max()))
+            if not any(np.linalg.norm(c - end, axis=1).min() < scale for c in tails):
+                tails.append(x[-n:])
+                out.append((float(end[0]), float(end[1]), n))
+            break  # the least period
+    return out
+
+
+def unfollowed(cycles: list[tuple[float, float, int]], orbits: list[Orbit]) -> list[tuple[float, float, int]]:
+    """The cycles no orbit in ``orbits`` has a point within :data:`NEAR` (relative to 1 + |x|) of."""
+    out = []
+    for q, r, n in cycles:
+        x = np.array([q, r])
+        scale = NEAR * (1.0 + float(np.abs(x).max()))
+        if not any(np.linalg.norm(o.points - x, axis=1).min() < scale for o in orbits):
+            out.append((q, r, n))
     return out
 
 
@@ -145,7 +194,9 @@ class OrbitsLayer(Layer):
         new = [o for o in res.orbits if not any(same_orbit(o, k) for k in self.orbits)]
         self.orbits = sorted([*self.orbits, *new], key=lambda o: (o.period, float(o.points[0, 0])))
         self._draw()
-        if inputs.where:
+        if inputs.where == SETTLED_WORDS and not new:
+            pass  # a trajectory lingering near a cycle not there (a fold's ghost): the frame's words stay
+        elif inputs.where:
             if new:
                 what = ", ".join(f"period {o.period} ({o.kind})" for o in new)
                 self.text = f"{inputs.where}: {what}"
@@ -212,6 +263,26 @@ class OrbitsLayer(Layer):
         # One job per click, all kept: a second click does not cancel the first.
         self.host.run(self, inputs, channel="orbit", bump=False)
         return True
+
+    def find_settled(self) -> int:
+        """While a parameter plays, once a frame's section and orbits are done: Newton from the frame's
+        trajectories that settled on a cycle no orbit on screen is near (:func:`settled_cycles`; an orbit born
+        at a fold since the last frame), each for its own period, the orbits found merged with those shown.
+        Returns the Newton searches started (0: none needed; at most :data:`MAX_SETTLED`)."""
+        st = self.host.state
+        if not st.show_orbits:
+            return 0
+        params = self.system_params()
+        if params is None:
+            return 0
+        traj, k, q, r = self.host.data()
+        cycles = unfollowed(settled_cycles(traj, k, q, r, st.orbit_period), self.orbits)[:MAX_SETTLED]
+        if not cycles:
+            return 0
+        inputs = OrbitInputs(params, (), tuple(range(1, st.orbit_period + 1)), SETTLED_WORDS, st.to_query(),
+                             tuple(cycles))  # fmt: skip
+        self.host.run(self, inputs, channel="orbit", bump=False)
+        return len(cycles)
 
     def csv(self) -> io.BytesIO:
         """The orbits on screen as CSV (one row per orbit point), the settings in a comment header."""
