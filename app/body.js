@@ -25,8 +25,9 @@ const BODY_CSS = `
 .body-view .body-bar button:disabled { opacity: .45; cursor: not-allowed; }
 .body-view .body-bar select { font: inherit; padding: 1px; }
 .app.present .body-view .body-bar, .app.present .body-view .body-status { font-size: .8em; }
-/* One line in presentation mode (the whole text in its tooltip): the view fits 1280x720. */
+/* One line in presentation mode (the whole text in its tooltip): the view fits 1280x720; a tall screen has room. */
 .app.present .body-view .body-status { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
+@media (min-height: 900px) { .app.present .body-view .body-status { white-space: normal; } }
 .body-view .body-status { font-size: .9em; color: #3a4554; min-height: 1.2em; }
 .body-view .body-status.lost { color: #842029; }
 `
@@ -301,7 +302,7 @@ function createBodyView(host, {onPoint = null, onFrame = null, onSetting = null}
         ctx.beginPath(); ctx.moveTo(m[0], m[1]); ctx.lineTo(n[0], n[1]); ctx.stroke()
         ctx.fillStyle = "#6b7685"
         ctx.font = font(11)
-        ctx.fillText("z", n[0] + 4, n[1] + 4)
+        ctx.fillText("z", n[0] - 12 * scale, n[1] + 4)  // left of the pole: an axis's number is right of its tip
       }
     }
 

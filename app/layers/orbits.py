@@ -142,7 +142,10 @@ class OrbitsLayer(Layer):
         return bool(self.host.state.orbit_view)
 
     def prepare(self, inputs: OrbitInputs) -> OrbitInputs:
-        if not inputs.where:
+        if not inputs.where and inputs.follow:  # a played parameter's frame: the orbits shown, continued
+            self.text = (f"following {len(inputs.follow)} periodic orbits to this frame"
+                         + (f" and searching from {len(inputs.seeds)} points…" if inputs.seeds else "…"))  # fmt: skip
+        elif not inputs.where:
             self.text = (f"finding periodic orbits (periods 1..{max(inputs.periods)}) from {len(inputs.seeds)} "
                          "starting points…")  # fmt: skip
         return inputs
@@ -179,8 +182,10 @@ class OrbitsLayer(Layer):
             seeds=sum(part.seeds for part in parts),
             elapsed_s=sum(part.elapsed_s for part in parts),
             completed=all(part.completed for part in parts),
-            extra={**parts[0].extra, "periods": periods},
-        )
+            # Each followed orbit was searched for its own period only: the Newton searches made, counted per part.
+            extra={**parts[0].extra, "periods": periods,
+                   "searches": sum(part.seeds * len(part.extra.get("periods", [])) for part in parts)},
+        )  # fmt: skip
 
     def current(self, inputs: OrbitInputs) -> bool:
         return inputs.params == self.host.system()  # else found for a system no longer on screen
@@ -207,10 +212,15 @@ class OrbitsLayer(Layer):
                 self.text = f"{inputs.where}: no orbit of period ≤ {max(res.extra.get('periods', [0]))} ({reason})"
         else:
             periods = list(res.extra.get("periods", [])) or [0]
-            tries = res.seeds * len(periods)
-            self.text = (f"{len(self.orbits)} periodic orbits of period 1..{max(periods)} from {res.seeds} "
-                         f"starting points ({len(res.failures)} of the {tries} Newton searches, one per "
-                         f"starting point and period, found none; {res.elapsed_s:.2f} s)")  # fmt: skip
+            tries = res.extra.get("searches", res.seeds * len(periods))
+            if inputs.follow:
+                self.text = (f"{len(self.orbits)} periodic orbits followed to this frame ({tries} Newton searches, "
+                             f"one per orbit followed at its own period; {len(res.failures)} found none; "
+                             f"{res.elapsed_s:.2f} s)")  # fmt: skip
+            else:
+                self.text = (f"{len(self.orbits)} periodic orbits of period 1..{max(periods)} from {res.seeds} "
+                             f"starting points ({len(res.failures)} of the {tries} Newton searches, one per "
+                             f"starting point and period, found none; {res.elapsed_s:.2f} s)")  # fmt: skip
 
     def clear(self) -> None:
         self.orbits = []
