@@ -399,7 +399,7 @@ CONTROLS: tuple[Control, ...] = (
         "body_shape",
         options=(("box", "box"), ("ellipsoid", "ellipsoid")),
         default="box",
-        url_when=lambda s: s.show_body and s.body_shape_used() != "box",
+        url_when=lambda s: s.show_body and s.body_shape != "box",  # 'box' on a tensor no box has: a new page's too
         doc="the uniform box with the principal moments (when a rigid body has them) or the inertia ellipsoid",
     ),
     Control(
