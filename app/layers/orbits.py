@@ -78,26 +78,37 @@ def settled_cycles(traj: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray
     """The cycles the section's trajectories end on, ``(q, r, n)`` each (the last point and the least period
     ``n <= max_period``), one per cycle: a trajectory whose last :data:`SETTLED_TAIL` points are each within
     :data:`SETTLED` (relative to 1 + |x|) of the point ``n`` periods before. Chaotic, quasi-periodic, escaping or
-    still transient trajectories, and cycles longer than ``max_period``, give none."""
+    still transient trajectories, those with fewer than ``SETTLED_TAIL + max_period`` points, and cycles longer than
+    ``max_period`` give none. One sort of the points and array operations on every trajectory's tail at once (a
+    frame may have thousands of trajectories)."""
+    need = SETTLED_TAIL + max_period
+    if max_period < 1 or traj.size == 0:
+        return []
+    order = np.lexsort((k, traj))
+    t_sorted = traj[order]
+    ends = np.flatnonzero(np.r_[t_sorted[1:] != t_sorted[:-1], True])  # the last point of each trajectory
+    starts = np.r_[0, ends[:-1] + 1]
+    ends = ends[ends - starts + 1 >= need]
+    if ends.size == 0:
+        return []
+    idx = order[ends[:, None] + np.arange(1 - need, 1)]  # (trajectories, need): each one's last points, in k order
+    x = np.stack([q[idx], r[idx]], axis=-1)
+    last = x[:, -SETTLED_TAIL:]
+    tol = SETTLED * (1.0 + np.abs(last).max(axis=2))
+    period = np.zeros(x.shape[0], dtype=int)  # 0: not settled (yet)
+    for n in range(max_period, 0, -1):  # the least period wins
+        before = x[:, need - SETTLED_TAIL - n : need - n]
+        with np.errstate(invalid="ignore"):
+            ok = np.all(np.linalg.norm(last - before, axis=2) < tol, axis=1)
+        period[ok] = n
     out: list[tuple[float, float, int]] = []
     tails: list[np.ndarray] = []  # the points of each cycle found (a second trajectory on it adds nothing)
-    for t in np.unique(traj):
-        sel = traj == t
-        order = np.argsort(k[sel], kind="stable")
-        x = np.column_stack([q[sel][order], r[sel][order]])
-        for n in range(1, max_period + 1):
-            if x.shape[0] < n + SETTLED_TAIL:
-                break
-            last, before = x[-SETTLED_TAIL:], x[-SETTLED_TAIL - n : -n]
-            tol = SETTLED * (1.0 + np.abs(last).max(axis=1))
-            if not np.all(np.isfinite(last)) or np.any(np.linalg.norm(last - before, axis=1) >= tol):
-                continue
-            end = x[-1]
-            scale = NEAR * (1.0 + float(np.abs(end).max()))
-            if not any(np.linalg.norm(c - end, axis=1).min() < scale for c in tails):
-                tails.append(x[-n:])
-                out.append((float(end[0]), float(end[1]), n))
-            break  # the least period
+    for i in np.flatnonzero(period):
+        n, end = int(period[i]), x[i, -1]
+        scale = NEAR * (1.0 + float(np.abs(end).max()))
+        if not any(np.linalg.norm(c - end, axis=1).min() < scale for c in tails):
+            tails.append(x[i, -n:])
+            out.append((float(end[0]), float(end[1]), n))
     return out
 
 
