@@ -239,6 +239,43 @@ def test_an_orbit_born_at_a_fold_between_frames_is_found_from_the_trajectory_tha
         assert any(np.min(np.hypot(g.points[:, 0] - o["q"], g.points[:, 1] - o["r"])) < 1e-6 for g in grid.orbits)
 
 
+def test_near_the_fold_the_saddle_of_the_pair_is_found_along_the_nodes_weak_direction() -> None:
+    """Played closer to the fold (-0.489 -> -0.4905), the node found from the settled trajectory at -0.4905 has its
+    largest multiplier 0.804 (real, near +1): its partner, the period-3 saddle 0.04 away (mu 1.130), is searched
+    from 6 seeds along that multiplier's eigenvector and found; both are orbits an independent grid search finds.
+    (Fails on the old code: no period-3 orbit at all while playing.)"""
+    import app.layers.orbits as layer
+
+    seeds: list[int] = []
+    partner_seeds = layer.partner_seeds
+
+    def counted(orbits: list[Any], most: int) -> dict[int, list[tuple[float, float]]]:
+        out = partner_seeds(orbits, most)
+        seeds.append(sum(len(v) for v in out.values()))
+        return out
+
+    layer.partner_seeds = counted  # type: ignore[assignment]
+    try:
+        page, jobs, clock = page_for({**FOLD, "alpha": "-0.489", "play_from": "-0.489", "play_to": "-0.4905"})
+        page.handle({"action": "play"})
+        for _ in range(4):  # -0.489, -0.4895, -0.49, -0.4905
+            jobs.drain()
+            if page.state.alpha < -0.4904:
+                break
+            clock.advance(0.2)
+    finally:
+        layer.partner_seeds = partner_seeds  # type: ignore[assignment]
+    assert page.state.alpha == pytest.approx(-0.4905)
+    three = [o for o in page.session.orbits if o["period"] == 3]
+    assert sorted(o["type"] for o in three) == ["saddle", "stable node"], three
+    # The added work: partner seeds only in the job that found the node (every job's count, in order).
+    assert sum(seeds) == 6 and seeds[-1] == 6, seeds
+    grid = find_orbits(page.state.system(), [(q, r) for q in np.linspace(-2.0, 1.0, 12)
+                                             for r in np.linspace(-3.5, 0.5, 12)], [3])  # fmt: skip
+    for o in three:
+        assert any(np.min(np.hypot(g.points[:, 0] - o["q"], g.points[:, 1] - o["r"])) < 1e-6 for g in grid.orbits)
+
+
 def test_settled_cycles_are_one_per_cycle_whatever_the_order_of_the_trajectories() -> None:
     from app.layers.orbits import settled_cycles
 

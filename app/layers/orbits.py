@@ -35,6 +35,11 @@ MAX_SETTLED = 4
 #: Recurrences checked at the end of a trajectory (its last points against those n before).
 SETTLED_TAIL = 3
 SETTLED_WORDS = "born since the last frame (a trajectory settled on it)"
+#: A fold pair's partner: an orbit of period n whose largest multiplier is real and within FOLD_NEAR of +1, with no
+#: orbit of period n near it (0.3, relative to 1 + |x|), is searched for its partner across the fold (the saddle of a
+#: node found settled, or the node of a followed saddle) from seeds on both sides along that multiplier's eigenvector
+#: (:data:`BIRTH_STEPS`): the pair's distance grows like the square root of the parameter's distance from the fold.
+FOLD_NEAR = 0.25
 
 
 @dataclass(frozen=True)
@@ -70,6 +75,29 @@ def birth_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[fl
         v /= np.linalg.norm(v)
         out.setdefault(n2, []).extend((float(x[0] + h * scale * v[0]), float(x[1] + h * scale * v[1]))
                                       for h in BIRTH_STEPS)  # fmt: skip
+    return out
+
+
+def partner_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[float, float]]]:
+    """Seeds, by period, of the partners of the orbits near a fold (their largest multiplier real and within
+    :data:`FOLD_NEAR` of +1, no other orbit of their period near): both sides along that multiplier's eigenvector,
+    :data:`BIRTH_STEPS` away. A seed Newton takes back to the orbit itself gives that orbit again, drawn once."""
+    out: dict[int, list[tuple[float, float]]] = {}
+    for o in orbits:
+        n = int(o.period)
+        w, vecs = np.linalg.eig(o.matrix)
+        i = int(np.argmax(np.abs(w)))  # the one that passes +1 at a fold: a node's weakest, a saddle's expanding one
+        if n > max_period or abs(w[i].imag) > 1e-12 or abs(w[i].real - 1.0) > FOLD_NEAR:
+            continue
+        x = o.points[0]
+        scale = 1.0 + float(np.abs(x).max())
+        if any(p is not o and p.period == n and np.linalg.norm(p.points - x, axis=1).min() < 0.3 * scale
+               for p in orbits):  # fmt: skip
+            continue  # its partner is shown already
+        v = np.real(vecs[:, i])
+        v /= np.linalg.norm(v)
+        out.setdefault(n, []).extend((float(x[0] + s * h * scale * v[0]), float(x[1] + s * h * scale * v[1]))
+                                     for h in BIRTH_STEPS for s in (1.0, -1.0))  # fmt: skip
     return out
 
 
@@ -168,7 +196,7 @@ class OrbitsLayer(Layer):
                 yield res
             return
         # Followed: each period's orbits from their last points (one Newton each), then the clicked seeds, then
-        # the orbits born at a period doubling since the last frame.
+        # the orbits born at a period doubling since the last frame, then the partners of orbits near a fold.
         parts = []
         for n in sorted({p for _, _, p in inputs.follow}):
             pts = [(q, r) for q, r, p in inputs.follow if p == n]
@@ -176,8 +204,15 @@ class OrbitsLayer(Layer):
         if inputs.seeds:
             parts.append(find_orbits(inputs.params, list(inputs.seeds), list(inputs.periods), cancel=cancelled))
         # The orbits born at a doubling since the last frame (a grid would find them; following alone would not).
-        births = birth_seeds([o for part in parts for o in part.orbits], max(inputs.periods))
+        have: list[Orbit] = []
+        for o in (o for part in parts for o in part.orbits):
+            if not any(same_orbit(o, k) for k in have):
+                have.append(o)  # once each: an orbit found twice is not its own partner
+        births = birth_seeds(have, max(inputs.periods))
         for n, seeds in sorted(births.items()):
+            parts.append(find_orbits(inputs.params, seeds, [n], cancel=cancelled))
+        # The partners of orbits near a fold (the saddle of a node born there, found settled).
+        for n, seeds in sorted(partner_seeds(have, max(inputs.periods)).items()):
             parts.append(find_orbits(inputs.params, seeds, [n], cancel=cancelled))
         if cancelled():
             return
