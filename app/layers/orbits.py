@@ -163,6 +163,8 @@ class OrbitsLayer(Layer):
         self.orbits: list[Orbit] = []
         self.rows: list[dict[str, Any]] = []
         self.text = ""
+        #: While a parameter plays: each follow job's Newton work (searches, seeds by kind and period), in order.
+        self.work: list[dict[str, Any]] = []
 
     def inputs(self) -> OrbitInputs | object | None:
         st = self.host.state
@@ -212,7 +214,8 @@ class OrbitsLayer(Layer):
         for n, seeds in sorted(births.items()):
             parts.append(find_orbits(inputs.params, seeds, [n], cancel=cancelled))
         # The partners of orbits near a fold (the saddle of a node born there, found settled).
-        for n, seeds in sorted(partner_seeds(have, max(inputs.periods)).items()):
+        partners = partner_seeds(have, max(inputs.periods))
+        for n, seeds in sorted(partners.items()):
             parts.append(find_orbits(inputs.params, seeds, [n], cancel=cancelled))
         if cancelled():
             return
@@ -229,14 +232,22 @@ class OrbitsLayer(Layer):
             elapsed_s=sum(part.elapsed_s for part in parts),
             completed=all(part.completed for part in parts),
             # Each followed orbit was searched for its own period only: the Newton searches made, counted per part.
+            # The work added to following (benchmarks/play_speed.py --orbit-work): seeds of each kind, by period.
             extra={**parts[0].extra, "periods": periods,
-                   "searches": sum(part.seeds * len(part.extra.get("periods", [])) for part in parts)},
+                   "searches": sum(part.seeds * len(part.extra.get("periods", [])) for part in parts),
+                   "birth_seeds": {n: len(v) for n, v in births.items()},
+                   "partner_seeds": {n: len(v) for n, v in partners.items()}},
         )  # fmt: skip
 
     def current(self, inputs: OrbitInputs) -> bool:
         return inputs.params == self.host.system()  # else found for a system no longer on screen
 
     def apply(self, inputs: OrbitInputs, res: OrbitSearch) -> None:
+        if inputs.follow:
+            self.work.append({"settled": inputs.where == SETTLED_WORDS, "followed": len(inputs.follow),
+                              "searches": int(res.extra.get("searches", 0)),
+                              "birth_seeds": res.extra.get("birth_seeds", {}),
+                              "partner_seeds": res.extra.get("partner_seeds", {})})  # fmt: skip
         if not inputs.where:
             self.orbits = []
         elif stale_note(self.shown_query, inputs.query, url_keys(SYSTEM_FIELDS)):
