@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
@@ -40,6 +41,8 @@ SETTLED_WORDS = "born since the last frame (a trajectory settled on it)"
 #: node found settled, or the node of a followed saddle) from seeds on both sides along that multiplier's eigenvector
 #: (:data:`BIRTH_STEPS`): the pair's distance grows like the square root of the parameter's distance from the fold.
 FOLD_NEAR = 0.25
+#: Follow jobs whose work the layer keeps a record of (OrbitsLayer.work).
+WORK_KEPT = 200
 
 
 @dataclass(frozen=True)
@@ -163,8 +166,9 @@ class OrbitsLayer(Layer):
         self.orbits: list[Orbit] = []
         self.rows: list[dict[str, Any]] = []
         self.text = ""
-        #: While a parameter plays: each follow job's Newton work (searches, seeds by kind and period), in order.
-        self.work: list[dict[str, Any]] = []
+        #: While a parameter plays: the last follow jobs' Newton work (searches, seeds by kind and period), in order
+        #: (a bounded record: a session may play for hours).
+        self.work: deque[dict[str, Any]] = deque(maxlen=WORK_KEPT)
 
     def inputs(self) -> OrbitInputs | object | None:
         st = self.host.state
