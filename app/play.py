@@ -15,6 +15,7 @@ one with ``schedule`` (the document's timeout callback in a server, a fake clock
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -30,6 +31,8 @@ FRAME_PERIODS = 100
 #: Without a word from the browser that a frame is shown, the next one goes after this long (a tab whose
 #: messages were lost must not stop playing for ever).
 ACK_TIMEOUT = 1.0
+#: Frames whose settled searches a Player keeps a record of.
+SETTLED_KEPT = 1000
 
 Schedule = Callable[[float, Callable[[], None]], None]
 
@@ -62,8 +65,9 @@ class Player:
         self._acked = -1  # the last frame number the page said it shows
         self._number = 0  # frames asked for, numbered (what the page acknowledges)
         self._settled = 0  # the last frame number whose settled trajectories were searched for new orbits
-        #: Newton searches started for settled trajectories (orbits born at a fold), per frame of this Play.
-        self.settled_searches: list[int] = []
+        #: Newton searches started for settled trajectories (orbits born at a fold), per frame of this Play (the
+        #: last frames': a bounded record).
+        self.settled_searches: deque[int] = deque(maxlen=SETTLED_KEPT)
         self.t_play = 0.0
         self.t_request = 0.0
         self.first_frame_s: float | None = None  # Play to the first frame drawn
@@ -132,7 +136,7 @@ class Player:
         self.t_play = self._clock()
         self.first_frame_s = None
         self.drawn = []
-        self.settled_searches = []
+        self.settled_searches.clear()
         self.session.frame_periods = FRAME_PERIODS
         self._request(self._next_index())
 

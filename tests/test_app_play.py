@@ -230,7 +230,7 @@ def test_an_orbit_born_at_a_fold_between_frames_is_found_from_the_trajectory_tha
     # from the orbits shown) and at -0.5 (the orbit is followed); one at -0.49, 9e-5 before the fold, where the
     # trajectory lingers at the ghost of the pair (mu ~ 1: a slow passage looks settled) and Newton finds nothing
     # (the status line keeps the frame's words), and one at -0.495 that finds the node.
-    assert page.player.settled_searches == [0, 1, 1, 0]
+    assert list(page.player.settled_searches) == [0, 1, 1, 0]
     assert "stalled" not in page.session.orbit_status
     grid = find_orbits(page.state.system(), [(q, r) for q in np.linspace(-2.0, 1.0, 12)
                                              for r in np.linspace(-3.5, 0.5, 12)], [3])  # fmt: skip
