@@ -169,3 +169,20 @@ def test_a_link_with_the_body_views_settings_opens_the_view_with_them(page, app_
     page.wait_for_function(f"() => {HOOK}.traceAxis === 3", timeout=10_000)
     page.wait_for_function("() => !new URLSearchParams(location.search).has('body_axis')", timeout=10_000)
     assert not page.errors
+
+
+def test_a_box_no_body_has_is_refused_under_the_bar_and_the_ellipsoid_stays(page, app_url) -> None:
+    open_body(page, app_url)  # fig1C: moments 1, 2, 4, no box
+    bar = page.locator(".body-view .body-bar").first
+    assert bar.locator("select.body-shape").input_value() == "ellipsoid" and body(page, "shape") == "ellipsoid"
+    bar.locator("select.body-shape").select_option("box")
+    msg = page.locator(".body-view .body-msg").filter(has_text="no uniform box").first
+    msg.wait_for(timeout=10_000)
+    assert "no uniform box has the principal moments 1, 2, 4" in msg.inner_text()
+    page.wait_for_function(
+        "() => Array.from(document.querySelectorAll('*')).some(e => e.shadowRoot && "
+        "e.shadowRoot.querySelector('select.body-shape')?.value === 'ellipsoid')",
+        timeout=10_000,
+    )  # the select shows the drawing in use again
+    assert body(page, "shape") == "ellipsoid" and "body_shape" not in query_of(page)
+    assert not page.errors
