@@ -25,8 +25,9 @@ const BODY_CSS = `
 .body-view .body-bar button:disabled { opacity: .45; cursor: not-allowed; }
 .body-view .body-bar select { font: inherit; padding: 1px; }
 .app.present .body-view .body-bar, .app.present .body-view .body-status { font-size: .8em; }
-/* One line in presentation mode (the whole text in its tooltip): the view fits 1280x720. */
+/* One line in presentation mode (the whole text in its tooltip): the view fits 1280x720; a tall screen has room. */
 .app.present .body-view .body-status { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
+@media (min-height: 900px) { .app.present .body-view .body-status { white-space: normal; } }
 .body-view .body-status { font-size: .9em; color: #3a4554; min-height: 1.2em; }
 .body-view .body-status.lost { color: #842029; }
 `
@@ -34,7 +35,7 @@ const BODY_CSS = `
 //: Principal axes 1, 2, 3 (moments ascending) and omega: colours used on the canvas and in the legend.
 const AXIS_COLOURS = ["#d62728", "#2ca02c", "#1f77b4"]
 const OMEGA_COLOUR = "#111111"
-//: Periods per second offered; the first shown is DEFAULT_SPEED.
+//: Periods per second offered (app/state.py's BODY_SPEEDS: the state holds the one in use, the URL carries it).
 const SPEEDS = [0.05, 0.1, 0.25, 0.5, 1, 2, 4]
 const DEFAULT_SPEED = 0.25
 //: The inertia ellipsoid's largest semi-axis (the unit sphere's radius is 1; the box's largest side is 1).
@@ -101,7 +102,9 @@ function fmtNum(v, digits = 4) {
 
 // --- the view --------------------------------------------------------------------------------------------
 
-function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
+function createBodyView(host, {onPoint = null, onFrame = null, onSetting = null} = {}) {
+  // onSetting(name, value): a setting chosen in the bar (body_speed, body_axis, body_shape) goes to the server,
+  // which answers with the value in use (setSetting); without it (a page of its own) it applies at once.
   const mk = (tag, attrs = {}, text = null) => {
     const e = document.createElement(tag)
     for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v)
@@ -129,10 +132,15 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
   const shapeSel = mk("select", {class: "body-shape", "aria-label": "The body drawn as"})
   shapeSel.append(mk("option", {value: "box", title: "the uniform box with these principal moments"}, "box"),
                   mk("option", {value: "ellipsoid", title: "the inertia ellipsoid (I w, w) = 1"}, "ellipsoid"))
+  // The settings' values as the server's state names them (app/state.py: body_speed, body_axis 1..3, body_shape).
+  const settings = {body_speed: speedSel, body_axis: axisSel, body_shape: shapeSel}
   const bar = mk("div", {class: "body-bar"})
   bar.append(playBtn, backBtn, stepBtn, speedSel, axisSel, shapeSel)
   const status = mk("div", {class: "body-status", "aria-live": "polite"})
-  root.append(canvasBox, bar, status)
+  //: Why a setting chosen was refused (one line per setting, empty: none), as the other controls' messages.
+  const messages = {}
+  for (const name of Object.keys(settings)) messages[name] = mk("div", {class: "ctl-msg body-msg", role: "alert"})
+  root.append(canvasBox, bar, ...Object.values(messages), status)
   host.append(root)
 
   const ctx = canvas.getContext("2d")
@@ -142,8 +150,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
   let playing = false
   let speed = DEFAULT_SPEED
   let traceAxis = 2
-  let shape = "box"
-  let shapeChosen = false  // by the user: kept for the next series (else: the box if one has these moments)
+  let shape = "box"        // as the server says (the ellipsoid when no box has the moments)
   let yaw = -0.6, pitch = 0.35
   let last = null          // time of the last animation frame
   let raf = 0
@@ -295,7 +302,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
         ctx.beginPath(); ctx.moveTo(m[0], m[1]); ctx.lineTo(n[0], n[1]); ctx.stroke()
         ctx.fillStyle = "#6b7685"
         ctx.font = font(11)
-        ctx.fillText("z", n[0] + 4, n[1] + 4)
+        ctx.fillText("z", n[0] - 12 * scale, n[1] + 4)  // left of the pole: an axis's number is right of its tip
       }
     }
 
@@ -328,7 +335,8 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     const dirs = [0, 1, 2].map((i) => mv(R, axisBody(i)))
     const half = data.sides.map((x) => x / 2)
     const ell = data.ellipsoid.map((x) => ELLIPSOID_SIZE * x)
-    const ext = shape === "ellipsoid" ? ell : half  // where each axis leaves the body
+    const drawn = data.boxExists ? shape : "ellipsoid"  // a flat box is no body (the server says so too)
+    const ext = drawn === "ellipsoid" ? ell : half  // where each axis leaves the body
     function arrow(a, b, colour, width, head) {
       ctx.strokeStyle = colour
       ctx.fillStyle = colour
@@ -439,7 +447,7 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     traceLine(true)
     const behind = [0, 1, 2].filter((i) => mv(V, dirs[i])[1] > 0)
     for (const i of behind) axis(i)  // pointing away: the body hides where they leave it
-    if (shape === "ellipsoid") ellipsoid()
+    if (drawn === "ellipsoid") ellipsoid()
     else box()
     for (const i of [0, 1, 2]) if (!behind.includes(i)) axis(i)
     sphere(false)
@@ -550,9 +558,21 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
   playBtn.addEventListener("click", () => setPlaying(!playing))
   stepBtn.addEventListener("click", () => step(1))
   backBtn.addEventListener("click", () => step(-1))
-  speedSel.addEventListener("change", () => { speed = +speedSel.value; last = null })
-  axisSel.addEventListener("change", () => { traceAxis = +axisSel.value; paint() })
-  shapeSel.addEventListener("change", () => { shape = shapeSel.value; shapeChosen = true; paint() })
+  function setSetting(name, value) {
+    // A setting's value in use (from the server, or chosen here without one).
+    const v = String(value)
+    if (name === "body_speed" && SPEEDS.includes(+v)) { speed = +v; last = null }
+    else if (name === "body_axis" && ["1", "2", "3"].includes(v)) { traceAxis = +v - 1; paint() }
+    else if (name === "body_shape" && (v === "box" || v === "ellipsoid")) { shape = v; paint() }
+    else return
+    settings[name].value = name === "body_axis" ? String(+v - 1) : v
+  }
+  for (const [name, sel] of Object.entries(settings)) {
+    sel.addEventListener("change", () => {
+      const v = name === "body_axis" ? String(+sel.value + 1) : sel.value
+      if (onSetting) onSetting(name, v); else setSetting(name, v)
+    })
+  }
   let drag = null
   canvas.addEventListener("pointerdown", (e) => { drag = [e.clientX, e.clientY]; canvas.setPointerCapture(e.pointerId) })
   canvas.addEventListener("pointermove", (e) => {
@@ -578,7 +598,6 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
       if (payload && payload.frames) {
         data = decode(payload)
         traces = [null, null, null]
-        if (!shapeChosen) shapeSel.value = shape = data.boxExists ? "box" : "ellipsoid"
         pos = 0
         period = -1
         setPlaying(keep || !had)  // a new series plays at once
@@ -600,6 +619,10 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
       if (!data) paint()
     },
     setScale(x) { scale = x; paint() },
+    /** A setting's value in use (body_speed, body_axis "1".."3", body_shape), as the server's state holds it. */
+    setSetting,
+    /** The settings' selects and message lines by name (the page shows refusals there as for its controls). */
+    settings, messages,
     show(on) {
       root.hidden = !on
       if (on) paint()
@@ -622,7 +645,8 @@ function createBodyView(host, {onPoint = null, onFrame = null} = {}) {
     get draws() { return draws },
     get period() { return period },
     get speed() { return speed },
-    get shape() { return shape },
+    get shape() { return data && !data.boxExists ? "ellipsoid" : shape },
+    get traceAxis() { return traceAxis + 1 },
     /** The recorded quaternion (w, x, y, z) of frame i, as the page holds it (float32). */
     quaternion(i) { return data ? quatAt(i) : null },
     /** The orientation drawn now (slerped between recorded frames). */

@@ -33,6 +33,8 @@ from explorer_core.system.params import ParameterError, Params
 
 ANALYSIS_FIELDS = tuple(c.name for c in CONTROLS if c.area in TABS[1:])
 PLAY_FIELDS = tuple(c.name for c in CONTROLS if c.area == "play")
+#: The body view's own settings (speed, axis traced, drawing): in the URL while it is open.
+BODY_FIELDS = tuple(c.name for c in CONTROLS if c.area == "bodyview")
 _UNSET = object()
 
 
@@ -102,7 +104,17 @@ class ExplorerSession(param.Parameterized):
         state.param.watch(lambda *e: self.recompute(), ["clicked"])
         state.param.watch(
             lambda *e: self._publish_query(),
-            ["selected", "show_body", "tab", "presentation", "tour", "tour_step", *PLAY_FIELDS, *ANALYSIS_FIELDS],
+            [
+                "selected",
+                "show_body",
+                *BODY_FIELDS,
+                "tab",
+                "presentation",
+                "tour",
+                "tour_step",
+                *PLAY_FIELDS,
+                *ANALYSIS_FIELDS,
+            ],
         )
 
     def layer(self, name: str) -> Layer:

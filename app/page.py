@@ -54,6 +54,9 @@ STEP_DEFAULTS: dict[str, Any] = {
     **{c.name: c.default for c in CONTROLS if c.area in ("layers", "play", "body")},
     "orbit_seeds": [], "orbit_view": False, "manifold_saddles": [], "tab": "section",
 }  # fmt: skip
+#: The body view's settings as on a new page, set as a new page has them (unchecked: 'box' there means the box when
+#: one has the moments, the ellipsoid else; a step's own value is checked as a link's).
+BODY_DEFAULTS: dict[str, Any] = {c.name: c.default for c in CONTROLS if c.area == "bodyview"}
 #: Session parameters that change what the section tab shows: all of them (what the layers publish included).
 SESSION_VIEW = [p for p in ExplorerSession.param if p != "name"]
 
@@ -228,7 +231,8 @@ class Page:
         updates, _ = parse_query(s.settings)  # checked when the file was loaded
         # Each step stands alone (a link to it shows the same): the layers and the tab as a new page has them,
         # then the step's settings over its scene.
-        self.session.apply_settings(tour.scene, {**STEP_DEFAULTS, **updates}, tour=tour.id, tour_step=step)
+        fresh = {n: v for n, v in BODY_DEFAULTS.items() if n not in updates}
+        self.session.apply_settings(tour.scene, {**STEP_DEFAULTS, **updates}, tour=tour.id, tour_step=step, **fresh)
         self.fig.set_marks([(m.q, m.r, m.label) for m in s.look])
         self.messages.clear()
         self.url_errors = []

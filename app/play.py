@@ -2,11 +2,12 @@
 
 A frame is the section (and the layers on) for one value of the played parameter, with only as many periods per
 trajectory as a moving picture needs (:data:`FRAME_PERIODS`, not a still's); the periodic orbits on screen are
-continued from frame to frame (the orbits layer's Newton starts from the last frame's orbits, and an orbit that
-has passed a period doubling is searched for the orbit born there). The next frame is
-asked for only once the last one is drawn: every job of the section view is over and, in a browser, the page
-has said it shows the frame (:meth:`Player.shown`). So frames never pile up: a slow machine or browser sees
-fewer frames, not a lag; the speed asked is a most (frames are not sent faster than ``play_fps``).
+continued from frame to frame (the orbits layer's Newton starts from the last frame's orbits, an orbit that
+has passed a period doubling is searched for the orbit born there, and a trajectory of the frame that settled on a
+cycle no orbit on screen is near, an orbit born at a fold, is handed to Newton once the frame's jobs are done).
+The next frame is asked for only once the last one is drawn: every job of the section view is over and, in a
+browser, the page has said it shows the frame (:meth:`Player.shown`). So frames never pile up: a slow machine or
+browser sees fewer frames, not a lag; the speed asked is a most (frames are not sent faster than ``play_fps``).
 Nothing here runs in the browser's timers: :class:`Player` is told when a frame is drawn and schedules the next
 one with ``schedule`` (the document's timeout callback in a server, a fake clock in tests).
 """
@@ -14,6 +15,7 @@ one with ``schedule`` (the document's timeout callback in a server, a fake clock
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
@@ -29,6 +31,8 @@ FRAME_PERIODS = 100
 #: Without a word from the browser that a frame is shown, the next one goes after this long (a tab whose
 #: messages were lost must not stop playing for ever).
 ACK_TIMEOUT = 1.0
+#: Frames whose settled searches a Player keeps a record of.
+SETTLED_KEPT = 1000
 
 Schedule = Callable[[float, Callable[[], None]], None]
 
@@ -60,6 +64,10 @@ class Player:
         self._computed = False  # its jobs are over
         self._acked = -1  # the last frame number the page said it shows
         self._number = 0  # frames asked for, numbered (what the page acknowledges)
+        self._settled = 0  # the last frame number whose settled trajectories were searched for new orbits
+        #: Newton searches started for settled trajectories (orbits born at a fold), per frame of this Play (the
+        #: last frames': a bounded record).
+        self.settled_searches: deque[int] = deque(maxlen=SETTLED_KEPT)
         self.t_play = 0.0
         self.t_request = 0.0
         self.first_frame_s: float | None = None  # Play to the first frame drawn
@@ -128,6 +136,7 @@ class Player:
         self.t_play = self._clock()
         self.first_frame_s = None
         self.drawn = []
+        self.settled_searches.clear()
         self.session.frame_periods = FRAME_PERIODS
         self._request(self._next_index())
 
@@ -191,6 +200,15 @@ class Player:
         """A frame asked for is drawn once the section view runs nothing and the page (if any) shows it."""
         if not (self._waiting and self.playing) or self.session.running:
             return
+        if self._settled != self._number:
+            # The frame's section and followed orbits are done: its trajectories that settled on a cycle no orbit on
+            # screen is near (an orbit born at a fold since the last frame) are handed to Newton; the frame is drawn
+            # once that is done too (this is called again when the section view stops running).
+            self._settled = self._number
+            started = self._search_settled()
+            self.settled_searches.append(started)
+            if started and self.session.running:
+                return
         if not self._computed:
             self._computed = True
             self._changed()  # the page learns the frame number it is to acknowledge
@@ -200,6 +218,10 @@ class Player:
         if self.wait_for_browser and self._acked < self._number:
             return
         self._drawn()
+
+    def _search_settled(self) -> int:
+        layer = self.session.layers.get("orbits")
+        return layer.find_settled() if layer is not None else 0  # type: ignore[attr-defined]
 
     def _ack_timeout(self, gen: int, number: int) -> None:
         if gen == self._gen and self._waiting and self._number == number:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import param
 
+from explorer_core.analyses.body import principal_axes
 from explorer_core.analyses.density import density_numerics
 from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, random_ics
@@ -61,6 +62,8 @@ MAX_PLAY_FRAMES = 2000
 MAX_PLAY_FPS = 30
 #: Steps of a tour (app/tours.json).
 MAX_TOUR_STEPS = 6
+#: The body view's animation speeds, periods per second (app/body.js).
+BODY_SPEEDS = ("0.05", "0.1", "0.25", "0.5", "1", "2", "4")
 #: Largest magnitude of a swept parameter or a typed initial condition (beyond, nothing is meaningful).
 MAX_MAGNITUDE = 1e6
 
@@ -363,6 +366,41 @@ CONTROLS: tuple[Control, ...] = (
         default=False,
         url_when="changed",
         doc="the rigid body of the selected trajectory turning, its axes, omega and an axis's trace (app/body.js)",
+    ),
+    # The body view's own settings (area "bodyview": drawn in the view's bar by app/body.js), in the URL while the
+    # view is open and they differ from a new page's.
+    Control(
+        "body_speed",
+        "Body: speed",
+        "select",
+        "bodyview",
+        "body_v",
+        options=tuple((v, f"{v} periods/s") for v in BODY_SPEEDS),
+        default="0.25",
+        url_when=lambda s: s.show_body and s.body_speed != "0.25",
+        doc="periods of the body's motion shown per second of the animation",
+    ),
+    Control(
+        "body_axis",
+        "Body: axis traced",
+        "select",
+        "bodyview",
+        "body_axis",
+        options=(("1", "trace: axis 1"), ("2", "trace: axis 2"), ("3", "trace: axis 3")),
+        default="3",
+        url_when=lambda s: s.show_body and s.body_axis != "3",
+        doc="the principal axis (1: smallest moment .. 3: largest) whose trace on the unit sphere is drawn",
+    ),
+    Control(
+        "body_shape",
+        "Body: drawn as",
+        "select",
+        "bodyview",
+        "body_shape",
+        options=(("box", "box"), ("ellipsoid", "ellipsoid")),
+        default="box",
+        url_when=lambda s: s.show_body and s.body_shape != "box",  # 'box' on a tensor no box has: a new page's too
+        doc="the uniform box with the principal moments (when a rigid body has them) or the inertia ellipsoid",
     ),
     Control(
         "lyap_ic",
@@ -694,6 +732,22 @@ class ExplorerState(param.Parameterized):
         return SectionRequest(params, ics, self.periods, self.transient, numerics, True, view,  # type: ignore[arg-type]
                               tuple(sorted(set(keep))))  # fmt: skip
 
+    def box_problem(self, **changes: float) -> str:
+        """'' if a uniform box has the principal moments of the system (with ``changes``), else why none has (a
+        tensor breaking the triangle inequality, e.g. the paper's diag(1, 2, 4)). An invalid system: ''."""
+        try:
+            moments = principal_axes(self.system(**changes))[0]
+        except ParameterError:
+            return ""
+        if np.all(moments.sum() - 2.0 * moments > 0.0):
+            return ""
+        m = ", ".join(f"{x:.4g}" for x in moments)
+        return f"no uniform box has the principal moments {m} (a box needs I3 < I1 + I2)"
+
+    def body_shape_used(self) -> str:
+        """The body's drawing in use: the one chosen, the inertia ellipsoid when no box has the moments."""
+        return "ellipsoid" if self.body_shape == "box" and self.box_problem() else self.body_shape
+
     def chart_range_around(self, name: str) -> tuple[float, float]:
         """A chart range for parameter ``name``: its value ± a tenth of its slider's span, narrowed until both
         ends are valid systems (e.g. a positive definite tensor)."""
@@ -741,6 +795,8 @@ class ExplorerState(param.Parameterized):
             raise ParameterError(
                 f"{plain_label(name)} must be a trajectory 0..{self.n_trajectories() - 1}, got {value}"
             )
+        elif name == "body_shape" and value == "box" and self.box_problem():
+            raise ParameterError(f"{plain_label(name)} = box: {self.box_problem()}")
         elif name in ("play_from", "play_to") and value:
             try:
                 self.system(**{self.play_param: value[0]})
@@ -760,6 +816,8 @@ class ExplorerState(param.Parameterized):
 
     def display(self, name: str) -> Any:
         """The value in use of a control as the page shows it (text; bool for a checkbox)."""
+        if name == "body_shape":
+            return self.body_shape_used()  # the ellipsoid when no box has the moments: what is drawn
         v = getattr(self, name)
         kind = BY_NAME[name].kind
         if kind == "check":

@@ -92,6 +92,16 @@ progress[hidden] { display: none; }
 .orbit-status { font-size: .92em; color: #3a4554; min-height: 1.2em; }
 .app.present { font-size: 18px; }
 .app.present header .title { font-size: 1.25em; }
+/* One header row at 1280x720 in presentation mode: the header's words a little smaller than the page's (they are
+   read once); while a tour shows, its menu is in the tour's box in place of its title (showView). */
+.app.present header { font-size: 14px; gap: 6px; }
+.app.present header button { padding: 3px 8px; }
+.tour .tour-head select.tour-choice { font: inherit; color: #0a58ca; padding: 1px 2px; max-width: 60%;
+  border: 1px solid #9ec5fe; border-radius: 4px; background: #fff; }
+/* The status line on one line in presentation mode (the whole text in its tooltip): the plot keeps its height. */
+.app.present .status-line { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
+/* A tall screen (1920x1080) has the room for the whole text. */
+@media (min-height: 900px) { .app.present .status-line { white-space: normal; } }
 .app.present .status-line { font-size: 1em; }
 /* At 1280x720 the table sits just under the plot: smaller rows show the header and 3-4 orbits without scrolling. */
 .app.present .orbits { font-size: .8em; }
@@ -111,7 +121,7 @@ progress[hidden] { display: none; }
 .tour .tour-head .spacer { flex: 1; }
 .tour .tour-text { margin: 4px 0 2px; line-height: 1.35; }
 .app.present .tour .tour-text { font-size: 1.05em; }
-header select.tour-choice { font: inherit; padding: 2px; max-width: 220px; }
+header select.tour-choice { font: inherit; padding: 2px; max-width: 420px; }
 .app.present header label.tour-upload { display: none; }
 /* One header row at 1280x720 in presentation mode: the tour menu only while a tour shows (choose one before). */
 .app.present:not(.touring) header select.tour-choice { display: none; }
@@ -288,9 +298,19 @@ export function render({model, el}) {
   const tourTitle = h("span", {class: "tour-title"})
   const tourCount = h("span", {class: "tour-count"})
   const tourText = h("div", {class: "tour-text", "aria-live": "polite"})
-  const tourBox = h("div", {class: "tour", hidden: true, role: "region", "aria-label": "Guided tour"},
-                    h("div", {class: "tour-head"}, tourTitle, tourCount, h("span", {class: "spacer"}), tourBack,
-                      tourNext, tourClose), tourText)
+  const tourHead = h("div", {class: "tour-head"}, tourTitle, tourCount, h("span", {class: "spacer"}), tourBack,
+                     tourNext, tourClose)
+  const tourBox = h("div", {class: "tour", hidden: true, role: "region", "aria-label": "Guided tour"}, tourHead, tourText)
+  function placeTourChoice() {
+    // Presentation mode with a tour shown: the menu (showing the tour's title) takes the title's place in the tour's
+    // box, so the header keeps one row at 1280x720; elsewhere it is in the header.
+    const inBox = app.classList.contains("present") && !tourBox.hidden
+    if (inBox !== (tourChoice.parentElement === tourHead)) {
+      if (inBox) tourHead.prepend(tourChoice)
+      else header.insertBefore(tourChoice, tourUpload)
+    }
+    tourTitle.hidden = inBox
+  }
   const tourMsg = h("div", {class: "tour-message"})
   // Arrow keys move through the tour (not while typing in a box).
   document.addEventListener("keydown", (e) => {
@@ -320,7 +340,12 @@ export function render({model, el}) {
     for (const [k, v] of Object.entries(cols)) src.data instanceof Map ? src.data.set(k, v) : (src.data[k] = v)
     src.change.emit()
   }
-  const bodyView = createBodyView(plotSeries, {onPoint: bodyPoint})
+  const bodyView = createBodyView(plotSeries, {onPoint: bodyPoint, onSetting: commit})
+  // Its settings (area "bodyview": speed, axis traced, drawing) are controls like the others: chosen in its bar,
+  // sent, and shown as the server answers (the value in use, a refusal under the bar).
+  for (const [name, sel] of Object.entries(bodyView.settings)) {
+    controls[name] = {spec: {name}, wrap: sel, msg: bodyView.messages[name], set: (v) => bodyView.setSetting(name, v)}
+  }
   const eqLegend = h("div", {class: "legend"})
   for (const [t, c] of model.spec.eq_colors) {
     eqLegend.append(h("span", {text: "◆", style: `color:${c};margin-left:8px`}), document.createTextNode(" " + t))
@@ -486,9 +511,13 @@ export function render({model, el}) {
     bodyView.setScale(on ? 1.3 : 1)
     app.classList.toggle("side-collapsed", on)
     presentBtn.textContent = on ? "Leave presentation" : "Presentation mode"
+    placeTourChoice()
   }
   function syncValues(force = null) {
     const values = model.values
+    // A layer's words under the plot only while the layer is on (a legend of marks not drawn says nothing).
+    eqLegend.hidden = !values.show_tracks
+    orbLegend.hidden = !values.show_orbits
     const active = el.getRootNode().activeElement
     for (const [name, c] of Object.entries(controls)) {
       if (!(name in values)) continue
@@ -513,6 +542,7 @@ export function render({model, el}) {
     const playing = pl.playing && pl.frame >= 0 ? `frame ${pl.frame + 1}/${pl.frames}: ${pl.label} = ` +
       `${(+pl.value).toPrecision(5)}, ${pl.fps} frames/s  |  ` : ""
     status.textContent = (app.classList.contains("present") ? playing : "") + (s.status || "")
+    status.title = status.textContent
     lines(secErrors, s.errors || [])
     warnings.replaceChildren(...(s.warnings || []).map((w) =>
       h("div", {class: `warn-box level-${w.level} reliability-${w.level}`}, h("b", {text: w.level + ": "}),
@@ -577,6 +607,7 @@ export function render({model, el}) {
       tourNext.disabled = tr.step >= tr.steps
     }
     tourMsg.textContent = tr.message || ""
+    placeTourChoice()
     sceneInfo.textContent = s.scene_info || ""
     const b = s.body || {}
     seriesCap.textContent = (b.open ? b.caption : s.series_caption) || ""

@@ -2,8 +2,9 @@
 
     .venv/bin/python benchmarks/lesson_screenshots.py [--out docs]
 
-``lesson_tour_1280x720.png``: Fig. 8B's tour at step 2 (the flip saddles ringed and labelled, the step's text
-over the plot); ``lesson_play_1280x720.png``: Fig. 10's alpha played from -0.42 to -0.35, taken while playing.
+``lesson_tour_WxH.png``: Fig. 8B's tour at step 2 (the flip saddles ringed and labelled, the step's text
+over the plot); ``lesson_play_WxH.png``: Fig. 10's alpha played from -0.42 to -0.35, taken while playing; each at
+1280x720 and 1920x1080.
 """
 
 from __future__ import annotations
@@ -26,6 +27,9 @@ def _says(css: str, pattern: str) -> str:
             f"/{pattern}/.test(e.shadowRoot.querySelector('{css}')?.textContent || ''))")  # fmt: skip
 
 
+SIZES = ((1280, 720), (1920, 1080))
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="docs")
@@ -35,26 +39,30 @@ def main(argv: list[str] | None = None) -> None:
 
     with served_app() as url, sync_playwright() as pw:
         browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        page = browser.new_page(viewport={"width": 1280, "height": 720})
-        page.goto(url + TOUR)
-        page.wait_for_function("() => window.Bokeh && Bokeh.documents.length > 0", timeout=60_000)
-        wait_finished(page, 120)
-        page.wait_for_function(_says(".orbit-status", "periodic orbits of period"), timeout=120_000)
-        page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('marks_source')?.get_length() === 2")
-        time.sleep(1.5)
-        page.screenshot(path=str(out / "lesson_tour_1280x720.png"))
-        print("saved", out / "lesson_tour_1280x720.png")
+        for w, h in SIZES:
+            page = browser.new_page(viewport={"width": w, "height": h})
+            page.goto(url + TOUR)
+            page.wait_for_function("() => window.Bokeh && Bokeh.documents.length > 0", timeout=60_000)
+            wait_finished(page, 120)
+            page.wait_for_function(_says(".orbit-status", "periodic orbits of period"), timeout=120_000)
+            page.wait_for_function("() => Bokeh.documents[0].get_model_by_name('marks_source')?.get_length() === 2")
+            time.sleep(1.5)
+            path = out / f"lesson_tour_{w}x{h}.png"
+            page.screenshot(path=str(path))
+            print("saved", path)
 
-        page.goto(url + PLAY)
-        page.wait_for_function("() => window.Bokeh && Bokeh.documents.length > 0", timeout=60_000)
-        wait_finished(page, 120)
-        page.wait_for_function(_says(".orbit-status", "periodic orbits of period"), timeout=120_000)
-        page.locator(".btn-play").first.click()
-        page.wait_for_function(_says(".play-status", r"frame [0-9]+\/30.*frames\/s"), timeout=60_000)
-        time.sleep(3.0)
-        page.screenshot(path=str(out / "lesson_play_1280x720.png"))
-        print("saved", out / "lesson_play_1280x720.png", page.locator(".play-status").first.inner_text())
-        page.locator(".btn-play").first.click()
+            page.goto(url + PLAY)
+            page.wait_for_function("() => window.Bokeh && Bokeh.documents.length > 0", timeout=60_000)
+            wait_finished(page, 120)
+            page.wait_for_function(_says(".orbit-status", "periodic orbits of period"), timeout=120_000)
+            page.locator(".btn-play").first.click()
+            page.wait_for_function(_says(".status-line", r"frame [0-9]+\/30.*frames\/s"), timeout=60_000)
+            time.sleep(3.0)
+            path = out / f"lesson_play_{w}x{h}.png"
+            page.screenshot(path=str(path))
+            print("saved", path, page.locator(".status-line").first.inner_text()[:120])
+            page.locator(".btn-play").first.click()
+            page.close()
         browser.close()
 
 

@@ -1,6 +1,7 @@
 """Play a parameter, measured through Bokeh's protocol: frames per second delivered and Play to the first frame.
 
     .venv/bin/python benchmarks/play_speed.py [--seconds 15] [--layers default|none] [--json F]
+    .venv/bin/python benchmarks/play_speed.py --orbit-work   # the orbits layer's Newton work per frame, counted
 
 Serves the app (as the browser tests do) and opens one session with :class:`load_test.Tab` (a browser's
 messages over the websocket, nothing rendered) on Fig. 10 with alpha played across the figure's range
@@ -105,6 +106,52 @@ async def measure_class(server: Any, sessions: int, seconds: float, frames: int,
             "load_1min": os.getloadavg()[0]}  # fmt: skip
 
 
+#: The plays whose orbit work ``--orbit-work`` counts: Fig. 10's alpha range with the orbits layer on (no fold:
+#: nothing is added), and Fig. 11's 3-6-12 tongue (Fig. 10 at I11 = 1.8) across the fold at alpha = -0.4900859.
+ORBIT_PLAYS = {
+    "fig10": {"scene": "fig10", "n": "60", "periods": "300", "tracks": "0", "tprime": "off", "orbits": "1",
+              "orb_all": "1", "orb_n": "4", "alpha": "-0.42", "play_from": "-0.42", "play_to": "-0.35",
+              "play_n": "20"},
+    "fold": {"scene": "fig10", "I11": "1.8", "n": "3", "ics": "-0.5,-1", "tracks": "0", "tprime": "off",
+             "orbits": "1", "orb_all": "1", "orb_n": "3", "alpha": "-0.489", "play_from": "-0.489",
+             "play_to": "-0.5", "play_n": "8"},
+}  # fmt: skip
+
+
+def orbit_work() -> dict[str, Any]:
+    """The Newton work the orbits layer adds to following while playing (counts, not times: the same on a loaded
+    machine), per frame: the follow job's searches, the seeds of orbits born at a doubling and of fold partners, and
+    the searches from trajectories settled on an orbit not followed (app/layers/orbits.py). In one process, jobs
+    run in order on this thread."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from jobs import Jobs
+
+    from app.page import Page
+    from app.runner import WARM
+
+    WARM.set()
+    out: dict[str, Any] = {}
+    for name, query in ORBIT_PLAYS.items():
+        jobs = Jobs()
+        due: list[Any] = []
+        page = Page(query, lambda fn: fn(), executor=jobs, schedule=lambda delay, fn, due=due: due.append(fn))
+        page.start()
+        jobs.drain()
+        layer = page.session.layers["orbits"]
+        page.handle({"action": "play"})
+        frames = []
+        for _ in range(int(query["play_n"])):
+            jobs.drain()
+            frames.append({"value": float(page.state.alpha), "work": list(layer.work),  # type: ignore[attr-defined]
+                           "periods": sorted(o["period"] for o in page.session.orbits)})  # fmt: skip
+            layer.work.clear()  # type: ignore[attr-defined]
+            while due and not jobs.queue:
+                due.pop(0)()
+        out[name] = {"frames": frames, "settled_searches": list(page.player.settled_searches)}
+        page.close()
+    return out
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=15.0)
@@ -113,7 +160,18 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--layers", choices=("default", "none"), default="default")
     ap.add_argument("--sessions", type=int, default=1, help="sessions playing at once (> 1: a class)")
     ap.add_argument("--json", default="")
+    ap.add_argument("--orbit-work", action="store_true", help="count the orbits layer's Newton work per frame "
+                    "while playing (in one process, no server; ORBIT_PLAYS)")  # fmt: skip
     args = ap.parse_args(argv)
+    if args.orbit_work:
+        res = orbit_work()
+        for name, r in res.items():
+            print(name, "settled searches per frame:", r["settled_searches"])
+            for f in r["frames"]:
+                print(f"  {name} alpha = {f['value']:.5g}: periods shown {f['periods']}; jobs {f['work']}")
+        if args.json:
+            Path(args.json).write_text(json.dumps(res, indent=1))
+        return
     with serve(session_lifetime=3000) as server:
         if args.sessions > 1:
             res = asyncio.run(measure_class(server, args.sessions, args.seconds, args.frames, args.fps, args.layers))

@@ -125,6 +125,67 @@ def test_the_body_view_toggle_is_in_the_url() -> None:
     assert state_from_query({"body": "1", "present": "1"})[0].presentation  # in presentation mode too
 
 
+def test_the_body_views_settings_round_trip_through_the_url() -> None:
+    # A box has the moments of the scene's system only after I33 = 3 (1, 3, 4 break the triangle inequality; 1, 3, 3
+    # do not): fig1C's 1, 4, 2 has none.
+    q = {"scene": "fig1C", "body": "1", "body_v": "2", "body_axis": "1", "body_shape": "ellipsoid"}
+    st, errors = state_from_query(q)
+    assert errors == [] and (st.body_speed, st.body_axis, st.body_shape) == ("2", "1", "ellipsoid")
+    back = st.to_query()
+    assert {k: back[k] for k in ("body_v", "body_axis", "body_shape")} == {k: q[k] for k in ("body_v", "body_axis",
+                                                                                           "body_shape")}  # fmt: skip
+    assert state_from_query(back)[0].to_query() == back
+    box = {"scene": "custom", "I11": "2", "I22": "3", "I33": "4", "body": "1", "body_shape": "box"}
+    st, errors = state_from_query(box)
+    assert errors == [] and st.display("body_shape") == "box"
+    assert "body_shape" not in st.to_query()  # a new page's: not written
+    # Written only while the view is open (closed, they are not in use) and when not a new page's.
+    st, _ = state_from_query({"scene": "fig1C", "body_v": "2", "body_axis": "1"})
+    assert (st.body_speed, st.body_axis) == ("2", "1") and not {"body_v", "body_axis"} & set(st.to_query())
+    st.show_body = True
+    assert st.to_query()["body_v"] == "2" and st.to_query()["body_axis"] == "1"
+
+
+def test_bad_body_settings_in_the_url_are_refused_naming_the_value() -> None:
+    _, errors = parse_query({"body_v": "3", "body_axis": "0", "body_shape": "cube"})
+    assert errors == [
+        "URL parameter body_v: Body: speed must be one of 0.05, 0.1, 0.25, 0.5, 1, 2, 4, got '3'",
+        "URL parameter body_axis: Body: axis traced must be one of 1, 2, 3, got '0'",
+        "URL parameter body_shape: Body: drawn as must be one of box, ellipsoid, got 'cube'",
+    ]
+    # The paper's tensors (1, 2, 4 in some order) belong to no box: 'box' is refused, the ellipsoid is what is drawn
+    # and shown (and what a link without the key draws: it is not written).
+    st, errors = state_from_query({"scene": "fig1C", "body": "1", "body_shape": "box"})
+    assert errors == ["URL parameter body_shape: Body: drawn as = box: no uniform box has the principal moments 1, 2, "
+                      "4 (a box needs I3 < I1 + I2); using Body: drawn as = ellipsoid"]  # fmt: skip
+    assert st.display("body_shape") == "ellipsoid" and "body_shape" not in st.to_query()
+    assert state_from_query(st.to_query())[0].display("body_shape") == "ellipsoid"
+
+
+def test_a_body_setting_chosen_is_in_use_shown_and_published_and_a_box_without_a_body_is_refused() -> None:
+    urls: list[dict[str, str]] = []
+    jobs = Jobs()
+    page = Page(dict(BASE), lambda fn: fn(), executor=jobs, publish_url=urls.append)
+    page.start()
+    jobs.drain()
+    assert page.ui.values["body_shape"] == "ellipsoid"  # fig1C: no box has its moments
+    assert page.commit("body_speed", "1") is None and page.ui.values["body_speed"] == "1"
+    assert urls[-1]["body_v"] == "1"
+    assert page.commit("body_axis", "2") is None and urls[-1]["body_axis"] == "2"
+    problem = page.commit("body_shape", "box")
+    assert problem == ("Body: drawn as = box: no uniform box has the principal moments 1, 2, 4 (a box needs I3 < I1 + "
+                       "I2) — still using Body: drawn as = ellipsoid")  # fmt: skip
+    assert page.ui.values["body_shape"] == "ellipsoid" and page.ui.messages["body_shape"] == problem
+    # A system with a box: the box is drawn (a new page's choice), and the URL says nothing about it.
+    for name, v in (("I22", "3"), ("I33", "3")):
+        assert page.commit(name, v) is None
+    jobs.drain()
+    assert page.ui.values["body_shape"] == "box" and "body_shape" not in urls[-1]
+    assert page.commit("body_shape", "ellipsoid") is None and urls[-1]["body_shape"] == "ellipsoid"
+    page.show_tour("fig8B", 1)  # a tour's step starts from a new page's settings
+    assert (page.state.body_speed, page.state.body_axis, page.state.body_shape) == ("0.25", "3", "box")
+
+
 def test_the_toggle_publishes_the_url_and_a_tour_step_closes_the_view() -> None:
     urls: list[dict[str, str]] = []
     jobs = Jobs()

@@ -196,7 +196,8 @@ def test_every_url_key_is_in_one_table_and_round_trips() -> None:
                    presentation=True, bif_orbits=False, show_basins=True, basin_grid=30, render="points",
                    click_mode="orbit", tprime_kind="per-period", lyap_ic=(0.1, 0.2))  # fmt: skip
     s.param.update(play_param="g1", play_from=(0.5,), play_to=(1.5,), play_frames=30, play_fps=12, play_dir="bounce",
-                   tour="fig8B", tour_step=2, tour_url="/tours/class.json", show_body=True)  # fmt: skip
+                   tour="fig8B", tour_step=2, tour_url="/tours/class.json", show_body=True, body_speed="2",
+                   body_axis="1", body_shape="ellipsoid")  # fmt: skip
     q = s.to_query()
     analysis = {c.url for c in CONTROLS if c.area in ("lyapunov", "bifurcation", "chart", "bench")}
     # every key written when its value is not the default (the analysis tabs' are at theirs but two)

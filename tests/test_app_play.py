@@ -199,6 +199,102 @@ def test_an_orbit_born_at_a_period_doubling_between_frames_is_followed_too() -> 
         assert any(np.min(np.hypot(g.points[:, 0] - o["q"], g.points[:, 1] - o["r"])) < 1e-6 for g in pairs)
 
 
+#: Fig. 11's 3-6-12 tongue at I11 = 1.8: the period-3 node and saddle are born at a fold at alpha = -0.4900859303
+#: (`bilimovich continue --scene fig10 --inertia 1.8,2,4,0,0.5,0.3 --param alpha --range -0.5,-0.4 --from
+#: -0.9833,-1.5180 --period 3`: a limit point, mu = 1, 0.412), from nothing: no orbit on screen is near them.
+FOLD = {"scene": "fig10", "I11": "1.8", "n": "3", "ics": "-0.5,-1", "orbits": "1", "orb_all": "1", "orb_n": "3",
+        "play_from": "-0.485", "play_to": "-0.5", "play_n": "4"}  # fmt: skip
+
+
+def test_an_orbit_born_at_a_fold_between_frames_is_found_from_the_trajectory_that_settles_on_it() -> None:
+    """Played from alpha = -0.485 (no period-3 orbit) down across the fold, the frame at -0.495 shows the period-3
+    node (a stable focus there) the clicked trajectory settles on, and its saddle partner is not invented: each
+    orbit shown is one an independent grid search finds at that value. The added work is one Newton search of
+    period 3 on the frame where the orbit appears, none on the frames before (nothing new settled) or after
+    (followed). (Before, only the orbits on screen were followed and those born at a doubling searched: the
+    period-3 orbits never appeared while playing; this test fails there.)"""
+    page, jobs, clock = page_for({**FOLD, "alpha": "-0.485"})
+    assert page.session.orbits and not any(o["period"] == 3 for o in page.session.orbits)
+    page.handle({"action": "play"})
+    seen = []
+    for _ in range(4):  # -0.485, -0.49, -0.495, -0.5
+        jobs.drain()
+        seen.append((page.state.alpha, sorted(o["period"] for o in page.session.orbits)))
+        if page.state.alpha < -0.499:
+            break
+        clock.advance(0.2)
+    alphas = [a for a, _ in seen]
+    assert alphas == pytest.approx([-0.485, -0.49, -0.495, -0.5])
+    assert [3 in periods for _, periods in seen] == [False, False, True, True], seen
+    # The added work, Newton searches (each of one period, 3 here) per frame: none at -0.485 (nothing settled away
+    # from the orbits shown) and at -0.5 (the orbit is followed); one at -0.49, 9e-5 before the fold, where the
+    # trajectory lingers at the ghost of the pair (mu ~ 1: a slow passage looks settled) and Newton finds nothing
+    # (the status line keeps the frame's words), and one at -0.495 that finds the node.
+    assert list(page.player.settled_searches) == [0, 1, 1, 0]
+    assert "stalled" not in page.session.orbit_status
+    grid = find_orbits(page.state.system(), [(q, r) for q in np.linspace(-2.0, 1.0, 12)
+                                             for r in np.linspace(-3.5, 0.5, 12)], [3])  # fmt: skip
+    for o in (o for o in page.session.orbits if o["period"] == 3):
+        assert o["stable"]
+        assert any(np.min(np.hypot(g.points[:, 0] - o["q"], g.points[:, 1] - o["r"])) < 1e-6 for g in grid.orbits)
+
+
+def test_near_the_fold_the_saddle_of_the_pair_is_found_along_the_nodes_weak_direction() -> None:
+    """Played closer to the fold (-0.489 -> -0.4905), the node found from the settled trajectory at -0.4905 has its
+    largest multiplier 0.804 (real, near +1): its partner, the period-3 saddle 0.04 away (mu 1.130), is searched
+    from 6 seeds along that multiplier's eigenvector and found; both are orbits an independent grid search finds.
+    (Fails on the old code: no period-3 orbit at all while playing.)"""
+    import app.layers.orbits as layer
+
+    seeds: list[int] = []
+    partner_seeds = layer.partner_seeds
+
+    def counted(orbits: list[Any], most: int) -> dict[int, list[tuple[float, float]]]:
+        out = partner_seeds(orbits, most)
+        seeds.append(sum(len(v) for v in out.values()))
+        return out
+
+    layer.partner_seeds = counted  # type: ignore[assignment]
+    try:
+        page, jobs, clock = page_for({**FOLD, "alpha": "-0.489", "play_from": "-0.489", "play_to": "-0.4905"})
+        page.handle({"action": "play"})
+        for _ in range(4):  # -0.489, -0.4895, -0.49, -0.4905
+            jobs.drain()
+            if page.state.alpha < -0.4904:
+                break
+            clock.advance(0.2)
+    finally:
+        layer.partner_seeds = partner_seeds  # type: ignore[assignment]
+    assert page.state.alpha == pytest.approx(-0.4905)
+    three = [o for o in page.session.orbits if o["period"] == 3]
+    assert sorted(o["type"] for o in three) == ["saddle", "stable node"], three
+    # The added work: partner seeds only in the job that found the node (every job's count, in order).
+    assert sum(seeds) == 6 and seeds[-1] == 6, seeds
+    grid = find_orbits(page.state.system(), [(q, r) for q in np.linspace(-2.0, 1.0, 12)
+                                             for r in np.linspace(-3.5, 0.5, 12)], [3])  # fmt: skip
+    for o in three:
+        assert any(np.min(np.hypot(g.points[:, 0] - o["q"], g.points[:, 1] - o["r"])) < 1e-6 for g in grid.orbits)
+
+
+def test_settled_cycles_are_one_per_cycle_whatever_the_order_of_the_trajectories() -> None:
+    from app.layers.orbits import settled_cycles
+
+    cycle = np.array([[0.5, -2.7], [-1.2, -1.4], [0.1, -1.5]])
+    ramp = np.linspace(1.0, 0.0, 30)[:, None]
+    on_cycle = np.tile(cycle, (10, 1)) + 1e-9 * ramp  # settled (to 1e-9)
+    shifted = np.roll(on_cycle, 1, axis=0)  # the same cycle, another phase
+    chaotic = np.random.default_rng(1).normal(size=(30, 2))
+    fixed = np.tile([[0.2, 0.3]], (30, 1))
+    trajs = [on_cycle, chaotic, shifted, fixed]
+    for order in ([0, 1, 2, 3], [3, 2, 1, 0], [2, 0, 3, 1]):
+        traj = np.concatenate([np.full(30, i) for i in order])
+        k = np.concatenate([np.arange(30) for _ in order])
+        x = np.concatenate([trajs[i] for i in order])
+        found = settled_cycles(traj, k, x[:, 0], x[:, 1], 3)
+        assert sorted(n for _, _, n in found) == [1, 3], found
+        assert settled_cycles(traj, k, x[:, 0], x[:, 1], 2) == [(0.2, 0.3, 1)]  # period 3 is beyond the search
+
+
 def test_the_play_settings_round_trip_through_the_url() -> None:
     page, jobs, clock = page_for({"play": "g1", "play_from": "0.5", "play_to": "1.5", "play_n": "30",
                                   "play_fps": "12", "play_dir": "bounce"})  # fmt: skip

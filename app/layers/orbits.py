@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
@@ -25,6 +26,23 @@ ORBIT_ROWS = 40
 #: multiplier's eigenvector at these distances (relative to 1 + |x|): the born orbit's distance grows like the
 #: square root of the parameter's distance from the doubling, which a frame's step does not tell.
 BIRTH_STEPS = (1e-2, 3e-2, 1e-1)
+#: While a parameter is played, a frame's trajectory whose last points repeat with period n (each within SETTLED of
+#: the point n before, relative to 1 + |x|) has settled on a cycle; one no orbit on screen is within NEAR of (an
+#: orbit born at a fold since the last frame: a pair out of nothing, away from every followed orbit) is handed to
+#: Newton for period n, at most MAX_SETTLED cycles a frame (the added work: one Newton search of one period each).
+SETTLED = 1e-3
+NEAR = 5e-2
+MAX_SETTLED = 4
+#: Recurrences checked at the end of a trajectory (its last points against those n before).
+SETTLED_TAIL = 3
+SETTLED_WORDS = "born since the last frame (a trajectory settled on it)"
+#: A fold pair's partner: an orbit of period n whose largest multiplier is real and within FOLD_NEAR of +1, with no
+#: orbit of period n near it (0.3, relative to 1 + |x|), is searched for its partner across the fold (the saddle of a
+#: node found settled, or the node of a followed saddle) from seeds on both sides along that multiplier's eigenvector
+#: (:data:`BIRTH_STEPS`): the pair's distance grows like the square root of the parameter's distance from the fold.
+FOLD_NEAR = 0.25
+#: Follow jobs whose work the layer keeps a record of (OrbitsLayer.work).
+WORK_KEPT = 200
 
 
 @dataclass(frozen=True)
@@ -63,6 +81,79 @@ def birth_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[fl
     return out
 
 
+def partner_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[float, float]]]:
+    """Seeds, by period, of the partners of the orbits near a fold (their largest multiplier real and within
+    :data:`FOLD_NEAR` of +1, no other orbit of their period near): both sides along that multiplier's eigenvector,
+    :data:`BIRTH_STEPS` away. A seed Newton takes back to the orbit itself gives that orbit again, drawn once."""
+    out: dict[int, list[tuple[float, float]]] = {}
+    for o in orbits:
+        n = int(o.period)
+        w, vecs = np.linalg.eig(o.matrix)
+        i = int(np.argmax(np.abs(w)))  # the one that passes +1 at a fold: a node's weakest, a saddle's expanding one
+        if n > max_period or abs(w[i].imag) > 1e-12 or abs(w[i].real - 1.0) > FOLD_NEAR:
+            continue
+        x = o.points[0]
+        scale = 1.0 + float(np.abs(x).max())
+        if any(p is not o and p.period == n and np.linalg.norm(p.points - x, axis=1).min() < 0.3 * scale
+               for p in orbits):  # fmt: skip
+            continue  # its partner is shown already
+        v = np.real(vecs[:, i])
+        v /= np.linalg.norm(v)
+        out.setdefault(n, []).extend((float(x[0] + s * h * scale * v[0]), float(x[1] + s * h * scale * v[1]))
+                                     for h in BIRTH_STEPS for s in (1.0, -1.0))  # fmt: skip
+    return out
+
+
+def settled_cycles(traj: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray,
+                   max_period: int) -> list[tuple[float, float, int]]:  # fmt: skip
+    """The cycles the section's trajectories end on, ``(q, r, n)`` each (the last point and the least period
+    ``n <= max_period``), one per cycle: a trajectory whose last :data:`SETTLED_TAIL` points are each within
+    :data:`SETTLED` (relative to 1 + |x|) of the point ``n`` periods before. Chaotic, quasi-periodic, escaping or
+    still transient trajectories, those with fewer than ``SETTLED_TAIL + max_period`` points, and cycles longer than
+    ``max_period`` give none. One sort of the points and array operations on every trajectory's tail at once (a
+    frame may have thousands of trajectories)."""
+    need = SETTLED_TAIL + max_period
+    if max_period < 1 or traj.size == 0:
+        return []
+    order = np.lexsort((k, traj))
+    t_sorted = traj[order]
+    ends = np.flatnonzero(np.r_[t_sorted[1:] != t_sorted[:-1], True])  # the last point of each trajectory
+    starts = np.r_[0, ends[:-1] + 1]
+    ends = ends[ends - starts + 1 >= need]
+    if ends.size == 0:
+        return []
+    idx = order[ends[:, None] + np.arange(1 - need, 1)]  # (trajectories, need): each one's last points, in k order
+    x = np.stack([q[idx], r[idx]], axis=-1)
+    last = x[:, -SETTLED_TAIL:]
+    tol = SETTLED * (1.0 + np.abs(last).max(axis=2))
+    period = np.zeros(x.shape[0], dtype=int)  # 0: not settled (yet)
+    for n in range(max_period, 0, -1):  # the least period wins
+        before = x[:, need - SETTLED_TAIL - n : need - n]
+        with np.errstate(invalid="ignore"):
+            ok = np.all(np.linalg.norm(last - before, axis=2) < tol, axis=1)
+        period[ok] = n
+    out: list[tuple[float, float, int]] = []
+    tails: list[np.ndarray] = []  # the points of each cycle found (a second trajectory on it adds nothing)
+    for i in np.flatnonzero(period):
+        n, end = int(period[i]), x[i, -1]
+        scale = NEAR * (1.0 + float(np.abs(end).max()))
+        if not any(np.linalg.norm(c - end, axis=1).min() < scale for c in tails):
+            tails.append(x[i, -n:])
+            out.append((float(end[0]), float(end[1]), n))
+    return out
+
+
+def unfollowed(cycles: list[tuple[float, float, int]], orbits: list[Orbit]) -> list[tuple[float, float, int]]:
+    """The cycles no orbit in ``orbits`` has a point within :data:`NEAR` (relative to 1 + |x|) of."""
+    out = []
+    for q, r, n in cycles:
+        x = np.array([q, r])
+        scale = NEAR * (1.0 + float(np.abs(x).max()))
+        if not any(np.linalg.norm(o.points - x, axis=1).min() < scale for o in orbits):
+            out.append((q, r, n))
+    return out
+
+
 class OrbitsLayer(Layer):
     name = "orbits"
     #: "orbit": one job per click, all kept, waited for like points; "orbits": the whole search.
@@ -75,6 +166,9 @@ class OrbitsLayer(Layer):
         self.orbits: list[Orbit] = []
         self.rows: list[dict[str, Any]] = []
         self.text = ""
+        #: While a parameter plays: the last follow jobs' Newton work (searches, seeds by kind and period), in order
+        #: (a bounded record: a session may play for hours).
+        self.work: deque[dict[str, Any]] = deque(maxlen=WORK_KEPT)
 
     def inputs(self) -> OrbitInputs | object | None:
         st = self.host.state
@@ -93,7 +187,10 @@ class OrbitsLayer(Layer):
         return bool(self.host.state.orbit_view)
 
     def prepare(self, inputs: OrbitInputs) -> OrbitInputs:
-        if not inputs.where:
+        if not inputs.where and inputs.follow:  # a played parameter's frame: the orbits shown, continued
+            self.text = (f"following {len(inputs.follow)} periodic orbits to this frame"
+                         + (f" and searching from {len(inputs.seeds)} points…" if inputs.seeds else "…"))  # fmt: skip
+        elif not inputs.where:
             self.text = (f"finding periodic orbits (periods 1..{max(inputs.periods)}) from {len(inputs.seeds)} "
                          "starting points…")  # fmt: skip
         return inputs
@@ -105,7 +202,7 @@ class OrbitsLayer(Layer):
                 yield res
             return
         # Followed: each period's orbits from their last points (one Newton each), then the clicked seeds, then
-        # the orbits born at a period doubling since the last frame.
+        # the orbits born at a period doubling since the last frame, then the partners of orbits near a fold.
         parts = []
         for n in sorted({p for _, _, p in inputs.follow}):
             pts = [(q, r) for q, r, p in inputs.follow if p == n]
@@ -113,8 +210,16 @@ class OrbitsLayer(Layer):
         if inputs.seeds:
             parts.append(find_orbits(inputs.params, list(inputs.seeds), list(inputs.periods), cancel=cancelled))
         # The orbits born at a doubling since the last frame (a grid would find them; following alone would not).
-        births = birth_seeds([o for part in parts for o in part.orbits], max(inputs.periods))
+        have: list[Orbit] = []
+        for o in (o for part in parts for o in part.orbits):
+            if not any(same_orbit(o, k) for k in have):
+                have.append(o)  # once each: an orbit found twice is not its own partner
+        births = birth_seeds(have, max(inputs.periods))
         for n, seeds in sorted(births.items()):
+            parts.append(find_orbits(inputs.params, seeds, [n], cancel=cancelled))
+        # The partners of orbits near a fold (the saddle of a node born there, found settled).
+        partners = partner_seeds(have, max(inputs.periods))
+        for n, seeds in sorted(partners.items()):
             parts.append(find_orbits(inputs.params, seeds, [n], cancel=cancelled))
         if cancelled():
             return
@@ -130,13 +235,23 @@ class OrbitsLayer(Layer):
             seeds=sum(part.seeds for part in parts),
             elapsed_s=sum(part.elapsed_s for part in parts),
             completed=all(part.completed for part in parts),
-            extra={**parts[0].extra, "periods": periods},
-        )
+            # Each followed orbit was searched for its own period only: the Newton searches made, counted per part.
+            # The work added to following (benchmarks/play_speed.py --orbit-work): seeds of each kind, by period.
+            extra={**parts[0].extra, "periods": periods,
+                   "searches": sum(part.seeds * len(part.extra.get("periods", [])) for part in parts),
+                   "birth_seeds": {n: len(v) for n, v in births.items()},
+                   "partner_seeds": {n: len(v) for n, v in partners.items()}},
+        )  # fmt: skip
 
     def current(self, inputs: OrbitInputs) -> bool:
         return inputs.params == self.host.system()  # else found for a system no longer on screen
 
     def apply(self, inputs: OrbitInputs, res: OrbitSearch) -> None:
+        if inputs.follow:
+            self.work.append({"settled": inputs.where == SETTLED_WORDS, "followed": len(inputs.follow),
+                              "searches": int(res.extra.get("searches", 0)),
+                              "birth_seeds": res.extra.get("birth_seeds", {}),
+                              "partner_seeds": res.extra.get("partner_seeds", {})})  # fmt: skip
         if not inputs.where:
             self.orbits = []
         elif stale_note(self.shown_query, inputs.query, url_keys(SYSTEM_FIELDS)):
@@ -145,7 +260,9 @@ class OrbitsLayer(Layer):
         new = [o for o in res.orbits if not any(same_orbit(o, k) for k in self.orbits)]
         self.orbits = sorted([*self.orbits, *new], key=lambda o: (o.period, float(o.points[0, 0])))
         self._draw()
-        if inputs.where:
+        if inputs.where == SETTLED_WORDS and not new:
+            pass  # a trajectory lingering near a cycle not there (a fold's ghost): the frame's words stay
+        elif inputs.where:
             if new:
                 what = ", ".join(f"period {o.period} ({o.kind})" for o in new)
                 self.text = f"{inputs.where}: {what}"
@@ -156,10 +273,15 @@ class OrbitsLayer(Layer):
                 self.text = f"{inputs.where}: no orbit of period ≤ {max(res.extra.get('periods', [0]))} ({reason})"
         else:
             periods = list(res.extra.get("periods", [])) or [0]
-            tries = res.seeds * len(periods)
-            self.text = (f"{len(self.orbits)} periodic orbits of period 1..{max(periods)} from {res.seeds} "
-                         f"starting points ({len(res.failures)} of the {tries} Newton searches, one per "
-                         f"starting point and period, found none; {res.elapsed_s:.2f} s)")  # fmt: skip
+            tries = res.extra.get("searches", res.seeds * len(periods))
+            if inputs.follow:
+                self.text = (f"{len(self.orbits)} periodic orbits followed to this frame ({tries} Newton searches, "
+                             f"one per orbit followed at its own period; {len(res.failures)} found none; "
+                             f"{res.elapsed_s:.2f} s)")  # fmt: skip
+            else:
+                self.text = (f"{len(self.orbits)} periodic orbits of period 1..{max(periods)} from {res.seeds} "
+                             f"starting points ({len(res.failures)} of the {tries} Newton searches, one per "
+                             f"starting point and period, found none; {res.elapsed_s:.2f} s)")  # fmt: skip
 
     def clear(self) -> None:
         self.orbits = []
@@ -212,6 +334,26 @@ class OrbitsLayer(Layer):
         # One job per click, all kept: a second click does not cancel the first.
         self.host.run(self, inputs, channel="orbit", bump=False)
         return True
+
+    def find_settled(self) -> int:
+        """While a parameter plays, once a frame's section and orbits are done: Newton from the frame's
+        trajectories that settled on a cycle no orbit on screen is near (:func:`settled_cycles`; an orbit born
+        at a fold since the last frame), each for its own period, the orbits found merged with those shown.
+        Returns the Newton searches started (0: none needed; at most :data:`MAX_SETTLED`)."""
+        st = self.host.state
+        if not st.show_orbits:
+            return 0
+        params = self.system_params()
+        if params is None:
+            return 0
+        traj, k, q, r = self.host.data()
+        cycles = unfollowed(settled_cycles(traj, k, q, r, st.orbit_period), self.orbits)[:MAX_SETTLED]
+        if not cycles:
+            return 0
+        inputs = OrbitInputs(params, (), tuple(range(1, st.orbit_period + 1)), SETTLED_WORDS, st.to_query(),
+                             tuple(cycles))  # fmt: skip
+        self.host.run(self, inputs, channel="orbit", bump=False)
+        return len(cycles)
 
     def csv(self) -> io.BytesIO:
         """The orbits on screen as CSV (one row per orbit point), the settings in a comment header."""

@@ -65,7 +65,7 @@ def test_the_body_view_draws_animates_at_30_fps_and_stops_on_pause(page, app_url
     assert drawn_pixels(page) > 5000  # the sphere, the body, the axes, omega, the trace, the labels
     assert body(page, "frames") == 20 * 48 + 1 and body(page, "playing")
     page.locator(".body-view .body-speed").first.select_option("1")  # a period a second (48 recorded frames)
-    assert body(page, "speed") == 1
+    page.wait_for_function(f"() => {HOOK}.speed === 1", timeout=10_000)  # in use once the server has it
     time.sleep(0.5)
     before, f0, p0 = len(sent), body(page, "position"), body(page, "period")
     time.sleep(2.5)
@@ -148,4 +148,41 @@ def test_closing_the_view_drops_the_series_and_its_point(page, app_url) -> None:
         "e.shadowRoot.querySelector('.series-q polyline'))",
         timeout=30_000,
     )
+    assert not page.errors
+
+
+def test_a_link_with_the_body_views_settings_opens_the_view_with_them(page, app_url) -> None:
+    # A system a box has (moments 1, 3, 3), drawn as the ellipsoid, at 2 periods a second, tracing axis 1.
+    query = BODY.replace("scene=fig1C", "scene=fig1C&I22=3&I33=3") + "&body_v=2&body_axis=1&body_shape=ellipsoid"
+    open_body(page, app_url, query)
+    assert (body(page, "speed"), body(page, "traceAxis"), body(page, "shape")) == (2, 1, "ellipsoid")
+    bar = page.locator(".body-view .body-bar").first
+    shown = [bar.locator(f"select.{c}").input_value() for c in ("body-speed", "body-trace-axis", "body-shape")]
+    assert shown == ["2", "0", "ellipsoid"]  # the trace's select counts axes from 0 (its option 'axis 1')
+    assert {k: query_of(page).get(k) for k in ("body_v", "body_axis", "body_shape")} == {
+        "body_v": "2", "body_axis": "1", "body_shape": "ellipsoid"}  # fmt: skip
+    # Chosen in the bar: in use once the server has it, and in the URL.
+    bar.locator("select.body-shape").select_option("box")
+    page.wait_for_function(f"() => {HOOK}.shape === 'box'", timeout=10_000)
+    page.wait_for_function("() => !new URLSearchParams(location.search).has('body_shape')", timeout=10_000)
+    bar.locator("select.body-trace-axis").select_option("2")
+    page.wait_for_function(f"() => {HOOK}.traceAxis === 3", timeout=10_000)
+    page.wait_for_function("() => !new URLSearchParams(location.search).has('body_axis')", timeout=10_000)
+    assert not page.errors
+
+
+def test_a_box_no_body_has_is_refused_under_the_bar_and_the_ellipsoid_stays(page, app_url) -> None:
+    open_body(page, app_url)  # fig1C: moments 1, 2, 4, no box
+    bar = page.locator(".body-view .body-bar").first
+    assert bar.locator("select.body-shape").input_value() == "ellipsoid" and body(page, "shape") == "ellipsoid"
+    bar.locator("select.body-shape").select_option("box")
+    msg = page.locator(".body-view .body-msg").filter(has_text="no uniform box").first
+    msg.wait_for(timeout=10_000)
+    assert "no uniform box has the principal moments 1, 2, 4" in msg.inner_text()
+    page.wait_for_function(
+        "() => Array.from(document.querySelectorAll('*')).some(e => e.shadowRoot && "
+        "e.shadowRoot.querySelector('select.body-shape')?.value === 'ellipsoid')",
+        timeout=10_000,
+    )  # the select shows the drawing in use again
+    assert body(page, "shape") == "ellipsoid" and "body_shape" not in query_of(page)
     assert not page.errors
