@@ -99,3 +99,17 @@ def test_a_doubling_is_located_with_a_few_newton_steps_per_secant_step(monkeypat
     res = co.continue_orbit(FIG10, "alpha", (-0.35, -0.41), FIXED_POINT_035, 1, switch=True, max_period=2)
     assert [b.period for b in res.bifurcations] == [1, 2]
     assert counts and max(k for _, k in counts) <= 4, counts
+
+
+def test_the_doublings_do_not_depend_on_the_longest_step() -> None:
+    # ds_max = 0.01 (the issue's ~300 points) against the default steps: the same five doublings, to their stated
+    # error. (A refinement that stopped at the map's noise once fell back to the secant value, 5e-11 off the
+    # refined one with a stated error of 4e-14.)
+    runs = [
+        co.continue_orbit(FIG10, "alpha", (-0.35, -0.4126), FIXED_POINT_035, 1, switch=True, max_period=16, **kw)
+        for kw in ({}, {"ds_max": 0.01})
+    ]
+    pds = [[b for b in r.bifurcations if b.kind == "period_doubling"] for r in runs]
+    assert [b.period for b in pds[0]] == [b.period for b in pds[1]] == [1, 2, 4, 8, 16]
+    for a, b in zip(*pds, strict=True):
+        assert abs(a.value - b.value) <= 10 * (a.error + b.error) + 1e-13, (a, b)

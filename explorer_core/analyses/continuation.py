@@ -1209,8 +1209,6 @@ def _refine(sys: _System, kind: str, n: int, Y: np.ndarray,
             raise _Stop("the refinement of a bifurcation overflowed")
         if np.abs(step).max() <= 1e-13 * (1.0 + float(np.abs(Y).max())):
             break
-    else:
-        raise _Stop("the refinement of a bifurcation did not converge")
     if not final:
         return Y, None, None
     _, _, a, pts = _defining(sys, kind, n, Y)
