@@ -76,7 +76,7 @@ CORRECTOR_TOL = 1e-10
 LOCATE_TOL = 1e-12
 #: The secant steps along the branch stop at this bracket (relative) when Newton on the bifurcation's defining
 #: system takes over (it converges quadratically from there; each secant step is a corrected point of the branch).
-REFINE_FROM = 1e-6
+REFINE_FROM = 1e-5
 MAX_POINTS = 5000
 #: The longest period a cascade is followed to.
 DEFAULT_MAX_PERIOD = 16
@@ -757,11 +757,23 @@ class _Engine:
                 raise _Stop("the corrector overflowed")
         raise _Stop(f"the corrector did not converge in {max_iter} iterations")
 
-    def at(self, prob: Any, pt: _Point, sigma: float) -> _Point:
-        """The point at arclength ``sigma`` from ``pt`` along its tangent (locating bifurcations). Full Newton: with
-        ``F_p`` frozen at ``pt`` the corrector of an unstable orbit took 3-4 times the iterations (Fig. 10's
-        period 16), each more than the central difference it saved."""
-        return self.correct(prob, pt.X + sigma * pt.t, pt.t, pt.t, max_iter=self.opts.max_iter + 4)[0]
+    def at(self, prob: Any, pt: _Point, sigma: float, end: _Point | None = None) -> _Point:
+        """The point at arclength ``sigma`` from ``pt`` along its tangent (locating bifurcations), on the plane
+        ``pt.t . (X - pt.X) = sigma``. Predicted on the cubic through ``pt`` and ``end`` (the bracket's far end)
+        with their tangents, whose error goes as the bracket's length to the fourth, not the tangent line
+        (second power): one or two Newton steps instead of three to six on Fig. 10's period-8 branch. Full
+        Newton: with ``F_p`` frozen at ``pt`` the corrector of an unstable orbit took 3-4 times the iterations
+        (Fig. 10's period 16), each more than the central difference it saved."""
+        X_pred = pt.X + sigma * pt.t
+        if end is not None:
+            chord = end.X - pt.X
+            span, length = float(pt.t @ chord), float(np.linalg.norm(chord))
+            if span > 0.0 and float(end.t @ pt.t) > 0.0:
+                u = sigma / span
+                h00, h10, h01, h11 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u, -2 * u**3 + 3 * u**2, u**3 - u**2
+                cubic = h00 * pt.X + h10 * length * pt.t + h01 * end.X + h11 * length * end.t
+                X_pred = cubic + (sigma - float(pt.t @ (cubic - pt.X))) * pt.t  # onto the plane
+        return self.correct(prob, X_pred, pt.t, pt.t, max_iter=self.opts.max_iter + 4)[0]
 
     def _check(self, pt: _Point, new: _Point, X_pred: np.ndarray, h: float) -> None:
         d = float(np.linalg.norm(new.X - X_pred))
@@ -906,7 +918,7 @@ def _locate(eng: _Engine, prob: _BranchProblem, fn: Callable[[_Point], float], p
         s = hi - fhi * (hi - lo) / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
         if not (lo < s < hi):
             s = 0.5 * (lo + hi)
-        mid = eng.at(prob, p0, s)
+        mid = eng.at(prob, p0, s, p1)
         fm = fn(mid)
         best = mid
         if fm == 0.0:
