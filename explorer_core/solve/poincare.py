@@ -210,6 +210,38 @@ def least_period(chain: np.ndarray, n: int, tol: float) -> int:
     return n
 
 
+def _twins(x: np.ndarray, res: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Iterates near an orbit (the accurate phase) within :data:`DUPLICATE_TOL` of another, chained: each such
+    cluster converges to one point, so one member goes on, the one with the smallest last residual (then the
+    smallest ``(q, r)``: whatever the seeds' order). ``out`` marks members stopped already. Returns the others'
+    mask."""
+    m = x.shape[0]
+    twin = np.zeros(m, bool)
+    live = np.flatnonzero(~out)
+    if live.size < 2:
+        return twin
+    xs = x[live]
+    near = (
+        np.linalg.norm(xs[:, None, :] - xs[None, :, :], axis=-1)
+        <= DUPLICATE_TOL * (1.0 + np.linalg.norm(xs, axis=1))[:, None]
+    )
+    near |= near.T
+    label = np.arange(live.size)
+    while True:  # connected components (single linkage): the smallest label of each, by propagation
+        nxt = np.where(near, label[None, :], live.size).min(axis=1)
+        nxt = np.minimum(nxt, label)
+        if np.array_equal(nxt, label):
+            break
+        label = nxt
+    order = np.lexsort((xs[:, 1], xs[:, 0], res[live]))  # the survivor of each cluster comes first
+    seen: set[int] = set()
+    for k in order:
+        if int(label[k]) in seen:
+            twin[live[k]] = True
+        seen.add(int(label[k]))
+    return twin
+
+
 def _solve2(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``a^-1 b`` for stacks of 2x2 systems (closed form) and the determinants."""
     det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
@@ -293,6 +325,8 @@ def newton(
                     if n % kn == 0:
                         d = np.linalg.norm(x[idx, None, :] - pts[None, :, :], axis=-1).min(axis=1)
                         dup |= d <= DUPLICATE_TOL * (1.0 + np.linalg.norm(x[idx], axis=1))
+                if accurate:
+                    dup |= _twins(x[idx], prev_res[idx], dup)
                 done[idx[dup]] = True
                 out.duplicates += int(dup.sum())
                 idx = idx[~dup]
