@@ -130,3 +130,23 @@ def test_the_cascade_takes_few_corrector_evaluations_a_point(monkeypatch: pytest
     res = co.continue_orbit(FIG10, "alpha", (-0.35, -0.42), FIXED_POINT_035, 1, switch=True, max_period=16)
     assert [b.period for b in res.bifurcations] == [1, 2, 4, 8, 16] and res.complete
     assert evals["n"] <= 4.5 * res.n_points, (evals["n"], res.n_points)
+
+
+def test_a_doubling_is_refined_with_few_central_differences(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Newton on the defining system (P^n(x) - x, det(A + I)) = 0 keeps its Jacobian (six members of central
+    # differences) while the steps contract tenfold; main took a fresh one at every step, and again for the
+    # error estimate's refinement: 6 per doubling here.
+    calls = {"n": 0}
+    orig = co._defining
+
+    def defining(*a, **k):
+        calls["n"] += 1
+        return orig(*a, **k)
+
+    monkeypatch.setattr(co, "_defining", defining)
+    res = co.continue_orbit(FIG10, "alpha", (-0.35, -0.4118), FIXED_POINT_035, 1, switch=True, max_period=4)
+    pds = [b for b in res.bifurcations if b.kind == "period_doubling"]
+    assert [b.period for b in pds] == [1, 2, 4]
+    assert calls["n"] <= 3 * len(pds), calls
+    for b in pds:  # the refined points are doublings: mu = -1 to the map's accuracy
+        assert np.min(np.abs(b.multipliers + 1.0)) < 1e-9, b
