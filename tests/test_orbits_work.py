@@ -69,3 +69,13 @@ def test_twins_keep_the_smallest_residual_whatever_the_order() -> None:
     stopped = np.array([False, True, False, False, False, False])  # a member stopped already is not a survivor
     twin = _twins(x, res, stopped)
     assert twin.tolist() == [True, False, False, False, True, False]  # (2e-5, 0) has the smaller residual now
+
+
+def test_far_iterates_take_the_roughest_map(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Residual above FAR_UNTIL: the tangent system at 1e-6 (main: 1e-8 until the residual is below 1e-5), where
+    # most of a grid search's work is; the orbits are the same (tests/test_orbits.py checks them independently).
+    c = _count(monkeypatch)
+    res = find_orbits(FIG8B.params, grid_seeds(FIG8B.box, 6, 6), [1, 2, 3])
+    assert res.orbits
+    far, rough = c[(rk.TANGENT, poincare.FAR_RTOL)], c[(rk.TANGENT, 1e-8)]
+    assert far > rough > 0, c
