@@ -6,9 +6,12 @@ For each case of ``benchmarks/orbits_speed.py`` (a click, the 15 x 15 grid of Fi
 cascade 1 -> 16 with default steps and with ``ds_max = 0.01``) and the Fig. 10 10 x 10-seed period-1 search
 (``bilimovich orbits --scene fig10``), counts what the engine integrates: member-periods of the tangent system
 and of the field alone, their steps (accepted + rejected, summed over members: the field evaluations divided by
-the stages), engine calls; Newton iterations (seed-iterations), continuation points and corrector iterations.
-One process, no timing: run it on a loaded
-machine too.
+the stages), engine calls; Newton iterations (``derivative_points``: seed-iterations), continuation points,
+corrector iterations (``corrector_iterations``: branch evaluations), central differences of ``F_p``
+(``fp_evaluations``) and Jacobians of a bifurcation's defining system (``defining_evaluations``). Keys ending
+``_loose`` count integrations at rtol above 1e-9 (Newton's rough maps, the looser differences), the others at
+1e-9 and below. The engine does not report rejected steps apart: they are in the steps. One process, no
+timing: run it on a loaded machine too.
 """
 
 from __future__ import annotations
