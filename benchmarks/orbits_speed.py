@@ -5,10 +5,12 @@
 * a click: the period-1 orbit Newton finds from one seed near each period-1 orbit of Fig. 8B (core time);
 * a grid: every orbit of period <= 8 from a 15 x 15 grid of seeds over Fig. 8B's box (and, once, the
   same search without the early stop of stalled seeds, for what the early stop loses);
+* Fig. 10's period-1 orbits from its 10 x 10 grid (``bilimovich orbits --scene fig10``);
 * a cascade: the Fig. 10 continuation from alpha = -0.35 to -0.42 with branch switching, 1 -> 16
   (default steps, and steps of at most 0.01 for ~300 points).
 
-Medians of ``--repeat`` runs after a warm-up (kernels loaded from the on-disk cache).
+Medians of ``--repeat`` runs after a warm-up (kernels loaded from the on-disk cache). The same cases' work,
+independent of the machine's load: ``benchmarks/orbits_work.py``.
 """
 
 from __future__ import annotations
@@ -58,6 +60,12 @@ def main() -> None:
     report["grid_orbits"] = len(res.orbits)
     report["grid_thorough_s"] = round(t_thorough, 3)
     report["grid_thorough_orbits"] = len(thorough.orbits)
+
+    fig10s = get_scene("fig10")
+    seeds10 = grid_seeds(fig10s.box, 10, 10)
+    t_g10, res10 = timed(lambda: find_orbits(fig10s.params, seeds10, [1]), args.repeat)
+    report["fig10_grid_10x10_period1_s"] = round(t_g10, 3)
+    report["fig10_grid_orbits"] = len(res10.orbits)
 
     fig10 = get_scene("fig10").params.with_(alpha=-0.35)
     t_cas, cas = timed(

@@ -57,7 +57,7 @@ from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, run, stream
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.poincare import PoincareMap
-from explorer_core.solve.tangent import monodromy_at
+from explorer_core.solve.tangent import Monodromy, monodromy_at
 from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
 
@@ -65,10 +65,21 @@ from explorer_core.system.params import ParameterError, Params
 KINDS = ("fold", "period_doubling", "neimark_sacker")
 #: Relative size of the parameter step of the finite differences (divided by ``sqrt(|DP^n|)`` on a branch).
 FD_STEP = 1e-7
+#: The central differences integrate this many times less accurately than the orbit, at most at FD_RTOL_MAX,
+#: and to a relative error ~FD_ACCURACY / 10 (see :meth:`_System.fd_numerics`).
+FD_LOOSEN = 1e3
+FD_RTOL_MAX = 1e-9
+FD_ACCURACY = 1e-6
 #: Newton on a corrected point stops when ``|F| <= CORRECTOR_TOL (1 + |x|)``.
 CORRECTOR_TOL = 1e-10
 #: A located bifurcation's bracket in the parameter.
 LOCATE_TOL = 1e-12
+#: The secant steps along the branch stop at this bracket (relative) when Newton on the bifurcation's defining
+#: system takes over (it converges quadratically from there; each secant step is a corrected point of the branch).
+REFINE_FROM = 1e-5
+#: Newton on a bifurcation's defining system stops when its steps, below this (relative), no longer contract:
+#: the map's noise (steps of ~1e-12 on Fig. 10's period 16 at rtol 1e-11).
+REFINE_NOISE = 1e-10
 MAX_POINTS = 5000
 #: The longest period a cascade is followed to.
 DEFAULT_MAX_PERIOD = 16
@@ -495,6 +506,24 @@ class _System:
         self.names = list(names)
         self.numerics = numerics
         self.workers = workers
+        self._fd: dict[tuple[float, float], Numerics] = {}
+
+    def fd_numerics(self, amp: float) -> Numerics:
+        """The integration of the central differences' members at an orbit with ``|DP^n| = amp``.
+
+        The differences (``F_p``, the test function's derivatives) only steer Newton and give the tangent:
+        members in lock-step share one step sequence, so their difference is smooth at any tolerance, and its
+        relative error is ~0.1 ``rtol |DP^n|`` (measured on Fig. 10's period-16 orbit). They run up to
+        ``FD_LOOSEN`` times looser than the orbit (at most ``FD_RTOL_MAX``), with that error below
+        :data:`FD_ACCURACY` / 10, never more accurately than the orbit. ``P^n`` and ``DP^n`` at the point
+        itself (the residual, the multipliers) keep the accuracy asked.
+        """
+        tol = {k: max(v, min(FD_RTOL_MAX, v * FD_LOOSEN, FD_ACCURACY / max(1.0, amp)))
+               for k, v in (("rtol", self.numerics.rtol), ("atol", self.numerics.atol))}  # fmt: skip
+        key = (tol["rtol"], tol["atol"])
+        if key not in self._fd:
+            self._fd[key] = Numerics(**{**self.numerics.as_dict(), **tol})
+        return self._fd[key]
 
     def params(self, p: Sequence[float]) -> Params:
         try:
@@ -524,7 +553,7 @@ class _System:
                 q = list(p)
                 q[k] += sgn * self.delta(p[k], amp)
                 prs.append(self.params(q))
-        pmap = PoincareMap.members(prs, self.numerics, workers=1, block=len(prs))
+        pmap = PoincareMap.members(prs, self.fd_numerics(amp), workers=1, block=len(prs))
         y, status = pmap.image(np.repeat(x[None, :], len(prs), axis=0), n)
         bad = np.flatnonzero(status != Status.OK)
         if bad.size:
@@ -534,8 +563,8 @@ class _System:
     def evaluate(self, x: np.ndarray, p: Sequence[float], n: int, dx: bool = False):
         """``P^n(x)``, ``A = DP^n``, ``F_p`` (2, k) and, with ``dx``, ``A`` at ``x +- delta e_j`` and ``p +- delta``.
 
-        One lock-step batch: the base point, then ``p_k +- delta`` for each parameter, then (``dx``)
-        ``x +- delta e_j``.
+        The base point at the accuracy asked, then one lock-step batch (:meth:`fd_numerics`): ``p_k +- delta``
+        for each parameter, then (``dx``) ``x +- delta e_j``.
         """
         p = list(p)
         pts, prs = [x], [self.params(p)]
@@ -551,7 +580,13 @@ class _System:
                 for sgn in (1.0, -1.0):
                     pts.append(x + sgn * hx * np.eye(2)[j])
                     prs.append(prs[0])
-        mono = monodromy_at(prs, np.array(pts), n, self.numerics, workers=self.workers)
+        # The point at the accuracy asked; the differences' members (lock-step among themselves) looser.
+        at = monodromy_at(prs[:1], np.array(pts[:1]), n, self.numerics, workers=1, block=1)
+        if at.status[0] != Status.OK:
+            raise _failed(at.status[0])
+        fd = monodromy_at(prs[1:], np.array(pts[1:]), n, self.fd_numerics(float(np.abs(at.matrix[0]).max())),
+                          workers=self.workers, block=len(prs) - 1)  # fmt: skip
+        mono = Monodromy(*(np.concatenate([u, v]) for u, v in zip(_fields(at), _fields(fd), strict=True)))
         bad = np.flatnonzero(mono.status != Status.OK)
         if bad.size:
             raise _failed(mono.status[bad[0]])
@@ -565,6 +600,10 @@ class _System:
                 "A_x": [(mono.matrix[o + 2 * j], mono.matrix[o + 2 * j + 1], hx) for j in range(2)],
             }
         return mono.end[0], mono.matrix[0], fp, mono.div[0], mono.points[0], extra
+
+
+def _fields(m: Monodromy) -> tuple[np.ndarray, ...]:
+    return m.end, m.matrix, m.div, m.points, m.status, m.nsteps
 
 
 def test_function(kind: str, a: np.ndarray) -> float:
@@ -602,6 +641,8 @@ class _Point:
     t: np.ndarray  # unit tangent
     pts: np.ndarray | None  # branch: (n, 2) the orbit x, P(x), ..., P^(n-1)(x)
     err: float = 0.0  # the corrector's last step: how far the point may be from the curve
+    #: dt/ds, the tangent's change per arclength since the previous point of the curve (None: no previous point)
+    curv: np.ndarray | None = None
 
 
 class _BranchProblem:
@@ -654,7 +695,7 @@ class _CurveProblem:
         return self.o + self.w * Z
 
     def evaluate(self, Z: np.ndarray, chord: np.ndarray | None = None):
-        g, jac, a = _defining(self.sys, self.kind, self.n, self.unscaled(Z))
+        g, jac, a, _ = _defining(self.sys, self.kind, self.n, self.unscaled(Z))
         return g, jac * self.w[None, :], a, None
 
     def fresh(self, Z: np.ndarray, jac: np.ndarray) -> np.ndarray:
@@ -721,9 +762,23 @@ class _Engine:
                 raise _Stop("the corrector overflowed")
         raise _Stop(f"the corrector did not converge in {max_iter} iterations")
 
-    def at(self, prob: Any, pt: _Point, sigma: float) -> _Point:
-        """The point at arclength ``sigma`` from ``pt`` along its tangent (chord Newton: locating bifurcations)."""
-        return self.correct(prob, pt.X + sigma * pt.t, pt.t, pt.t, chord=pt.J, max_iter=self.opts.max_iter + 4)[0]
+    def at(self, prob: Any, pt: _Point, sigma: float, end: _Point | None = None) -> _Point:
+        """The point at arclength ``sigma`` from ``pt`` along its tangent (locating bifurcations), on the plane
+        ``pt.t . (X - pt.X) = sigma``. Predicted on the cubic through ``pt`` and ``end`` (the bracket's far end)
+        with their tangents, whose error goes as the bracket's length to the fourth, not the tangent line
+        (second power): one or two Newton steps instead of three to six on Fig. 10's period-8 branch. Full
+        Newton: with ``F_p`` frozen at ``pt`` the corrector of an unstable orbit took 3-4 times the iterations
+        (Fig. 10's period 16), each more than the central difference it saved."""
+        X_pred = pt.X + sigma * pt.t
+        if end is not None:
+            chord = end.X - pt.X
+            span, length = float(pt.t @ chord), float(np.linalg.norm(chord))
+            if span > 0.0 and float(end.t @ pt.t) > 0.0:
+                u = sigma / span
+                h00, h10, h01, h11 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u, -2 * u**3 + 3 * u**2, u**3 - u**2
+                cubic = h00 * pt.X + h10 * length * pt.t + h01 * end.X + h11 * length * end.t
+                X_pred = cubic + (sigma - float(pt.t @ (cubic - pt.X))) * pt.t  # onto the plane
+        return self.correct(prob, X_pred, pt.t, pt.t, max_iter=self.opts.max_iter + 4)[0]
 
     def _check(self, pt: _Point, new: _Point, X_pred: np.ndarray, h: float) -> None:
         d = float(np.linalg.norm(new.X - X_pred))
@@ -762,7 +817,15 @@ class _Engine:
         return new, theta
 
     def _trial(self, prob: Any, pt: _Point, h: float) -> tuple[_Point, float, bool]:
-        """One step of length ``h`` from ``pt``: the new point, the contraction, and whether it is on an end."""
+        """One step of length ``h`` from ``pt``: the new point, the contraction, and whether it is on an end.
+
+        The corrector starts from the second-order prediction ``X + h t + h^2/2 dt/ds`` (``dt/ds`` from the
+        previous point; error ~ ``h^3``): fewer Newton steps. The steps stay those of the first-order rule:
+        Newton's contraction is ``kappa`` times the prediction's error, ``kappa`` measured at every step
+        (the first of a curve from the tangent line), and the contraction returned is ``kappa`` times the
+        tangent line's error ``|X_new - (X + h t)|``. Longer steps would save more, but through a chaotic band
+        they jump between the many nearby orbits of one period (Fig. 10's period 16 beyond alpha = -0.413).
+        """
         X_pred = pt.X + h * pt.t
         ex = self._exit(prob.box, pt.X, X_pred)
         used = h
@@ -774,8 +837,15 @@ class _Engine:
                 used = lam * h
                 new, theta = self._land(prob, pt, pt.X + used * pt.t, k, bound)
                 return new, theta, True
-            new, theta = self.correct(prob, X_pred, pt.t, pt.t)
+            second = pt.curv is not None and self._kappa is not None
+            start = X_pred + 0.5 * h * h * pt.curv if second else X_pred
+            new, theta = self.correct(prob, start, pt.t, pt.t)
             self._check(pt, new, X_pred, h)
+            line, off = float(np.linalg.norm(new.X - X_pred)), float(np.linalg.norm(new.X - start))
+            if theta > 0.0 and off > 0.0:
+                self._kappa = theta / off
+            if second:
+                theta = self._kappa * line
             ex = self._exit(prob.box, pt.X, new.X)
             if ex is not None:  # corrected beyond the end: the end point along the chord
                 k, bound, lam = ex
@@ -798,6 +868,7 @@ class _Engine:
         """
         o = self.opts
         h = min(o.ds, ds_max)
+        self._kappa: float | None = None  # Newton's contraction per unit error of the prediction (see _trial)
         count = 1
         first_refusal = ""  # since the last accepted point: the longer step may have failed for a telling reason
         while True:
@@ -826,6 +897,7 @@ class _Engine:
                 return verdict, False, new, Status.OK
             if at_end:
                 return "range end", False, new, Status.OK
+            new.curv = (new.t - pt.t) / max(float(np.linalg.norm(new.X - pt.X)), 1e-300)
             pt = new
             # Deuflhard's rule: the predictor's error, hence the corrector's contraction, goes as h^2.
             factor = o.growth if theta <= 0.0 else min(o.growth, max(o.shrink, math.sqrt(o.contraction / theta)))
@@ -850,10 +922,10 @@ def _crossed(p0: _Point, p1: _Point) -> list[str]:
 
 
 def _locate(eng: _Engine, prob: _BranchProblem, fn: Callable[[_Point], float], p0: _Point, p1: _Point,
-            sigma_tol: float = 0.0) -> tuple[_Point, float]:  # fmt: skip
+            sigma_tol: float = 0.0, ptol: float = LOCATE_TOL) -> tuple[_Point, float]:  # fmt: skip
     """The zero of ``fn`` between ``p0`` and ``p1``: the point and its bracket in p.
 
-    Stops when the bracket is below ``LOCATE_TOL`` in the parameter or ``sigma_tol`` in the arclength (at a
+    Stops when the bracket is below ``ptol`` (relative) in the parameter or ``sigma_tol`` in the arclength (at a
     turn of the parameter the parameter's bracket says nothing about the point's).
     """
     lo, hi = 0.0, float(p0.t @ (p1.X - p0.X))
@@ -862,13 +934,13 @@ def _locate(eng: _Engine, prob: _BranchProblem, fn: Callable[[_Point], float], p
     best = p1 if abs(fhi) < abs(flo) else p0
     side = 0
     for _ in range(60):
-        if abs(phi_ - plo) <= LOCATE_TOL * (1.0 + abs(plo)) and abs(hi - lo) <= sigma_tol:
+        if abs(phi_ - plo) <= ptol * (1.0 + abs(plo)) and abs(hi - lo) <= sigma_tol:
             break
         # Illinois regula falsi: secant steps that keep the bracket
         s = hi - fhi * (hi - lo) / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
         if not (lo < s < hi):
             s = 0.5 * (lo + hi)
-        mid = eng.at(prob, p0, s)
+        mid = eng.at(prob, p0, s, p1)
         fm = fn(mid)
         best = mid
         if fm == 0.0:
@@ -919,7 +991,7 @@ def _birth_point(prob: _BranchProblem, at: _Point, d: int) -> _Point:
     """
     Y0 = np.array([at.X[0], at.X[1], prob.p(at.X)])
     try:
-        Y, _ = _refine(prob.sys, "period_doubling", d, Y0)
+        Y, _, _, _ = _refine(prob.sys, "period_doubling", d, Y0, final=False)
         if abs(Y[2] - Y0[2]) > 1e-4 * (1.0 + abs(Y0[2])) or np.linalg.norm(Y[:2] - Y0[:2]) > 1e-3:
             return at  # went elsewhere
         X = np.array([Y[0], Y[1], prob.scaled(Y[2])])
@@ -1144,58 +1216,96 @@ def _continue_orbit(
     return res
 
 
-def _defining(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The bifurcation's defining system at ``Y = (q, r, p_1, ...)``: ``G = (P^n(x) - x, test(A))`` and its Jacobian.
+def _defining(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The bifurcation's defining system at ``Y = (q, r, p_1, ...)``: ``G = (P^n(x) - x, test(A))``, its Jacobian,
+    ``A`` and the section points ``P(x) .. P^n(x)``.
 
     ``DP^n`` exact; the derivatives of the test function and ``F_p`` by central differences of one
     lock-step batch (base, ``p_k +- delta``, ``x +- delta e_j``).
     """
-    end, a, fp, _, _, ex = sys.evaluate(Y[:2], list(Y[2:]), n, dx=True)
+    end, a, fp, _, pts, ex = sys.evaluate(Y[:2], list(Y[2:]), n, dx=True)
     dphi_x = [(test_function(kind, ap) - test_function(kind, am)) / (2 * h) for ap, am, h in ex["A_x"]]
     dphi_p = [(test_function(kind, ap) - test_function(kind, am)) / (2 * h) for ap, am, h in ex["A_p"]]
     g = np.concatenate([end - Y[:2], [test_function(kind, a)]])
     jac = np.vstack([np.column_stack([a - np.eye(2), fp]), np.array([*dphi_x, *dphi_p])[None, :]])
-    return g, jac, a
+    return g, jac, a, pts
 
 
-def _refine(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Newton on the defining system from a located point: the bifurcation to the accuracy of ``P^n``."""
+def _residual(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The defining system's ``G`` alone at ``Y``, with ``A`` and the orbit ``x, P(x), ..., P^(n-1)(x)``: one
+    integration of the tangent system (no central differences)."""
+    end, a, pts = sys.orbit(Y[:2], list(Y[2:]), n)
+    return np.concatenate([end - Y[:2], [test_function(kind, a)]]), a, np.vstack([Y[None, :2], pts[: n - 1]])
+
+
+def _refine(
+    sys: _System, kind: str, n: int, Y: np.ndarray, final: bool = True, jac: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray]:
+    """Newton on the defining system from a located point: the bifurcation to the accuracy of ``P^n``, with ``A``
+    and the orbit ``x, P(x), ..., P^(n-1)(x)`` there (``final=False``: the point alone, one integration less),
+    and the Jacobian used.
+
+    A chord method: the Jacobian (central differences, six members) is taken at the start (or given: ``jac``)
+    and kept while the steps contract tenfold; each step then costs one integration of the tangent system
+    instead of seven. The point is the zero of ``G``, whichever Jacobian steered Newton there.
+    """
+    last = math.inf
     for _ in range(8):
-        g, jac, a = _defining(sys, kind, n, Y)
+        if jac is None:
+            g, jac, _, _ = _defining(sys, kind, n, Y)
+        else:
+            g, _, _ = _residual(sys, kind, n, Y)
         step = np.linalg.solve(jac, -g)
+        size = float(np.abs(step).max())
+        scale = 1.0 + float(np.abs(Y).max())
+        noise = size <= REFINE_NOISE * scale
+        if size > 0.1 * last and not noise:  # slow: a fresh Jacobian here (the step from the stale one is not taken)
+            g, jac, _, _ = _defining(sys, kind, n, Y)
+            step = np.linalg.solve(jac, -g)
+            size = float(np.abs(step).max())
         Y = Y + step
         if not np.all(np.isfinite(Y)):
             raise _Stop("the refinement of a bifurcation overflowed")
-        if np.abs(step).max() <= 1e-13 * (1.0 + float(np.abs(Y).max())):
+        # Converged; or the steps stopped contracting at the map's noise (no Jacobian does better there).
+        if size <= 1e-13 * scale or (noise and size > 0.1 * last):
             break
-    _, _, a = _defining(sys, kind, n, Y)
-    return Y, a
+        last = size
+    if not final:
+        return Y, None, None, jac
+    _, a, pts = _residual(sys, kind, n, Y)
+    return Y, a, pts, jac
 
 
 def _located(eng: _Engine, prob: _BranchProblem, kind: str, p0: _Point, p1: _Point,
              branch: int) -> tuple[Bifurcation, _Point]:  # fmt: skip
     """Locate the bifurcation between two points of a branch.
 
-    Bracketed secant steps along the branch find the test function's zero; Newton on the defining system
-    ``(P^n(x) - x, test(DP^n)) = 0`` then refines it to the accuracy of the integration. The error
+    Bracketed secant steps along the branch bring the test function's zero to within :data:`REFINE_FROM`;
+    Newton on the defining system ``(P^n(x) - x, test(DP^n)) = 0`` then refines it to the accuracy of the
+    integration (if it fails, the secant steps go on to :data:`LOCATE_TOL`). The error
     estimate is the shift of the refined value when ``P^n`` is integrated ten times less accurately
     (plus the secant bracket, if the refinement failed).
     """
-    at, bracket = _locate(eng, prob, lambda q: test_function(kind, q.A), p0, p1, sigma_tol=math.inf)
+    test = lambda q: test_function(kind, q.A)  # noqa: E731
+    at, bracket = _locate(eng, prob, test, p0, p1, sigma_tol=math.inf, ptol=REFINE_FROM)
     n, sys = prob.n, prob.sys
     Y0 = np.array([at.X[0], at.X[1], prob.p(at.X)])
     loose = Numerics(**{**sys.numerics.as_dict(), "rtol": sys.numerics.rtol * 10,
                         "atol": sys.numerics.atol * 10})  # fmt: skip
     try:
-        Y, a = _refine(sys, kind, n, Y0)
-        Y2, _ = _refine(_System(sys.base, sys.names, loose, 1), kind, n, Y)
+        Y, a, pts, jac = _refine(sys, kind, n, Y0)
+        # The error estimate: the same zero of the less accurate map, from Y with the same Jacobian.
+        Y2, _, _, _ = _refine(_System(sys.base, sys.names, loose, 1), kind, n, Y, final=False, jac=jac)
         error = abs(Y2[2] - Y[2])
-        if abs(Y[2] - Y0[2]) > 1e3 * (bracket + 1e-9 * (1 + abs(Y0[2]))):
+        # The zero is inside the bracket: a refinement further than that (and the map's accuracy) went elsewhere.
+        if abs(Y[2] - Y0[2]) > bracket + 1e3 * (LOCATE_TOL + 1e-9) * (1 + abs(Y0[2])):
             raise _Stop("the refinement went elsewhere")  # keep the bracketed value
     except (_Stop, np.linalg.LinAlgError):
-        Y, a, error = Y0, at.A, bracket
+        # No refinement: the secant steps locate the zero to LOCATE_TOL themselves.
+        at, bracket = _locate(eng, prob, test, p0, p1, sigma_tol=math.inf)
+        Y, a, pts, error = np.array([at.X[0], at.X[1], prob.p(at.X)]), at.A, at.pts, bracket
     X = np.array([Y[0], Y[1], prob.scaled(Y[2])])
-    at = _Point(X, a, at.J, at.t, at.pts)
+    at = _Point(X, a, at.J, at.t, pts)
     bif = Bifurcation(kind, float(Y[2]), float(error), n, Y[:2].copy(), multipliers(a), branch)
     return bif, at
 

@@ -166,6 +166,13 @@ DUPLICATE_TOL = 1e-4
 #: Far from an orbit Newton needs no accurate map: iterates integrate 1e4 times less accurately (DOP853 takes
 #: ~3x fewer steps) until the residual is below ``COARSE_UNTIL (1 + |x|)``.
 COARSE_UNTIL = 1e-5
+#: Farther still (residual above ``FAR_UNTIL (1 + |x|)``) the iterates integrate ``FAR_LOOSEN`` times less
+#: accurately than the orbit (at most ``FAR_RTOL``): a Newton step from a point that far is only a direction, and
+#: the map at 1e-6 takes ~0.6 of the steps at 1e-8 (Fig. 8B, periods 1-8). Most of a grid search's work is
+#: there (seeds that stall, seeds on their way to an orbit found already).
+FAR_UNTIL = 1e-2
+FAR_LOOSEN = 1e6
+FAR_RTOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -210,6 +217,38 @@ def least_period(chain: np.ndarray, n: int, tol: float) -> int:
     return n
 
 
+def _twins(x: np.ndarray, res: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Iterates near an orbit (the accurate phase) within :data:`DUPLICATE_TOL` of another, chained: each such
+    cluster converges to one point, so one member goes on, the one with the smallest last residual (then the
+    smallest ``(q, r)``: whatever the seeds' order). ``out`` marks members stopped already. Returns the others'
+    mask."""
+    m = x.shape[0]
+    twin = np.zeros(m, bool)
+    live = np.flatnonzero(~out)
+    if live.size < 2:
+        return twin
+    xs = x[live]
+    near = (
+        np.linalg.norm(xs[:, None, :] - xs[None, :, :], axis=-1)
+        <= DUPLICATE_TOL * (1.0 + np.linalg.norm(xs, axis=1))[:, None]
+    )
+    near |= near.T
+    label = np.arange(live.size)
+    while True:  # connected components (single linkage): the smallest label of each, by propagation
+        nxt = np.where(near, label[None, :], live.size).min(axis=1)
+        nxt = np.minimum(nxt, label)
+        if np.array_equal(nxt, label):
+            break
+        label = nxt
+    order = np.lexsort((xs[:, 1], xs[:, 0], res[live]))  # the survivor of each cluster comes first
+    seen: set[int] = set()
+    for k in order:
+        if int(label[k]) in seen:
+            twin[live[k]] = True
+        seen.add(int(label[k]))
+    return twin
+
+
 def _solve2(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``a^-1 b`` for stacks of 2x2 systems (closed form) and the determinants."""
     det = a[:, 0, 0] * a[:, 1, 1] - a[:, 0, 1] * a[:, 1, 0]
@@ -247,7 +286,8 @@ def newton(
     ftol : convergence: ``|P^n(x) - x| <= ftol (1 + |x|)``.
     patience : a seed stops after this many iterations without halving its residual (None: only
         ``max_iter`` stops it).
-    coarse : iterate with a map 1e4 times less accurate until the residual is below :data:`COARSE_UNTIL`.
+    coarse : iterate with a map 1e6 times less accurate (at most :data:`FAR_RTOL`) until the residual is below
+        :data:`FAR_UNTIL`, then 1e4 times less accurate until it is below :data:`COARSE_UNTIL`.
     near : a seed whose iterate goes farther than this (max-norm) from the seed fails (the fixed point is
         not the one the seed was near).
     dedupe : a seed whose iterate reaches a point of an orbit found already stops as a duplicate.
@@ -258,7 +298,11 @@ def newton(
     numerics = pmap.numerics
     loose = {"rtol": min(1e-6, numerics.rtol * 1e4), "atol": min(1e-6, numerics.atol * 1e4)}
     rough = pmap.with_numerics(Numerics(**{**numerics.as_dict(), **loose})) if coarse else pmap
-    fine = np.full(m, not coarse)
+    looser = {"rtol": max(loose["rtol"], min(FAR_RTOL, numerics.rtol * FAR_LOOSEN)),
+              "atol": max(loose["atol"], min(FAR_RTOL, numerics.atol * FAR_LOOSEN))}  # fmt: skip
+    roughest = pmap.with_numerics(Numerics(**{**numerics.as_dict(), **looser})) if coarse else pmap
+    fine = np.full(m, not coarse)  # the accurate map
+    far = np.full(m, coarse)  # the roughest map (until the residual is below FAR_UNTIL)
     x0 = seeds.astype(float)
     x = x0.copy()
     near = np.broadcast_to(np.asarray(near, dtype=float), (m,))
@@ -284,21 +328,26 @@ def newton(
         if cancel is not None and cancel():
             out.cancelled = True
             break
-        groups = np.unique(2 * period[active] + fine[active])  # (period, accurate) in order, without a Python loop
-        for n, accurate in zip((groups // 2).tolist(), (groups % 2 == 1).tolist(), strict=True):
-            idx = active[(period[active] == n) & (fine[active] == accurate)]
+        tier = np.where(fine, 2, np.where(far, 0, 1))
+        groups = np.unique(3 * period[active] + tier[active])  # (period, tier) in order, without a Python loop
+        for n, level in zip((groups // 3).tolist(), (groups % 3).tolist(), strict=True):
+            accurate = level == 2
+            now = np.where(fine[active], 2, np.where(far[active], 0, 1))  # as earlier groups left them
+            idx = active[(period[active] == n) & (now == level)]
             if dedupe:  # an iterate next to a point of an orbit found already (of a period dividing n)
                 dup = np.zeros(idx.size, bool)
                 for kn, pts in known:
                     if n % kn == 0:
                         d = np.linalg.norm(x[idx, None, :] - pts[None, :, :], axis=-1).min(axis=1)
                         dup |= d <= DUPLICATE_TOL * (1.0 + np.linalg.norm(x[idx], axis=1))
+                if accurate:
+                    dup |= _twins(x[idx], prev_res[idx], dup)
                 done[idx[dup]] = True
                 out.duplicates += int(dup.sum())
                 idx = idx[~dup]
                 if idx.size == 0:
                     continue
-            mono = (pmap if accurate else rough).derivative(x[idx], n, idx)
+            mono = (pmap, rough, roughest)[2 - level].derivative(x[idx], n, idx)
             iters[idx] += 1
             xi = x[idx]
             bad = mono.status != Status.OK
@@ -339,6 +388,10 @@ def newton(
             switch = (res[step_] <= COARSE_UNTIL * scale[step_]) & (not accurate)
             fine[sel[switch]] = True
             prev_res[sel[switch]] = np.inf
+            if level == 0:  # close enough for the rough map: likewise
+                closer = (res[step_] <= FAR_UNTIL * scale[step_]) & ~switch
+                far[sel[closer | switch]] = False
+                prev_res[sel[closer]] = np.inf
             slow = since[sel] > (patience if patience is not None else max_iter)
             fail(sel[slow], lambda i: f"no convergence: the residual stalled at {best[i]:.3g}")
             jac = mono.matrix[step_] - np.eye(2)[None]
