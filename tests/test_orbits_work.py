@@ -71,6 +71,17 @@ def test_twins_keep_the_smallest_residual_whatever_the_order() -> None:
     assert twin.tolist() == [True, False, False, False, True, False]  # (2e-5, 0) has the smaller residual now
 
 
+def test_twins_of_a_dense_cluster_in_linear_memory() -> None:
+    """20,000 iterates of one orbit together (a fine grid of seeds): one goes on, the rest stop, in memory linear in
+    their number (a dense distance matrix was 6.4 GB); a lone iterate 1e-3 away (ten tolerances) goes on too."""
+    rng = np.random.default_rng(5)
+    x = np.vstack([[0.5, -1.0] + rng.uniform(-1e-6, 1e-6, (20_000, 2)), [[0.501, -1.0]]])
+    res = rng.uniform(1e-9, 1e-7, x.shape[0])
+    twin = _twins(x, res, np.zeros(x.shape[0], bool))
+    assert int((~twin).sum()) == 2 and not twin[-1]
+    assert not twin[int(np.argmin(res[:-1]))]  # the smallest residual is the survivor
+
+
 def test_far_iterates_take_the_roughest_map(monkeypatch: pytest.MonkeyPatch) -> None:
     # Residual above FAR_UNTIL: the tangent system at 1e-6 (main: 1e-8 until the residual is below 1e-5), where
     # most of a grid search's work is; the orbits are the same (tests/test_orbits.py checks them independently).

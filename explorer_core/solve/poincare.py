@@ -26,6 +26,9 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from explorer_core.solve import rk
 from explorer_core.solve.integrators import Batch, coefficients, run, run_at
@@ -227,19 +230,26 @@ def _twins(x: np.ndarray, res: np.ndarray, out: np.ndarray) -> np.ndarray:
     live = np.flatnonzero(~out)
     if live.size < 2:
         return twin
+    live = live[np.all(np.isfinite(x[live]), axis=1)]
+    if live.size < 2:
+        return twin
     xs = x[live]
-    near = (
-        np.linalg.norm(xs[:, None, :] - xs[None, :, :], axis=-1)
-        <= DUPLICATE_TOL * (1.0 + np.linalg.norm(xs, axis=1))[:, None]
-    )
-    near |= near.T
-    label = np.arange(live.size)
-    while True:  # connected components (single linkage): the smallest label of each, by propagation
-        nxt = np.where(near, label[None, :], live.size).min(axis=1)
-        nxt = np.minimum(nxt, label)
-        if np.array_equal(nxt, label):
-            break
-        label = nxt
+    # Chained pairs within either point's tolerance, in memory linear in m (a dense m x m distance matrix, or
+    # every pair of a dense cluster, would take 1.6 GB for 10^4 seeds of one orbit in the accurate phase together):
+    # points sharing a cell of side tol.min() / 2 are within tolerance of each other; cells are linked where their
+    # first points (lexicographic) are. Links found are true ones, so a cluster never joins two orbits' iterates;
+    # it may miss a chain (more iterates go on: more work, the same orbits).
+    tol = DUPLICATE_TOL * (1.0 + np.linalg.norm(xs, axis=1))
+    _, cell = np.unique(np.floor(xs / (0.5 * tol.min())).astype(np.int64), axis=0, return_inverse=True)
+    cell = cell.ravel()
+    by_xy = np.lexsort((xs[:, 1], xs[:, 0]))
+    _, first = np.unique(cell[by_xy], return_index=True)
+    rep = by_xy[first]  # the first point of each cell, cells in order
+    pairs = cKDTree(xs[rep]).query_pairs(float(tol.max()), output_type="ndarray").reshape(-1, 2)
+    d = np.linalg.norm(xs[rep[pairs[:, 0]]] - xs[rep[pairs[:, 1]]], axis=1)
+    pairs = pairs[d <= np.maximum(tol[rep[pairs[:, 0]]], tol[rep[pairs[:, 1]]])]
+    graph = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(rep.size, rep.size))
+    label = connected_components(graph, directed=False)[1][cell]
     order = np.lexsort((xs[:, 1], xs[:, 0], res[live]))  # the survivor of each cluster comes first
     seen: set[int] = set()
     for k in order:
