@@ -327,6 +327,10 @@ class TileResult:
     status: np.ndarray
     errors: tuple[str, ...]
     elapsed_s: float
+    #: Work done per member (load-independent, for profiles): periods integrated with the tangent system and
+    #: the engine's steps (accepted + rejected) over them; Newton's work on settled cycles is not included.
+    periods_run: np.ndarray | None = None
+    steps: np.ndarray | None = None
 
 
 def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
@@ -367,6 +371,8 @@ class _Out(NamedTuple):
     period: np.ndarray
     lyap: np.ndarray
     status: np.ndarray
+    periods_run: np.ndarray
+    steps: np.ndarray
 
 
 def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileResult:
@@ -378,6 +384,8 @@ def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileRes
     period = np.zeros((len(pix), n_ic), dtype=np.int16)
     lyap = np.zeros((len(pix), n_ic))
     status = np.zeros((len(pix), n_ic), dtype=np.int8)
+    periods_run = np.zeros((len(pix), n_ic), dtype=np.int64)
+    steps = np.zeros((len(pix), n_ic), dtype=np.int64)
     errors = []
     members: list[tuple[int, int]] = []
     member_params: list[Params] = []
@@ -392,10 +400,11 @@ def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileRes
         member_params += [p] * n_ic
     if members:
         at = np.array(members, dtype=np.int64)
-        fill(spec, member_params, at, _Out(regime, period, lyap, status))
+        fill(spec, member_params, at, _Out(regime, period, lyap, status, periods_run, steps))
     jj = np.array([j for j, _ in pix], dtype=np.int64)
     ii = np.array([i for _, i in pix], dtype=np.int64)
-    return TileResult(tile, jj, ii, regime, period, lyap, status, tuple(errors), time.perf_counter() - start)
+    return TileResult(tile, jj, ii, regime, period, lyap, status, tuple(errors), time.perf_counter() - start,
+                      periods_run, steps)  # fmt: skip
 
 
 #: Periods between two looks for members that have settled on a cycle (each look is one engine call).
@@ -515,7 +524,7 @@ def chaos_bound(logs: np.ndarray, block: int = SETTLE_CHUNK) -> tuple[float, flo
 
 def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
     """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile)."""
-    regime, period, lyap, status = out
+    regime, period, lyap, status = out[:4]
     bound = min(spec.numerics.bound, ESCAPE_BOUND)
     total = spec.transient + spec.periods
     window = settle_window(spec.p_max)
@@ -528,6 +537,7 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
         every = np.zeros((n, total))  # log R_11 of every period (the measurement's: from spec.transient on)
         logs = every[:, spec.transient :]
         measured = np.zeros(n, dtype=np.int64)  # periods of the measurement completed
+        ran = np.zeros(n, dtype=np.int64)  # periods integrated
         recent = np.zeros((n, window, 2))  # the last `window` section points (a ring)
         may_stop, stopped = np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
         next_try = np.zeros(n, dtype=np.int64)  # no Newton before this many periods
@@ -538,6 +548,7 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
             part = batch.take(live)
             rec, npts = pmap.advance_lyapunov(part, step, members=live, bound=bound)
             batch.put(live, part)
+            ran[live] += npts
             for c in range(step):  # this chunk's records into the ring and the measurement
                 kk = done + c
                 ok = npts > c  # period c completed (a member that failed stops recording)
@@ -597,6 +608,8 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
                         continue
                 keep.append(m)
             live = np.array(keep, dtype=np.int64)
+        out.periods_run[at[idx, 0], at[idx, 1]] = ran
+        out.steps[at[idx, 0], at[idx, 1]] = batch.nsteps
         for row in np.flatnonzero(~stopped):
             m = idx[row]
             pix, k = at[m]
@@ -624,15 +637,18 @@ def compute_tile_each(spec: ChartSpec, tile: TileSpec) -> TileResult:
 
 
 def _fill_each(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
-    regime, period, lyap, status = out
+    regime, period, lyap, status = out[:4]
     n_ic = spec.ics.shape[0]
     for first in range(0, len(params), n_ic):  # a pixel's ICs are consecutive members
         p, n = params[first], at[first, 0]
         coefs = coefficients(Model(p), n=n_ic)
         batch = tangent.start(spec.ics, p.t0, p.period)
         if spec.transient:
-            tangent.advance_lyapunov(coefs, batch, spec.transient, spec.numerics, 1, store=False)
+            out.periods_run[n] = tangent.advance_lyapunov(coefs, batch, spec.transient, spec.numerics, 1,
+                                                          store=False)[3]  # fmt: skip
         logs, _, pts, npts = tangent.advance_lyapunov(coefs, batch, spec.periods, spec.numerics, 1)
+        out.periods_run[n] += npts
+        out.steps[n] = batch.nsteps
         for k in range(n_ic):
             m = int(npts[k])
             lyap[n, k] = logs[k, :m, 0].sum() / (max(m, 1) * p.period)
