@@ -533,11 +533,10 @@ def returns(rings: np.ndarray, p_max: int) -> np.ndarray:
     for every member and any tolerance at once.
     """
     n = rings.shape[1]
-    ps = range(1, min(p_max, n - 1) + 1)
-    lo = np.concatenate([np.arange(n - q) for q in ps])
-    starts = np.cumsum([0] + [n - q for q in ps])[:-1]
-    d = np.abs(rings[:, lo + np.repeat(np.array(list(ps)), [n - q for q in ps])] - rings[:, lo]).max(axis=2)
-    return np.maximum.reduceat(d, starts, axis=1)
+    d = np.empty((rings.shape[0], max(0, min(p_max, n - 1))))
+    for p in range(1, d.shape[1] + 1):  # slices, not an index array: ~20x faster at 48 points
+        d[:, p - 1] = np.abs(rings[:, p:] - rings[:, :-p]).max(axis=(1, 2))
+    return d
 
 
 def first_return(d: np.ndarray, tol: np.ndarray) -> np.ndarray:
@@ -552,11 +551,18 @@ def chaos_bound(logs: np.ndarray, block: int = CHAOS_BLOCK) -> tuple[float, floa
     Blocks of ``block`` consecutive periods (the tail beyond whole blocks is left out) are nearly
     independent on a chaotic orbit, so their spread measures the uncertainty of the mean.
     """
-    nb = logs.size // block
+    mean, err = chaos_bounds(np.asarray(logs)[None, :], block)
+    return float(mean[0]), float(err[0])
+
+
+def chaos_bounds(logs: np.ndarray, block: int = CHAOS_BLOCK) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`chaos_bound` of every row of ``logs`` (m, n): ``(means, standard errors)``."""
+    m, n = logs.shape
+    nb = n // block
     if nb < 2:
-        return math.nan, math.inf
-    b = logs[: nb * block].reshape(nb, block).mean(axis=1)
-    return float(b.mean()), float(b.std(ddof=1)) / math.sqrt(nb)
+        return np.full(m, math.nan), np.full(m, math.inf)
+    b = logs[:, : nb * block].reshape(m, nb, block).mean(axis=2)
+    return b.mean(axis=1), b.std(axis=1, ddof=1) / math.sqrt(nb)
 
 
 def near_returns(rings: np.ndarray, p_max: int, pairs: int) -> np.ndarray:
@@ -640,7 +646,18 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
                 # A divisor that gave no cycle is not tried again for that member: the return's own period is.
                 whole[live[ask[(first < close[ask]) & np.array([f is None for f in found], dtype=bool)]]] = True
                 cycles = dict(zip(ask.tolist(), zip(found, first == close[ask], strict=True), strict=True))
-            chaos_look = done % CHAOS_BLOCK == 0
+            # Chaos bounds of every live member at once (all have run `done` periods, `got` of the measurement).
+            chaotic, spans = np.zeros(live.size, dtype=bool), every[live, :0]
+            got = max(0, done - spec.transient)
+            if done % CHAOS_BLOCK == 0 and (got >= CHAOS_MIN_PERIODS or done >= CHAOS_EARLY_PERIODS):
+                # The measurement so far, or (before it is long enough) the second half of the run so far.
+                early = got < CHAOS_MIN_PERIODS
+                spans = every[live, (done // 2) // CHAOS_BLOCK * CHAOS_BLOCK if early else spec.transient : done]
+                z, margin = (CHAOS_EARLY_Z, CHAOS_EARLY_MARGIN) if early else (CHAOS_Z, CHAOS_MARGIN)
+                if early and done >= CHAOS_LATER_PERIODS:
+                    margin = CHAOS_LATER_MARGIN
+                mean, err = chaos_bounds(spans)
+                chaotic = (back == 0) & (mean - z * err > margin * spec.lyap_threshold * abs(batch.period))
             keep = []
             for a, m in enumerate(live):
                 if a in cycles:
@@ -655,21 +672,12 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
                         may_stop[m] = False  # returns within tol but no attracting cycle: the whole run decides
                     elif own:
                         next_try[m] = done + SETTLE_RETRY  # close, not yet a cycle Newton confirms
-                got = int(measured[m])
-                if chaos_look and not back[a] and (got >= CHAOS_MIN_PERIODS or done >= CHAOS_EARLY_PERIODS):
-                    # The measurement so far, or (before it is long enough) the second half of the run so far.
-                    early = got < CHAOS_MIN_PERIODS
-                    span = every[m, (done // 2) // CHAOS_BLOCK * CHAOS_BLOCK : done] if early else logs[m, :got]
-                    z, margin = (CHAOS_EARLY_Z, CHAOS_EARLY_MARGIN) if early else (CHAOS_Z, CHAOS_MARGIN)
-                    if early and done >= CHAOS_LATER_PERIODS:
-                        margin = CHAOS_LATER_MARGIN
-                    mean, err = chaos_bound(span)
-                    if mean - z * err > margin * spec.lyap_threshold * abs(batch.period):
-                        pix, k = at[idx[m]]
-                        regime[pix, k], status[pix, k], period[pix, k] = CHAOTIC, Status.OK, 0
-                        lyap[pix, k] = span.mean() / params[idx[m]].period
-                        stopped[m] = True
-                        continue
+                if chaotic[a]:
+                    pix, k = at[idx[m]]
+                    regime[pix, k], status[pix, k], period[pix, k] = CHAOTIC, Status.OK, 0
+                    lyap[pix, k] = spans[a].mean() / params[idx[m]].period
+                    stopped[m] = True
+                    continue
                 keep.append(m)
             live = np.array(keep, dtype=np.int64)
         out.periods_run[at[idx, 0], at[idx, 1]] = ran
