@@ -267,7 +267,18 @@ def plan_tiles(shape: tuple[int, int], coarse: int = 8, tile_pixels: int = 64) -
                 if t.pixels():
                     tiles.append(t)
         stride //= 2
-    return tiles
+    # The last tiles in quarters: a core that finishes early waits for the other's last tile at most a quarter
+    # as long (every member is computed alone, so tiles change nothing but the order).
+    tail = []
+    for t in tiles[-TAIL_TILES:]:
+        jm, im = (t.j0 + t.j1 + 1) // 2, (t.i0 + t.i1 + 1) // 2
+        quarters = [(t.j0, jm, t.i0, im), (t.j0, jm, im, t.i1), (jm, t.j1, t.i0, im), (jm, t.j1, im, t.i1)]
+        tail += [q for q in (TileSpec(t.stride, t.coarsest, *b) for b in quarters) if q.pixels()]
+    return tiles[: max(0, len(tiles) - TAIL_TILES)] + tail
+
+
+#: Tiles at the end of :func:`plan_tiles` split in four.
+TAIL_TILES = 4
 
 
 def lattice(n: int, stride: int) -> np.ndarray:
