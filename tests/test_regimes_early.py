@@ -91,3 +91,15 @@ def test_settled_cycles_take_one_period_per_point() -> None:
         alone = regimes.settled_cycles(coefficients(Model(at), n=1), seed[k : k + 1], p, at.t0, at.period)[0]
         assert mixed[k] is not None and mixed[k][0] == alone[0] == 1
         assert mixed[k][1] == pytest.approx(alone[1], rel=1e-12)
+
+
+@pytest.mark.parametrize("p_max", [1, 2, 16])
+def test_cycles_stop_early_whatever_the_longest_period(p_max: int) -> None:
+    """A member on the period-1 cycle stops early even when the ring of points is shorter than SETTLE_POINTS
+    returns (p_max < 4: the ring holds 3 p_max points)."""
+    spec = chart_spec(FIG11, "alpha", (-0.36, -0.35), "I11", (1.0, 1.1), (2, 2), ics=ICS[:1], transient=150,
+                      periods=100, p_max=p_max)  # fmt: skip
+    for t in plan_tiles(spec.shape, 1, 64):
+        res = compute_tile(spec, t)
+        assert np.all(res.regime == PERIODIC) and np.all(res.period == 1)
+        assert np.all(res.periods_run <= 30), res.periods_run

@@ -596,6 +596,7 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
     bound = min(spec.numerics.bound, ESCAPE_BOUND)
     total = spec.transient + spec.periods
     window = settle_window(spec.p_max)
+    pairs = min(SETTLE_POINTS, window - spec.p_max)  # close returns needed (fewer if p_max < SETTLE_POINTS / 2)
     y0 = tangent.start(spec.ics[at[:, 1]], 0.0, 1.0).y
     for idx, coefs, batch in lockstep_groups(params, y0):
         pmap = PoincareMap.rows(coefs, batch.t0, batch.period, spec.numerics, workers=1, block=1)
@@ -640,7 +641,7 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
                 else np.zeros(live.size, dtype=np.int64)
             )
             loose = max(SETTLE_TOL, spec.tol) * scale
-            near = near_returns(rings, spec.p_max, SETTLE_POINTS)
+            near = near_returns(rings, spec.p_max, pairs)
             close = np.where(back > 0, back, first_return(near, loose))
             # Only members that contract: on (or near) an attracting cycle the tangent vector shrinks, near a
             # saddle (a chaotic orbit's close returns) it grows, and Newton would find a cycle that does not attract.
