@@ -103,3 +103,30 @@ def test_cycles_stop_early_whatever_the_longest_period(p_max: int) -> None:
         res = compute_tile(spec, t)
         assert np.all(res.regime == PERIODIC) and np.all(res.period == 1)
         assert np.all(res.periods_run <= 30), res.periods_run
+
+
+def _codes(regime: np.ndarray, period: np.ndarray) -> np.ndarray:
+    return np.where(regime == PERIODIC, period.astype(np.int64), -regime.astype(np.int64))
+
+
+def test_early_stops_agree_with_the_whole_run_off_the_boundaries() -> None:
+    """Where the reference (every member the whole way) has the same regime and period at a pixel and its eight
+    neighbours for an initial condition, stopping early must give that regime and period too: early stops may
+    differ only where the regime changes (transient chaos, cycles the reference's tail had not converged on).
+    (Chaos decided from 30 periods, or SETTLE_TOL 0.3, break it: 5 and 7 differences.)"""
+    spec = _spec(grid=(10, 8))
+    ny, nx = spec.shape
+    early = np.zeros((ny, nx, 2), dtype=np.int64)
+    ref = np.zeros_like(early)
+    for t in plan_tiles(spec.shape, 4, 64):
+        a, b = compute_tile(spec, t), compute_tile_each(spec, t)
+        early[a.jj, a.ii] = _codes(a.regime, a.period)
+        ref[b.jj, b.ii] = _codes(b.regime, b.period)
+    interior = np.zeros_like(ref, dtype=bool)
+    for j in range(ny):
+        for i in range(nx):
+            block = ref[max(0, j - 1) : j + 2, max(0, i - 1) : i + 2]
+            interior[j, i] = np.all(block == ref[j, i][None, None, :], axis=(0, 1))
+    assert interior.sum() >= 40
+    np.testing.assert_array_equal(early[interior], ref[interior])
+    assert np.count_nonzero(early != ref) <= 3, np.argwhere(early != ref)
