@@ -267,7 +267,18 @@ def plan_tiles(shape: tuple[int, int], coarse: int = 8, tile_pixels: int = 64) -
                 if t.pixels():
                     tiles.append(t)
         stride //= 2
-    return tiles
+    # The last tiles in quarters: a core that finishes early waits for the other's last tile at most a quarter
+    # as long (every member is computed alone, so tiles change nothing but the order).
+    tail = []
+    for t in tiles[-TAIL_TILES:]:
+        jm, im = (t.j0 + t.j1 + 1) // 2, (t.i0 + t.i1 + 1) // 2
+        quarters = [(t.j0, jm, t.i0, im), (t.j0, jm, im, t.i1), (jm, t.j1, t.i0, im), (jm, t.j1, im, t.i1)]
+        tail += [q for q in (TileSpec(t.stride, t.coarsest, *b) for b in quarters) if q.pixels()]
+    return tiles[: max(0, len(tiles) - TAIL_TILES)] + tail
+
+
+#: Tiles at the end of :func:`plan_tiles` split in four.
+TAIL_TILES = 4
 
 
 def lattice(n: int, stride: int) -> np.ndarray:
@@ -327,6 +338,10 @@ class TileResult:
     status: np.ndarray
     errors: tuple[str, ...]
     elapsed_s: float
+    #: Work done per member (load-independent, for profiles): periods integrated with the tangent system and
+    #: the engine's steps (accepted + rejected) over them; Newton's work on settled cycles is not included.
+    periods_run: np.ndarray | None = None
+    steps: np.ndarray | None = None
 
 
 def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
@@ -337,25 +352,33 @@ def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
     escaping or chaotic members multiplied the steps of the whole block ~8x). Every
     :data:`SETTLE_CHUNK` periods a member may stop early:
 
-    * **on an attracting cycle**: once its last ``p_max +`` :data:`SETTLE_POINTS` section points return
-      within :data:`SETTLE_TOL` after ``p <= p_max`` iterations it is handed to Newton on ``P^p(x) - x``
-      (:func:`settled_cycle`: least period at the resolution ``tol``, multipliers). If the cycle
-      attracts (``max |mu| < 1``) and lies within that tolerance of the member, the member is periodic
-      with that period and its exponent is the cycle's own, ``log max |mu| / (p T)`` (which a
-      finite-time average only approaches). Otherwise it is tried again :data:`SETTLE_RETRY` periods
-      later, or never again once its points return within ``tol`` (the whole run decides, as before);
+    * **on an attracting cycle**: once its section points return within :data:`SETTLE_TOL` after
+      ``p <= p_max`` iterations :data:`SETTLE_POINTS` times in a row (:func:`near_returns`), and its
+      ``log R_11`` over the last :data:`CONTRACT_SPAN` periods has a negative mean (it contracts: near a
+      saddle, as a chaotic orbit's close returns are, it does not), it is handed to Newton
+      (:func:`settled_cycles`: least period at the resolution ``tol``, multipliers) on ``P^d`` for the least
+      divisor ``d`` of ``p`` whose returns are within :data:`SETTLE_DIVISOR` times that tolerance (a member
+      spiralling onto a fixed point returns best after ``p`` iterations; Newton on ``P`` costs a ``p``-th),
+      else on ``P^p``. If the cycle attracts (``max |mu| < 1``) and lies within that tolerance of the member,
+      the member is periodic with that period and its exponent is the cycle's own, ``log max |mu| / (p T)``
+      (which a finite-time average only approaches). A divisor that gave nothing is not tried again (the
+      next look asks for ``P^p``); a ``P^p`` that gave nothing is tried again :data:`SETTLE_RETRY` periods
+      later, or never again once the points return within ``tol`` (the whole run decides, as before);
     * **escaped**: ``|q|`` or ``|r|`` passed :data:`ESCAPE_BOUND` (or the integration's bound if smaller);
-    * **chaotic**: after :data:`CHAOS_MIN_PERIODS` measured periods with no return within ``tol``, if
-      the mean per-period ``log R_11`` minus :data:`CHAOS_Z` standard errors (:func:`chaos_bound`) is
-      above :data:`CHAOS_MARGIN` times the threshold; its exponent is the mean so far. A strongly
-      chaotic member is decided from :data:`CHAOS_EARLY_PERIODS` periods on, in the transient, by a
-      stricter bound over the second half of its periods so far (its exponent is their mean).
+    * **chaotic** (looked at every :data:`CHAOS_BLOCK` periods, whatever :data:`SETTLE_CHUNK`): after
+      :data:`CHAOS_MIN_PERIODS` measured periods with no return within ``tol``, if the mean per-period
+      ``log R_11`` minus :data:`CHAOS_Z` standard errors (:func:`chaos_bound`) is above
+      :data:`CHAOS_MARGIN` times the threshold; its exponent is the mean so far. A strongly chaotic member
+      is decided from :data:`CHAOS_EARLY_PERIODS` periods on, in the transient, by a stricter bound over the
+      second half of its periods so far (its exponent is their mean): above :data:`CHAOS_EARLY_MARGIN`
+      times the threshold, or :data:`CHAOS_LATER_MARGIN` times from :data:`CHAOS_LATER_PERIODS` on.
 
     Every other member runs the whole transient and measurement and is classified exactly as
     :func:`compute_tile_each` does (to the last bit: chunked runs continue each step sequence
-    unchanged). Differences from that reference (``benchmarks/chart_speed.py``) are on regime
-    boundaries: cycles the reference's finite tail had not converged on (Newton finds them), and long
-    chaotic transients that settle after the chaos decision.
+    unchanged). Differences from that reference (``benchmarks/chart_speed.py``,
+    ``benchmarks/chart_work.py --reference``) are on regime boundaries: cycles the reference's finite tail
+    had not converged on (Newton finds them; near a period doubling, the least period), and long chaotic
+    transients that settle (or escape) after the chaos decision.
     """
     return _tile(spec, tile, _classify_members)
 
@@ -367,6 +390,8 @@ class _Out(NamedTuple):
     period: np.ndarray
     lyap: np.ndarray
     status: np.ndarray
+    periods_run: np.ndarray
+    steps: np.ndarray
 
 
 def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileResult:
@@ -378,6 +403,8 @@ def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileRes
     period = np.zeros((len(pix), n_ic), dtype=np.int16)
     lyap = np.zeros((len(pix), n_ic))
     status = np.zeros((len(pix), n_ic), dtype=np.int8)
+    periods_run = np.zeros((len(pix), n_ic), dtype=np.int64)
+    steps = np.zeros((len(pix), n_ic), dtype=np.int64)
     errors = []
     members: list[tuple[int, int]] = []
     member_params: list[Params] = []
@@ -392,20 +419,37 @@ def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileRes
         member_params += [p] * n_ic
     if members:
         at = np.array(members, dtype=np.int64)
-        fill(spec, member_params, at, _Out(regime, period, lyap, status))
+        fill(spec, member_params, at, _Out(regime, period, lyap, status, periods_run, steps))
     jj = np.array([j for j, _ in pix], dtype=np.int64)
     ii = np.array([i for _, i in pix], dtype=np.int64)
-    return TileResult(tile, jj, ii, regime, period, lyap, status, tuple(errors), time.perf_counter() - start)
+    return TileResult(tile, jj, ii, regime, period, lyap, status, tuple(errors), time.perf_counter() - start,
+                      periods_run, steps)  # fmt: skip
 
 
-#: Periods between two looks for members that have settled on a cycle (each look is one engine call).
+#: Periods between two looks for members that have settled on a cycle (each look is one engine call, and one
+#: Newton for the members handed over; a Newton costs ~1 ms of Python whatever its points: looking every 5
+#: periods stopped members 2.5 periods sooner but doubled the Newtons).
 SETTLE_CHUNK = 10
-#: A member whose last ``p_max + SETTLE_POINTS`` section points return within SETTLE_TOL (relative, as
-#: ``tol``) is handed to Newton: the cycle Newton finds decides, so the points need not have converged to
-#: ``tol`` yet. (Fig. 11 window: periodic members hand over after a median 50 periods, against 120 when
-#: the last 48 points had to return within 1e-5.)
-SETTLE_TOL = 1e-2
-SETTLE_POINTS = 8
+#: A member whose section points return after ``p <= p_max`` iterations within SETTLE_TOL (relative, as
+#: ``tol``) SETTLE_POINTS times in a row (its last ``p + SETTLE_POINTS`` points) is handed to Newton: the cycle
+#: Newton finds decides, so the points need not have converged to ``tol`` yet. (Fig. 11 window, 40x40 x 2 ICs:
+#: period-1 members hand over after 46 periods on average when the last ``p_max + 8`` points had to return
+#: within 1e-2 for every ``p``, 24 now; 1e-1 handed over sooner still but changed 7 more members' periods.
+#: 5 returns instead of 8: 2% fewer steps, the same verdicts on the 40x40 and 60x30 charts.)
+SETTLE_TOL = 3e-2
+SETTLE_POINTS = 5
+#: Newton is asked for the cycle of the least divisor ``d`` of that ``p`` whose returns are within
+#: SETTLE_DIVISOR times SETTLE_TOL: a member spiralling onto a fixed point with a rotation near ``1/p``
+#: returns best after ``p`` iterations, yet the fixed point is Newton's on ``P`` at a ``p``-th of the cost
+#: (``|P(x) - x| <= |1 - mu| |x - x*| <= 2 sqrt 2 |x - x*|`` in the max-norm near a fixed point of multipliers
+#: ``|mu| <= 1``, and Newton's fixed point must lie within SETTLE_TOL of the member). If that gives no cycle,
+#: the member's next look asks for ``P^p``. (Fig. 11 window: 1400 of 1600 period-1 cycles were found on
+#: ``P^2 .. P^7`` before.)
+SETTLE_DIVISOR = 3.0
+#: A member is handed to Newton only if its ``log R_11`` over the last CONTRACT_SPAN periods has a negative mean:
+#: a chaotic orbit's close returns pass near saddle cycles, on which Newton converges in vain (at SETTLE_TOL 3e-2
+#: without this test, 1770 of 5364 hand-overs found a cycle that does not attract: 2/3 of Newton's steps).
+CONTRACT_SPAN = 10
 #: Periods to wait before a member that returned within SETTLE_TOL but gave no attracting cycle is tried again.
 SETTLE_RETRY = 50
 #: Charts stop a member once ``|q|`` or ``|r|`` passes this (and the integration's own bound): escaped. On the
@@ -414,7 +458,10 @@ SETTLE_RETRY = 50
 ESCAPE_BOUND = 100.0
 #: A member is decided chaotic once it has measured this many periods and the confidence bound below holds.
 CHAOS_MIN_PERIODS = 100
-#: Chaos bound: the mean of the per-period ``log R_11`` over blocks of SETTLE_CHUNK periods, minus CHAOS_Z
+#: Periods per block of the chaos bound (block means of ``log R_11`` are nearly independent on a chaotic
+#: orbit); the chaos bounds are checked every CHAOS_BLOCK periods.
+CHAOS_BLOCK = 10
+#: Chaos bound: the mean of the per-period ``log R_11`` over blocks of CHAOS_BLOCK periods, minus CHAOS_Z
 #: standard errors of that mean, above CHAOS_MARGIN times the threshold (per period).
 CHAOS_Z = 4.0
 CHAOS_MARGIN = 1.5
@@ -422,9 +469,18 @@ CHAOS_MARGIN = 1.5
 #: if the bound over the second half of its periods so far, with CHAOS_EARLY_Z standard errors, is above
 #: CHAOS_EARLY_MARGIN times the threshold. (Measured on the Fig. 11 window, 60x30 x 2 ICs: chaotic members
 #: cost half as much; one more member of 3600 is called chaotic that a long transient brings to a cycle.)
+#: Earlier decisions cost more of those: from 100 periods, 3-6 times as many on the 40x40 chart.
 CHAOS_EARLY_PERIODS = 200
 CHAOS_EARLY_Z = 5.0
 CHAOS_EARLY_MARGIN = 8.0
+#: From CHAOS_LATER_PERIODS periods on, that bound need only be above CHAOS_LATER_MARGIN times the threshold.
+#: (Chaotic members of the Fig. 11 window have exponents 10-16 times the threshold and a standard error of
+#: ~1.6 times it over 100 periods: most missed the first margin and ran to 300-600 periods. Measured on every
+#: member run the whole way, 40x40 and 60x30 x 2 ICs: margin 3 from 300 periods, 16% fewer chaotic periods, 2
+#: and 0 more members called chaotic that the reference calls otherwise, all on boundaries; margin 2, 2.5%
+#: fewer again and no other member; margin 3 from 250 periods instead: 1 and 3 more members.)
+CHAOS_LATER_PERIODS = 300
+CHAOS_LATER_MARGIN = 2.0
 
 
 def settle_window(p_max: int) -> int:
@@ -437,18 +493,20 @@ def settle_window(p_max: int) -> int:
 NEWTON_NUMERICS = Numerics(rtol=1e-10, atol=1e-10)
 NEWTON_FTOL = 1e-8
 NEWTON_ITER = 8
+#: Newton's first iterations with a map 1e4 times less accurate (see :func:`~explorer_core.solve.poincare.newton`).
+NEWTON_COARSE = True
 
 
 def settled_cycles(
     coefs: Coefficients,
     x: np.ndarray,
-    p: int,
+    p: int | np.ndarray,
     t0: float,
     period: float,
     near: np.ndarray | float = math.inf,
     same: np.ndarray | float = 1e-6,
 ) -> list[tuple[int, float] | None]:
-    """``(least period, exponent)`` of the attracting cycle Newton finds near each ``x[m]`` for ``P^p``, or None.
+    """``(least period, exponent)`` of the attracting cycle Newton finds near each ``x[m]`` for ``P^p[m]``, or None.
 
     ``coefs`` holds one row of coefficients per point (``coefs.row``, as a chart's members), so the points
     of many pixels go through one batch per iteration. None when Newton fails, when it goes farther than
@@ -456,18 +514,19 @@ def settled_cycles(
     not attract (``max |mu| >= 1``). Points of the cycle within ``same[m]`` (Euclidean) of its first are one
     point: the period is the least ``d`` dividing ``p`` with ``P^d(x) = x`` at that resolution (Newton on
     ``P^2`` converges to a fixed point too); the exponent ``log max |mu| / (p T)`` is the same for a cycle
-    and its multiples.
+    and its multiples. ``p`` is one period for every point or one per point (one Newton for all).
     """
     x0 = np.asarray(x, dtype=float).reshape(-1, 2)
     m = x0.shape[0]
+    ps = np.broadcast_to(np.asarray(p, dtype=np.int64), (m,))
     pmap = PoincareMap.rows(coefs, t0, period, NEWTON_NUMERICS, workers=1, block=1)
-    res = newton(pmap, x0, np.full(m, int(p)), ftol=NEWTON_FTOL, max_iter=NEWTON_ITER, max_step=math.inf,
-                 patience=None, coarse=False, near=near, dedupe=False, same=same)  # fmt: skip
+    res = newton(pmap, x0, ps.copy(), ftol=NEWTON_FTOL, max_iter=NEWTON_ITER, max_step=math.inf,
+                 patience=None, coarse=NEWTON_COARSE, near=near, dedupe=False, same=same)  # fmt: skip
     out: list[tuple[int, float] | None] = [None] * m
     for c in res.converged:
         mu = float(np.abs(np.linalg.eigvals(c.mono.matrix[0])).max())
         if 0.0 < mu < 1.0:  # a saddle or a repeller: no early stop
-            out[c.i] = (c.least, math.log(mu) / (p * period))
+            out[c.i] = (c.least, math.log(mu) / (int(ps[c.i]) * period))
     return out
 
 
@@ -487,11 +546,10 @@ def returns(rings: np.ndarray, p_max: int) -> np.ndarray:
     for every member and any tolerance at once.
     """
     n = rings.shape[1]
-    ps = range(1, min(p_max, n - 1) + 1)
-    lo = np.concatenate([np.arange(n - q) for q in ps])
-    starts = np.cumsum([0] + [n - q for q in ps])[:-1]
-    d = np.abs(rings[:, lo + np.repeat(np.array(list(ps)), [n - q for q in ps])] - rings[:, lo]).max(axis=2)
-    return np.maximum.reduceat(d, starts, axis=1)
+    d = np.empty((rings.shape[0], max(0, min(p_max, n - 1))))
+    for p in range(1, d.shape[1] + 1):  # slices, not an index array: ~20x faster at 48 points
+        d[:, p - 1] = np.abs(rings[:, p:] - rings[:, :-p]).max(axis=(1, 2))
+    return d
 
 
 def first_return(d: np.ndarray, tol: np.ndarray) -> np.ndarray:
@@ -500,26 +558,47 @@ def first_return(d: np.ndarray, tol: np.ndarray) -> np.ndarray:
     return np.where(hit.any(axis=1), hit.argmax(axis=1) + 1, 0)
 
 
-def chaos_bound(logs: np.ndarray, block: int = SETTLE_CHUNK) -> tuple[float, float]:
+def chaos_bound(logs: np.ndarray, block: int = CHAOS_BLOCK) -> tuple[float, float]:
     """Mean per-period ``log R_11`` of ``logs`` (1-D) and the standard error of that mean from block means.
 
     Blocks of ``block`` consecutive periods (the tail beyond whole blocks is left out) are nearly
     independent on a chaotic orbit, so their spread measures the uncertainty of the mean.
     """
-    nb = logs.size // block
+    mean, err = chaos_bounds(np.asarray(logs)[None, :], block)
+    return float(mean[0]), float(err[0])
+
+
+def chaos_bounds(logs: np.ndarray, block: int = CHAOS_BLOCK) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`chaos_bound` of every row of ``logs`` (m, n): ``(means, standard errors)``."""
+    m, n = logs.shape
+    nb = n // block
     if nb < 2:
-        return math.nan, math.inf
-    b = logs[: nb * block].reshape(nb, block).mean(axis=1)
-    return float(b.mean()), float(b.std(ddof=1)) / math.sqrt(nb)
+        return np.full(m, math.nan), np.full(m, math.inf)
+    b = logs[:, : nb * block].reshape(m, nb, block).mean(axis=2)
+    return b.mean(axis=1), b.std(axis=1, ddof=1) / math.sqrt(nb)
+
+
+def near_returns(rings: np.ndarray, p_max: int, pairs: int) -> np.ndarray:
+    """``d[m, p - 1]``: the largest of the last ``pairs`` returns ``|x_(k+p) - x_k|`` (max-norm) of ``rings[m]``
+    (n, 2), oldest first; ``inf`` where the ring holds fewer than ``p + pairs`` points."""
+    m, n = rings.shape[:2]
+    d = np.full((m, p_max), np.inf)
+    for p in range(1, min(p_max, n - pairs) + 1):
+        d[:, p - 1] = np.abs(rings[:, n - pairs :] - rings[:, n - pairs - p : n - p]).max(axis=(1, 2))
+    return d
+
+
+def _divisors(p: int) -> list[int]:
+    return [d for d in range(1, p + 1) if p % d == 0]
 
 
 def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
     """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile)."""
-    regime, period, lyap, status = out
+    regime, period, lyap, status = out[:4]
     bound = min(spec.numerics.bound, ESCAPE_BOUND)
     total = spec.transient + spec.periods
     window = settle_window(spec.p_max)
-    short = min(window, spec.p_max + SETTLE_POINTS)  # points that must return before Newton is asked
+    pairs = min(SETTLE_POINTS, window - spec.p_max)  # close returns needed (fewer if p_max < SETTLE_POINTS / 2)
     y0 = tangent.start(spec.ics[at[:, 1]], 0.0, 1.0).y
     for idx, coefs, batch in lockstep_groups(params, y0):
         pmap = PoincareMap.rows(coefs, batch.t0, batch.period, spec.numerics, workers=1, block=1)
@@ -528,16 +607,20 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
         every = np.zeros((n, total))  # log R_11 of every period (the measurement's: from spec.transient on)
         logs = every[:, spec.transient :]
         measured = np.zeros(n, dtype=np.int64)  # periods of the measurement completed
+        ran = np.zeros(n, dtype=np.int64)  # periods integrated
         recent = np.zeros((n, window, 2))  # the last `window` section points (a ring)
         may_stop, stopped = np.ones(n, dtype=bool), np.zeros(n, dtype=bool)
         next_try = np.zeros(n, dtype=np.int64)  # no Newton before this many periods
+        whole = np.zeros(n, dtype=bool)  # Newton on the return's period itself (a divisor failed)
         live = np.flatnonzero(batch.status == Status.OK)
         done = 0
         while done < total and live.size:
-            step = min(SETTLE_CHUNK, total - done)
+            # Looks every SETTLE_CHUNK periods, landing on every multiple of CHAOS_BLOCK (the chaos bounds').
+            step = min(SETTLE_CHUNK, CHAOS_BLOCK - done % CHAOS_BLOCK, total - done)
             part = batch.take(live)
             rec, npts = pmap.advance_lyapunov(part, step, members=live, bound=bound)
             batch.put(live, part)
+            ran[live] += npts
             for c in range(step):  # this chunk's records into the ring and the measurement
                 kk = done + c
                 ok = npts > c  # period c completed (a member that failed stops recording)
@@ -548,10 +631,11 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
                     measured[live[ok]] += 1
             done += step
             live = live[part.status == Status.OK]
-            if done < short or done >= total:
+            if done >= total or not live.size:
                 continue
-            rings = np.roll(recent[live], -(done % window), axis=1)  # oldest first (valid: the last `done`)
-            scale = 1.0 + np.abs(rings[:, -min(done, window) :]).max(axis=(1, 2))
+            # The valid points of the ring, oldest first.
+            rings = np.roll(recent[live], -(done % window), axis=1)[:, -min(done, window) :]
+            scale = 1.0 + np.abs(rings).max(axis=(1, 2))
             # Returns within tol over the whole ring: what the classification sees.
             back = (
                 first_return(returns(rings, spec.p_max), spec.tol * scale)
@@ -559,44 +643,59 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
                 else np.zeros(live.size, dtype=np.int64)
             )
             loose = max(SETTLE_TOL, spec.tol) * scale
-            close = np.where(back > 0, back, first_return(returns(rings[:, -short:], spec.p_max), loose))
-            ask = may_stop[live] & (next_try[live] <= done) & (close > 0)
-            found: dict[int, tuple[int, float] | None] = {}
-            for p in np.unique(close[ask]):  # Newton for every member close to a cycle of period p at once
-                sel = np.flatnonzero(ask & (close == p))
-                co = coefs._replace(row=np.ascontiguousarray(coefs.row[live[sel]]))
-                cyc = settled_cycles(co, rings[sel, -1], int(p), batch.t0, batch.period, near=loose[sel],
-                                     same=spec.tol * scale[sel])  # fmt: skip
-                found.update(zip(sel.tolist(), cyc, strict=True))
+            near = near_returns(rings, spec.p_max, pairs)
+            close = np.where(back > 0, back, first_return(near, loose))
+            # Only members that contract: on (or near) an attracting cycle the tangent vector shrinks, near a
+            # saddle (a chaotic orbit's close returns) it grows, and Newton would find a cycle that does not attract.
+            contracting = every[live, max(0, done - CONTRACT_SPAN) : done].mean(axis=1) < 0
+            ask = np.flatnonzero(may_stop[live] & (next_try[live] <= done) & (close > 0) & contracting)
+            # Newton's verdict for the members asked, and whether it was for the return's own period.
+            cycles: dict[int, tuple[tuple[int, float] | None, bool]] = {}
+            if ask.size:
+                # Newton's period: the least divisor of the return's whose returns are nearly as close.
+                first = np.array([next(d for d in _divisors(int(close[a])) if near[a, d - 1] <= SETTLE_DIVISOR *
+                                       loose[a] or d == close[a]) for a in ask], dtype=np.int64)  # fmt: skip
+                first = np.where(whole[live[ask]], close[ask], first)
+                found = _cycles(coefs, live, rings, scale, loose, ask, first, batch, spec)
+                # A divisor that gave no cycle is not tried again for that member: the return's own period is.
+                whole[live[ask[(first < close[ask]) & np.array([f is None for f in found], dtype=bool)]]] = True
+                cycles = dict(zip(ask.tolist(), zip(found, first == close[ask], strict=True), strict=True))
+            # Chaos bounds of every live member at once (all have run `done` periods, `got` of the measurement).
+            chaotic, spans = np.zeros(live.size, dtype=bool), every[live, :0]
+            got = max(0, done - spec.transient)
+            if done % CHAOS_BLOCK == 0 and (got >= CHAOS_MIN_PERIODS or done >= CHAOS_EARLY_PERIODS):
+                # The measurement so far, or (before it is long enough) the second half of the run so far.
+                early = got < CHAOS_MIN_PERIODS
+                spans = every[live, (done // 2) // CHAOS_BLOCK * CHAOS_BLOCK if early else spec.transient : done]
+                z, margin = (CHAOS_EARLY_Z, CHAOS_EARLY_MARGIN) if early else (CHAOS_Z, CHAOS_MARGIN)
+                if early and done >= CHAOS_LATER_PERIODS:
+                    margin = CHAOS_LATER_MARGIN
+                mean, err = chaos_bounds(spans)
+                chaotic = (back == 0) & (mean - z * err > margin * spec.lyap_threshold * abs(batch.period))
             keep = []
             for a, m in enumerate(live):
-                if ask[a]:
-                    cycle = found[a]
+                if a in cycles:
+                    cycle, own = cycles[a]
                     if cycle is not None:
                         pix, k = at[idx[m]]
                         regime[pix, k], status[pix, k] = PERIODIC, Status.OK
                         period[pix, k], lyap[pix, k] = cycle
                         stopped[m] = True
                         continue
-                    if back[a]:
+                    if back[a] and own:
                         may_stop[m] = False  # returns within tol but no attracting cycle: the whole run decides
-                    else:
+                    elif own:
                         next_try[m] = done + SETTLE_RETRY  # close, not yet a cycle Newton confirms
-                got = int(measured[m])
-                if not back[a] and (got >= CHAOS_MIN_PERIODS or done >= CHAOS_EARLY_PERIODS):
-                    # The measurement so far, or (before it is long enough) the second half of the run so far.
-                    early = got < CHAOS_MIN_PERIODS
-                    span = every[m, (done // 2) // SETTLE_CHUNK * SETTLE_CHUNK : done] if early else logs[m, :got]
-                    z, margin = (CHAOS_EARLY_Z, CHAOS_EARLY_MARGIN) if early else (CHAOS_Z, CHAOS_MARGIN)
-                    mean, err = chaos_bound(span)
-                    if mean - z * err > margin * spec.lyap_threshold * abs(batch.period):
-                        pix, k = at[idx[m]]
-                        regime[pix, k], status[pix, k], period[pix, k] = CHAOTIC, Status.OK, 0
-                        lyap[pix, k] = span.mean() / params[idx[m]].period
-                        stopped[m] = True
-                        continue
+                if chaotic[a]:
+                    pix, k = at[idx[m]]
+                    regime[pix, k], status[pix, k], period[pix, k] = CHAOTIC, Status.OK, 0
+                    lyap[pix, k] = spans[a].mean() / params[idx[m]].period
+                    stopped[m] = True
+                    continue
                 keep.append(m)
             live = np.array(keep, dtype=np.int64)
+        out.periods_run[at[idx, 0], at[idx, 1]] = ran
+        out.steps[at[idx, 0], at[idx, 1]] = batch.nsteps
         for row in np.flatnonzero(~stopped):
             m = idx[row]
             pix, k = at[m]
@@ -605,6 +704,23 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
             regime[pix, k], period[pix, k] = classify(points[row], got, s, lyap[pix, k], p_max=spec.p_max,
                                                       tol=spec.tol, lyap_threshold=spec.lyap_threshold)  # fmt: skip
             status[pix, k] = _pixel_status(regime[pix, k], s)
+
+
+def _cycles(
+    coefs: Coefficients,
+    live: np.ndarray,
+    rings: np.ndarray,
+    scale: np.ndarray,
+    loose: np.ndarray,
+    ask: np.ndarray,
+    periods: np.ndarray,
+    batch: Any,
+    spec: ChartSpec,
+) -> list[tuple[int, float] | None]:
+    """:func:`settled_cycles` at the last point of the members ``live[ask]`` for ``P^periods`` (one Newton)."""
+    co = coefs._replace(row=np.ascontiguousarray(coefs.row[live[ask]]))
+    return settled_cycles(co, rings[ask, -1], periods, batch.t0, batch.period, near=loose[ask],
+                          same=spec.tol * scale[ask])  # fmt: skip
 
 
 def _pixel_status(regime: int, engine: int) -> int:
@@ -624,15 +740,18 @@ def compute_tile_each(spec: ChartSpec, tile: TileSpec) -> TileResult:
 
 
 def _fill_each(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
-    regime, period, lyap, status = out
+    regime, period, lyap, status = out[:4]
     n_ic = spec.ics.shape[0]
     for first in range(0, len(params), n_ic):  # a pixel's ICs are consecutive members
         p, n = params[first], at[first, 0]
         coefs = coefficients(Model(p), n=n_ic)
         batch = tangent.start(spec.ics, p.t0, p.period)
         if spec.transient:
-            tangent.advance_lyapunov(coefs, batch, spec.transient, spec.numerics, 1, store=False)
+            out.periods_run[n] = tangent.advance_lyapunov(coefs, batch, spec.transient, spec.numerics, 1,
+                                                          store=False)[3]  # fmt: skip
         logs, _, pts, npts = tangent.advance_lyapunov(coefs, batch, spec.periods, spec.numerics, 1)
+        out.periods_run[n] += npts
+        out.steps[n] = batch.nsteps
         for k in range(n_ic):
             m = int(npts[k])
             lyap[n, k] = logs[k, :m, 0].sum() / (max(m, 1) * p.period)
