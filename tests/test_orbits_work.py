@@ -75,7 +75,7 @@ def test_twins_of_a_dense_cluster_in_linear_memory() -> None:
     """20,000 iterates of one orbit together (a fine grid of seeds): one goes on, the rest stop, in memory linear in
     their number (a dense distance matrix was 6.4 GB); a lone iterate 1e-3 away (ten tolerances) goes on too."""
     rng = np.random.default_rng(5)
-    x = np.vstack([[0.5, -1.0] + rng.uniform(-1e-6, 1e-6, (20_000, 2)), [[0.501, -1.0]]])
+    x = np.vstack([np.array([0.5, -1.0]) + rng.uniform(-1e-6, 1e-6, (20_000, 2)), [[0.501, -1.0]]])
     res = rng.uniform(1e-9, 1e-7, x.shape[0])
     twin = _twins(x, res, np.zeros(x.shape[0], bool))
     assert int((~twin).sum()) == 2 and not twin[-1]
