@@ -247,18 +247,25 @@ def test_a_settled_transient_gives_the_same_orbit_and_phase(alpha: float) -> Non
         np.testing.assert_array_equal(settled[0], full[0])
 
 
-def test_settled_period_needs_every_member_on_a_cycle() -> None:
-    from explorer_core.analyses.bifurcation import settled_period
+def test_repeat_period_is_the_least_period_a_member_repeats() -> None:
+    """Each member settles on its own (an escaped or chaotic member no longer holds the others back): the least
+    period its last SETTLE_WINDOW points repeat after, at the tolerance asked."""
+    from explorer_core.analyses.bifurcation import repeat_period
 
-    cyc2 = np.tile([[0.1, 0.2], [0.3, 0.4]], (16, 1))[None]  # (1, 32, 2)
-    cyc3 = np.tile([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0]], (11, 1))[None, :32]
-    drift = np.cumsum(np.full((1, 32, 2), 1e-6), axis=1)
-    ok = np.zeros(2, np.int64)
-    n = np.full(2, 32)
-    assert settled_period(np.concatenate([cyc2, cyc3]), n, ok) == 6  # the common period
-    assert settled_period(np.concatenate([cyc2, drift]), n, ok) == 0  # one still moving: not settled
-    escaped = np.array([0, int(Status.ESCAPED)])
-    assert settled_period(np.concatenate([cyc2, drift]), n, escaped) == 2  # an escaped member is ignored
+    cyc2 = np.tile([[0.1, 0.2], [0.3, 0.4]], (16, 1))  # (32, 2)
+    cyc3 = np.tile([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0]], (11, 1))[:32]
+    drift = np.cumsum(np.full((32, 2), 1e-6), axis=0)
+    assert repeat_period(cyc2, 1e-9) == 2 and repeat_period(cyc3, 1e-9) == 3
+    assert repeat_period(drift, 1e-9) == 0  # still moving: not settled
+    assert repeat_period(drift, 1e-3) == 1  # to a loose tolerance it is (Newton's cycle may then be tried)
+    assert repeat_period(cyc2[:9], 1e-9) == 0  # fewer than p + SETTLE_WINDOW points: not yet looked at
+    # In a batch, a member that escapes does not keep the other from settling (it did: the batch settled as one).
+    p, num = FIG10.with_(alpha=-0.36), Numerics(rtol=1e-10, atol=1e-10)
+    alone = bilimovich_orbits(p, np.array([[-0.0959, -1.962]]), 300, 50, num, settle=True)
+    pair = bilimovich_orbits(p, np.array([[-0.0959, -1.962], [5.0, 5.0]]), 300, 50, num, settle=True)
+    assert pair[2].tolist() == [Status.OK, Status.ESCAPED] and pair[1].tolist() == [50, 0]
+    assert pair[4][0].tolist() == alone[4][0].tolist() and pair[4][0, 0] == 1 and pair[4][1].tolist() == [0, 0, 0]
+    np.testing.assert_allclose(pair[0][0], alone[0][0], rtol=0, atol=1e-9)
 
 
 def test_settled_members_agree_with_the_whole_integration_from_the_same_seed() -> None:

@@ -404,19 +404,6 @@ def repeat_period(x: np.ndarray, tol: float) -> int:
     return 0
 
 
-def settled_period(points: np.ndarray, npts: np.ndarray, status: np.ndarray) -> int:
-    """The least common period ``p`` every running member of ``points`` (n, m, 2) has settled on; 0 if not."""
-    common = 1
-    for i in range(points.shape[0]):
-        if status[i] != Status.OK:
-            continue  # escaped or failed: it goes no further anyway
-        found = repeat_period(points[i, : int(npts[i])], SETTLE_TOL)
-        if not found:
-            return 0
-        common = math.lcm(common, found)
-    return common
-
-
 def _newton_cycles(pmap: PoincareMap, x: np.ndarray, periods: np.ndarray, turns: np.ndarray) -> list[np.ndarray | None]:
     """For each member ``x[m]`` (the point at the end of a chunk) whose points repeat to JUMP_TOL after
     ``periods[m]``: the cycle's points ``P(x*) .. P^p(x*)`` (p, 2) if Newton finds an attracting cycle ``x*``
@@ -475,8 +462,7 @@ def bilimovich_orbits(
     def finish(i: int, chain: np.ndarray, how: int) -> None:
         """Member ``i``'s points after ``done`` are the cycle ``chain`` = its points at ``done + 1 .. done + p``."""
         p = chain.shape[0]
-        k = np.arange(done + 1, total + 1)
-        traj[i, done:] = chain[(k - done - 1) % p]
+        traj[i, done:] = chain[np.arange(total - done) % p]
         got[i] = total
         settled[i] = (p, done, how)
 
@@ -512,9 +498,9 @@ def bilimovich_orbits(
     final = batch.y.copy()
     whole = got == total
     final[whole] = traj[whole, total - 1]
+    # Points never reached (a member that escaped or failed) stay the zeros traj started with.
     pts = np.ascontiguousarray(traj[:, transient:])
     npts = np.clip(got - transient, 0, int(n_points))
-    pts[np.arange(n_points)[None, :] >= npts[:, None]] = 0.0
     return pts, npts, batch.status.copy(), final, settled
 
 
