@@ -8,16 +8,15 @@ against independent computations in tests/test_continuation.py and tests/test_co
 
 from __future__ import annotations
 
-from collections import Counter
-
 import numpy as np
 import pytest
+from enginework import count_engine
 from naive import ivp_map
 
 from explorer_core.analyses import continuation as co
 from explorer_core.analyses.orbits import ORBIT_NUMERICS
 from explorer_core.scenes import get_scene
-from explorer_core.solve import integrators, poincare, rk, tangent
+from explorer_core.solve import rk
 
 FIG10 = get_scene("fig10").params
 FIXED_POINT_035 = (-0.0959, -1.962)
@@ -47,26 +46,9 @@ def test_f_p_at_the_looser_tolerance_matches_an_independent_difference(n: int) -
     np.testing.assert_allclose(fp, ref, rtol=1e-5, atol=1e-7)
 
 
-def _count(monkeypatch: pytest.MonkeyPatch) -> Counter:
-    """Steps and member-periods per (system, rtol) of every engine call."""
-    c: Counter = Counter()
-    orig = integrators.run
-
-    def run(system, coefs, batch, n_periods, **kw):
-        before = batch.nsteps.copy()
-        out = orig(system, coefs, batch, n_periods, **kw)
-        c[("steps", system, kw.get("rtol"))] += int((batch.nsteps - before).sum())
-        c[("periods", system, kw.get("rtol"))] += int(batch.n) * int(n_periods)
-        return out
-
-    for m in (integrators, poincare, tangent):
-        monkeypatch.setattr(m, "run", run)
-    return c
-
-
 def test_the_differences_take_fewer_steps_than_the_orbit(monkeypatch: pytest.MonkeyPatch) -> None:
     # Before: F_p's two members at the orbit's 1e-12 (alpha -0.35 .. -0.38), as many steps a period as the orbit.
-    c = _count(monkeypatch)
+    c = count_engine(monkeypatch)
     res = co.continue_orbit(FIG10, "alpha", (-0.35, -0.38), FIXED_POINT_035, 1)
     assert [b.kind for b in res.bifurcations] == ["period_doubling"]
     rate = {key[1:]: c[key] / c[("periods", *key[1:])] for key in c if key[0] == "steps"}

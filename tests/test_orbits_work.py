@@ -7,41 +7,26 @@ depend on the order the seeds were given in.
 
 from __future__ import annotations
 
-from collections import Counter
-
 import numpy as np
 import pytest
+from enginework import count_engine
 
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, find_orbits, grid_seeds, same_orbit
 from explorer_core.scenes import get_scene
-from explorer_core.solve import integrators, poincare, rk, tangent
+from explorer_core.solve import poincare, rk
 from explorer_core.solve.poincare import _twins
 
 FIG8B = get_scene("fig8B")
 FIG10 = get_scene("fig10")
 
 
-def _count(monkeypatch: pytest.MonkeyPatch) -> Counter:
-    c: Counter = Counter()
-    orig = integrators.run
-
-    def run(system, coefs, batch, n_periods, **kw):
-        out = orig(system, coefs, batch, n_periods, **kw)
-        c[(system, kw.get("rtol"))] += int(batch.n) * int(n_periods)
-        return out
-
-    for m in (integrators, poincare, tangent):
-        monkeypatch.setattr(m, "run", run)
-    return c
-
-
 def test_seeds_reaching_an_orbit_together_take_one_accurate_monodromy(monkeypatch: pytest.MonkeyPatch) -> None:
     # Fig. 10's 10 x 10 period-1 search (``bilimovich orbits --scene fig10``): on main 56 accurate monodromies
     # for its 3 orbits (every seed that reached one integrated the tangent system at 1e-12 once or twice).
-    c = _count(monkeypatch)
+    c = count_engine(monkeypatch)
     res = find_orbits(FIG10.params, grid_seeds(FIG10.box, 10, 10), [1])
     assert len(res.orbits) == 3 and len(res.failures) == 10
-    accurate = c[(rk.TANGENT, ORBIT_NUMERICS.rtol)]
+    accurate = c[("periods", rk.TANGENT, ORBIT_NUMERICS.rtol)]
     assert accurate <= 2 * len(res.orbits), c
 
 
@@ -85,8 +70,8 @@ def test_twins_of_a_dense_cluster_in_linear_memory() -> None:
 def test_far_iterates_take_the_roughest_map(monkeypatch: pytest.MonkeyPatch) -> None:
     # Residual above FAR_UNTIL: the tangent system at 1e-6 (main: 1e-8 until the residual is below 1e-5), where
     # most of a grid search's work is; the orbits are the same (tests/test_orbits.py checks them independently).
-    c = _count(monkeypatch)
+    c = count_engine(monkeypatch)
     res = find_orbits(FIG8B.params, grid_seeds(FIG8B.box, 6, 6), [1, 2, 3])
     assert res.orbits
-    far, rough = c[(rk.TANGENT, poincare.FAR_RTOL)], c[(rk.TANGENT, 1e-8)]
+    far, rough = c[("periods", rk.TANGENT, poincare.FAR_RTOL)], c[("periods", rk.TANGENT, 1e-8)]
     assert far > rough > 0, c

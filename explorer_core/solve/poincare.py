@@ -228,8 +228,6 @@ def _twins(x: np.ndarray, res: np.ndarray, out: np.ndarray) -> np.ndarray:
     m = x.shape[0]
     twin = np.zeros(m, bool)
     live = np.flatnonzero(~out)
-    if live.size < 2:
-        return twin
     live = live[np.all(np.isfinite(x[live]), axis=1)]
     if live.size < 2:
         return twin
