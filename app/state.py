@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import param
 
-from explorer_core.analyses.body import principal_axes
+from explorer_core.analyses.body import box_exists, principal_axes
 from explorer_core.analyses.density import density_numerics
 from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, random_ics
@@ -739,7 +739,7 @@ class ExplorerState(param.Parameterized):
             moments = principal_axes(self.system(**changes))[0]
         except ParameterError:
             return ""
-        if np.all(moments.sum() - 2.0 * moments > 0.0):
+        if box_exists(moments):
             return ""
         m = ", ".join(f"{x:.4g}" for x in moments)
         return f"no uniform box has the principal moments {m} (a box needs I3 < I1 + I2)"

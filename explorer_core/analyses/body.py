@@ -122,8 +122,8 @@ class BodySeries(Drawable):
 
     @property
     def box_exists(self) -> bool:
-        """True if a uniform box has these principal moments (every ``I_j + I_k - I_i > 0``)."""
-        return bool(np.all(self.moments.sum() - 2.0 * self.moments > 0.0))
+        """True if a uniform box has these principal moments (:func:`box_exists`)."""
+        return box_exists(self.moments)
 
     def ellipsoid_axes(self) -> np.ndarray:
         """(3,) semi-axes of the inertia ellipsoid ``(I omega, omega) = 1`` along the principal axes, the largest 1."""
@@ -191,6 +191,12 @@ class BodySeries(Drawable):
 
         writers = {".csv": csv, ".npz": npz, ".json": lambda p: export.write_json(p, self.summary())}
         return export.write_by_suffix(path, writers, "body series")
+
+
+def box_exists(moments: np.ndarray) -> bool:
+    """True if a uniform box has the principal moments ``moments`` (3,): every ``I_j + I_k - I_i > 0``."""
+    moments = np.asarray(moments, dtype=float)
+    return bool(np.all(moments.sum() - 2.0 * moments > 0.0))
 
 
 def principal_axes(params: Params) -> tuple[np.ndarray, np.ndarray]:
