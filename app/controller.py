@@ -145,6 +145,11 @@ class ExplorerSession(param.Parameterized):
             if channel == self.section.name:
                 self.section.refresh_status()
 
+    def busy(self) -> bool:
+        """Whether a job of the section view has not ended, now (``running`` follows on the document thread's next
+        turn: the runner tells it through ``deliver``)."""
+        return any(self.runner.busy(c) for c in self.channels)
+
     def system(self) -> Params | None:
         """The system on screen; None while a typed value is refused (recompute shows why)."""
         try:
@@ -311,12 +316,17 @@ class ExplorerSession(param.Parameterized):
             self._publish_query()
             return
         self.error = ""
-        if self.frame_periods is not None and not req.density and req.periods > self.frame_periods:
-            req = dataclasses.replace(req, periods=self.frame_periods)  # a frame of a played parameter
+        frame = self.frame_periods is not None and not req.density  # a frame of a played parameter
+        if frame and req.periods > self.frame_periods:
+            req = dataclasses.replace(req, periods=self.frame_periods)
         self.section.start(req, start_layers=lambda: self._follow_section(from_job=True))
         for layer in self.layers.values():
             if layer.on_section:
                 self.refresh(layer)
+        if frame:
+            # Its layers start now, beside the section's integration (numba, off the GIL), not after it: the frame
+            # is drawn whole once all are done, and nothing of it streams meanwhile (app/layers/section.py).
+            self._follow_section()
         self._publish_query()
 
     def _restart_section(self) -> None:

@@ -165,6 +165,7 @@ class Page:
             self._download(msg.get("what", ""))
         elif action == "play":
             self.player.play()
+            self._refresh_views(force=True)  # the page shows it plays now, not when the first frame is computed
         elif action == "pause":
             self.player.pause()
         elif action == "step":
@@ -414,7 +415,11 @@ class Page:
         """The URL's errors about the settings of ``tab`` ("section": every one not about an analysis tab)."""
         return [e for e in self.url_errors if _url_tab(e) == tab]
 
-    def _refresh_views(self) -> None:
+    def _refresh_views(self, force: bool = False) -> None:
+        if not force and self.player.computing():
+            # A played frame on its way: its words go out once, with the frame (Player calls this when it is
+            # computed), not a dozen times as its jobs start and end (each a message the page lays out).
+            return
         view = {"section": self._section_view()}
         view.update({n: self._tab_view(n) for n in self.tabs})
         if view != self.ui.view:  # one websocket message per real change

@@ -139,6 +139,10 @@ class Player:
         self.settled_searches.clear()
         self.session.frame_periods = FRAME_PERIODS
         self._request(self._next_index())
+        if self.state.show_orbits:
+            # The orbits' marks are built now, beside the first frame's integration, not when its first orbit is
+            # drawn at its end (25 ms of Bokeh models then, on the first frame's time).
+            self.session.fig.prepare("orbits")
 
     def pause(self) -> None:
         """Stop after the frame on screen; it is computed again as a still (the state's periods)."""
@@ -198,7 +202,9 @@ class Player:
 
     def _check_done(self) -> None:
         """A frame asked for is drawn once the section view runs nothing and the page (if any) shows it."""
-        if not (self._waiting and self.playing) or self.session.running:
+        # The runner's own count, not the session's ``running``: that is told on the next turn of the event loop, so
+        # right after a frame's jobs start it still says the last frame's "not running".
+        if not (self._waiting and self.playing) or self.session.busy():
             return
         if self._settled != self._number:
             # The frame's section and followed orbits are done: its trajectories that settled on a cycle no orbit on
@@ -207,7 +213,7 @@ class Player:
             self._settled = self._number
             started = self._search_settled()
             self.settled_searches.append(started)
-            if started and self.session.running:
+            if started and self.session.busy():
                 return
         if not self._computed:
             self._computed = True
@@ -245,6 +251,10 @@ class Player:
         self._request(self._next_index())
 
     # --- what the page shows ----------------------------------------------------------------------------
+
+    def computing(self) -> bool:
+        """A frame is asked for and not computed yet (the page's words wait for it)."""
+        return self.playing and self._waiting and not self._computed
 
     def fps(self) -> float:
         """Frames drawn per second over the last (up to) 2 seconds of this Play."""

@@ -399,8 +399,10 @@ class Runner:
         if notify and self._on_busy is not None and not self.closed:
             self._on_busy(channel)
 
-    def start(self, channel: str, job: Job, *, bump: bool = True) -> int:
-        """Run ``job(cancelled, emit)``; ``bump=False`` joins the current generation (no cancel)."""
+    def start(self, channel: str, job: Job, *, bump: bool = True, first: bool = True) -> int:
+        """Run ``job(cancelled, emit)``; ``bump=False`` joins the current generation (no cancel). ``first=False``: the
+        job's first result is not what a user waits for alone (a played parameter's frame, drawn once its layers are
+        done too), so the layers need not wait for it (:class:`FairScheduler`)."""
         with self._lock:
             if bump:
                 self._gen[channel] += 1
@@ -415,6 +417,8 @@ class Runner:
         sched = self._scheduler
         kind = self.kind(channel)
         ticket = sched.ticket(self._id, channel, stale, kind) if sched is not None else None
+        if ticket is not None and not first:
+            ticket.fresh = False
         stamps = [time.perf_counter()] if TRACE else None  # started, given a slot, first result out
 
         def cancelled() -> bool:
@@ -457,6 +461,8 @@ class Runner:
                 if self._on_error is not None:
                     emit(lambda err=exc: self._on_error(channel, err))
             finally:
+                if stamps is not None and len(stamps) >= 2:  # the job's span on the shared clock (a frame's timeline)
+                    log.warning("trace job %d %s: ran %.4f to %.4f", self._id, channel, stamps[1], time.perf_counter())
                 if ticket is not None:
                     sched.release(ticket)
                 if not self.closed:  # a closed session's document is gone; nothing to tell it

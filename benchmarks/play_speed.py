@@ -46,7 +46,16 @@ async def measure(url: str, seconds: float, frames: int, fps: int, layers: str) 
 
     tab = Tab(Server(url, 0, os.devnull), "play")
     await tab.open(query=_query(frames, fps, layers))
+    await _idle(tab)
     return await _play_for(tab, seconds, frames, fps, layers)
+
+
+async def _idle(tab: Tab, timeout: float = 60.0) -> None:
+    """Wait until the page runs nothing (the still's last layer, e.g. its reliability check, is done), as a user
+    would see the scene before pressing Play."""
+    if not await tab._until(lambda: (tab.view.get("section") or {}).get("running") is False, timeout):
+        raise TimeoutError(f"{tab.name}: the page still runs something after {timeout} s")
+    await asyncio.sleep(0.2)
 
 
 def _query(frames: int, fps: int, layers: str) -> str:
@@ -89,6 +98,8 @@ async def measure_class(server: Any, sessions: int, seconds: float, frames: int,
     tabs = [Tab(server, f"play{i}") for i in range(sessions)]
     for tab in tabs:
         await tab.open(timeout=300, query=_query(frames, fps, layers))
+    for tab in tabs:
+        await _idle(tab, timeout=300)
     probe = Liveness(server)
     probe.start()
     await asyncio.sleep(2.0)

@@ -153,6 +153,76 @@ def test_in_a_browser_the_next_frame_waits_for_the_page_to_show_the_last() -> No
     assert page.player.frame == frame + 2
 
 
+def test_a_frame_counts_as_computed_only_once_its_jobs_end_when_deliveries_come_later() -> None:
+    """In a server the runner tells the session that jobs started on the event loop's next turn, not at once. Right
+    after Play, the frame's jobs run: the page must not be told the frame is computed (it would acknowledge a frame
+    it has not got), and the trajectories searched for orbits born at a fold are the frame's own, not the last
+    frame's on screen. (Before, both happened at every frame: the player read the session's ``running``, still
+    False from the last frame, and searched the old points with the new system.)"""
+    later: list[Callable[[], None]] = []
+    jobs, clock = Jobs(), Clock()
+    page = Page(
+        {**FOLD, "alpha": "-0.485"}, later.append, executor=jobs, schedule=clock.schedule, wait_for_browser=True
+    )
+    page.player._clock = clock
+
+    def settle() -> None:
+        while later or jobs.queue:
+            while later:
+                later.pop(0)()
+            jobs.drain()
+
+    page.start()
+    settle()
+    searched: list[np.ndarray] = []
+    layer = page.session.layers["orbits"]
+    find = layer.find_settled
+
+    def spy() -> int:
+        searched.append(page.session.data()[2].copy())
+        return find()
+
+    layer.find_settled = spy  # type: ignore[method-assign]
+    still = page.session.data()[2].copy()
+    page.handle({"action": "play"})
+    while later:  # the deliveries of Play itself (jobs started, not run yet)
+        later.pop(0)()
+    assert page.ui.view["section"]["play"]["number"] == -1  # asked for, not computed
+    assert searched == []  # nothing searched before the frame's points are there
+    settle()
+    assert page.ui.view["section"]["play"]["number"] == 1
+    assert len(searched) == 1 and not np.array_equal(searched[0], still)  # the frame's points (alpha -0.485)
+    np.testing.assert_array_equal(searched[0], page.session.data()[2])
+
+
+def test_a_frames_layers_start_with_its_section_and_its_reliability_check_is_of_its_own_states() -> None:
+    """A frame is drawn whole once all its jobs are done, so its layers (tracks, T' map) start with its section, not
+    after it: they need nothing of its points. Its one reliability check is done by its section job, of the states the
+    frame reached (no job of its own): with rk4 at 8 steps per period the frame's warnings are those an independent
+    check of the frame's own section gives. The page's words of a frame go out when it is computed and when it is
+    drawn, not as each of its jobs starts and ends. (Before: the layers waited for the section, the frame had two
+    checks, one a job of its own, and the page got a dozen views a frame.)"""
+    from explorer_core.analyses.reliability import assess_section
+    from explorer_core.solve.section import section
+
+    page, jobs, clock = page_for({"tracks": "1", "tprime": "inst", "method": "rk4", "steps": "8", "n": "6"})
+    views: list[dict[str, Any]] = []
+    page.ui.param.watch(lambda e: views.append(e.new), ["view"])
+    page.handle({"action": "play"})
+    running = [c for c in ("section", "tracks", "tprime", "reliability") if page.runner.busy(c)]
+    assert running == ["section", "tracks", "tprime"]
+    views.clear()
+    jobs.drain()
+    # Once computed (the number the page acknowledges), once drawn (the rate); not once a job (a dozen before).
+    assert len(views) == 2 and views[0]["section"]["play"]["number"] == 1
+    st = page.state
+    req = st.section_request()
+    sec = section(req.params, req.ics, FRAME_PERIODS, transient=req.transient, numerics=req.numerics)
+    expected = assess_section(sec, pixel=st.pixel_size(), window=(*st.q_range, *st.r_range))
+    assert expected  # rk4 at 8 steps per period is too coarse here
+    assert [w["code"] for w in page.session.reliability] == [w.code for w in expected]
+
+
 def test_the_orbits_are_followed_from_frame_to_frame() -> None:
     """With the orbits layer on, each frame's Newton starts from the last frame's orbits (not the grid); the
     period-1 orbits found agree with an independent search from a grid at the frame's value."""

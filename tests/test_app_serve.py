@@ -110,3 +110,31 @@ def _state(pid: int) -> str:
         return Path(f"/proc/{pid}/status").read_text().split("State:")[1].split("\n")[0]
     except (OSError, IndexError):
         return "zombie"
+
+
+def test_the_servers_websockets_send_each_frame_at_once() -> None:
+    """app.serve.no_delay (installed by ``python -m app.serve`` before Panel starts): every websocket Bokeh opens sets
+    TCP_NODELAY before anything else, so a message's frames after the first never wait for a delayed ACK."""
+    from bokeh.server.views.ws import WSHandler
+
+    import app.serve as serve_mod
+
+    calls: list[str] = []
+    original = WSHandler.open
+
+    def bokeh_open(self: object, *args: object) -> None:
+        calls.append("open")
+
+    class Handler:
+        def set_nodelay(self, on: bool) -> None:
+            calls.append(f"nodelay {on}")
+
+    WSHandler.open = bokeh_open  # type: ignore[method-assign]
+    try:
+        serve_mod.no_delay()
+        serve_mod.no_delay()  # once only
+        WSHandler.open(Handler())  # type: ignore[arg-type]
+    finally:
+        WSHandler.open = original  # type: ignore[method-assign]
+    assert calls == ["nodelay True", "open"]
+    assert "no_delay()" in Path(serve_mod.__file__).read_text().split("def main(")[1]

@@ -41,6 +41,28 @@ SECTION_KEYS = url_keys((*SECTION_FIELDS, "clicked"))
 VIEW_KEYS = url_keys(("q_range", "r_range"))
 
 
+def _assess(
+    req: SectionRequest,
+    traj: np.ndarray | None,
+    q: np.ndarray | None,
+    r: np.ndarray | None,
+    status: np.ndarray | None,
+    window: tuple[float, ...],
+    pixel: float,
+) -> list[dict[str, Any]]:
+    """The reliability warnings of ``req`` (:func:`assess`) given the states reached (``traj is None``: none known)."""
+    try:
+        found = assess(
+            req.params, req.numerics, periods=req.periods, transient=req.transient, ics=req.ics,
+            points=np.column_stack([q, r]) if traj is not None else None, traj=traj, status=status,
+            window=window, pixel=pixel,
+        )  # fmt: skip
+    except Exception:  # a failed check must never break the page
+        log.exception("reliability check failed")
+        found = []
+    return [w.as_dict() for w in found]
+
+
 class SectionLayer(Layer):
     """The section on screen: its points (or density image), the statuses of its trajectories, the status line."""
 
@@ -92,16 +114,24 @@ class SectionLayer(Layer):
         query = self.host.state.to_query()  # the settings of this run: its points' export header
         if req.periods != self.host.state.periods:  # a played parameter's frame: fewer periods than a still
             query["periods"] = str(req.periods)
+        # A played parameter's frame is drawn whole, once its layers are done too: they start with it (the
+        # controller starts them), and the one reliability check is of the states the frame reached.
+        frame = getattr(self.host, "frame_periods", None) is not None and not req.density
         if req.density:
             job = self.density.job(req, start_layers, query)
         else:
-            job = self._points_job(req, start_layers, query)
-        self.host.runner.start("section", job)
-        self.check_reliability(req)  # a priori: the new numerics against the states on screen
+            job = self._points_job(req, None if frame else start_layers, query)
+        self.host.runner.start("section", job, first=not frame)
+        if frame:
+            self.host.runner.cancel("reliability")  # a still's check still running is of other settings
+        else:
+            self.check_reliability(req)  # a priori: the new numerics against the states on screen
 
     def _points_job(self, req: SectionRequest, start_layers: Callable[[], None] | None, query: dict[str, str]) -> Any:
         # A played parameter's frame is drawn whole (streamed, each frame would flash its first chunk alone).
         whole = getattr(self.host, "frame_periods", None) is not None
+        st = self.host.state
+        window, pixel = (*st.q_range, *st.r_range), st.pixel_size()
 
         def job(cancelled: Callable[[], bool], emit: Emit) -> None:
             self.trace("section job starts")
@@ -115,18 +145,26 @@ class SectionLayer(Layer):
                 replace = cadence.sent()
                 emit(lambda: self.apply_chunk(cols, status, done, total, req if replace else None, query))
 
+            # A frame in one call for the transient and one for the points: each call takes the GIL a few times, and
+            # the frame's layers run beside it in Python (a chunk's wait for the GIL is up to the switch interval).
+            most = max(req.periods, req.transient, 1) if whole else MAX_CHUNK
             for chunk in iter_section(req.params, req.ics, req.periods, transient=req.transient,
-                                      numerics=req.numerics, max_chunk=MAX_CHUNK, cancel=cancelled):  # fmt: skip
+                                      numerics=req.numerics, first_chunk=most if whole else 1, max_chunk=most,
+                                      cancel=cancelled):  # fmt: skip
                 pending.append(chunk.long())
                 last_status = chunk.status
                 if not whole and cadence.due():
                     flush(chunk.status, chunk.done_periods, chunk.total_periods)
                 cadence.layers_if_late()
+            warnings = None
             if pending and last_status is not None:
+                if whole:  # a frame's one reliability check, of the states it reached, in its own job (no second job)
+                    cols = tuple(np.concatenate([p[i] for p in pending]) for i in (0, 2, 3))
+                    warnings = _assess(req, *cols, last_status, window, pixel)
                 flush(last_status, req.periods, req.periods)
             done = not cancelled()
             cadence.layers_at_end(done)
-            emit(lambda: self.finish(done, last_status))
+            emit(lambda: self.finish(done, last_status, warnings))
 
         return job
 
@@ -164,14 +202,18 @@ class SectionLayer(Layer):
             self.update_series()
         self.trace(f"{traj.size} points applied")
 
-    def finish(self, done: bool, status: np.ndarray | None) -> None:
+    def finish(self, done: bool, status: np.ndarray | None, warnings: list[dict[str, Any]] | None = None) -> None:
+        """The run is over; ``warnings``: its reliability check, done by its job (a played frame's), else one starts."""
         self.trace("last chunk on the document thread")
         self.progress = None
         if not done:
             self.outcome = "stopped"
         if status is not None:
             self.set_status(status, None, None, running=False)
-            self.check_reliability(None, status)
+            if warnings is not None:
+                self._warn(warnings)
+            else:
+                self.check_reliability(None, status)
         traj = self.data()[0]
         if traj.size and not np.any(traj == self.host.state.selected):
             # The selected trajectory left (e.g. escaped in the transient): show one that has points.
@@ -261,16 +303,7 @@ class SectionLayer(Layer):
         window, pixel = (*st.q_range, *st.r_range), st.pixel_size()
 
         def job(cancelled: Callable[[], bool], emit: Emit) -> None:
-            try:
-                found = assess(
-                    req.params, req.numerics, periods=req.periods, transient=req.transient, ics=req.ics,
-                    points=np.column_stack([q, r]) if same else None, traj=traj, status=status,
-                    window=window, pixel=pixel,
-                )  # fmt: skip
-            except Exception:  # a failed check must never break the page
-                log.exception("reliability check failed")
-                found = []
-            warnings = [w.as_dict() for w in found]
+            warnings = _assess(req, traj if same else None, q, r, status, window, pixel)
             emit(lambda: self._warn(warnings))
 
         self.host.runner.start("reliability", job)
