@@ -139,10 +139,6 @@ class Player:
         self.settled_searches.clear()
         self.session.frame_periods = FRAME_PERIODS
         self._request(self._next_index())
-        if self.state.show_orbits:
-            # The orbits' marks are built now, beside the first frame's integration, not when its first orbit is
-            # drawn at its end (25 ms of Bokeh models then, on the first frame's time).
-            self.session.fig.prepare("orbits")
 
     def pause(self) -> None:
         """Stop after the frame on screen; it is computed again as a still (the state's periods)."""

@@ -315,10 +315,6 @@ class SectionFigure:
         star = Scatter(x="q", y="r", marker="star", size=22, fill_color=BODY_COLOUR, line_color="black", line_width=1.5)
         return [_renderer(self._body, star, name="body_point")]
 
-    def prepare(self, layer: str) -> None:
-        """Put a layer's (empty) renderers in the plot now, before its first data (built on first use otherwise)."""
-        self._activate(layer)
-
     def show_body_point(self) -> None:
         """Put the body view's highlighted section point in the plot (built on first use; the page moves it)."""
         self._activate("body")

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import faulthandler
 import fcntl
 import hashlib
 import io
@@ -47,6 +48,7 @@ import subprocess
 import sys
 import threading
 import time
+import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import FrameType
@@ -295,6 +297,35 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
         sock.close()
 
 
+#: The worker's own log (its start, its end and why, a command's traceback, a fatal error's stacks) is started
+#: afresh once it is larger than this.
+LOG_BYTES = 1 << 20
+
+
+def log_path(sock: Path) -> Path:
+    """The worker's log beside its socket (``worker-KEY.log``, in the user's 0700 directory)."""
+    return sock.with_name(sock.stem + ".log")
+
+
+def _open_log(sock: Path) -> Any:
+    """The log file a new worker's stderr goes to (appended to; started afresh past :data:`LOG_BYTES`)."""
+    path = log_path(sock)
+    try:
+        big = path.stat().st_size > LOG_BYTES
+    except OSError:
+        big = False
+    fh = open(path, "wb" if big else "ab")  # handed to the child as its stderr, closed by spawn
+    os.chmod(path, 0o600)
+    return fh
+
+
+def _log(text: str) -> None:
+    """A line in the worker's log (its stderr), stamped."""
+    with contextlib.suppress(OSError, ValueError):
+        sys.__stderr__.write(f"{time.strftime('%Y-%m-%d %H:%M:%S')} worker {os.getpid()}: {text}\n")
+        sys.__stderr__.flush()
+
+
 def spawn(command: Sequence[str]) -> None:
     """Start ``command + [socket path]`` in the background as the worker (it takes the lock, warms up,
     then listens; a second one finds the lock taken and exits). Not while a worker lives or starts; a
@@ -307,14 +338,22 @@ def spawn(command: Sequence[str]) -> None:
         return
     if path.exists() and not _remove_if_stale(path):
         return
-    subprocess.Popen(  # this interpreter and our own command line
-        [*command, str(path)],
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        start_new_session=True,  # not in the terminal's process group: Ctrl-C there does not reach it
-        close_fds=True,
-    )
+    try:
+        log = _open_log(path)
+    except OSError:
+        log = None
+    try:
+        subprocess.Popen(  # this interpreter and our own command line
+            [*command, str(path)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=log if log is not None else subprocess.DEVNULL,  # its own errors: a worker that died says why
+            start_new_session=True,  # not in the terminal's process group: Ctrl-C there does not reach it
+            close_fds=True,
+        )
+    finally:
+        if log is not None:
+            log.close()
 
 
 class WorkerStatus(NamedTuple):
@@ -372,9 +411,12 @@ def status(path: Path | None = None) -> WorkerStatus:
 
 
 def status_text() -> str:
-    """The line ``bilimovich worker status`` prints."""
+    """The line ``bilimovich worker status`` prints (and where the worker's log is, once there is one)."""
     state = "on" if enabled() else "off (BILIMOVICH_WORKER=0)"
-    return f"worker: {state}; for this code and environment: {status().describe()}"
+    found = status()
+    log = log_path(found.path)
+    where = f"; its log: {log}" if log.exists() else ""
+    return f"worker: {state}; for this code and environment: {found.describe()}{where}"
 
 
 def stop_all() -> list[str]:
@@ -550,6 +592,11 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
         return  # another worker of this code lives (or is starting)
     os.ftruncate(lock, 0)
     os.write(lock, f"{os.getpid()}\n".encode())
+    # A fatal error (a crash in a kernel, an abort) writes every thread's stack to the log (stderr, see spawn).
+    with contextlib.suppress(OSError, ValueError, AttributeError, io.UnsupportedOperation):
+        faulthandler.enable(sys.__stderr__)
+    _log(f"started for {path}")
+    why = "stopped: an error in the worker's loop"
     # A stray SIGINT between jobs must not end the worker (a job installs its own handler).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     from explorer_core.warm import warm_all
@@ -619,8 +666,10 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
             try:
                 item = jobs.get(timeout=idle_s)
             except queue.Empty:
-                return  # idle
+                why = f"idle for {idle_s:g} s"
+                return
             if item is None:
+                why = "asked to stop"
                 return
             conn, request = item
             freed = threading.Event()
@@ -646,6 +695,7 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
         with contextlib.suppress(OSError):
             if p.exists():
                 p.unlink()
+        _log(f"exits: {why}")
         os.close(lock)
 
 
@@ -681,6 +731,8 @@ def _run_one(
         answer(f"\nbilimovich: interrupted; {why}: it stops in the worker, writing what it computed so far\n", 130)
 
     def abandon(why: str) -> None:
+        _log(f"exits: abandoned the command {list(request['argv'])} ({why}) still computing {CANCEL_STOP_S:g} s "
+             "after its cancel")  # fmt: skip
         leave()
         answer(f"\nbilimovich: interrupted; {why}: stopped, nothing more written\n", 130)
         os._exit(130)
@@ -725,6 +777,10 @@ def _run_one(
                 status = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
             except KeyboardInterrupt:
                 status = 130
+            except Exception:  # a command that raised (the CLI's main reports its own): as a lone process would
+                traceback.print_exc()
+                _log(f"the command {list(request['argv'])} raised:\n{traceback.format_exc()}")
+                status = 1
     except KeyboardInterrupt:
         status = 130
     except OSError as exc:

@@ -392,3 +392,50 @@ def test_warm_all_compiles_every_kernel() -> None:
     assert report["all"] >= 30  # the walk finds the kernels (the engine's six among them)
     assert report["missing"] == [], f"kernels warm_all does not compile: {report['missing']}"
     assert report["recompiled"] == [], f"kernels compiled again by the analyses: {report['recompiled']}"
+
+
+LOGGED_SERVE = """
+import os, sys
+from explorer_core import worker
+
+def run(argv):
+    if argv == ["boom"]:
+        raise RuntimeError("a bug in a command")
+    if argv == ["crash"]:
+        os.abort()  # a fatal error (as a crash in a kernel would be)
+    return 0
+
+worker.serve(sys.argv[1], run, idle_s=120)
+"""
+
+
+def test_a_worker_that_dies_says_why_in_its_log_and_a_command_that_raises_does_not_kill_it(env) -> None:
+    """The worker's own stderr goes to ``worker-KEY.log`` beside its socket (it was /dev/null: a worker that died
+    left no trace). A command that raises gets its traceback and status 1, as a lone process would, and the worker
+    lives on (before: the exception left the worker's loop and the worker died, the caller got "the worker stopped
+    before the command ended"). A fatal error writes the threads' stacks to the log; ``worker status`` names it."""
+    script = Path(env["BILIMOVICH_WORKER_DIR"]) / "serve.py"
+    script.write_text(LOGGED_SERVE)
+    spawn = "import sys; from explorer_core import worker; worker.spawn([sys.executable, sys.argv[1]])"
+    subprocess.run([sys.executable, "-c", spawn, str(script)], env=env, cwd=ROOT, timeout=60, check=True)
+    wait_for_worker(env)
+    (path,) = Path(env["BILIMOVICH_WORKER_DIR"]).glob("*/worker-*.sock")
+    log = worker.log_path(path)
+
+    def client(*argv: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-c", FAKE_CLIENT, *argv], env=env, cwd=ROOT, capture_output=True,
+                              text=True, timeout=60)  # fmt: skip
+
+    boom = client("boom")
+    assert boom.returncode == 1 and "RuntimeError: a bug in a command" in boom.stderr
+    assert client("fine").returncode == 0  # the same worker, alive
+    assert "started for" in log.read_text() and "a bug in a command" in log.read_text()
+    crash = client("crash")
+    assert crash.returncode != 0
+    deadline = time.time() + 30
+    while "Fatal Python error" not in log.read_text():
+        assert time.time() < deadline, log.read_text()
+        time.sleep(0.2)
+    status = subprocess.run([sys.executable, "-m", "explorer_core.cli", "worker", "status"], env=env, cwd=ROOT,
+                            capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert f"its log: {log}" in status.stdout
