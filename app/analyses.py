@@ -326,6 +326,13 @@ class BifurcationTab(AnalysisTab):
             lines = [f"No points: every trajectory escaped or failed before its section points ({summary})."]
         else:
             lines = [f"{n_points:,} points; trajectories: {summary}"]
+        settled = d.settled_summary()
+        n_settled = settled["repeated"] + settled["newton"]
+        if n_settled:
+            # Their later points are the cycle's, copied at the right phase, not integrated: say so (README).
+            lines.append(f"{n_settled} of {d.status.size} trajectories settled on an attracting cycle "
+                         f"({settled['repeated']} repeated to 1e-9, {settled['newton']} by Newton): "
+                         f"{settled['periods_copied']:,} periods copied from the cycle, not integrated")  # fmt: skip
         self.set_view(message=head, progress=None, result=lines)
 
     def _continued(self, cont) -> None:

@@ -69,6 +69,20 @@ def test_bifurcation_tab_draws_points_of_the_scene_sweep() -> None:
     assert "6 values" in tab.view["message"] and "points; trajectories" in tab.view["result"][0]
 
 
+def test_bifurcation_tab_says_how_much_was_copied_from_settled_cycles() -> None:
+    """Members on an attracting cycle stop integrating (their later points are the cycle's): the tab says how many
+    and how many periods were copied, the numbers of the result's own ``settled_summary``."""
+    sess = session("fig10")
+    tab = BifurcationTab(sess)
+    sess.state.param.update(bif_values=6, bif_points=60, bif_transient=200, bif_range=(-0.36, -0.35))
+    tab.run()
+    s = tab._data.settled_summary()
+    assert s["repeated"] + s["newton"] > 0  # period 1 there: every member settles
+    line = next(x for x in tab.view["result"] if "settled on an attracting cycle" in x)
+    assert line.startswith(f"{s['repeated'] + s['newton']} of {tab._data.status.size} trajectories")
+    assert f"{s['periods_copied']:,} periods copied" in line
+
+
 def test_bifurcation_tab_says_when_no_point_survives() -> None:
     sess = session("fig3")
     # Beyond the sweep's bound (1e3): every trajectory escapes before its first point.
