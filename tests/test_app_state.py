@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -252,3 +254,30 @@ def test_stop_ends_the_run_and_nothing_stays_computing() -> None:
     for fn in queue:  # the cancelled jobs start late: they must end without a trace
         fn()
     assert not sess.running and "computing" not in sess.status and len(sess.fig.points.data["q"]) == 0
+
+
+@pytest.mark.parametrize("method", ["vern9", "auto"])
+def test_the_section_menus_verner_and_auto_compute_what_solve_ivp_does(method: str) -> None:
+    """The section's method menu offers Verner 9(8) and auto (as the command line does): at 'high' accuracy the
+    app's section points agree with solve_ivp at 1e-13 (an independent integration), and the URL keeps the choice."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from jobs import Jobs
+    from naive import solve_ivp_section
+
+    from app.page import Page
+    from app.runner import WARM
+
+    WARM.set()
+    jobs = Jobs()
+    page = Page({"scene": "fig1A", "n": "0", "ics": "0.1,0.2", "periods": "20", "method": method, "accuracy": "high"},
+                lambda fn: fn(), executor=jobs)  # fmt: skip
+    page.start()
+    jobs.drain()
+    assert page.state.to_query()["method"] == method and not page.session.error
+    assert page.state.numerics().method == "vern9"  # auto at 1e-12: Verner
+    traj, k, q, r = page.session.data()
+    ref = solve_ivp_section(page.state.system(), (0.1, 0.2), 20, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(np.column_stack([q, r]), ref[: q.size], rtol=0, atol=1e-9)
+    assert q.size == 20
