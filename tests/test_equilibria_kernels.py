@@ -361,7 +361,7 @@ def test_solve_conics_rejects_bad_tolerances(kw: dict[str, float], match: str) -
 def test_points_far_out_are_found_where_they_are(scale: float) -> None:
     """Two conics through 4 known points, the plane blown up: the points come back at ``scale`` times
     their place. The resultant's roots reach 1e38: unscaled, scipy's LAPACK lost them beyond ~1e35 (fails
-    with equilibria_kernels._FAR = 1e5). Beyond ~1e40 the algorithm's own limits come (underflow)."""
+    with equilibria_kernels._BIG_ENTRY = inf). Beyond ~1e40 the algorithm's own limits come (underflow)."""
     rng = np.random.default_rng(8)
     for _ in range(20):
         points = rng.normal(size=(4, 2))

@@ -65,8 +65,9 @@ _rgeev = types.ExternalFunction(
     ),
 )
 _KIND_D = ord("d")
-# Roots beyond 2^_FAR in size are computed in scaled units (see _poly_roots).
-_FAR = 64
+# Companion matrices with a larger entry are scaled (see _poly_roots); dgeev's own scaling starts at
+# sqrt(safmin) / eps ~ 1.5e138.
+_BIG_ENTRY = 2.0**400
 _JOB_N = ord("N")
 
 
@@ -214,22 +215,22 @@ def _poly_roots(p: np.ndarray, deg: int, roots: np.ndarray, mat: np.ndarray, wr:
         if finite:
             break
         deg -= 1  # overflow: that root is at infinity for all purposes
-    # Huge roots are computed in units of 2^e, a power of two at least the bound
-    # max_i |p_i / p_deg|^(1 / (deg - i)) on their size: the last column is then at most 1. Unscaled,
-    # LAPACK's balancing does not always recover: scipy's OpenBLAS 0.3.30 returns garbage once the roots
-    # pass ~1e35 (a conic far out, huge coefficients; numpy's 0.3.31 does not), and gives numpy's roots
-    # bit for bit below (tiny roots too). Scaling by a power of two is exact; it is skipped below 2^_FAR
-    # so that the roots stay those of the unscaled matrix (a double root's split, ~sqrt(eps), and near
-    # the origin the choice among candidates within the residual's length floor depend on the last bit).
-    bound = 0.0
+    # A companion matrix with an entry beyond ~1.5e138 takes dgeev's own scaling path, and there scipy's
+    # OpenBLAS 0.3.30 (the one numba calls) returns garbage (roots 1e-5 for roots 1e47; numpy's 0.3.31
+    # does not). Below, both give the same roots bit for bit. So only then are the roots computed in
+    # units of 2^e, a power of two at least the bound max_i |p_i / p_deg|^(1 / (deg - i)) on their
+    # size, which puts the last column at most 1 (scaling by a power of two is exact); elsewhere the
+    # matrix is left as it is: a double root's split (~sqrt(eps)) depends on the last bit.
+    big = 0.0
     for i in range(deg):
-        if p[i] != 0.0:
-            x = abs(p[i] / p[deg]) ** (1.0 / (deg - i))
-            if x > bound:
-                bound = x
-    e = math.frexp(bound)[1] if bound > 0.0 and math.isfinite(bound) else 0
-    if e <= _FAR:
-        e = 0
+        big = max(big, abs(p[i] / p[deg]))
+    e = 0
+    if big > _BIG_ENTRY:
+        bound = 0.0
+        for i in range(deg):
+            if p[i] != 0.0:
+                bound = max(bound, abs(p[i] / p[deg]) ** (1.0 / (deg - i)))
+        e = math.frexp(bound)[1]
     # The companion matrix, column-major: ones below the diagonal, -p[:deg] / p[deg] in the last column.
     for i in range(deg * deg):
         mat[i] = 0.0
