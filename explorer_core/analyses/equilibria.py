@@ -142,7 +142,7 @@ class Equilibria(Drawable):
 
 @functools.lru_cache(maxsize=16)
 def _model_of(params: Params) -> Model:
-    # Building the coefficient tables costs ~2 ms, 15x the solve: reuse them per Params.
+    # Building the coefficient tables costs ~2 ms, ~70x a solve: reuse them per Params.
     return Model(params)
 
 
@@ -191,9 +191,9 @@ _MESSAGES = {
 }
 
 
-def _check_code(code: int, where: str) -> None:
-    if code == ek.EIG_FAILED:
-        raise np.linalg.LinAlgError(f"the companion matrix's eigenvalues did not converge ({where})")
+def _eig_failed(where: str) -> np.linalg.LinAlgError:
+    # As np.linalg.eigvals did: LAPACK's QR iteration on a 4x4 companion matrix practically always converges.
+    return np.linalg.LinAlgError(f"the companion matrix's eigenvalues did not converge ({where})")
 
 
 def _conic(name: str, c: Any) -> np.ndarray:
@@ -252,7 +252,8 @@ def solve_conics(
     info = np.zeros((1, 4), np.int64)
     ek.solve_pairs(coef, float(inf_norm), float(imag_tol), float(accept_tol), float(dedupe_tol), points, info)
     code, n, at_infinity, n_complex = info[0].tolist()
-    _check_code(code, f"Q = {coef[0, 0].tolist()}, R = {coef[0, 1].tolist()}")
+    if code == ek.EIG_FAILED:
+        raise _eig_failed(f"Q = {coef[0, 0].tolist()}, R = {coef[0, 1].tolist()}")
     message = _MESSAGES.get(code, "")
     return ConicSolution(
         points[0, :n, 0].copy(), points[0, :n, 1].copy(), at_infinity, n_complex, bool(message), message
@@ -324,9 +325,9 @@ class _Samples:
         ek.equilibria_at(m.num, m.gpc, m.den, self.forcing, ts, first, self.inf_norm, self.rtol,
                          self.points, self.info, self.eig, self.kinds)  # fmt: skip
         self.n += ts.size
-        failed = np.flatnonzero(self.info[first : self.n, 0] == ek.EIG_FAILED)
-        if failed.size:
-            _check_code(ek.EIG_FAILED, f"t = {ts[failed[0]]!r}")
+        failed = self.info[first : self.n, 0] == ek.EIG_FAILED
+        if failed.any():
+            raise _eig_failed(f"t = {float(ts[np.argmax(failed)])!r}")
         return first
 
     def equilibria(self, s: int) -> Equilibria:
@@ -364,7 +365,7 @@ def equilibria(
     ----------
     model_or_params : Model or Params
         The system; a :class:`Params` is turned into a :class:`Model` (cached for
-        the last 16 parameter sets: building one takes ~2 ms, the solve ~10 us).
+        the last 16 parameter sets: building one takes ~2 ms, a call ~0.03 ms).
     t : float
         Frozen time.
     inf_norm : float
