@@ -357,3 +357,9 @@ def test_points_far_out_are_found_where_they_are(scale: float) -> None:
         assert s.q.size == 4 and s.at_infinity == 0 and s.n_complex == 0
         want = sorted(map(tuple, points * scale))
         np.testing.assert_allclose(np.column_stack([s.q, s.r]), want, rtol=1e-9, atol=1e-9 * scale)
+
+
+@pytest.mark.parametrize("rtol", [-1e-12, math.nan, "1e-12"])
+def test_classify_rejects_a_bad_rtol(rtol: object) -> None:
+    with pytest.raises(ParameterError, match="rtol must be"):
+        classify(np.eye(2), rtol)  # type: ignore[arg-type]
