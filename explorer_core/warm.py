@@ -5,7 +5,8 @@ Lyapunov basis, the body's orientation) and block kind (lock-step blocks, or a b
 and "one" are compile-time constants); every method and mode runs on them. Each is compiled here through the same
 public calls the analyses make (so with the same argument types: a readonly or non-contiguous array
 would be another compilation). The other kernels: the model's scalar helpers (equilibria, the
-``solve_ivp`` cross-checks), the manifolds' crossings, the basins' recurrence tables. (The benchmark's
+``solve_ivp`` cross-checks), the manifolds' crossings, the basins' recurrence tables, the frozen field's
+equilibria (solved, classified, matched into tracks). (The benchmark's
 numbalsoda ``cfunc`` is no dispatcher; ``bilimovich bench`` compiles it, with numbalsoda, whose import
 alone takes 10-25 s.) ``tests/test_worker.py`` walks the package's modules and fails if a kernel has no compiled
 signature after :func:`warm_all`, so a new kernel cannot be forgotten here.
@@ -65,10 +66,11 @@ def warm_all() -> None:
     with _lock:
         if _warmed:
             return
-        from explorer_core.analyses import basins, manifolds
+        from explorer_core.analyses import basins, equilibria, manifolds
 
         _engine()
         _model()
         manifolds.warmup()  # the crossing kernel (the growth runs on the engine)
         basins.warmup()  # the recurrence bookkeeping
+        equilibria.warmup()  # the frozen field's equilibria, classified and tracked
         _warmed = True

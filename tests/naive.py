@@ -6,11 +6,15 @@ field comes straight from I w' = (I w) x w + lambda a with 3x3 linear algebra.
 
 from __future__ import annotations
 
+import itertools
 import math
+from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from explorer_core.analyses.equilibria import ConicSolution
+from explorer_core.system.model import Model
 from explorer_core.system.params import Params
 
 
@@ -363,3 +367,425 @@ def ivp_body(params: Params, ic, t_start: float, t_eval, rtol: float = 1e-12, at
     sol = solve_ivp(rhs, (t_start, t_eval[-1]), y0, method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval)
     assert sol.success, sol.message
     return sol.y[:3].T, sol.y[3:].T.reshape(-1, 3, 3)
+
+
+# ---------------------------------------------------------------------------
+# The frozen field's equilibria (reference for explorer_core.analyses.equilibria and its kernels in
+# explorer_core.analyses.conics): the plain-Python solver of two conics, lists and all, as it was before
+# it became a numba kernel, the classification and the tracks' matching. The conics' coefficients are
+# the input here (Model.coefficients), not recomputed.
+
+_EPS = np.finfo(float).eps
+# Candidate rotations (cos, sin); odd angles so that no axis-aligned or
+# diagonal conic direction (q, r, q = +-r) falls on one of them.
+_ROT = tuple((math.cos(0.377 + k * math.pi / 8), math.sin(0.377 + k * math.pi / 8)) for k in range(8))
+# A resultant coefficient smaller than this times its absolute-value bound is noise.
+_NOISE = 1e4 * _EPS
+# Length floor of the residual scale (units of q, r): only matters at an exact root at the origin.
+_L0 = 1e-12
+
+
+def _choose_angle(cq: list[float], cr: list[float]) -> tuple[float, float]:
+    """The candidate rotation whose smaller relative leading ``v`` coefficient (of the two conics) is largest."""
+    best, choice = -1.0, _ROT[0]
+    for cs, sn in _ROT:
+        score = math.inf
+        for c in (cq, cr):
+            quad = abs(c[3]) + abs(c[4]) + abs(c[5])
+            if quad > 0.0:
+                score = min(score, abs(c[3] * sn * sn - c[4] * cs * sn + c[5] * cs * cs) / quad)
+            else:  # a line (or a constant): keep its v coefficient instead
+                lin = abs(c[1]) + abs(c[2])
+                if lin > 0.0:
+                    score = min(score, abs(c[2] * cs - c[1] * sn) / lin)
+        if score > best:
+            best, choice = score, (cs, sn)
+    return choice
+
+
+def _in_v(c: list[float], cs: float, sn: float) -> list[list[float]] | None:
+    """The conic in ``(u, v)`` (``q = cs u - sn v``, ``r = sn u + cs v``) as ``[a0(u), a1(u), a2]``.
+
+    Each ``a_k`` is a coefficient list in ``u`` (low -> high). Vanishing top
+    powers of ``v`` are dropped; ``None`` for a conic that is a constant.
+    """
+    c0, c1, c2, c3, c4, c5 = c
+    a2 = c3 * sn * sn - c4 * cs * sn + c5 * cs * cs
+    a1 = [c2 * cs - c1 * sn, 2.0 * (c5 - c3) * cs * sn + c4 * (cs * cs - sn * sn)]
+    a0 = [c0, c1 * cs + c2 * sn, c3 * cs * cs + c4 * cs * sn + c5 * sn * sn]
+    if a2 != 0.0:
+        return [a0, a1, [a2]]
+    if a1[0] != 0.0 or a1[1] != 0.0:
+        return [a0, a1]
+    return None
+
+
+def _pmul(p: list[float], q: list[float]) -> list[float]:
+    out = [0.0] * (len(p) + len(q) - 1)
+    for i, x in enumerate(p):
+        for j, y in enumerate(q):
+            out[i + j] += x * y
+    return out
+
+
+def _padd(p: list[float], q: list[float], sign: float) -> list[float]:
+    if len(p) < len(q):
+        p = p + [0.0] * (len(q) - len(p))
+    out = list(p)
+    for i, y in enumerate(q):
+        out[i] += sign * y
+    return out
+
+
+def _resultant(a: list[list[float]], b: list[list[float]], sign: float = -1.0) -> list[float]:
+    """Sylvester resultant in ``v`` of ``sum a[k](u) v^k`` and ``sum b[k](u) v^k`` (degree 1 or 2 in v).
+
+    With ``sign=+1`` and absolute values of the coefficients it is a bound on the
+    terms summed in each coefficient: the scale of its rounding noise.
+    """
+    m = _pmul
+    if len(a) == 2 and len(b) == 3:
+        a, b = b, a
+    if len(a) == 3 and len(b) == 3:
+        x = _padd(m(a[2], b[0]), m(a[0], b[2]), sign)
+        y = _padd(m(a[2], b[1]), m(a[1], b[2]), sign)
+        z = _padd(m(a[1], b[0]), m(a[0], b[1]), sign)
+        return _padd(m(x, x), m(y, z), sign)
+    if len(a) == 3:  # (2, 1): a2 b0^2 - a1 b0 b1 + a0 b1^2
+        return _padd(_padd(m(a[2], m(b[0], b[0])), m(a[1], m(b[0], b[1])), sign), m(a[0], m(b[1], b[1])), 1.0)
+    return _padd(m(a[1], b[0]), m(a[0], b[1]), sign)
+
+
+def _poly_roots(p: list[float]) -> list[complex]:
+    """All roots of ``sum p[k] u^k`` (``p[-1] != 0``): closed form up to degree 2, else companion eigenvalues."""
+    deg = len(p) - 1
+    if deg == 1:
+        return [complex(-p[0] / p[1])]
+    if deg == 2:
+        return _quadratic(p[2], p[1], p[0])
+    last = [-x / p[-1] for x in p[:-1]]
+    if not all(math.isfinite(x) for x in last):
+        return _poly_roots(p[:-1])  # overflow: that root is at infinity for all purposes
+    comp = np.zeros((deg, deg))
+    comp[1:, :-1] = np.eye(deg - 1)
+    comp[:, -1] = last
+    return [complex(z) for z in np.linalg.eigvals(comp)]
+
+
+def _quadratic(a: float, b: float, c: float) -> list[complex]:
+    """Roots of ``a x^2 + b x + c`` (``a != 0``), the stable way (no cancellation in ``-b +- sqrt``)."""
+    disc = b * b - 4.0 * a * c
+    if disc >= 0.0:
+        s = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+        if s == 0.0:
+            return [0j, 0j]
+        return [complex(s / a), complex(c / s)]
+    re, im = -b / (2.0 * a), math.sqrt(-disc) / (2.0 * abs(a))
+    return [complex(re, im), complex(re, -im)]
+
+
+def _residual(cq: list[float], cr: list[float], q: float, r: float) -> float:
+    """``max(|Q| / scale_Q, |R| / scale_R)`` with ``scale = sum_k |c_k| rho^deg_k``, ``rho = |x| + L0``.
+
+    0 at an exact root, O(eps) at a rounded one, O(1) off the curves. ``L0``
+    keeps the scale finite at the origin (an exact root in the diagonal case).
+    """
+    rho = math.hypot(q, r) + _L0
+    worst = 0.0
+    for c in (cq, cr):
+        f = c[0] + q * (c[1] + c[3] * q + c[4] * r) + r * (c[2] + c[5] * r)
+        scale = abs(c[0]) + rho * (abs(c[1]) + abs(c[2]) + rho * (abs(c[3]) + abs(c[4]) + abs(c[5])))
+        if f != 0.0:
+            worst = max(worst, abs(f) / scale if scale > 0.0 else math.inf)
+    return worst
+
+
+def _polish(cq: list[float], cr: list[float], q: float, r: float, steps: int = 8) -> tuple[float, float, float]:
+    """Newton on ``Q = R = 0`` with the exact Jacobian; a step is kept only if it lowers the residual."""
+    res = _residual(cq, cr, q, r)
+    for _ in range(steps):
+        if res <= 2.0 * _EPS:
+            break
+        fq = cq[0] + q * (cq[1] + cq[3] * q + cq[4] * r) + r * (cq[2] + cq[5] * r)
+        fr = cr[0] + q * (cr[1] + cr[3] * q + cr[4] * r) + r * (cr[2] + cr[5] * r)
+        j11 = cq[1] + 2.0 * cq[3] * q + cq[4] * r
+        j12 = cq[2] + cq[4] * q + 2.0 * cq[5] * r
+        j21 = cr[1] + 2.0 * cr[3] * q + cr[4] * r
+        j22 = cr[2] + cr[4] * q + 2.0 * cr[5] * r
+        det = j11 * j22 - j12 * j21
+        if det == 0.0:
+            break
+        q1 = q - (j22 * fq - j12 * fr) / det
+        r1 = r - (j11 * fr - j21 * fq) / det
+        res1 = _residual(cq, cr, q1, r1) if math.isfinite(q1) and math.isfinite(r1) else math.inf
+        if not res1 < res:
+            break
+        q, r, res = q1, r1, res1
+    return q, r, res
+
+
+def _empty(at_infinity: int, n_complex: int = 0, message: str = "") -> ConicSolution:
+    return ConicSolution(np.zeros(0), np.zeros(0), at_infinity, n_complex, bool(message), message)
+
+
+def naive_solve_conics(
+    cq: Any,
+    cr: Any,
+    *,
+    inf_norm: float = 1e8,
+    imag_tol: float = 1e-5,
+    accept_tol: float = 1e-9,
+    dedupe_tol: float = 1e-7,
+) -> ConicSolution:
+    """The plain-Python ``equilibria.solve_conics``: the finite real intersections of two conics.
+
+    The conics are ``c0 + c1 q + c2 r + c3 q^2 + c4 q r + c5 r^2 = 0``.
+
+    Parameters
+    ----------
+    cq, cr : sequences of 6 floats
+        Monomial coefficients in the order ``(1, q, r, q^2, q r, r^2)`` (:data:`explorer_core.system.model.MONOMIALS`).
+    inf_norm : float
+        Points with ``|(q, r)| > inf_norm`` are counted as at infinity.
+    imag_tol : float
+        A resultant root ``u`` is a real candidate if ``|Im u| <= imag_tol (|u| + max_k |u_k|)``.
+        Generous on purpose (a double root splits into a near-real pair): the residual test decides.
+    accept_tol : float
+        Largest residual (see :func:`_residual`) of an accepted, polished point.
+    dedupe_tol : float
+        Points closer than ``dedupe_tol (1 + |x|)`` are one point (a double root).
+
+    Returns
+    -------
+    ConicSolution
+        Points sorted by ``q`` then ``r``; ``at_infinity = 4 -`` (finite roots of the
+        resultant, real or not, with multiplicity); ``degenerate`` when the conics
+        share a component (the resultant vanishes identically).
+    """
+    cq = [float(x) for x in cq]
+    cr = [float(x) for x in cr]
+    for c, name in ((cq, "Q"), (cr, "R")):
+        if all(x == 0.0 for x in c):
+            return _empty(0, 0, f"{name} vanishes identically: every point on the other curve is an equilibrium")
+    cs, sn = _choose_angle(cq, cr)
+    a = _in_v(cq, cs, sn)
+    b = _in_v(cr, cs, sn)
+    if a is None or b is None:
+        return _empty(4)  # a non-zero constant: no equilibria at all
+    res = _resultant(a, b)
+    bound = _resultant([[abs(x) for x in p] for p in a], [[abs(x) for x in p] for p in b], sign=1.0)
+    # Coefficients at rounding-noise level are exact zeros; leading ones are intersections at infinity.
+    signal = [k for k, (x, s) in enumerate(zip(res, bound, strict=True)) if abs(x) > _NOISE * s]
+    if not signal:
+        return _empty(
+            0,
+            0,
+            "Q and R have a common factor (their resultant vanishes identically): "
+            "a whole curve of equilibria, not isolated points",
+        )
+    deg = signal[-1]
+    roots = _poly_roots(res[: deg + 1]) if deg > 0 else []
+    roots = [z for z in roots if math.isfinite(z.real) and math.isfinite(z.imag) and abs(z) <= inf_norm]
+    at_infinity = 4 - len(roots)
+    umax = max((abs(z) for z in roots), default=0.0)
+    real_u = sorted(z.real for z in roots if abs(z.imag) <= imag_tol * (abs(z) + umax))
+    n_complex = len(roots) - len(real_u)
+    # Clusters of (nearly) equal real roots with their multiplicity: a cluster of k
+    # roots holds at most k intersections, which stops one ill-conditioned point
+    # (nearly singular Jacobian, far out) from being reported twice.
+    clusters: list[list[float]] = []
+    for u in real_u:
+        if clusters and u - clusters[-1][-1] <= 1e-6 * abs(u) + 1e-9 * umax:
+            clusters[-1].append(u)
+        else:
+            clusters.append([u])
+    # Every real root v of either conic at each u (two points may share u), polished.
+    found: list[tuple[float, float, float]] = []
+    for u in sorted(set(real_u)):
+        for p in (a, b):
+            k = [sum(x * u**j for j, x in enumerate(pk)) for pk in p]
+            if len(k) == 3 and k[2] != 0.0:
+                vs = {z.real for z in _quadratic(k[2], k[1], k[0])}
+            elif k[1] != 0.0:
+                vs = {-k[0] / k[1]}
+            else:
+                continue
+            for v in vs:
+                q0, r0 = cs * u - sn * v, sn * u + cs * v
+                if _residual(cq, cr, q0, r0) > 1e-3:
+                    continue  # on one conic only, far from the other
+                q0, r0, rs = _polish(cq, cr, q0, r0)
+                if rs <= accept_tol and math.hypot(q0, r0) <= inf_norm:
+                    found.append((rs, q0, r0))
+    # Each point goes to the cluster nearest its own u (two roots can be close, and a
+    # candidate from one may polish into the other's point); best residual first.
+    found.sort()
+    kept = [0] * len(clusters)
+    pts: list[tuple[float, float]] = []
+    for _, q0, r0 in found:
+        u0 = cs * q0 + sn * r0
+        c = min(range(len(clusters)), key=lambda i: min(abs(u0 - u) for u in clusters[i]))
+        if kept[c] == len(clusters[c]):
+            continue
+        if all(math.hypot(q0 - q1, r0 - r1) > dedupe_tol * (1.0 + math.hypot(q0, r0)) for q1, r1 in pts):
+            pts.append((q0, r0))
+            kept[c] += 1
+    pts.sort()
+    return ConicSolution(
+        np.array([x[0] for x in pts]), np.array([x[1] for x in pts]), at_infinity, n_complex, False, ""
+    )
+
+
+def _eig2(j11: float, j12: float, j21: float, j22: float) -> tuple[complex, complex]:
+    """Eigenvalues of a real 2x2 matrix, larger real part first, ``+im`` first in a pair."""
+    half = 0.5 * (j11 + j22)
+    det = j11 * j22 - j12 * j21
+    # (j11 - j22)^2 / 4 + j12 j21 is the discriminant without the cancellation of half^2 - det.
+    disc = 0.25 * (j11 - j22) ** 2 + j12 * j21
+    if disc >= 0.0:
+        s = math.sqrt(disc)
+        big = half + math.copysign(s, half) if half != 0.0 else s
+        small = det / big if big != 0.0 else half - s
+        return (complex(big), complex(small)) if big >= small else (complex(small), complex(big))
+    s = math.sqrt(-disc)
+    return complex(half, s), complex(half, -s)
+
+
+def _type(j11: float, j12: float, j21: float, j22: float, rtol: float) -> str:
+    tr = j11 + j22
+    det = j11 * j22 - j12 * j21
+    n2 = j11 * j11 + j12 * j12 + j21 * j21 + j22 * j22
+    if abs(det) <= rtol * n2:
+        return "degenerate"
+    if det < 0.0:
+        return "saddle"
+    if abs(tr) <= rtol * math.sqrt(n2):
+        return "centre"
+    if tr * tr >= 4.0 * det:
+        return "stable node" if tr < 0.0 else "unstable node"
+    return "stable focus" if tr < 0.0 else "unstable focus"
+
+
+def naive_equilibria(model: Model, t: float, inf_norm: float = 1e8, rtol: float = 1e-12) -> dict[str, Any]:
+    """``equilibria(model, t)`` in plain Python: ``{"q", "r", "eigenvalues", "types", "at_infinity",
+    "n_complex", "degenerate"}``."""
+    c = model.coefficients(t)
+    cq, cr = c[0].tolist(), c[1].tolist()
+    sol = naive_solve_conics(cq, cr, inf_norm=inf_norm)
+    eig = np.zeros((sol.q.size, 2), dtype=complex)
+    types = []
+    for i, (q, r) in enumerate(zip(sol.q.tolist(), sol.r.tolist(), strict=True)):
+        j11 = cq[1] + 2.0 * cq[3] * q + cq[4] * r
+        j12 = cq[2] + cq[4] * q + 2.0 * cq[5] * r
+        j21 = cr[1] + 2.0 * cr[3] * q + cr[4] * r
+        j22 = cr[2] + cr[4] * q + 2.0 * cr[5] * r
+        eig[i] = _eig2(j11, j12, j21, j22)
+        types.append(_type(j11, j12, j21, j22, rtol))
+    return {
+        "q": sol.q,
+        "r": sol.r,
+        "eigenvalues": eig,
+        "types": tuple(types),
+        "at_infinity": sol.at_infinity,
+        "n_complex": sol.n_complex,
+        "degenerate": sol.degenerate,
+    }
+
+
+def _compact(x: tuple[float, float]) -> tuple[float, float]:
+    s = 1.0 / (1.0 + math.hypot(x[0], x[1]))
+    return x[0] * s, x[1] * s
+
+
+def naive_match(a: list, b: list, jump: float) -> tuple[list[tuple[int, int]], bool]:
+    """``equilibria._match`` as it was: every assignment tried, the first of least total ``min(d, jump)``."""
+    if not a or not b:
+        return [], len(a) == len(b)
+    ca = [_compact(x) for x in a]
+    cb = [_compact(y) for y in b]
+    d = [[math.hypot(x[0] - y[0], x[1] - y[1]) for y in cb] for x in ca]
+    if len(a) <= len(b):
+        perms = itertools.permutations(range(len(b)), len(a))
+        best = min(perms, key=lambda p: sum(min(d[i][j], jump) for i, j in enumerate(p)))
+        assign = list(enumerate(best))
+    else:
+        perms = itertools.permutations(range(len(a)), len(b))
+        best = min(perms, key=lambda p: sum(min(d[i][j], jump) for j, i in enumerate(p)))
+        assign = [(i, j) for j, i in enumerate(best)]
+    pairs = []
+    clear = len(a) == len(b)
+    for i, j in assign:
+        dij = d[i][j]
+        if dij <= jump:
+            pairs.append((i, j))
+        else:
+            clear = False
+        others = [d[i][k] for k in range(len(b)) if k != j] + [d[k][j] for k in range(len(a)) if k != i]
+        if others and dij > 0.5 * min(others):
+            clear = False
+    return pairs, clear
+
+
+def naive_tracks(
+    model: Model,
+    n_t: int,
+    t_start: float | None = None,
+    jump: float = 0.05,
+    max_depth: int = 12,
+    max_refine: int | None = None,
+    inf_norm: float = 1e8,
+) -> dict[str, np.ndarray]:
+    """``equilibrium_tracks`` in plain Python, one frozen time at a time: ``{"branch", "t", "q", "r",
+    "sample_t", "sample_count"}`` (rows sorted by branch, then time)."""
+    max_refine = 4 * n_t if max_refine is None else max_refine
+    t_start = model.params.t0 if t_start is None else t_start
+    period = model.params.period
+    cache: dict[float, list[tuple[float, float]]] = {}
+
+    def solve(t: float) -> list[tuple[float, float]]:
+        if t not in cache:
+            e = naive_equilibria(model, t, inf_norm)
+            cache[t] = list(zip(e["q"].tolist(), e["r"].tolist(), strict=True))
+        return cache[t]
+
+    grid = (t_start + period * np.linspace(0.0, 1.0, n_t)).tolist()
+    grid[-1] = t_start + period
+    links: dict[tuple[float, int], tuple[float, int]] = {}
+    budget = max_refine
+    for k in range(n_t - 1):
+        stack = [(grid[k], grid[k + 1], 0)]
+        while stack:
+            ta, tb, depth = stack.pop()
+            pairs, clear = naive_match(solve(ta), solve(tb), jump)
+            tm = 0.5 * (ta + tb)
+            if not clear and depth < max_depth and budget > 0 and ta < tm < tb:
+                budget -= 1
+                stack.append((tm, tb, depth + 1))
+                stack.append((ta, tm, depth + 1))
+                continue
+            if not clear:
+                pairs, _ = naive_match(solve(ta), solve(tb), max(jump, 0.5))
+            for i, j in pairs:
+                links[(ta, i)] = (tb, j)
+    times = sorted(cache)
+    branch_of: dict[tuple[float, int], int] = {}
+    rows: list[tuple[int, float, int]] = []
+    n_branches = 0
+    for t in times:
+        for i in range(len(cache[t])):
+            if (t, i) not in branch_of:
+                branch_of[(t, i)] = n_branches
+                n_branches += 1
+            rows.append((branch_of[(t, i)], t, i))
+            nxt = links.get((t, i))
+            if nxt is not None:
+                branch_of[nxt] = branch_of[(t, i)]
+    rows.sort()
+    return {
+        "branch": np.array([b for b, _, _ in rows], dtype=np.int64),
+        "t": np.array([t for _, t, _ in rows]),
+        "q": np.array([cache[t][i][0] for _, t, i in rows]),
+        "r": np.array([cache[t][i][1] for _, t, i in rows]),
+        "sample_t": np.array(times),
+        "sample_count": np.array([len(cache[t]) for t in times], dtype=np.int64),
+    }

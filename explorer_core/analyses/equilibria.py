@@ -21,6 +21,10 @@ Newton from guesses:
    a cluster of k (nearly) equal real roots of the resultant yields at most k
    distinct points.
 
+The arithmetic is compiled (:mod:`explorer_core.analyses.equilibria_kernels`, numba, no GIL held):
+a track's whole grid of times is solved, classified and matched in one call each. ``tests/naive.py``
+keeps the same algorithm in plain Python as the reference the kernels are tested against.
+
 The energy identity explains the counts (see ``docs/equilibria.md``): since
 ``T' = alpha lambda`` is quadratic, the cubic part of ``(I omega, omega')``
 vanishes, ``l1 Q2 + l3 R2 == 0`` for the quadratic parts ``Q2, R2`` and two
@@ -36,7 +40,6 @@ from __future__ import annotations
 
 import csv
 import functools
-import itertools
 import math
 import os
 import time
@@ -45,28 +48,20 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from explorer_core import export
+from explorer_core.analyses import equilibria_kernels as ek
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, run
-from explorer_core.system.model import ROW_Q, ROW_R, Model, coefficients_at
+from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
 #: Equilibrium types, as used in :attr:`Equilibria.types` and the CSV/JSON output.
 TYPES = ("saddle", "stable node", "unstable node", "stable focus", "unstable focus", "centre", "degenerate")
 
-_EPS = np.finfo(float).eps
-# Candidate rotations (cos, sin); odd angles so that no axis-aligned or
-# diagonal conic direction (q, r, q = +-r) falls on one of them.
-_ROT = tuple((math.cos(0.377 + k * math.pi / 8), math.sin(0.377 + k * math.pi / 8)) for k in range(8))
-# A resultant coefficient smaller than this times its absolute-value bound is noise.
-_NOISE = 1e4 * _EPS
 # Jump accepted at the bisection limit (compactified plane; crossing infinity is ~2).
 _LOOSE_JUMP = 0.5
-# Length floor of the residual scale (units of q, r): only matters at an exact root at the origin.
-_L0 = 1e-12
 
 
 # ---------------------------------------------------------------------------
@@ -147,7 +142,7 @@ class Equilibria(Drawable):
 
 @functools.lru_cache(maxsize=16)
 def _model_of(params: Params) -> Model:
-    # Building the coefficient tables costs ~2 ms, 15x the solve: reuse them per Params.
+    # Building the coefficient tables costs ~2 ms, ~70x a solve: reuse them per Params.
     return Model(params)
 
 
@@ -175,145 +170,6 @@ def _check_positive(name: str, v: Any, allow_zero: bool = False) -> None:
         raise ParameterError(f"{name} must be a {'non-negative' if allow_zero else 'positive'} number, got {v!r}")
 
 
-def _choose_angle(cq: list[float], cr: list[float]) -> tuple[float, float]:
-    """The candidate rotation whose smaller relative leading ``v`` coefficient (of the two conics) is largest."""
-    best, choice = -1.0, _ROT[0]
-    for cs, sn in _ROT:
-        score = math.inf
-        for c in (cq, cr):
-            quad = abs(c[3]) + abs(c[4]) + abs(c[5])
-            if quad > 0.0:
-                score = min(score, abs(c[3] * sn * sn - c[4] * cs * sn + c[5] * cs * cs) / quad)
-            else:  # a line (or a constant): keep its v coefficient instead
-                lin = abs(c[1]) + abs(c[2])
-                if lin > 0.0:
-                    score = min(score, abs(c[2] * cs - c[1] * sn) / lin)
-        if score > best:
-            best, choice = score, (cs, sn)
-    return choice
-
-
-def _in_v(c: list[float], cs: float, sn: float) -> list[list[float]] | None:
-    """The conic in ``(u, v)`` (``q = cs u - sn v``, ``r = sn u + cs v``) as ``[a0(u), a1(u), a2]``.
-
-    Each ``a_k`` is a coefficient list in ``u`` (low -> high). Vanishing top
-    powers of ``v`` are dropped; ``None`` for a conic that is a constant.
-    """
-    c0, c1, c2, c3, c4, c5 = c
-    a2 = c3 * sn * sn - c4 * cs * sn + c5 * cs * cs
-    a1 = [c2 * cs - c1 * sn, 2.0 * (c5 - c3) * cs * sn + c4 * (cs * cs - sn * sn)]
-    a0 = [c0, c1 * cs + c2 * sn, c3 * cs * cs + c4 * cs * sn + c5 * sn * sn]
-    if a2 != 0.0:
-        return [a0, a1, [a2]]
-    if a1[0] != 0.0 or a1[1] != 0.0:
-        return [a0, a1]
-    return None
-
-
-def _pmul(p: list[float], q: list[float]) -> list[float]:
-    out = [0.0] * (len(p) + len(q) - 1)
-    for i, x in enumerate(p):
-        for j, y in enumerate(q):
-            out[i + j] += x * y
-    return out
-
-
-def _padd(p: list[float], q: list[float], sign: float) -> list[float]:
-    if len(p) < len(q):
-        p = p + [0.0] * (len(q) - len(p))
-    out = list(p)
-    for i, y in enumerate(q):
-        out[i] += sign * y
-    return out
-
-
-def _resultant(a: list[list[float]], b: list[list[float]], sign: float = -1.0) -> list[float]:
-    """Sylvester resultant in ``v`` of ``sum a[k](u) v^k`` and ``sum b[k](u) v^k`` (degree 1 or 2 in v).
-
-    With ``sign=+1`` and absolute values of the coefficients it is a bound on the
-    terms summed in each coefficient: the scale of its rounding noise.
-    """
-    m = _pmul
-    if len(a) == 2 and len(b) == 3:
-        a, b = b, a
-    if len(a) == 3 and len(b) == 3:
-        x = _padd(m(a[2], b[0]), m(a[0], b[2]), sign)
-        y = _padd(m(a[2], b[1]), m(a[1], b[2]), sign)
-        z = _padd(m(a[1], b[0]), m(a[0], b[1]), sign)
-        return _padd(m(x, x), m(y, z), sign)
-    if len(a) == 3:  # (2, 1): a2 b0^2 - a1 b0 b1 + a0 b1^2
-        return _padd(_padd(m(a[2], m(b[0], b[0])), m(a[1], m(b[0], b[1])), sign), m(a[0], m(b[1], b[1])), 1.0)
-    return _padd(m(a[1], b[0]), m(a[0], b[1]), sign)
-
-
-def _poly_roots(p: list[float]) -> list[complex]:
-    """All roots of ``sum p[k] u^k`` (``p[-1] != 0``): closed form up to degree 2, else companion eigenvalues."""
-    deg = len(p) - 1
-    if deg == 1:
-        return [complex(-p[0] / p[1])]
-    if deg == 2:
-        return _quadratic(p[2], p[1], p[0])
-    last = [-x / p[-1] for x in p[:-1]]
-    if not all(math.isfinite(x) for x in last):
-        return _poly_roots(p[:-1])  # overflow: that root is at infinity for all purposes
-    comp = np.zeros((deg, deg))
-    comp[1:, :-1] = np.eye(deg - 1)
-    comp[:, -1] = last
-    return [complex(z) for z in np.linalg.eigvals(comp)]
-
-
-def _quadratic(a: float, b: float, c: float) -> list[complex]:
-    """Roots of ``a x^2 + b x + c`` (``a != 0``), the stable way (no cancellation in ``-b +- sqrt``)."""
-    disc = b * b - 4.0 * a * c
-    if disc >= 0.0:
-        s = -0.5 * (b + math.copysign(math.sqrt(disc), b))
-        if s == 0.0:
-            return [0j, 0j]
-        return [complex(s / a), complex(c / s)]
-    re, im = -b / (2.0 * a), math.sqrt(-disc) / (2.0 * abs(a))
-    return [complex(re, im), complex(re, -im)]
-
-
-def _residual(cq: list[float], cr: list[float], q: float, r: float) -> float:
-    """``max(|Q| / scale_Q, |R| / scale_R)`` with ``scale = sum_k |c_k| rho^deg_k``, ``rho = |x| + L0``.
-
-    0 at an exact root, O(eps) at a rounded one, O(1) off the curves. ``L0``
-    keeps the scale finite at the origin (an exact root in the diagonal case).
-    """
-    rho = math.hypot(q, r) + _L0
-    worst = 0.0
-    for c in (cq, cr):
-        f = c[0] + q * (c[1] + c[3] * q + c[4] * r) + r * (c[2] + c[5] * r)
-        scale = abs(c[0]) + rho * (abs(c[1]) + abs(c[2]) + rho * (abs(c[3]) + abs(c[4]) + abs(c[5])))
-        if f != 0.0:
-            worst = max(worst, abs(f) / scale if scale > 0.0 else math.inf)
-    return worst
-
-
-def _polish(cq: list[float], cr: list[float], q: float, r: float, steps: int = 8) -> tuple[float, float, float]:
-    """Newton on ``Q = R = 0`` with the exact Jacobian; a step is kept only if it lowers the residual."""
-    res = _residual(cq, cr, q, r)
-    for _ in range(steps):
-        if res <= 2.0 * _EPS:
-            break
-        fq = cq[0] + q * (cq[1] + cq[3] * q + cq[4] * r) + r * (cq[2] + cq[5] * r)
-        fr = cr[0] + q * (cr[1] + cr[3] * q + cr[4] * r) + r * (cr[2] + cr[5] * r)
-        j11 = cq[1] + 2.0 * cq[3] * q + cq[4] * r
-        j12 = cq[2] + cq[4] * q + 2.0 * cq[5] * r
-        j21 = cr[1] + 2.0 * cr[3] * q + cr[4] * r
-        j22 = cr[2] + cr[4] * q + 2.0 * cr[5] * r
-        det = j11 * j22 - j12 * j21
-        if det == 0.0:
-            break
-        q1 = q - (j22 * fq - j12 * fr) / det
-        r1 = r - (j11 * fr - j21 * fq) / det
-        res1 = _residual(cq, cr, q1, r1) if math.isfinite(q1) and math.isfinite(r1) else math.inf
-        if not res1 < res:
-            break
-        q, r, res = q1, r1, res1
-    return q, r, res
-
-
 @dataclass(frozen=True, eq=False)
 class ConicSolution:
     """Finite real intersections of two conics, see :func:`solve_conics`."""
@@ -326,8 +182,28 @@ class ConicSolution:
     message: str
 
 
-def _empty(at_infinity: int, n_complex: int = 0, message: str = "") -> ConicSolution:
-    return ConicSolution(np.zeros(0), np.zeros(0), at_infinity, n_complex, bool(message), message)
+#: Why a solve is degenerate, by the kernel's code (a non-zero constant conic is not: it has no zeros).
+_MESSAGES = {
+    ek.Q_ZERO: "Q vanishes identically: every point on the other curve is an equilibrium",
+    ek.R_ZERO: "R vanishes identically: every point on the other curve is an equilibrium",
+    ek.COMMON: "Q and R have a common factor (their resultant vanishes identically): "
+    "a whole curve of equilibria, not isolated points",
+}
+
+
+def _eig_failed(where: str) -> np.linalg.LinAlgError:
+    # As np.linalg.eigvals did: LAPACK's QR iteration on a 4x4 companion matrix practically always converges.
+    return np.linalg.LinAlgError(f"the companion matrix's eigenvalues did not converge ({where})")
+
+
+def _conic(name: str, c: Any) -> np.ndarray:
+    try:
+        arr = np.array(c, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be 6 numbers (1, q, r, q^2, q r, r^2), got {c!r}") from None
+    if arr.shape != (6,) or not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must be 6 finite numbers (1, q, r, q^2, q r, r^2), got {c!r}")
+    return arr
 
 
 def solve_conics(
@@ -341,9 +217,12 @@ def solve_conics(
 ) -> ConicSolution:
     """All finite real intersections of two conics ``c0 + c1 q + c2 r + c3 q^2 + c4 q r + c5 r^2 = 0``.
 
+    The arithmetic is :func:`explorer_core.analyses.equilibria_kernels.solve_pairs` (the module's
+    docstring gives the algorithm; ``tests/naive.py`` keeps it in plain Python as the reference).
+
     Parameters
     ----------
-    cq, cr : sequences of 6 floats
+    cq, cr : sequences of 6 finite floats
         Monomial coefficients in the order ``(1, q, r, q^2, q r, r^2)`` (:data:`explorer_core.system.model.MONOMIALS`).
     inf_norm : float
         Points with ``|(q, r)| > inf_norm`` are counted as at infinity.
@@ -351,7 +230,8 @@ def solve_conics(
         A resultant root ``u`` is a real candidate if ``|Im u| <= imag_tol (|u| + max_k |u_k|)``.
         Generous on purpose (a double root splits into a near-real pair): the residual test decides.
     accept_tol : float
-        Largest residual (see :func:`_residual`) of an accepted, polished point.
+        Largest residual ``max(|Q| / scale_Q, |R| / scale_R)`` of an accepted, polished point, with
+        ``scale = sum_k |c_k| rho^deg_k``, ``rho = |x| + 1e-12``.
     dedupe_tol : float
         Points closer than ``dedupe_tol (1 + |x|)`` are one point (a double root).
 
@@ -362,112 +242,26 @@ def solve_conics(
         resultant, real or not, with multiplicity); ``degenerate`` when the conics
         share a component (the resultant vanishes identically).
     """
-    cq = [float(x) for x in cq]
-    cr = [float(x) for x in cr]
-    for c, name in ((cq, "Q"), (cr, "R")):
-        if all(x == 0.0 for x in c):
-            return _empty(0, 0, f"{name} vanishes identically: every point on the other curve is an equilibrium")
-    cs, sn = _choose_angle(cq, cr)
-    a = _in_v(cq, cs, sn)
-    b = _in_v(cr, cs, sn)
-    if a is None or b is None:
-        return _empty(4)  # a non-zero constant: no equilibria at all
-    res = _resultant(a, b)
-    bound = _resultant([[abs(x) for x in p] for p in a], [[abs(x) for x in p] for p in b], sign=1.0)
-    # Coefficients at rounding-noise level are exact zeros; leading ones are intersections at infinity.
-    signal = [k for k, (x, s) in enumerate(zip(res, bound, strict=True)) if abs(x) > _NOISE * s]
-    if not signal:
-        return _empty(
-            0,
-            0,
-            "Q and R have a common factor (their resultant vanishes identically): "
-            "a whole curve of equilibria, not isolated points",
-        )
-    deg = signal[-1]
-    roots = _poly_roots(res[: deg + 1]) if deg > 0 else []
-    roots = [z for z in roots if math.isfinite(z.real) and math.isfinite(z.imag) and abs(z) <= inf_norm]
-    at_infinity = 4 - len(roots)
-    umax = max((abs(z) for z in roots), default=0.0)
-    real_u = sorted(z.real for z in roots if abs(z.imag) <= imag_tol * (abs(z) + umax))
-    n_complex = len(roots) - len(real_u)
-    # Clusters of (nearly) equal real roots with their multiplicity: a cluster of k
-    # roots holds at most k intersections, which stops one ill-conditioned point
-    # (nearly singular Jacobian, far out) from being reported twice.
-    clusters: list[list[float]] = []
-    for u in real_u:
-        if clusters and u - clusters[-1][-1] <= 1e-6 * abs(u) + 1e-9 * umax:
-            clusters[-1].append(u)
-        else:
-            clusters.append([u])
-    # Every real root v of either conic at each u (two points may share u), polished.
-    found: list[tuple[float, float, float]] = []
-    for u in sorted(set(real_u)):
-        for p in (a, b):
-            k = [sum(x * u**j for j, x in enumerate(pk)) for pk in p]
-            if len(k) == 3 and k[2] != 0.0:
-                vs = {z.real for z in _quadratic(k[2], k[1], k[0])}
-            elif k[1] != 0.0:
-                vs = {-k[0] / k[1]}
-            else:
-                continue
-            for v in vs:
-                q0, r0 = cs * u - sn * v, sn * u + cs * v
-                if _residual(cq, cr, q0, r0) > 1e-3:
-                    continue  # on one conic only, far from the other
-                q0, r0, rs = _polish(cq, cr, q0, r0)
-                if rs <= accept_tol and math.hypot(q0, r0) <= inf_norm:
-                    found.append((rs, q0, r0))
-    # Each point goes to the cluster nearest its own u (two roots can be close, and a
-    # candidate from one may polish into the other's point); best residual first.
-    found.sort()
-    kept = [0] * len(clusters)
-    pts: list[tuple[float, float]] = []
-    for _, q0, r0 in found:
-        u0 = cs * q0 + sn * r0
-        c = min(range(len(clusters)), key=lambda i: min(abs(u0 - u) for u in clusters[i]))
-        if kept[c] == len(clusters[c]):
-            continue
-        if all(math.hypot(q0 - q1, r0 - r1) > dedupe_tol * (1.0 + math.hypot(q0, r0)) for q1, r1 in pts):
-            pts.append((q0, r0))
-            kept[c] += 1
-    pts.sort()
+    coef = np.empty((1, 2, 6))
+    coef[0, 0] = _conic("cq", cq)
+    coef[0, 1] = _conic("cr", cr)
+    _check_positive("inf_norm", inf_norm)
+    for name, v in (("imag_tol", imag_tol), ("accept_tol", accept_tol), ("dedupe_tol", dedupe_tol)):
+        _check_positive(name, v, allow_zero=True)
+    points = np.zeros((1, ek.MAX_POINTS, 2))
+    info = np.zeros((1, 4), np.int64)
+    ek.solve_pairs(coef, float(inf_norm), float(imag_tol), float(accept_tol), float(dedupe_tol), points, info)
+    code, n, at_infinity, n_complex = info[0].tolist()
+    if code == ek.EIG_FAILED:
+        raise _eig_failed(f"Q = {coef[0, 0].tolist()}, R = {coef[0, 1].tolist()}")
+    message = _MESSAGES.get(code, "")
     return ConicSolution(
-        np.array([x[0] for x in pts]), np.array([x[1] for x in pts]), at_infinity, n_complex, False, ""
+        points[0, :n, 0].copy(), points[0, :n, 1].copy(), at_infinity, n_complex, bool(message), message
     )
 
 
 # ---------------------------------------------------------------------------
 # Classification.
-
-
-def _eig2(j11: float, j12: float, j21: float, j22: float) -> tuple[complex, complex]:
-    """Eigenvalues of a real 2x2 matrix, larger real part first, ``+im`` first in a pair."""
-    half = 0.5 * (j11 + j22)
-    det = j11 * j22 - j12 * j21
-    # (j11 - j22)^2 / 4 + j12 j21 is the discriminant without the cancellation of half^2 - det.
-    disc = 0.25 * (j11 - j22) ** 2 + j12 * j21
-    if disc >= 0.0:
-        s = math.sqrt(disc)
-        big = half + math.copysign(s, half) if half != 0.0 else s
-        small = det / big if big != 0.0 else half - s
-        return (complex(big), complex(small)) if big >= small else (complex(small), complex(big))
-    s = math.sqrt(-disc)
-    return complex(half, s), complex(half, -s)
-
-
-def _type(j11: float, j12: float, j21: float, j22: float, rtol: float) -> str:
-    tr = j11 + j22
-    det = j11 * j22 - j12 * j21
-    n2 = j11 * j11 + j12 * j12 + j21 * j21 + j22 * j22
-    if abs(det) <= rtol * n2:
-        return "degenerate"
-    if det < 0.0:
-        return "saddle"
-    if abs(tr) <= rtol * math.sqrt(n2):
-        return "centre"
-    if tr * tr >= 4.0 * det:
-        return "stable node" if tr < 0.0 else "unstable node"
-    return "stable focus" if tr < 0.0 else "unstable focus"
 
 
 def classify(jacobian: Any, rtol: float = 1e-12) -> tuple[np.ndarray, tuple[str, ...]]:
@@ -477,26 +271,85 @@ def classify(jacobian: Any, rtol: float = 1e-12) -> tuple[np.ndarray, tuple[str,
     ``det > 0`` and ``|tr| <= rtol |J|``: centre (the linearisation cannot decide,
     e.g. the origin at ``g' = 0`` in the diagonal case); otherwise node if
     ``tr^2 >= 4 det`` else focus, stable if ``tr < 0``. ``|J|`` is the Frobenius norm.
+    Eigenvalues: larger real part first, ``+im`` first in a pair.
     """
-    jac = np.asarray(jacobian, dtype=float).reshape(-1, 2, 2)
+    _check_positive("rtol", rtol, allow_zero=True)
+    jac = np.array(jacobian, dtype=float).reshape(-1, 2, 2)  # a fresh C array: one kernel signature
     eig = np.zeros((jac.shape[0], 2), dtype=complex)
-    types = []
-    for i, m in enumerate(jac.tolist()):
-        (j11, j12), (j21, j22) = m
-        eig[i] = _eig2(j11, j12, j21, j22)
-        types.append(_type(j11, j12, j21, j22, rtol))
-    return eig, tuple(types)
+    kinds = np.zeros(jac.shape[0], dtype=np.int64)
+    ek.classify_stack(jac, float(rtol), eig, kinds)
+    return eig, tuple(TYPES[k] for k in kinds.tolist())
 
 
 # ---------------------------------------------------------------------------
 # Public entry points.
 
 
-def _coefficients(model: Model, t: float) -> tuple[list[float], list[float]]:
-    g, gp = model.g(t)
-    out = np.empty((2, 6))
-    coefficients_at(model.num[:2], model.gpc[:2], model.den, g, gp, out)
-    return out[ROW_Q].tolist(), out[ROW_R].tolist()
+class _Samples:
+    """The equilibria of one model at many frozen times, row by row in arrays that grow (a row per time).
+
+    Rows as :func:`~explorer_core.analyses.equilibria_kernels.equilibria_at` fills them: ``t``,
+    ``points`` (up to 4), ``info`` (code, count, at infinity, complex), ``eig``, ``kinds``;
+    ``link[s, i] = (s', j)``: point ``i`` of row ``s`` continues as point ``j`` of row ``s'`` (tracks).
+    """
+
+    def __init__(self, model: Model, capacity: int, inf_norm: float, rtol: float) -> None:
+        self.model = model
+        self.forcing = model.forcing
+        self.inf_norm = float(inf_norm)
+        self.rtol = float(rtol)
+        self.n = 0
+        self._allocate(max(1, capacity))
+
+    def _allocate(self, cap: int) -> None:
+        fresh = {
+            "t": np.zeros(cap),
+            "points": np.zeros((cap, ek.MAX_POINTS, 2)),
+            "info": np.zeros((cap, 4), np.int64),
+            "eig": np.zeros((cap, ek.MAX_POINTS, 2), dtype=complex),
+            "kinds": np.zeros((cap, ek.MAX_POINTS), np.int64),
+            "link": np.full((cap, ek.MAX_POINTS, 2), -1, np.int64),
+        }
+        for name, arr in fresh.items():
+            if self.n:  # growing: keep the rows solved
+                arr[: self.n] = getattr(self, name)[: self.n]
+            setattr(self, name, arr)
+
+    def add(self, ts: np.ndarray) -> int:
+        """Solve at the times ``ts`` (a float array); returns the row of the first."""
+        first = self.n
+        if first + ts.size > self.t.size:
+            self._allocate(2 * (first + ts.size))
+        m = self.model
+        self.t[first : first + ts.size] = ts
+        ek.equilibria_at(m.num, m.gpc, m.den, self.forcing, ts, first, self.inf_norm, self.rtol,
+                         self.points, self.info, self.eig, self.kinds)  # fmt: skip
+        self.n += ts.size
+        failed = self.info[first : self.n, 0] == ek.EIG_FAILED
+        if failed.any():
+            raise _eig_failed(f"t = {float(ts[np.argmax(failed)])!r}")
+        return first
+
+    def equilibria(self, s: int) -> Equilibria:
+        """Row ``s`` as :class:`Equilibria`."""
+        code, n, at_infinity, n_complex = self.info[s].tolist()
+        q = self.points[s, :n, 0].copy()
+        r = self.points[s, :n, 1].copy()
+        eig = self.eig[s, :n].copy()
+        for arr in (q, r, eig):
+            arr.setflags(write=False)
+        message = _MESSAGES.get(code, "")
+        return Equilibria(
+            t=float(self.t[s]),
+            q=q,
+            r=r,
+            eigenvalues=eig,
+            types=tuple(TYPES[k] for k in self.kinds[s, :n].tolist()),
+            at_infinity=at_infinity,
+            n_complex=n_complex,
+            degenerate=bool(message),
+            message=message,
+        )
 
 
 def equilibria(
@@ -512,7 +365,7 @@ def equilibria(
     ----------
     model_or_params : Model or Params
         The system; a :class:`Params` is turned into a :class:`Model` (cached for
-        the last 16 parameter sets: building one takes ~2 ms, the solve ~0.1 ms).
+        the last 16 parameter sets: building one takes ~2 ms, a call ~0.03 ms).
     t : float
         Frozen time.
     inf_norm : float
@@ -530,36 +383,8 @@ def equilibria(
     t = _check_t("t", t)
     _check_positive("inf_norm", inf_norm)
     _check_positive("rtol", rtol, allow_zero=True)
-    model = _as_model(model_or_params)
-    cq, cr = _coefficients(model, t)
-    return _finish(t, cq, cr, solve_conics(cq, cr, inf_norm=inf_norm), rtol)
-
-
-def _finish(t: float, cq: list[float], cr: list[float], sol: ConicSolution, rtol: float) -> Equilibria:
-    n = sol.q.size
-    eig = np.zeros((n, 2), dtype=complex)
-    types = []
-    for i, (q, r) in enumerate(zip(sol.q.tolist(), sol.r.tolist(), strict=True)):
-        # Exact Jacobian from the same coefficients the roots were computed from.
-        j11 = cq[1] + 2.0 * cq[3] * q + cq[4] * r
-        j12 = cq[2] + cq[4] * q + 2.0 * cq[5] * r
-        j21 = cr[1] + 2.0 * cr[3] * q + cr[4] * r
-        j22 = cr[2] + cr[4] * q + 2.0 * cr[5] * r
-        eig[i] = _eig2(j11, j12, j21, j22)
-        types.append(_type(j11, j12, j21, j22, rtol))
-    for arr in (sol.q, sol.r, eig):
-        arr.setflags(write=False)
-    return Equilibria(
-        t=t,
-        q=sol.q,
-        r=sol.r,
-        eigenvalues=eig,
-        types=tuple(types),
-        at_infinity=sol.at_infinity,
-        n_complex=sol.n_complex,
-        degenerate=sol.degenerate,
-        message=sol.message,
-    )
+    samples = _Samples(_as_model(model_or_params), 1, inf_norm, rtol)
+    return samples.equilibria(samples.add(np.array([t])))
 
 
 # ---------------------------------------------------------------------------
@@ -693,54 +518,6 @@ def _compact(x: Point) -> Point:
     return x[0] * s, x[1] * s
 
 
-def _match(a: list[Point], b: list[Point], jump: float) -> tuple[list[tuple[int, int]], bool]:
-    """Nearest assignment of the points ``a`` to the points ``b``.
-
-    The assignment minimises the total of ``min(distance, jump)``: a pair farther
-    apart than ``jump`` will be cut anyway, so it must not pull the others into a
-    crossed assignment (a point passing through infinity jumps by ~2, as far as
-    two crossed pairs of ~1 each).
-
-    Distances are taken between the compactified points ``x / (1 + |x|)``: about
-    ``|dx| / (1 + |x|)`` for a sideways move, so a branch running off to infinity
-    stays continuous, while passing through infinity (from the far side of the
-    rim to the other) is a jump of ~2. Returns the pairs within ``jump`` and
-    whether the match is clearly continuous: same count, every pair within
-    ``jump``, and no pair ambiguous (each distance under half the distance from
-    either end to any other point).
-    """
-    if not a or not b:
-        return [], len(a) == len(b)
-    ca = [_compact(x) for x in a]
-    cb = [_compact(y) for y in b]
-    d = [[math.hypot(x[0] - y[0], x[1] - y[1]) for y in cb] for x in ca]
-    if min(len(a), len(b)) <= 4:
-        # At most 3 equilibria here: trying every assignment is cheaper than scipy.
-        if len(a) <= len(b):
-            perms = itertools.permutations(range(len(b)), len(a))
-            best = min(perms, key=lambda p: sum(min(d[i][j], jump) for i, j in enumerate(p)))
-            assign = list(enumerate(best))
-        else:
-            perms = itertools.permutations(range(len(a)), len(b))
-            best = min(perms, key=lambda p: sum(min(d[i][j], jump) for j, i in enumerate(p)))
-            assign = [(i, j) for j, i in enumerate(best)]
-    else:
-        rows, cols = linear_sum_assignment(np.minimum(np.array(d), jump))
-        assign = list(zip(rows.tolist(), cols.tolist(), strict=True))
-    pairs = []
-    clear = len(a) == len(b)
-    for i, j in assign:
-        dij = d[i][j]
-        if dij <= jump:
-            pairs.append((i, j))
-        else:
-            clear = False
-        others = [d[i][k] for k in range(len(b)) if k != j] + [d[k][j] for k in range(len(a)) if k != i]
-        if others and dij > 0.5 * min(others):
-            clear = False
-    return pairs, clear
-
-
 def equilibrium_tracks(
     model_or_params: Model | Params,
     n_t: int = 400,
@@ -812,6 +589,7 @@ def iter_equilibrium_tracks(
         raise ParameterError(f"n_t must be between 2 and 1000000, got {n_t!r}")
     t_start = model.params.t0 if t_start is None else _check_t("t_start", t_start)
     _check_positive("jump", jump)
+    jump = float(jump)  # one kernel signature for the matching
     _check_positive("inf_norm", inf_norm)
     _check_positive("rtol", rtol, allow_zero=True)
     for name, v in (("max_depth", max_depth), ("max_refine", max_refine)):
@@ -821,19 +599,27 @@ def iter_equilibrium_tracks(
         max_refine = 4 * n_t
     period = model.params.period
 
-    cache: dict[float, Equilibria] = {}
-
-    def solve(t: float) -> list[tuple[float, float]]:
-        if t not in cache:
-            cq, cr = _coefficients(model, t)
-            cache[t] = _finish(t, cq, cr, solve_conics(cq, cr, inf_norm=inf_norm), rtol)
-        e = cache[t]
-        return list(zip(e.q.tolist(), e.r.tolist(), strict=True))
-
     grid = (t_start + period * np.linspace(0.0, 1.0, n_t)).tolist()
     grid[-1] = t_start + period
-    # links[(t, i)] = (t_next, j): point i at time t continues as point j at t_next.
-    links: dict[tuple[float, int], tuple[float, int]] = {}
+    # Every grid time at once, in one kernel call; bisection points one by one as the matching asks.
+    samples = _Samples(model, n_t + min(max_refine, 16 + n_t // 8), inf_norm, rtol)  # grows if need be
+    samples.add(np.array(grid))
+    row: dict[float, int] = {}  # frozen time -> its row (a time met twice is solved once)
+    for k, t in enumerate(grid):
+        row.setdefault(t, k)
+
+    def solve(t: float) -> int:
+        s = row.get(t)
+        if s is None:
+            s = row[t] = samples.add(np.array([t]))
+        return s
+
+    # Points of consecutive grid times matched in one call; only unclear intervals are matched again.
+    grid_pairs = np.zeros((n_t - 1, ek.MAX_POINTS, 2), np.int64)
+    grid_npairs = np.zeros(n_t - 1, np.int64)
+    grid_clear = np.zeros(n_t - 1, np.bool_)
+    ek.match_chain(samples.points, samples.info, n_t, jump, grid_pairs, grid_npairs, grid_clear)
+    pairs = np.zeros((ek.MAX_POINTS, 2), np.int64)
     budget = max_refine
     lost: tuple[Loss, ...] = ()
     start = time.perf_counter()
@@ -846,11 +632,20 @@ def iter_equilibrium_tracks(
         if cancel is not None and cancel():
             why = f"cancelled: the tracks cover t in [{grid[0]:.6g}, {grid[k]:.6g}] of [{grid[0]:.6g}, {grid[-1]:.6g}]"
             lost = (Loss("grid intervals", n_t - 1 - k, why),)
+            # The grid beyond the intervals done was solved ahead: those samples are not part of the tracks.
+            row = {t: s for t, s in row.items() if k > 0 and t <= grid[k]}
             break
+        if grid_clear[k]:
+            sa, sb = row[grid[k]], row[grid[k + 1]]
+            for i, j in grid_pairs[k, : grid_npairs[k]].tolist():
+                samples.link[sa, i] = sb, j
+            done = k + 1
+            continue
         stack = [(grid[k], grid[k + 1], 0)]
         while stack:
             ta, tb, depth = stack.pop()
-            pairs, clear = _match(solve(ta), solve(tb), jump)
+            sa, sb = solve(ta), solve(tb)
+            npairs, clear = ek.match(samples.points, samples.info, sa, sb, jump, pairs)
             tm = 0.5 * (ta + tb)
             if not clear and depth < max_depth and budget > 0 and ta < tm < tb:
                 budget -= 1
@@ -860,45 +655,47 @@ def iter_equilibrium_tracks(
             if not clear:
                 # Still unclear at the limit: the interval is tiny, so accept any pair that
                 # does not cross infinity (an antipodal jump of ~2 on the compactified plane).
-                pairs, _ = _match(solve(ta), solve(tb), max(jump, _LOOSE_JUMP))
-            for i, j in pairs:
-                links[(ta, i)] = (tb, j)
+                npairs, _ = ek.match(samples.points, samples.info, sa, sb, max(jump, _LOOSE_JUMP), pairs)
+            for i, j in pairs[:npairs].tolist():
+                samples.link[sa, i] = sb, j
         done = k + 1
 
-    times = sorted(cache)
-    branch_of: dict[tuple[float, int], int] = {}
-    rows: list[tuple[int, float, int]] = []
-    n_branches = 0
-    for t in times:
-        for i in range(len(cache[t])):
-            if (t, i) not in branch_of:
-                branch_of[(t, i)] = n_branches
-                n_branches += 1
-            b = branch_of[(t, i)]
-            rows.append((b, t, i))
-            nxt = links.get((t, i))
-            if nxt is not None:
-                branch_of[nxt] = b
-    rows.sort()
-    n = len(rows)
-    eig = np.array([cache[t].eigenvalues[i] for _, t, i in rows], dtype=complex).reshape(n, 2)
+    times = sorted(row)
+    order = np.array([row[t] for t in times], dtype=np.int64)
+    branch_at = np.full((samples.n, ek.MAX_POINTS), -1, np.int64)
+    ek.number_branches(order, samples.info, samples.link, branch_at)
+    count = samples.info[order, 1]
+    s_of = np.repeat(order, count)  # (sample row, point) of every row of the tracks
+    i_of = np.arange(s_of.size) - np.repeat(np.cumsum(count) - count, count)
+    b_of = branch_at[s_of, i_of]
+    t_of = samples.t[s_of]
+    rows = np.lexsort((i_of, t_of, b_of))  # by branch, then time
+    s_of, i_of = s_of[rows], i_of[rows]
     tracks = Tracks(
         model=model,
         t_start=float(t_start),
         period=float(period),
-        branch=np.array([b for b, _, _ in rows], dtype=np.int64),
-        t=np.array([t for _, t, _ in rows], dtype=float),
-        q=np.array([cache[t].q[i] for _, t, i in rows], dtype=float),
-        r=np.array([cache[t].r[i] for _, t, i in rows], dtype=float),
-        types=tuple(cache[t].types[i] for _, t, i in rows),
-        eigenvalues=eig,
+        branch=b_of[rows],
+        t=t_of[rows],
+        q=samples.points[s_of, i_of, 0],
+        r=samples.points[s_of, i_of, 1],
+        types=tuple(TYPES[k] for k in samples.kinds[s_of, i_of].tolist()),
+        eigenvalues=samples.eig[s_of, i_of],
         sample_t=np.array(times),
-        sample_count=np.array([len(cache[t]) for t in times], dtype=np.int64),
-        sample_degenerate=np.array([cache[t].degenerate for t in times], dtype=bool),
+        sample_count=count,
+        sample_degenerate=np.isin(samples.info[order, 0], list(_MESSAGES)),
         completed=not lost,
         lost=lost,
     )
     yield Step(Progress(done, n_t - 1, "intervals", time.perf_counter() - start), None, tracks)
+
+
+def warmup() -> None:
+    """Compile (or load from the on-disk cache) the kernels, through the calls the analyses make."""
+    # The diagonal case's far point passes through infinity at g = 0: unclear intervals, bisected.
+    equilibrium_tracks(Params(inertia=(1.0, 2.0, 4.0, 0.0, 0.0, 0.0), alpha=0.1), n_t=8, max_refine=4)
+    solve_conics([-1.0, 0.0, 0.0, 1.0, 0.0, 1.0], [-1.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    classify(np.eye(2))
 
 
 # ---------------------------------------------------------------------------
@@ -940,13 +737,9 @@ def count_survey(params: Params, n_t: int = 20000, n_track: int = 1000) -> dict[
     """
     model = Model(params)
     ts = params.t0 + params.period * (np.arange(n_t) + 0.5) / n_t
-    n_real, n_cx, n_inf = [], [], []
-    for t in ts.tolist():
-        e = equilibria(model, t)
-        n_real.append(len(e))
-        n_cx.append(e.n_complex)
-        n_inf.append(e.at_infinity)
-    n_real_a = np.array(n_real)
+    samples = _Samples(model, n_t, 1e8, 1e-12)  # equilibria()'s defaults, every time in one call
+    samples.add(ts)
+    n_real_a, n_inf, n_cx = samples.info[:n_t, 1], samples.info[:n_t, 2].tolist(), samples.info[:n_t, 3].tolist()
     change = np.flatnonzero(np.diff(n_real_a)) + 1
     values, freq = np.unique(n_real_a, return_counts=True)
     tracks = equilibrium_tracks(model, n_track)
