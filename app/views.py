@@ -15,6 +15,7 @@ zooms only once picked in the toolbar.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from typing import Any
 
@@ -347,12 +348,16 @@ class SectionFigure:
         """Put a layer's renderers in the plot (in their place among the others), once."""
         if layer in self._shown:
             return
-        self._build(layer)
-        self._shown.add(layer)
-        if layer in self._order:
-            self._place_renderers()
-        if layer in self._hovers:
-            self.fig.toolbar.tools = [*self.fig.toolbar.tools, self._hovers[layer]]
+        doc = self.fig.document
+        # The document's models are recomputed once, not once per change (renderers, legend items, tools): each
+        # walks every model of the page (the orbits' layer took 37 ms in a bare document, 18 ms frozen).
+        with doc.models.freeze() if doc is not None else contextlib.nullcontext():
+            self._build(layer)
+            self._shown.add(layer)
+            if layer in self._order:
+                self._place_renderers()
+            if layer in self._hovers:
+                self.fig.toolbar.tools = [*self.fig.toolbar.tools, self._hovers[layer]]
 
     def _place_renderers(self) -> None:
         self.fig.renderers = [
