@@ -25,9 +25,11 @@ queue many tiles ahead of everyone's sections: the numerical kernels
 (which split each chunk over both cores, ``explorer_core.solve.integrators``) only see
 the chunks of the jobs holding a slot.
 
-Why layers come after every section: they are pure Python/numpy and hold the
+Why layers come after every section: they are mostly Python/numpy and hold the
 GIL, which the server's event loop needs to send everybody's points
-(docs/load.md). At most one layer and one heavy job run at a time, and heavy
+(docs/load.md). A played parameter's frame is the exception: drawn whole, its
+section starts with ``first=False`` and its layers run beside it.
+At most one layer and one heavy job run at a time, and heavy
 jobs run in threads of low CPU priority (``HEAVY_NICE``): a chart's tiles
 already started cannot be stopped at a poll, so they must not take the cores
 from the sections either.
