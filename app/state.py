@@ -14,6 +14,7 @@ ever holds values that are used, and a control can always show exactly that.
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from collections.abc import Callable, Mapping
@@ -926,7 +927,8 @@ def _shown(v: Any) -> str:
 def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
     """Validated state updates from URL query parameters, and one message per bad value.
 
-    Unknown keys are ignored; a bad value is reported and left out (the rest
+    A key that is not a setting is reported (with the nearest key, a typo's likely meaning) and
+    ignored, except Bokeh's own (``bokeh-*``); a bad value is reported and left out (the rest
     still applies). Values are never echoed unescaped: callers show messages as text.
     Only the syntax and ranges are checked here; :func:`state_from_query` checks the values
     against each other (a positive-definite tensor, the work bound).
@@ -955,6 +957,15 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
 
     for u in URL_KEYS:
         attempt(u.key, lambda t, u=u: updates.update(u.decode(t)))
+    known = {u.key for u in URL_KEYS}
+    for key in query:
+        key = str(key)
+        if key not in known and not key.startswith("bokeh-"):
+            near = [k for k in sorted(known) if k.startswith(key.lower())] or difflib.get_close_matches(
+                key.lower(), sorted(known), n=1, cutoff=0.6
+            )
+            hint = f" (did you mean {near[0]}?)" if near else ""
+            errors.append(f"URL parameter {key[:40]!r} is not a setting of this page: ignored{hint}")
     return updates, errors
 
 

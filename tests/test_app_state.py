@@ -281,3 +281,17 @@ def test_the_section_menus_verner_and_auto_compute_what_solve_ivp_does(method: s
     ref = solve_ivp_section(page.state.system(), (0.1, 0.2), 20, rtol=1e-13, atol=1e-13)
     np.testing.assert_allclose(np.column_stack([q, r]), ref[: q.size], rtol=0, atol=1e-9)
     assert q.size == 20
+
+
+def test_a_url_key_that_is_not_a_setting_is_reported_with_the_nearest_one() -> None:
+    """A typo in a link (``acc=high`` for ``accuracy=high``) was ignored without a word: the page showed the scene's
+    accuracy as if the link had asked for it. Now each such key is named, with the nearest setting; Bokeh's own keys
+    (``bokeh-*``) are not settings and pass silently; the settings that are right still apply."""
+    state, errors = state_from_query({"scene": "fig1A", "acc": "high", "alhpa": "0.1", "zzz": "1", "periods": "50",
+                                      "bokeh-session-id": "x"})  # fmt: skip
+    assert errors == [
+        "URL parameter 'acc' is not a setting of this page: ignored (did you mean accuracy?)",
+        "URL parameter 'alhpa' is not a setting of this page: ignored (did you mean alpha?)",
+        "URL parameter 'zzz' is not a setting of this page: ignored",
+    ]
+    assert state.periods == 50 and state.accuracy == "plot"
