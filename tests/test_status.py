@@ -77,6 +77,7 @@ NOT_STATUSES = {
     ("analyses/basins.py", "_SEARCH"): "phases of a member in the recurrence bookkeeping",
     ("solve/rk.py", "FIELD"): "the systems the engine integrates",
     ("system/model.py", "ROW_Q"): "rows of the coefficient tables",
+    ("analyses/equilibria_kernels.py", "SADDLE"): "the types of an equilibrium (indices into equilibria.TYPES)",
 }
 
 

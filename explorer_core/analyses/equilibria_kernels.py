@@ -35,7 +35,7 @@ _L0 = 1e-12
 MAX_POINTS = 4
 
 # What a solve ended with (``info[:, 0]``); the messages are in :func:`equilibria.solve_conics`.
-OK = 0
+SOLVED = 0  # isolated points (possibly none): the others say why there are none to give
 Q_ZERO = 1  # Q vanishes identically
 R_ZERO = 2  # R vanishes identically
 CONSTANT = 3  # one conic is a non-zero constant: no point at all
@@ -460,7 +460,7 @@ def _solve_one(
             out[j, 0], out[j, 1] = out[j - 1, 0], out[j - 1, 1]
             j -= 1
         out[j, 0], out[j, 1] = x0, x1
-    return OK, n, at_infinity, n_complex
+    return SOLVED, n, at_infinity, n_complex
 
 
 @_jit
