@@ -120,16 +120,16 @@ class SectionLayer(Layer):
         if req.density:
             job = self.density.job(req, start_layers, query)
         else:
-            job = self._points_job(req, None if frame else start_layers, query)
+            job = self._points_job(req, None if frame else start_layers, query, whole=frame)
         self.host.runner.start("section", job, first=not frame)
         if frame:
             self.host.runner.cancel("reliability")  # a still's check still running is of other settings
         else:
             self.check_reliability(req)  # a priori: the new numerics against the states on screen
 
-    def _points_job(self, req: SectionRequest, start_layers: Callable[[], None] | None, query: dict[str, str]) -> Any:
-        # A played parameter's frame is drawn whole (streamed, each frame would flash its first chunk alone).
-        whole = getattr(self.host, "frame_periods", None) is not None
+    def _points_job(self, req: SectionRequest, start_layers: Callable[[], None] | None, query: dict[str, str], *,
+                    whole: bool) -> Any:  # fmt: skip
+        # ``whole``: a played parameter's frame, drawn whole (streamed, each frame would flash its first chunk alone).
         st = self.host.state
         window, pixel = (*st.q_range, *st.r_range), st.pixel_size()
 
@@ -139,11 +139,12 @@ class SectionLayer(Layer):
             pending: list[tuple[np.ndarray, ...]] = []
             cadence = Cadence(start_layers)
 
-            def flush(status: np.ndarray, done: int, total: int) -> None:
+            def flush(status: np.ndarray, done: int, total: int) -> tuple[np.ndarray, ...]:
                 cols = tuple(np.concatenate([p[i] for p in pending]) for i in range(4))
                 pending.clear()
                 replace = cadence.sent()
                 emit(lambda: self.apply_chunk(cols, status, done, total, req if replace else None, query))
+                return cols
 
             # A frame in one call for the transient and one for the points: each call takes the GIL a few times, and
             # the frame's layers run beside it in Python (a chunk's wait for the GIL is up to the switch interval).
@@ -158,10 +159,9 @@ class SectionLayer(Layer):
                 cadence.layers_if_late()
             warnings = None
             if pending and last_status is not None:
+                traj, _, q, r = flush(last_status, req.periods, req.periods)
                 if whole:  # a frame's one reliability check, of the states it reached, in its own job (no second job)
-                    cols = tuple(np.concatenate([p[i] for p in pending]) for i in (0, 2, 3))
-                    warnings = _assess(req, *cols, last_status, window, pixel)
-                flush(last_status, req.periods, req.periods)
+                    warnings = _assess(req, traj, q, r, last_status, window, pixel)
             done = not cancelled()
             cadence.layers_at_end(done)
             emit(lambda: self.finish(done, last_status, warnings))
