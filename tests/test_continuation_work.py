@@ -56,9 +56,8 @@ def test_the_differences_take_fewer_steps_than_the_orbit(monkeypatch: pytest.Mon
     assert field and max(field) < 0.75 * rate[(rk.TANGENT, ORBIT_NUMERICS.rtol)], rate
 
 
-def test_a_doubling_is_located_with_a_few_newton_steps_per_secant_step(monkeypatch: pytest.MonkeyPatch) -> None:
-    # Before: the secant steps' corrector froze F_p at the bracket's end and started on the tangent line: 6
-    # evaluations each on the period-2 branch (10-11 on the period-4 one); now 1-2 (full Newton, from the cubic).
+def count_evaluations(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
+    """Counts every evaluation of the branches' corrector (``_BranchProblem.evaluate``) while the test runs."""
     evals = {"n": 0}
     orig_eval = co._BranchProblem.evaluate
 
@@ -66,6 +65,14 @@ def test_a_doubling_is_located_with_a_few_newton_steps_per_secant_step(monkeypat
         evals["n"] += 1
         return orig_eval(self, X, chord)
 
+    monkeypatch.setattr(co._BranchProblem, "evaluate", evaluate)
+    return evals
+
+
+def test_a_doubling_is_located_with_a_few_newton_steps_per_secant_step(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Before: the secant steps' corrector froze F_p at the bracket's end and started on the tangent line: 6
+    # evaluations each on the period-2 branch (10-11 on the period-4 one); now 1-2 (full Newton, from the cubic).
+    evals = count_evaluations(monkeypatch)
     counts: list[tuple[int, int]] = []
     orig_at = co._Engine.at
 
@@ -76,7 +83,6 @@ def test_a_doubling_is_located_with_a_few_newton_steps_per_secant_step(monkeypat
         finally:
             counts.append((prob.n, evals["n"] - before))
 
-    monkeypatch.setattr(co._BranchProblem, "evaluate", evaluate)
     monkeypatch.setattr(co._Engine, "at", at)
     res = co.continue_orbit(FIG10, "alpha", (-0.35, -0.41), FIXED_POINT_035, 1, switch=True, max_period=2)
     assert [b.period for b in res.bifurcations] == [1, 2]
@@ -101,14 +107,7 @@ def test_the_cascade_takes_few_corrector_evaluations_a_point(monkeypatch: pytest
     # Everything the branches' corrector evaluates (steps, refused steps, secant steps, landings) per point of the
     # cascade 1 -> 16: main took 613 for 95 points (6.5); the looser differences, the cubic secant predictions and
     # the second-order prediction of the steps bring it to ~3.4.
-    evals = {"n": 0}
-    orig_eval = co._BranchProblem.evaluate
-
-    def evaluate(self, X, chord=None):
-        evals["n"] += 1
-        return orig_eval(self, X, chord)
-
-    monkeypatch.setattr(co._BranchProblem, "evaluate", evaluate)
+    evals = count_evaluations(monkeypatch)
     res = co.continue_orbit(FIG10, "alpha", (-0.35, -0.42), FIXED_POINT_035, 1, switch=True, max_period=16)
     assert [b.period for b in res.bifurcations] == [1, 2, 4, 8, 16] and res.complete
     assert evals["n"] <= 4.5 * res.n_points, (evals["n"], res.n_points)
