@@ -319,7 +319,7 @@ class ExplorerSession(param.Parameterized):
         frame = self.frame_periods is not None and not req.density  # a frame of a played parameter
         if frame and req.periods > self.frame_periods:
             req = dataclasses.replace(req, periods=self.frame_periods)
-        self.section.start(req, start_layers=lambda: self._follow_section(from_job=True))
+        self.section.start(req, start_layers=lambda: self._follow_section(from_job=True), frame=frame)
         for layer in self.layers.values():
             if layer.on_section:
                 self.refresh(layer)

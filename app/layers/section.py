@@ -104,8 +104,11 @@ class SectionLayer(Layer):
 
     # --- a run --------------------------------------------------------------------------------
 
-    def start(self, req: SectionRequest, start_layers: Callable[[], None] | None = None) -> None:
-        """Restart the section with ``req`` (its points replace those on screen when they come)."""
+    def start(
+        self, req: SectionRequest, start_layers: Callable[[], None] | None = None, *, frame: bool = False
+    ) -> None:
+        """Restart the section with ``req`` (its points replace those on screen when they come); ``frame``: a played
+        parameter's frame (never a density run)."""
         self.t_start = time.perf_counter()
         self.progress = (0, req.periods)
         self.run_transient = req.transient
@@ -116,7 +119,6 @@ class SectionLayer(Layer):
             query["periods"] = str(req.periods)
         # A played parameter's frame is drawn whole, once its layers are done too: they start with it (the
         # controller starts them), and the one reliability check is of the states the frame reached.
-        frame = getattr(self.host, "frame_periods", None) is not None and not req.density
         if req.density:
             job = self.density.job(req, start_layers, query)
         else:
