@@ -79,6 +79,7 @@ from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
+from explorer_core.solve.options import ORBITS, NewtonOptions, instance
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.status import Status, count_names, status_names
 from explorer_core.system.params import ParameterError, Params
@@ -88,6 +89,8 @@ ESCAPE, FAILED, UNDECIDED, NOT_COMPUTED, LOCATING = -1, -2, -3, -4, -5
 KINDS = ("periodic", "chaotic", "quasi_periodic", "conservative", "escape")
 #: Integration tolerance: basins need the attractor, not 1e-10 accuracy (as the chart of regimes).
 DEFAULT_BASIN_TOL = 1e-8
+#: Newton on a basin's cycle: the orbits' settings, no patience (a cycle seen recurring is there to be found).
+BASIN_NEWTON = ORBITS.replace(patience=None)
 #: Periods of the Lyapunov exponent that tells a chaotic attractor from a quasi-periodic one, and the
 #: fewest that count if the run fails (escapes) before the end.
 LYAP_PERIODS, LYAP_MIN_PERIODS = 300, 50
@@ -219,6 +222,9 @@ class BasinSpec:
     #: True: ``cells``/``cell_box`` are the defaults, refined from the attractors when they do not resolve
     #: them (:func:`iter_basins`); False: the caller's, kept (an unresolved grid is reported as a loss).
     adapt_cells: bool = True
+    #: Newton on a cell's cycle (:meth:`_Run.cycle`); its map follows ``numerics``' tolerance
+    #: (:meth:`~explorer_core.solve.options.NewtonOptions.at`, reference DEFAULT_BASIN_TOL).
+    newton: NewtonOptions = field(default_factory=lambda: BASIN_NEWTON)
 
     @property
     def q(self) -> np.ndarray:
@@ -253,7 +259,13 @@ class BasinSpec:
             "tol": self.tol,
             "lyap_threshold": self.lyap_threshold,
             "adapt_cells": self.adapt_cells,
+            "newton": self.newton.as_dict(),
+            "newton_numerics": self.newton_map()[0].as_dict(),
         }
+
+    def newton_map(self) -> tuple[Numerics, float]:
+        """The map Newton iterates on a cell's cycle and its ``ftol`` (the rule of ``NewtonOptions.at``)."""
+        return self.newton.at(self.numerics, DEFAULT_BASIN_TOL)
 
 
 @dataclass
@@ -408,6 +420,7 @@ def basin_spec(
     tol: float = 1e-5,
     lyap_threshold: float = 5e-3,
     inflight: int = 512,
+    newton: NewtonOptions | None = None,
 ) -> BasinSpec:
     """A validated :class:`BasinSpec`; every bad value raises :class:`ParameterError` naming it.
 
@@ -433,6 +446,8 @@ def basin_spec(
         the first level sooner: until the first attractor is classified every member in flight runs on
         (Fig. 11's tensor, 200 x 200, first level after 0.44 s with 512, 1.5 s with 2048 at about the same
         total; Fig. 8B 2.5 s against 8.8 s in all).
+    newton : Newton on a cycle (default :data:`BASIN_NEWTON`: the orbits' preset without patience; its map
+        follows ``numerics``' tolerance, 1e-12 at the default 1e-8).
     """
     b = check_box(box)
     try:
@@ -477,7 +492,8 @@ def basin_spec(
         raise ParameterError(f"lyap_threshold must be a finite number, got {lyap_threshold!r}")
     return BasinSpec(params, b, nx, ny, numerics, cb, cl, chunk, max_periods, recurrences, locate, hit_attractor,
                      hit_basin, p_max, float(tol), float(lyap_threshold), inflight,
-                     cells is None and cell_box is None)  # fmt: skip
+                     cells is None and cell_box is None,
+                     BASIN_NEWTON if newton is None else instance(NewtonOptions)("newton", newton))  # fmt: skip
 
 
 # ---------------------------------------------------------------------------
@@ -892,8 +908,9 @@ class _Run:
 
     def cycle(self, x: np.ndarray, p: int) -> Orbit | None:
         """The attracting cycle Newton finds from ``x`` with period ``p`` (least period), or None."""
-        search = find_orbits(self.spec.params, np.asarray(x, float).reshape(1, 2), [int(p)], patience=None,
-                             workers=1)  # fmt: skip
+        numerics, ftol = self.spec.newton_map()
+        search = find_orbits(self.spec.params, np.asarray(x, float).reshape(1, 2), [int(p)], numerics=numerics,
+                             ftol=ftol, workers=1, **self.spec.newton.newton_kwargs())  # fmt: skip
         if not search.orbits:
             return None
         orbit = search.orbits[0]

@@ -49,6 +49,7 @@ from explorer_core.progress import Progress, stream
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.options import JUMPS, NewtonOptions, instance
 from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.status import Status, count_names
 from explorer_core.system.params import ParameterError, Params
@@ -382,6 +383,9 @@ SETTLE_FIRST = 24
 SETTLE_WINDOW = 8
 SETTLE_P_MAX = 16
 SETTLE_TOL = 1e-9
+#: The tolerance a diagram's numerics have by default (``Numerics()``): Newton's ``ftol`` follows the ratio of
+#: the diagram's tolerance to it (:meth:`~explorer_core.solve.options.NewtonOptions.at`).
+DIAGRAM_RTOL = config.DEFAULT_RTOL
 JUMP_TOL = 1e-3
 JUMP_SAFETY = 10.0
 JUMP_TRIES = 2
@@ -404,14 +408,18 @@ def repeat_period(x: np.ndarray, tol: float) -> int:
     return 0
 
 
-def _newton_cycles(pmap: PoincareMap, x: np.ndarray, periods: np.ndarray, turns: np.ndarray) -> list[np.ndarray | None]:
+def _newton_cycles(pmap: PoincareMap, x: np.ndarray, periods: np.ndarray, turns: np.ndarray,
+                   options: NewtonOptions = JUMPS) -> list[np.ndarray | None]:  # fmt: skip
     """For each member ``x[m]`` (the point at the end of a chunk) whose points repeat to JUMP_TOL after
-    ``periods[m]``: the cycle's points ``P(x*) .. P^p(x*)`` (p, 2) if Newton finds an attracting cycle ``x*``
-    near it that ``turns[m]`` more turns would bring it within SETTLE_TOL / JUMP_SAFETY of, else None."""
+    ``periods[m]``: the cycle's points ``P(x*) .. P^p(x*)`` (p, 2) if Newton (``options``, default
+    :data:`~explorer_core.solve.options.JUMPS`: 6 plain steps to ``ftol`` 1e-10 on ``pmap``'s own map, ``ftol``
+    following its tolerance) finds an attracting cycle ``x*`` near it that ``turns[m]`` more turns would bring
+    it within SETTLE_TOL / JUMP_SAFETY of, else None."""
     out: list[np.ndarray | None] = [None] * x.shape[0]
     scale = 1.0 + np.abs(x).max(axis=1)
-    res = newton(pmap, x, periods, ftol=0.1 * SETTLE_TOL, max_iter=6, max_step=math.inf, patience=None,
-                 coarse=False, near=10 * JUMP_TOL * scale, dedupe=False)  # fmt: skip
+    inner, ftol = options.at(pmap.numerics, DIAGRAM_RTOL)
+    res = newton(pmap.with_numerics(inner), x, periods, ftol=ftol, near=10 * JUMP_TOL * scale, dedupe=False,
+                 **options.newton_kwargs())  # fmt: skip
     for c in res.converged:
         m = c.i
         mono = c.mono.matrix[0]
@@ -431,6 +439,7 @@ def bilimovich_orbits(
     numerics: Numerics,
     workers: int = 1,
     settle: bool = False,
+    newton_options: NewtonOptions = JUMPS,
 ) -> tuple[np.ndarray, ...]:
     """Orbits of the Poincare map at one parameter set: transient, then ``n_points`` points.
 
@@ -490,8 +499,8 @@ def bilimovich_orbits(
             idx = np.array([i for i, _ in loose])
             per = np.array([q for _, q in loose])
             tries[idx] += 1
-            for i, chain in zip(idx, _newton_cycles(pmap, traj[idx, done - 1], per, (transient - done) // per),
-                                strict=True):  # fmt: skip
+            chains = _newton_cycles(pmap, traj[idx, done - 1], per, (transient - done) // per, newton_options)
+            for i, chain in zip(idx, chains, strict=True):
                 if chain is not None:
                     finish(int(i), chain, NEWTON_CYCLE)
         run = run[got[run] < total]
@@ -515,6 +524,8 @@ class SweepSpec:
     transient: int
     n_points: int
     numerics: Numerics
+    #: Newton on a settling member's cycle (continuation sweeps: :func:`_newton_cycles`).
+    newton: NewtonOptions = JUMPS
 
     def params_at(self, v: int) -> Params | str:
         return params_at(self.params, self.param, float(self.values[v]))
@@ -524,7 +535,8 @@ class SweepSpec:
         p = self.params_at(v)
         if isinstance(p, str):
             raise ParameterError(p)
-        return bilimovich_orbits(p, seed, self.transient, self.n_points, self.numerics, threads, settle=settle)
+        return bilimovich_orbits(p, seed, self.transient, self.n_points, self.numerics, threads, settle=settle,
+                                 newton_options=self.newton)  # fmt: skip
 
     def orbits_settled(self, v: int, seed: np.ndarray, threads: int = 1) -> tuple[np.ndarray, ...]:
         """:meth:`orbits` whose transient ends once the members settle on a cycle (continuation sweeps)."""
@@ -664,6 +676,7 @@ def diagram_spec(
     ics: Any = None,
     sweeps: Sequence[str] = SWEEPS,
     numerics: Numerics | None = None,
+    newton: NewtonOptions = JUMPS,
 ) -> DiagramSpec:
     """A validated :class:`DiagramSpec`; every bad value raises :class:`ParameterError` naming it.
 
@@ -680,6 +693,7 @@ def diagram_spec(
     ics : (n, 2) initial conditions at ``t0`` (default ``[(0.1, 0.1)]``).
     sweeps : the continuation sweeps to run (``"forward"``, ``"backward"``); both run at once.
     numerics : integration settings (escape bound included).
+    newton : Newton on a settling member's cycle (default :data:`~explorer_core.solve.options.JUMPS`).
     """
     param = check_param(param)
     vals = np.asarray(values, dtype=float).ravel()
@@ -695,7 +709,8 @@ def diagram_spec(
     n_sweeps = 1 if seeding == "fixed" else len(tuple(sweeps))
     if n_sweeps * vals.size * ics.shape[0] * points > config.MAX_POINTS:
         raise ParameterError(f"{vals.size} values x {ics.shape[0]} ICs x {points} points exceeds {config.MAX_POINTS}")
-    sweep = SweepSpec(params, param, vals, ics, int(transient), int(points), numerics)
+    sweep = SweepSpec(params, param, vals, ics, int(transient), int(points), numerics,
+                      instance(NewtonOptions)("newton", newton))  # fmt: skip
     return DiagramSpec(sweep, seeding, names)
 
 

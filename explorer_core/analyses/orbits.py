@@ -32,18 +32,20 @@ from explorer_core import config, export
 from explorer_core.drawing import Drawable
 from explorer_core.solve import poincare
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
+from explorer_core.solve.options import ORBITS
 from explorer_core.solve.poincare import PATIENCE, NewtonResult, PoincareMap, least_period
 from explorer_core.solve.tangent import Monodromy
 from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
 
-#: Integration settings for orbits: the residual can only be as small as ``P^n`` is accurate.
-ORBIT_NUMERICS = Numerics(rtol=1e-12, atol=1e-12)  # "auto": vern9 (config.VERN9_MAX_RTOL)
+#: Integration settings for orbits: the residual can only be as small as ``P^n`` is accurate. The settings are
+#: the ``ORBITS`` preset of :class:`~explorer_core.solve.options.NewtonOptions` (declared there once): vern9 at
+#: 1e-12 by the "auto" rule, ``|P^n(x) - x| <= 1e-9 (1 + |x|)``, 40 iterations.
+ORBIT_NUMERICS = Numerics(rtol=ORBITS.rtol, atol=ORBITS.rtol)
 #: Longest period searched (``P^n`` of a chaotic region has multipliers ~ e^(lambda n T): Newton's basin shrinks).
 MAX_PERIOD = 64
-#: Newton stops when the residual ``|P^n(x) - x|`` is below ``ftol (1 + |x|)``.
-FTOL = 1e-9
-MAX_ITER = 40
+FTOL = ORBITS.ftol
+MAX_ITER = ORBITS.max_iter
 #: ``det DP^n`` below this many ulps of ``max |DP^n|^2`` is rounding noise (see :func:`orbit_from`).
 DET_ROUNDING = 64.0
 #: ``|mu| = 1`` within this: neutral (real) or elliptic (complex pair).
@@ -282,6 +284,7 @@ def find_orbits(
     max_iter: int = MAX_ITER,
     max_step: float = 1.0,
     patience: int | None = PATIENCE,
+    coarse: bool = ORBITS.coarse,
     bound: Sequence[float] | None = None,
     unit_tol: float = UNIT_TOL,
     cancel: Callable[[], bool] | None = None,
@@ -298,6 +301,7 @@ def find_orbits(
     max_step : the trust radius: a Newton step moves at most this far.
     patience : a seed stops after this many iterations without halving its residual (None: only
         ``max_iter`` stops it; slower, finds slowly converging orbits from more seeds).
+    coarse : the first iterations on a less accurate map (:func:`~explorer_core.solve.poincare.newton`).
     bound : ``(q0, q1, r0, r1)``: orbits with a point outside are dropped (counted in ``extra``).
     cancel : polled between iterations; True stops with ``completed=False``.
 
@@ -323,7 +327,7 @@ def find_orbits(
     all_seeds = np.repeat(seeds, len(per), axis=0)
     all_periods = np.tile(np.array(per, dtype=np.int64), seeds.shape[0])
     res = _newton(params, all_seeds, all_periods, numerics=numerics, ftol=ftol, max_iter=max_iter,
-                  max_step=max_step, patience=patience, cancel=cancel, workers=workers)  # fmt: skip
+                  max_step=max_step, patience=patience, coarse=coarse, cancel=cancel, workers=workers)  # fmt: skip
     failures = _failures(res, all_seeds)
     orbits: list[Orbit] = []
     outside = 0

@@ -56,6 +56,7 @@ from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
 from explorer_core.solve.integrators import coefficients, lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.options import SETTLING, NewtonOptions, instance
 from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.solve.rk import Coefficients
 from explorer_core.status import Status, count_names, status_names
@@ -117,7 +118,9 @@ class ChartSpec:
     p_max: int = 16
     tol: float = 1e-5
     lyap_threshold: float = 5e-3
-    numerics: Numerics = field(default_factory=lambda: Numerics(rtol=DEFAULT_CHART_TOL, atol=DEFAULT_CHART_TOL))
+    numerics: Numerics = field(default_factory=lambda: chart_numerics())
+    #: Newton on a member's settled cycle (:func:`settled_cycles`).
+    newton: NewtonOptions = SETTLING
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -146,7 +149,14 @@ class ChartSpec:
             "tol": self.tol,
             "lyap_threshold": self.lyap_threshold,
             "numerics": self.numerics.as_dict(),
+            "newton": self.newton.as_dict(),
+            "newton_numerics": self.newton.at(self.numerics, DEFAULT_CHART_TOL)[0].as_dict(),
         }
+
+
+def chart_numerics() -> Numerics:
+    """A chart's default numerics: DOP853 at DEFAULT_CHART_TOL (the "auto" rule)."""
+    return Numerics(rtol=DEFAULT_CHART_TOL, atol=DEFAULT_CHART_TOL)
 
 
 def chart_spec(
@@ -164,11 +174,13 @@ def chart_spec(
     tol: float = 1e-5,
     lyap_threshold: float = 5e-3,
     numerics: Numerics | None = None,
+    newton: NewtonOptions = SETTLING,
 ) -> ChartSpec:
     """Validated :class:`ChartSpec` over ``x_range x y_range`` with ``grid = (nx, ny)`` pixels.
 
     Pixel centres include both ends of each range. ``ics`` are used at every pixel
-    (several: multistability is seen per pixel).
+    (several: multistability is seen per pixel). ``newton``: Newton on a member's settled cycle (its map follows
+    ``numerics``' tolerance: :meth:`~explorer_core.solve.options.NewtonOptions.at`).
     """
 
     xp, yp = check_param(x_param), check_param(y_param)
@@ -205,7 +217,8 @@ def chart_spec(
         p_max=int(p_max),
         tol=float(tol),
         lyap_threshold=float(lyap_threshold),
-        numerics=numerics or Numerics(rtol=DEFAULT_CHART_TOL, atol=DEFAULT_CHART_TOL),
+        numerics=numerics or chart_numerics(),
+        newton=instance(NewtonOptions)("newton", newton),
     )
 
 
@@ -488,13 +501,10 @@ def settle_window(p_max: int) -> int:
     return 3 * p_max
 
 
-#: Newton for settled cycles: the map's accuracy, the convergence test ``|P^p(x) - x| <= ftol (1 + |x|)``
-#: and the iterations allowed (a member hands over within SETTLE_TOL of its cycle: ~3 suffice).
-NEWTON_NUMERICS = Numerics(rtol=1e-10, atol=1e-10)
-NEWTON_FTOL = 1e-8
-NEWTON_ITER = 8
-#: Newton's first iterations with a map 1e4 times less accurate (see :func:`~explorer_core.solve.poincare.newton`).
-NEWTON_COARSE = True
+#: Newton for settled cycles is the spec's ``newton`` (default :data:`~explorer_core.solve.options.SETTLING`: the
+#: map at 1e-10 for a chart at DEFAULT_CHART_TOL, ``|P^p(x) - x| <= 1e-8 (1 + |x|)``, 8 plain iterations, the first
+#: ones on a coarse map: a member hands over within SETTLE_TOL of its cycle, ~3 suffice), its map following the
+#: chart's tolerance by :meth:`~explorer_core.solve.options.NewtonOptions.at`.
 
 
 def settled_cycles(
@@ -505,6 +515,9 @@ def settled_cycles(
     period: float,
     near: np.ndarray | float = math.inf,
     same: np.ndarray | float = 1e-6,
+    *,
+    numerics: Numerics | None = None,
+    newton_options: NewtonOptions = SETTLING,
 ) -> list[tuple[int, float] | None]:
     """``(least period, exponent)`` of the attracting cycle Newton finds near each ``x[m]`` for ``P^p[m]``, or None.
 
@@ -514,14 +527,16 @@ def settled_cycles(
     not attract (``max |mu| >= 1``). Points of the cycle within ``same[m]`` (Euclidean) of its first are one
     point: the period is the least ``d`` dividing ``p`` with ``P^d(x) = x`` at that resolution (Newton on
     ``P^2`` converges to a fixed point too); the exponent ``log max |mu| / (p T)`` is the same for a cycle
-    and its multiples. ``p`` is one period for every point or one per point (one Newton for all).
+    and its multiples. ``p`` is one period for every point or one per point (one Newton for all). ``numerics``:
+    the chart's (default DOP853 at DEFAULT_CHART_TOL), from which ``newton_options`` derive Newton's map.
     """
     x0 = np.asarray(x, dtype=float).reshape(-1, 2)
     m = x0.shape[0]
     ps = np.broadcast_to(np.asarray(p, dtype=np.int64), (m,))
-    pmap = PoincareMap.rows(coefs, t0, period, NEWTON_NUMERICS, workers=1, block=1)
-    res = newton(pmap, x0, ps.copy(), ftol=NEWTON_FTOL, max_iter=NEWTON_ITER, max_step=math.inf,
-                 patience=None, coarse=NEWTON_COARSE, near=near, dedupe=False, same=same)  # fmt: skip
+    inner, ftol = newton_options.at(numerics or chart_numerics(), DEFAULT_CHART_TOL)
+    pmap = PoincareMap.rows(coefs, t0, period, inner, workers=1, block=1)
+    res = newton(pmap, x0, ps.copy(), ftol=ftol, near=near, dedupe=False, same=same,
+                 **newton_options.newton_kwargs())  # fmt: skip
     out: list[tuple[int, float] | None] = [None] * m
     for c in res.converged:
         mu = float(np.abs(np.linalg.eigvals(c.mono.matrix[0])).max())
@@ -720,7 +735,7 @@ def _cycles(
     """:func:`settled_cycles` at the last point of the members ``live[ask]`` for ``P^periods`` (one Newton)."""
     co = coefs._replace(row=np.ascontiguousarray(coefs.row[live[ask]]))
     return settled_cycles(co, rings[ask, -1], periods, batch.t0, batch.period, near=loose[ask],
-                          same=spec.tol * scale[ask])  # fmt: skip
+                          same=spec.tol * scale[ask], numerics=spec.numerics, newton_options=spec.newton)  # fmt: skip
 
 
 def _pixel_status(regime: int, engine: int) -> int:

@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from explorer_core import config
+
+# The input checks live in solve.checks; these names are imported from here by the analyses and the CLI.
+from explorer_core.solve.checks import check_box, check_ics, check_int  # noqa: F401
 from explorer_core.solve.tableaus import get_method, resolve_method
 from explorer_core.system.params import ParameterError
 
@@ -35,6 +38,9 @@ class Numerics:
     max_steps: int = config.DEFAULT_MAX_STEPS_PER_PERIOD
     #: False runs dp5/dop853 at ``steps_per_period`` fixed steps (rk4 is always fixed).
     adaptive: bool = True
+    #: Whether ``method`` was chosen by the "auto" rule (set on construction; not part of the value: two
+    #: settings that run the same method compare equal): :meth:`loosened` chooses again only then.
+    by_rule: bool = field(default=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         for name, lo, hi in (("rtol", 1e-15, 1.0), ("atol", 1e-300, 1e6)):
@@ -43,6 +49,8 @@ class Numerics:
                 raise ParameterError(f"{name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
             object.__setattr__(self, name, float(v))
         # "auto" becomes the concrete method here, so what is saved and shown says which method ran.
+        if self.method == "auto":
+            object.__setattr__(self, "by_rule", True)
         try:
             object.__setattr__(self, "method", resolve_method(self.method, self.rtol, bool(self.adaptive)))
         except ValueError as exc:
@@ -71,6 +79,31 @@ class Numerics:
     def as_dict(self) -> dict[str, Any]:
         return dict(self.kernel_kwargs())
 
+    def loosened(self, rtol: float, atol: float | None = None) -> Numerics:
+        """These settings at another tolerance (``atol`` default: ``rtol``), the method chosen again by the
+        "auto" rule if it chose this one (a map loosened from vern9 at 1e-12 to 1e-8 runs DOP853, as a user
+        asking 1e-8 gets), else kept. The one way an analysis derives inner numerics from the user's."""
+        return Numerics(
+            method="auto" if self.by_rule else self.method,
+            rtol=rtol,
+            atol=rtol if atol is None else atol,
+            steps_per_period=self.steps_per_period,
+            bound=self.bound,
+            max_steps=self.max_steps,
+            adaptive=self.adaptive,
+        )
+
+    def scaled(self, factor: float, lo: float = 1e-13, hi: float = 1e-6) -> Numerics:
+        """:meth:`loosened` to ``factor`` times these tolerances, clipped to ``[lo, hi]``: inner numerics that
+        follow the user's (a basin cell's cycle Newton 1e4 times tighter than the basin's integration). The
+        product is rounded to 12 significant digits, so a decade times a decade is that decade exactly
+        (``1e-8 * 1e-2`` gives ``1e-10``, not ``1.0000000000000001e-10``)."""
+
+        def tol(v: float) -> float:
+            return min(hi, max(lo, float(f"{v * factor:.12g}")))
+
+        return self.loosened(tol(self.rtol), tol(self.atol))
+
 
 def random_ics(n: int, box: Sequence[float], seed: int | None = 0) -> np.ndarray:
     """``n`` initial conditions uniform in ``box = (qmin, qmax, rmin, rmax)``, reproducible by ``seed``."""
@@ -78,44 +111,3 @@ def random_ics(n: int, box: Sequence[float], seed: int | None = 0) -> np.ndarray
     box = check_box(box)
     rng = np.random.default_rng(seed)
     return np.column_stack([rng.uniform(box[0], box[1], n), rng.uniform(box[2], box[3], n)])
-
-
-def check_box(box: Sequence[float], name: str = "box") -> tuple[float, float, float, float]:
-    """Validate ``(qmin, qmax, rmin, rmax)``."""
-    try:
-        vals = tuple(float(v) for v in box)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be four numbers qmin,qmax,rmin,rmax, got {box!r}") from None
-    if len(vals) != 4 or not all(math.isfinite(v) for v in vals):
-        raise ParameterError(f"{name} must be four finite numbers qmin,qmax,rmin,rmax, got {box!r}")
-    if not (vals[0] < vals[1] and vals[2] < vals[3]):
-        raise ParameterError(f"{name} must have qmin < qmax and rmin < rmax, got {vals!r}")
-    if not (math.isfinite(vals[1] - vals[0]) and math.isfinite(vals[3] - vals[2])):
-        raise ParameterError(f"{name} is too wide: its width overflows, got {vals!r}")
-    return vals  # type: ignore[return-value]
-
-
-def check_int(name: str, v: Any, lo: int, hi: int) -> int:
-    if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
-        raise ParameterError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
-    return int(v)
-
-
-def check_ics(ics: Any) -> np.ndarray:
-    """Initial conditions as a finite (n, 2) float array."""
-    try:
-        arr = np.asarray(ics, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(
-            f"initial conditions must be real (q, r) pairs of equal shape, got {str(ics)[:60]}"
-        ) from None
-    if arr.ndim == 1 and arr.size == 2:
-        arr = arr.reshape(1, 2)
-    if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] == 0:
-        raise ParameterError(f"initial conditions must be (q, r) pairs, got shape {arr.shape}")
-    if arr.shape[0] > config.MAX_TRAJECTORIES:
-        raise ParameterError(f"at most {config.MAX_TRAJECTORIES} initial conditions, got {arr.shape[0]}")
-    bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
-    if bad.size:
-        raise ParameterError(f"initial condition {bad[0]} is not finite: {arr[bad[0]].tolist()}")
-    return np.ascontiguousarray(arr)

@@ -304,11 +304,13 @@ def newton(
     """
     m = seeds.shape[0]
     numerics = pmap.numerics
-    loose = {"rtol": min(1e-6, numerics.rtol * 1e4), "atol": min(1e-6, numerics.atol * 1e4)}
-    rough = pmap.with_numerics(Numerics(**{**numerics.as_dict(), **loose})) if coarse else pmap
-    looser = {"rtol": max(loose["rtol"], min(FAR_RTOL, numerics.rtol * FAR_LOOSEN)),
-              "atol": max(loose["atol"], min(FAR_RTOL, numerics.atol * FAR_LOOSEN))}  # fmt: skip
-    roughest = pmap.with_numerics(Numerics(**{**numerics.as_dict(), **looser})) if coarse else pmap
+    # The coarse maps choose their method again by the "auto" rule (DOP853 at these tolerances, where it needs
+    # fewer steps than vern9), unless the user chose the method.
+    loose = (min(1e-6, numerics.rtol * 1e4), min(1e-6, numerics.atol * 1e4))
+    rough = pmap.with_numerics(numerics.loosened(*loose)) if coarse else pmap
+    looser = (max(loose[0], min(FAR_RTOL, numerics.rtol * FAR_LOOSEN)),
+              max(loose[1], min(FAR_RTOL, numerics.atol * FAR_LOOSEN)))  # fmt: skip
+    roughest = pmap.with_numerics(numerics.loosened(*looser)) if coarse else pmap
     fine = np.full(m, not coarse)  # the accurate map
     far = np.full(m, coarse)  # the roughest map (until the residual is below FAR_UNTIL)
     x0 = seeds.astype(float)

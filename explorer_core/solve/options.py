@@ -1,0 +1,219 @@
+"""Options declared once: a spec's fields carry their default, their check, their help and their flag.
+
+An options class is a frozen dataclass whose fields are made by :func:`option`; :class:`Options` validates
+every field on construction through the field's check (:mod:`explorer_core.solve.checks`), tags a refused
+value with the option's name (``exc.option``), and lists its options (:meth:`Options.options`) for the
+command line's flags, the app's controls and the docs. Nested options (a :class:`NewtonOptions` inside an
+analysis' spec) are fields like any other, recorded in every result's JSON ``spec``.
+
+:class:`NewtonOptions` are the settings of the one Newton on ``P^n(x) - x``
+(:func:`explorer_core.solve.poincare.newton`), with named presets for its four uses (:data:`ORBITS`,
+:data:`SETTLING`, :data:`JUMPS`, :data:`CORRECTOR`) and the one rule that derives the map Newton iterates
+from the user's numerics (:meth:`NewtonOptions.at`), as BifurcationKit's ``ContinuationPar`` nests a
+``NewtonPar`` that every corrector reads.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
+from typing import Any, ClassVar, TypeVar
+
+from explorer_core import config
+from explorer_core.solve import checks
+from explorer_core.solve.numerics import Numerics
+from explorer_core.system.params import ParameterError
+
+T = TypeVar("T", bound="Options")
+
+
+@dataclass(frozen=True)
+class Check:
+    """A field's check: ``check(name, value)`` returns the canonical value or raises ParameterError;
+    ``text`` says what it accepts (for the help)."""
+
+    fn: Callable[[str, Any], Any]
+    text: str
+
+    def __call__(self, name: str, value: Any) -> Any:
+        return self.fn(name, value)
+
+
+def integer(lo: int, hi: int, optional: bool = False) -> Check:
+    fn = checks.check_optional_int if optional else checks.check_int
+    return Check(lambda n, v: fn(n, v, lo, hi), f"an integer in [{lo}, {hi}]" + (" or none" if optional else ""))
+
+
+def number(lo: float = -math.inf, hi: float = math.inf) -> Check:
+    return Check(lambda n, v: checks.check_number(n, v, lo, hi), f"a number in [{lo:g}, {hi:g}]")
+
+
+POSITIVE = Check(checks.check_positive, "a positive number")
+FRACTION = Check(checks.check_fraction, "a number in (0, 1)")
+BOOL = Check(checks.check_bool, "true or false")
+POSITIVE_OR_INF = Check(
+    lambda n, v: math.inf if v == math.inf else checks.check_positive(n, v), "a positive number or inf"
+)
+
+
+def positive_or_none() -> Check:
+    return Check(lambda n, v: None if v is None else checks.check_positive(n, v), "a positive number or none")
+
+
+def instance(kind: type) -> Check:
+    def fn(name: str, v: Any) -> Any:
+        if not isinstance(v, kind):
+            raise ParameterError(f"{name} must be a {kind.__name__}, got {v!r}")
+        return v
+
+    return Check(fn, f"a {kind.__name__}")
+
+
+def option(default: Any, check: Check, help: str, *, flag: str | None = None, metavar: str | None = None) -> Any:
+    """A spec field: its ``default``, its ``check``, one line of ``help`` and the command line's ``flag``
+    (default: ``--`` and the field's name with dashes; ``""``: no flag)."""
+    return field(default=default, metadata={"check": check, "help": help, "flag": flag, "metavar": metavar})
+
+
+@dataclass(frozen=True)
+class OptionInfo:
+    """One option as the command line, the app and the docs show it."""
+
+    name: str
+    default: Any
+    help: str
+    accepts: str
+    flag: str | None
+    metavar: str | None
+
+
+@dataclass(frozen=True)
+class Options:
+    """Base of options classes: every field made by :func:`option` is checked on construction."""
+
+    #: Prefix of the fields' flags when the class is nested in a spec (``newton`` -> ``--newton-ftol``).
+    prefix: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            check = f.metadata.get("check")
+            if check is None:
+                continue
+            try:
+                value = check(f.name, getattr(self, f.name))
+            except ParameterError as exc:
+                if getattr(exc, "option", None) is None:
+                    exc.option = f.name  # type: ignore[attr-defined]
+                raise
+            object.__setattr__(self, f.name, value)
+
+    def as_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = v.as_dict() if hasattr(v, "as_dict") else v
+        return out
+
+    def replace(self: T, **changes: Any) -> T:
+        """A copy with ``changes`` (checked); an unknown name is refused, never ignored."""
+        unknown = sorted(set(changes) - {f.name for f in fields(self)})
+        if unknown:
+            have = ", ".join(self.names())
+            raise ParameterError(f"{type(self).__name__} has no option {unknown[0]!r} (it has {have})")
+        return dataclasses.replace(self, **changes)
+
+    @classmethod
+    def names(cls) -> list[str]:
+        return [f.name for f in fields(cls)]
+
+    @classmethod
+    def options(cls) -> list[OptionInfo]:
+        """The declared options, in order, with the flags they take when nested under :attr:`prefix`."""
+        out = []
+        for f in fields(cls):
+            if "check" not in f.metadata:
+                continue
+            flag = f.metadata["flag"]
+            if flag is None:
+                flag = "--" + "-".join(p for p in (cls.prefix, f.name.replace("_", "-")) if p)
+            out.append(OptionInfo(f.name, f.default, f.metadata["help"], f.metadata["check"].text, flag or None,
+                                  f.metadata["metavar"]))  # fmt: skip
+        return out
+
+
+@dataclass(frozen=True)
+class NewtonOptions(Options):
+    """Settings of the one Newton on ``P^n(x) - x`` (:func:`explorer_core.solve.poincare.newton`).
+
+    ``rtol`` is the tolerance of the map Newton iterates *when the analysis runs at its default tolerance*;
+    with ``follow`` (default) it moves with the user's: :meth:`at` is the one rule.
+    """
+
+    prefix: ClassVar[str] = "newton"
+
+    ftol: float = option(1e-9, POSITIVE, "converged when |P^n(x) - x| <= ftol (1 + |x|)")
+    max_iter: int = option(40, integer(1, 10_000), "iterations per seed")
+    max_step: float = option(1.0, POSITIVE_OR_INF, "trust region: the longest step (inf: plain Newton)")
+    patience: int | None = option(
+        6, integer(1, 10_000, optional=True), "give up after this many iterations without halving the residual"
+    )
+    coarse: bool = option(True, BOOL, "iterate with a less accurate map far from the orbit")
+    rtol: float | None = option(
+        None, positive_or_none(), "tolerance of the map Newton iterates at the analysis' default tolerance "
+        "(none: the analysis' own map, as it is)")  # fmt: skip
+    follow: bool = option(True, BOOL, "the map's tolerance and ftol follow the user's tolerance (false: as set)")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.rtol is not None and not 1e-15 <= self.rtol <= 1.0:
+            raise ParameterError(f"newton rtol must be in [1e-15, 1], got {self.rtol!r}")
+
+    def at(self, user: Numerics, reference_rtol: float) -> tuple[Numerics, float]:
+        """The map Newton iterates and its ``ftol`` for an analysis run with ``user`` numerics whose default
+        tolerance is ``reference_rtol``: the rule, documented once.
+
+        With ``factor = user.rtol / reference_rtol``: the map's tolerances are ``rtol * factor`` (atol alike),
+        clipped to [1e-13, 1e-6]; ``ftol`` grows with a looser user (``ftol * max(1, factor)``: a residual
+        cannot be smaller than the map is accurate); the method is the user's, or the "auto" rule's when the
+        rule chose the user's or the user's cannot integrate the tangent system (taylor); step budgets are the
+        user's, the escape bound the larger of the user's and the sections' default (Newton's iterates may
+        wander farther than the trajectory they start from before they converge). At the default tolerance
+        this is the preset exactly. ``rtol=None``: the user's numerics themselves (``ftol`` following them).
+        ``follow=False``: ``rtol`` and ``ftol`` as set.
+        """
+        factor = user.rtol / reference_rtol if self.follow else 1.0
+
+        def scale(v: float, by: float, lo: float = 1e-13, hi: float = 1e-6) -> float:
+            # 12 digits: a decade times a decade is that decade (1e-10 * 100 is 1e-8, not 1.0000000000000001e-08).
+            return min(hi, max(lo, v if by == 1.0 else float(f"{v * by:.12g}")))
+
+        ftol = scale(self.ftol, max(1.0, factor), 0.0, 1e-2) if self.follow else self.ftol
+        if self.rtol is None:
+            return user, ftol
+
+        rtol = scale(self.rtol, factor) if self.follow else self.rtol
+        method = "auto" if user.by_rule or user.method == "taylor" else user.method
+        bound = max(user.bound, config.DEFAULT_ESCAPE_BOUND)
+        numerics = Numerics(method=method, rtol=rtol, atol=rtol, steps_per_period=user.steps_per_period,
+                            bound=bound, max_steps=user.max_steps, adaptive=user.adaptive)  # fmt: skip
+        return numerics, ftol
+
+    def newton_kwargs(self) -> dict[str, Any]:
+        """The keywords of :func:`~explorer_core.solve.poincare.newton` these options set (not ``ftol``:
+        :meth:`at` gives it)."""
+        return {"max_iter": self.max_iter, "max_step": self.max_step, "patience": self.patience,
+                "coarse": self.coarse}  # fmt: skip
+
+
+#: Periodic orbits from seeds (orbits, basins' cycles, manifolds' saddles): the map at 1e-12 (vern9).
+ORBITS = NewtonOptions(ftol=1e-9, max_iter=40, max_step=1.0, patience=6, coarse=True, rtol=1e-12)
+#: A chart pixel's settled cycle: a few plain Newton steps on a map at 1e-10, no patience.
+SETTLING = NewtonOptions(ftol=1e-8, max_iter=8, max_step=math.inf, patience=None, coarse=True, rtol=1e-10)
+#: The orbit diagram's jump onto an attracting cycle: the diagram's own map, 6 plain steps to a tenth of the
+#: diagram's SETTLE_TOL (written as the product, the float the diagram has always used).
+JUMPS = NewtonOptions(ftol=0.1 * 1e-9, max_iter=6, max_step=math.inf, patience=None, coarse=False, rtol=None)
+#: Continuation's corrector (Newton on F = 0 and the arclength condition) at the orbits' map.
+CORRECTOR = NewtonOptions(ftol=1e-10, max_iter=8, max_step=math.inf, patience=None, coarse=False, rtol=1e-12)
+PRESETS = {"orbits": ORBITS, "settling": SETTLING, "jumps": JUMPS, "corrector": CORRECTOR}
