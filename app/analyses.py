@@ -27,13 +27,12 @@ from bokeh.plotting import figure
 from app.controller import ExplorerSession
 from app.layers.base import plain as _plain
 from app.views import BACKEND
-from explorer_core.analyses.bifurcation import bifurcation_diagram
+from explorer_core.analyses.bifurcation import DIAGRAM_PLOT_RTOL, bifurcation_diagram
 from explorer_core.analyses.continuation import chart_boundaries, continue_from_seeds
-from explorer_core.analyses.lyapunov import lyapunov_spectrum
+from explorer_core.analyses.lyapunov import lyapunov_spec, lyapunov_spectrum
 from explorer_core.analyses.regimes import REGIMES, chart_spec, iter_chart
 from explorer_core.analyses.sweeps import sweep_values
 from explorer_core.parallel.cluster import SchedulerError, executor_for, scheduler_from_env
-from explorer_core.solve.numerics import Numerics
 from explorer_core.status import Status, describe
 from explorer_core.system.params import ParameterError
 from explorer_core.warm import warm_all
@@ -168,11 +167,15 @@ class LyapunovTab(AnalysisTab):
         except ParameterError as exc:
             self.fail(str(exc))
             return
-        m, transient, periods = st.lyap_ensemble, st.lyap_transient, st.lyap_periods
-        # Members start within 1e-3 of the IC; the transient brings them onto the attractor.
-        rng = np.random.default_rng(0)
-        ics = np.array([(q, r)] + [(q + 1e-3 * a, r + 1e-3 * b) for a, b in rng.normal(size=(m - 1, 2))])
-        numerics = Numerics(rtol=1e-10, atol=1e-10, bound=1e4)  # the default rule: vern9 here
+        # The spec the command line builds for `--ensemble M`: the members placed on the IC's attractor (the
+        # spec's offset and seed), the numerics of the page's Method and Accuracy by the core's rule.
+        numerics, self.ran_with = st.numerics_for(None)
+        try:
+            spec = lyapunov_spec(params, [(q, r)], st.lyap_periods, transient=st.lyap_transient,
+                                 ensemble=st.lyap_ensemble, numerics=numerics)  # fmt: skip
+        except ParameterError as exc:
+            self.fail(str(exc))
+            return
         history: list[tuple[int, float, float]] = []
         self.session.runner.ui(lambda: setattr(self.source, "data", {"k": [], "l1": [], "l2": []}))
 
@@ -190,8 +193,7 @@ class LyapunovTab(AnalysisTab):
                     rows = list(history)
                     emit(lambda: self._partial(rows, p.phase, p.done_periods, p.total_periods))
 
-            res = lyapunov_spectrum(params, ics, periods, transient=transient, numerics=numerics,
-                                    progress=progress, cancel=cancelled)  # fmt: skip
+            res = lyapunov_spectrum(spec, progress=progress, cancel=cancelled)
             emit(lambda: self._done(res, list(history)))
 
         self._start(job)
@@ -221,6 +223,7 @@ class LyapunovTab(AnalysisTab):
             f"Kaplan–Yorke dimension D = {ky:.4f}" if ky == ky else "Kaplan–Yorke dimension: not applicable",
             f"check: Λ1 + Λ2 = {mean.sum():.6f}, time-averaged divergence = {div:.6f}",
             f"members used: {n_ok} of {len(labels)} ({status}); {tail}",
+            f"numerics: {self.ran_with}",
         ]
         self.set_view(result=lines, progress=None, message="done" if res.completed else "stopped")
 
@@ -283,7 +286,7 @@ class BifurcationTab(AnalysisTab):
             return
         n, pts, tr, seeding = st.bif_values, st.bif_points, st.bif_transient, st.bif_seeding
         values = sweep_values((lo, hi), n)
-        numerics = Numerics(rtol=1e-9, atol=1e-9, bound=1e3)  # the default rule: vern9 here
+        numerics, self.ran_with = st.numerics_for(None, plot_rtol=DIAGRAM_PLOT_RTOL, bound=st.page_bound())
         follow = st.bif_orbits
 
         def job(cancelled, emit) -> None:
@@ -333,6 +336,7 @@ class BifurcationTab(AnalysisTab):
             lines.append(f"{n_settled} of {d.status.size} trajectories settled on an attracting cycle "
                          f"({settled['repeated']} repeated to 1e-9, {settled['newton']} by Newton): "
                          f"{settled['periods_copied']:,} periods copied from the cycle, not integrated")  # fmt: skip
+        lines.append(f"numerics: {self.ran_with}")
         self.set_view(message=head, progress=None, result=lines)
 
     def _continued(self, cont) -> None:

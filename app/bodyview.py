@@ -11,8 +11,10 @@ section point ``k_start`` (the ``PERIODS + 1``-th last point on screen; the firs
 last point, starting from that point itself (the forcing has period ``T``: starting at ``t0`` from the point at
 ``t0 + k_start T`` is the same motion, with the orientation at ``k_start`` the identity), so the highlighted
 points of the body's periods are the trajectory's points on screen (to the section's tolerance) whatever the
-transient and the number of periods. The body is integrated at a tolerance of :data:`TOLERANCE` (the orientation
-does not depend on the plot's pixel size), with the method the default rule takes there (vern9).
+transient and the number of periods. The body is integrated with the page's Method and Accuracy by the core's
+rule (:func:`~explorer_core.solve.numerics.chosen_numerics`): under Accuracy "plot" at its own tolerance
+:data:`TOLERANCE` (the orientation does not depend on the plot's pixel size; vern9 by the "auto" rule), under
+"high" at 1e-12.
 
 What is on screen is always the state's: a new selection, a parameter, new numerics or points, or the view closed
 drop the series shown at once (and cancel the job computing one); while the section computes or a parameter
@@ -32,6 +34,7 @@ import numpy as np
 from app.layers.base import plain
 from app.layers.section import SECTION_FIELDS
 from app.runner import LAYER, Emit
+from explorer_core import config
 from explorer_core.analyses.body import BodySeries, body_series
 from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import ParameterError, Params
@@ -43,7 +46,7 @@ if TYPE_CHECKING:
 PERIODS = 20
 SAMPLES = 48
 #: Tolerance (relative and absolute) of the body's integration: the orientation after 20 periods to ~1e-8.
-TOLERANCE = 1e-10
+TOLERANCE = config.DEFAULT_RTOL
 #: The version of the payload's layout (app/body.js reads it).
 FORMAT = 1
 CHANNEL = "body"
@@ -59,7 +62,7 @@ class BodyInputs:
     q: float
     r: float
     periods: int
-    bound: float
+    numerics: Numerics
 
 
 def _b64(a: np.ndarray) -> str:
@@ -163,7 +166,9 @@ class BodyView:
             return None, "the body's motion is computed when the played parameter pauses"
         try:
             params = st.system()
-            bound = st.numerics().bound  # the section's escape bound: the body escapes where its points do
+            # The section's escape bound (the body escapes where its points do); the page's Method and Accuracy
+            # by the core's rule, at the body's own tolerance under "plot" (the orientation is no picture).
+            numerics = st.numerics_for(None, bound=st.numerics().bound)[0]
         except ParameterError:
             return None, "no body: the system is not valid (see the message above)"
         if self.runner.busy(s.section.name) or s.section.params != params:
@@ -176,7 +181,7 @@ class BodyView:
         ks, qs, rs = k[sel][order], q[sel][order], r[sel][order]
         periods = max(1, min(PERIODS, ks.size - 1))
         i = max(0, ks.size - 1 - periods)
-        inputs = BodyInputs(params, int(st.selected), int(ks[i]), float(qs[i]), float(rs[i]), periods, bound)
+        inputs = BodyInputs(params, int(st.selected), int(ks[i]), float(qs[i]), float(rs[i]), periods, numerics)
         return inputs, ""
 
     def refresh(self) -> None:
@@ -211,7 +216,7 @@ class BodyView:
     def _start(self, inputs: BodyInputs) -> None:
         last = inputs.k_start + inputs.periods
         self._say(f"computing the body's motion over k = {inputs.k_start}..{last} ({SAMPLES} frames a period)…")
-        numerics = Numerics(rtol=TOLERANCE, atol=TOLERANCE, bound=inputs.bound)
+        numerics = inputs.numerics
 
         def job(cancelled: Callable[[], bool], emit: Emit) -> None:
             t = time.perf_counter()

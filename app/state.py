@@ -27,7 +27,7 @@ import param
 from explorer_core.analyses.body import box_exists, principal_axes
 from explorer_core.analyses.density import density_numerics
 from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
-from explorer_core.solve.numerics import Numerics, check_box, random_ics
+from explorer_core.solve.numerics import Numerics, check_box, chosen_numerics, random_ics
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
 #: Per-session bounds: one browser tab cannot ask for unbounded work.
@@ -671,19 +671,22 @@ class ExplorerState(param.Parameterized):
         return min(self.q_range[1] - self.q_range[0], self.r_range[1] - self.r_range[0]) / PLOT_PIXELS[0]
 
     def numerics(self, bound: float | None = None) -> Numerics:
-        """Method and tolerance; 'plot' ties the tolerance to a quarter pixel after all periods."""
-        if self.accuracy == "high":
-            tol = 1e-12
-        else:
-            tol = plot_tolerance(self.pixel_size(), self.periods + self.transient)
-        span = max(abs(v) for v in (*self.q_range, *self.r_range))
-        return Numerics(
-            method=self.method,
-            rtol=tol,
-            atol=tol,
-            steps_per_period=self.steps_per_period,
-            bound=bound if bound is not None else max(1e3, 100.0 * span),
-        )
+        """The section's method and tolerance; 'plot' ties the tolerance to a quarter pixel after all periods."""
+        tol = plot_tolerance(self.pixel_size(), self.periods + self.transient)
+        return self.numerics_for(None, plot_rtol=tol, bound=self.page_bound() if bound is None else bound)[0]
+
+    def page_bound(self) -> float:
+        """The escape bound of the page's computations: 100 times the view's extent, at least 1e3."""
+        return max(1e3, 100.0 * max(abs(v) for v in (*self.q_range, *self.r_range)))
+
+    def numerics_for(
+        self, own: Numerics | None, *, plot_rtol: float | None = None, bound: float | None = None
+    ) -> tuple[Numerics, str]:
+        """The numerics a computation runs with under the page's Method and Accuracy, and why (the core's one
+        rule, :func:`~explorer_core.solve.numerics.chosen_numerics`): ``own`` the computation's default,
+        ``plot_rtol`` its picture's tolerance (None: not a picture), ``bound`` the escape bound (None: own's)."""
+        return chosen_numerics(self.method, self.accuracy, own, plot_rtol=plot_rtol, bound=bound,
+                               steps_per_period=self.steps_per_period)  # fmt: skip
 
     def initial_conditions(self) -> np.ndarray:
         """The seeded random ones first, then the clicked/scene points: a click never renumbers the random

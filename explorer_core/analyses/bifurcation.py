@@ -386,6 +386,9 @@ SETTLE_TOL = 1e-9
 #: The tolerance a diagram's numerics have by default (``Numerics()``): Newton's ``ftol`` follows the ratio of
 #: the diagram's tolerance to it (:meth:`~explorer_core.solve.options.NewtonOptions.at`).
 DIAGRAM_RTOL = config.DEFAULT_RTOL
+#: The tolerance of a diagram as a picture (the app's Accuracy "plot"): its points are far below its pixels
+#: (vern9 by the "auto" rule).
+DIAGRAM_PLOT_RTOL = 1e-9
 JUMP_TOL = 1e-3
 JUMP_SAFETY = 10.0
 JUMP_TRIES = 2

@@ -111,3 +111,47 @@ def random_ics(n: int, box: Sequence[float], seed: int | None = 0) -> np.ndarray
     box = check_box(box)
     rng = np.random.default_rng(seed)
     return np.column_stack([rng.uniform(box[0], box[1], n), rng.uniform(box[2], box[3], n)])
+
+
+#: The app's Accuracy control: "plot" (a picture's tolerance) or "high" (:data:`HIGH_RTOL` everywhere).
+ACCURACIES = ("plot", "high")
+HIGH_RTOL = 1e-12
+
+
+def chosen_numerics(
+    method: str,
+    accuracy: str,
+    own: Numerics | None = None,
+    *,
+    plot_rtol: float | None = None,
+    bound: float | None = None,
+    steps_per_period: int | None = None,
+) -> tuple[Numerics, str]:
+    """The numerics a computation runs with when the user chose ``method`` and ``accuracy``, and why: the one
+    rule that takes the app's Method and Accuracy controls to every computation.
+
+    ``own`` is the computation's default (its spec's; None: :class:`Numerics`' defaults). The method is the
+    user's (``"auto"``: the rule at the tolerance). ``accuracy="high"``: rtol = atol = :data:`HIGH_RTOL`.
+    ``"plot"``: ``plot_rtol`` for a picture of points (a section, a density image, an orbit diagram: the
+    tolerance their pixels need), else ``own``'s tolerance (an exponent, an orbit, a manifold is a number or a
+    curve, not pixels). ``bound`` and ``steps_per_period``: the page's, else ``own``'s. Returns the numerics and
+    one line saying what ran and why.
+    """
+    if accuracy not in ACCURACIES:
+        raise ParameterError(f"accuracy must be one of {', '.join(ACCURACIES)}, got {accuracy!r}")
+    own = own or Numerics()
+    if accuracy == "high":
+        tol, why = HIGH_RTOL, "Accuracy high"
+    elif plot_rtol is not None:
+        tol, why = plot_rtol, "Accuracy plot: a picture's tolerance"
+    else:
+        tol, why = own.rtol, "Accuracy plot: this computation's own tolerance (its result is no picture)"
+    numerics = Numerics(
+        method=method,
+        rtol=tol,
+        atol=tol,
+        steps_per_period=own.steps_per_period if steps_per_period is None else steps_per_period,
+        bound=own.bound if bound is None else bound,
+        max_steps=own.max_steps,
+    )
+    return numerics, f"{numerics.method} at rtol {numerics.rtol:.3g} ({why})"
