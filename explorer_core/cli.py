@@ -246,8 +246,10 @@ _DESTS = {"value_range": "range", "seed": "from_", "ics": "ic", "m": "members"}
 
 def _build(args: argparse.Namespace, builder: Callable[..., Any], *a: Any, **kw: Any) -> Any:
     """An analysis' spec from its builder: a value it refuses is one usage line naming the option's flag
-    (``--offset: offset must be in (0, 1] ...``), its keywords written as flags (``ds_min`` as ``ds-min``)."""
+    (``--offset: offset must be in (0, 1] ...``), its keywords written as flags (``ds_min`` as ``ds-min``).
+    The nested options given as flags (``--newton-ftol``) replace those of the builder's default."""
     try:
+        kw.update(_nested(args, builder))
         return builder(*a, **kw)
     except ParameterError as exc:
         text, key = str(exc), getattr(exc, "option", None) or ""
@@ -256,6 +258,48 @@ def _build(args: argparse.Namespace, builder: Callable[..., Any], *a: Any, **kw:
         dest = next((d for d in (_DESTS.get(key), key) if d and hasattr(args, d)), None)  # lyapunov's seed: --seed
         flag = f"--{dest.strip('_').replace('_', '-')}: " if dest else ""
         raise UsageError(flag + text) from None
+
+
+#: The dest of a nested option's flag: ``newton__ftol`` for ``--newton-ftol``.
+_NESTED = "__"
+
+
+def _add_nested_args(p: argparse.ArgumentParser, command: str) -> None:
+    """The flags of the nested options of the command's analysis (the registry), from the options' declarations:
+    ``--newton-ftol`` etc. Their defaults are the analysis' (its builder's), read when the command runs."""
+    from explorer_core.analyses.registry import by_command
+
+    analysis = by_command(command)
+    if analysis is None or "newton" not in analysis.nested:
+        return
+    from explorer_core.solve.options import NewtonOptions
+
+    g = p.add_argument_group("Newton on P^n(x) - x (default: this analysis' preset; the JSON's spec has it)")
+    for o in NewtonOptions.options():
+        g.add_argument(o.flag, dest=f"newton{_NESTED}{o.name}", metavar=o.metavar or o.check.kind.upper(),
+                       help=f"{o.help} ({o.accepts})")  # fmt: skip
+
+
+def _nested(args: argparse.Namespace, builder: Callable[..., Any]) -> dict[str, Any]:
+    """``{"newton": NewtonOptions}`` when any ``--newton-*`` flag was given: the builder's default with them."""
+    import inspect
+
+    given = {k: v for k, v in vars(args).items() if _NESTED in k and v is not None}
+    if not given:
+        return {}
+    out: dict[str, Any] = {}
+    for name in {k.split(_NESTED, 1)[0] for k in given}:
+        default = inspect.signature(builder).parameters[name].default
+        changes = {}
+        for o in type(default).options():
+            text = given.get(f"{name}{_NESTED}{o.name}")
+            if text is not None:
+                try:
+                    changes[o.name] = o.check.parse(o.name, text)
+                except ParameterError as exc:
+                    raise UsageError(f"{o.flag}: {exc}") from None
+        out[name] = default.replace(**changes)
+    return out
 
 
 def _print_json(obj: Any) -> None:
@@ -753,7 +797,7 @@ def cmd_chart(args: argparse.Namespace) -> int:
     ics = _ics(args)
     if args.rtol is None and args.atol is None:
         args.rtol = DEFAULT_CHART_TOL  # a chart needs the regime, not 1e-10 accuracy
-    spec = chart_spec(params, args.x_param, _span(args.x_range, "--x-range"), args.y_param,
+    spec = _build(args, chart_spec, params, args.x_param, _span(args.x_range, "--x-range"), args.y_param,
                       _span(args.y_range, "--y-range"), _ints(args.grid, "--grid", "NX,NY"),
                       ics=_scene_point(scene) if ics is None else ics, transient=args.transient, periods=args.periods,
                       p_max=args.p_max, tol=args.tol, lyap_threshold=args.lyap_threshold,
@@ -1205,6 +1249,7 @@ def build_parser() -> argparse.ArgumentParser:
             _add_numerics_args(p)
         if c.arguments is not None:
             c.arguments(p)
+        _add_nested_args(p, name)
         if c.out:
             dir_ = c.out == ("dir",)
             metavar = "DIR" if dir_ else "FILE" + (c.out[0] if len(c.out) == 1 else "")

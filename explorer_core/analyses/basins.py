@@ -420,7 +420,7 @@ def basin_spec(
     tol: float = 1e-5,
     lyap_threshold: float = 5e-3,
     inflight: int = 512,
-    newton: NewtonOptions | None = None,
+    newton: NewtonOptions = BASIN_NEWTON,
 ) -> BasinSpec:
     """A validated :class:`BasinSpec`; every bad value raises :class:`ParameterError` naming it.
 
@@ -493,7 +493,7 @@ def basin_spec(
     return BasinSpec(params, b, nx, ny, numerics, cb, cl, chunk, max_periods, recurrences, locate, hit_attractor,
                      hit_basin, p_max, float(tol), float(lyap_threshold), inflight,
                      cells is None and cell_box is None,
-                     BASIN_NEWTON if newton is None else instance(NewtonOptions)("newton", newton))  # fmt: skip
+                     instance(NewtonOptions)("newton", newton))  # fmt: skip
 
 
 # ---------------------------------------------------------------------------

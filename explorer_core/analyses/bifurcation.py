@@ -48,7 +48,7 @@ from explorer_core.parallel.executor import Executor
 from explorer_core.progress import Progress, stream
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import lockstep_groups
-from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.options import JUMPS, NewtonOptions, instance
 from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.status import Status, count_names
@@ -702,10 +702,8 @@ def diagram_spec(
     vals = np.asarray(values, dtype=float).ravel()
     if vals.size == 0 or not np.all(np.isfinite(vals)):
         raise ParameterError(f"values must be a non-empty list of finite numbers, got {values!r}")
-    if isinstance(points, bool) or not isinstance(points, int | np.integer) or not 1 <= points <= 1_000_000:
-        raise ParameterError(f"points must be an integer in [1, 1000000], got {points!r}")
-    if isinstance(transient, bool) or not isinstance(transient, int | np.integer) or not 0 <= transient:
-        raise ParameterError(f"transient must be a non-negative integer, got {transient!r}")
+    points = check_int("points", points, 1, 1_000_000)
+    transient = check_int("transient", transient, 0, config.MAX_PERIODS)
     names = check_sweeps(seeding, sweeps)
     ics = check_ics([(0.1, 0.1)] if ics is None else ics)
     numerics = numerics or Numerics()

@@ -55,7 +55,7 @@ from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
 from explorer_core.solve.integrators import coefficients, lockstep_groups
-from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.options import SETTLING, NewtonOptions, instance
 from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.solve.rk import Coefficients
@@ -194,9 +194,8 @@ def chart_spec(
         if not 1 <= n <= config.MAX_GRID:
             raise ParameterError(f"grid must be between 1 and {config.MAX_GRID} per axis, got {grid!r}")
     ics = check_ics(ics)
-    for name, v, lo, hi in (("transient", transient, 0, config.MAX_PERIODS), ("periods", periods, 4, 10**6)):
-        if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
-            raise ParameterError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
+    transient = check_int("transient", transient, 0, config.MAX_PERIODS)
+    periods = check_int("periods", periods, 4, 10**6)
     if isinstance(p_max, bool) or not isinstance(p_max, int | np.integer) or not 1 <= p_max < periods // 2:
         raise ParameterError(f"p_max must be an integer in [1, periods/2), got {p_max!r}")
     if not (isinstance(tol, int | float) and 0 < tol < 1):

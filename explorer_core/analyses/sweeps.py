@@ -6,12 +6,12 @@ Shared by the orbit diagrams (:mod:`explorer_core.analyses.bifurcation`), the ch
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
 
 from explorer_core import config
+from explorer_core.solve.checks import check_int, check_range
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
 #: Parameters a diagram (or a chart of regimes) can sweep.
@@ -28,15 +28,9 @@ def check_param(name: str) -> str:
 
 def sweep_values(rng: Sequence[float], n: int) -> np.ndarray:
     """``n`` equally spaced values over ``rng = (lo, hi)`` (both ends included)."""
-    try:
-        lo, hi = (float(v) for v in rng)
-    except (TypeError, ValueError):
-        raise ParameterError(f"range must be two numbers lo,hi, got {rng!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise ParameterError(f"range must be finite with lo < hi, got {rng!r}")
-    if isinstance(n, bool) or not isinstance(n, int | np.integer) or not 1 <= n <= config.MAX_GRID * 16:
-        raise ParameterError(f"n_values must be an integer in [1, {config.MAX_GRID * 16}], got {n!r}")
-    return np.linspace(lo, hi, int(n)) if n > 1 else np.array([lo])
+    lo, hi = check_range("range", rng)
+    n = check_int("n_values", n, 1, config.MAX_GRID * 16)
+    return np.linspace(lo, hi, n) if n > 1 else np.array([lo])
 
 
 def params_at(base: Params, name: str, value: float) -> Params | str:

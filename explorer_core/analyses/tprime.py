@@ -23,6 +23,7 @@ import numpy as np
 
 from explorer_core import config, export
 from explorer_core.drawing import Drawable
+from explorer_core.solve import checks
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.status import Status, status_names
@@ -85,14 +86,8 @@ class TPrimeMap(Drawable):
 
 
 def check_range(rng: Any, name: str) -> tuple[float, float]:
-    """A finite ``(lo, hi)`` with ``lo < hi``; the error names the parameter."""
-    try:
-        lo, hi = (float(v) for v in rng)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be two numbers lo,hi, got {rng!r}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-        raise ParameterError(f"{name} must be finite with lo < hi, got {rng!r}")
-    return lo, hi
+    """A finite ``(lo, hi)`` with ``lo < hi``; the error names the parameter (``solve.checks.check_range``)."""
+    return checks.check_range(name, rng)
 
 
 def _grid(q_range: Any, r_range: Any, grid: Any) -> tuple[np.ndarray, np.ndarray]:

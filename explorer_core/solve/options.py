@@ -36,14 +36,35 @@ class Check:
 
     fn: Callable[[str, Any], Any]
     text: str
+    #: How a command line's text becomes the value: "int", "float", "bool" (true/false); ``optional``: "none"
+    #: is None.
+    kind: str = "float"
+    optional: bool = False
 
     def __call__(self, name: str, value: Any) -> Any:
         return self.fn(name, value)
 
+    def parse(self, name: str, text: str) -> Any:
+        """The value of a command line's ``text`` (then checked), or ParameterError naming it."""
+        t = str(text).strip().lower()
+        if self.optional and t == "none":
+            return self(name, None)
+        try:
+            if self.kind == "bool":
+                value: Any = {"true": True, "false": False}[t]
+            elif self.kind == "int":
+                value = int(t)
+            else:
+                value = float(t)
+        except (KeyError, ValueError):
+            raise ParameterError(f"{name} must be {self.text}, got {str(text)[:40]!r}") from None
+        return self(name, value)
+
 
 def integer(lo: int, hi: int, optional: bool = False) -> Check:
     fn = checks.check_optional_int if optional else checks.check_int
-    return Check(lambda n, v: fn(n, v, lo, hi), f"an integer in [{lo}, {hi}]" + (" or none" if optional else ""))
+    text = f"an integer in [{lo}, {hi}]" + (" or none" if optional else "")
+    return Check(lambda n, v: fn(n, v, lo, hi), text, "int", optional)
 
 
 def number(lo: float = -math.inf, hi: float = math.inf) -> Check:
@@ -52,14 +73,15 @@ def number(lo: float = -math.inf, hi: float = math.inf) -> Check:
 
 POSITIVE = Check(checks.check_positive, "a positive number")
 FRACTION = Check(checks.check_fraction, "a number in (0, 1)")
-BOOL = Check(checks.check_bool, "true or false")
+BOOL = Check(checks.check_bool, "true or false", "bool")
 POSITIVE_OR_INF = Check(
     lambda n, v: math.inf if v == math.inf else checks.check_positive(n, v), "a positive number or inf"
 )
 
 
 def positive_or_none() -> Check:
-    return Check(lambda n, v: None if v is None else checks.check_positive(n, v), "a positive number or none")
+    return Check(lambda n, v: None if v is None else checks.check_positive(n, v), "a positive number or none",
+                 optional=True)  # fmt: skip
 
 
 def instance(kind: type) -> Check:
@@ -84,9 +106,13 @@ class OptionInfo:
     name: str
     default: Any
     help: str
-    accepts: str
+    check: Check
     flag: str | None
     metavar: str | None
+
+    @property
+    def accepts(self) -> str:
+        return self.check.text
 
 
 @dataclass(frozen=True)
@@ -113,6 +139,8 @@ class Options:
         out: dict[str, Any] = {}
         for f in fields(self):
             v = getattr(self, f.name)
+            if isinstance(v, float) and math.isinf(v):
+                v = "inf" if v > 0 else "-inf"  # JSON has no infinity (the writers make it null: no information)
             out[f.name] = v.as_dict() if hasattr(v, "as_dict") else v
         return out
 
@@ -138,7 +166,7 @@ class Options:
             flag = f.metadata["flag"]
             if flag is None:
                 flag = "--" + "-".join(p for p in (cls.prefix, f.name.replace("_", "-")) if p)
-            out.append(OptionInfo(f.name, f.default, f.metadata["help"], f.metadata["check"].text, flag or None,
+            out.append(OptionInfo(f.name, f.default, f.metadata["help"], f.metadata["check"], flag or None,
                                   f.metadata["metavar"]))  # fmt: skip
         return out
 

@@ -1,0 +1,154 @@
+"""The registry of analyses: every analysis of the core, where its spec, builder, runner and result live, and the
+nested options its spec carries. The command line and the contract tests read it; modules are imported only when
+an entry is used (``bilimovich --help`` loads no numerics).
+
+An entry names things by module and attribute, not by object, so reading the registry imports nothing. What an
+analysis still lacks (a spec of its own) is said in the entry (``spec=None``), not hidden.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """One analysis.
+
+    name : its name (the CLI command where there is one: ``command``).
+    module : the module that holds it.
+    run : the convenience call ``X(spec or keywords, progress=None, cancel=None)``.
+    iterate : the generator ``iter_X`` (None: it reports no progress).
+    builder, spec : the validating builder and the frozen spec it returns (None: no spec yet, the keyword call
+        is the analysis' boundary).
+    result : the result type.
+    nested : the spec's nested options: field name -> the options class's ``module:Name``.
+    reference_rtol : the tolerance its defaults are set for (``module:NAME``), from which its nested Newton
+        derives its map (:meth:`~explorer_core.solve.options.NewtonOptions.at`).
+    """
+
+    name: str
+    module: str
+    run: str
+    result: str
+    iterate: str | None = None
+    builder: str | None = None
+    spec: str | None = None
+    command: str | None = None
+    nested: dict[str, str] = field(default_factory=dict)
+    reference_rtol: str | None = None
+
+    def get(self, attr: str) -> Any:
+        """An attribute of the analysis' module (``"run"``, ``"builder"``, ... or a name), imported now."""
+        name = getattr(self, attr, None) if attr in {"run", "result", "iterate", "builder", "spec"} else attr
+        if name is None:
+            raise LookupError(f"the analysis {self.name!r} has no {attr}")
+        return getattr(importlib.import_module(self.module), name)
+
+    def nested_options(self) -> dict[str, type]:
+        """The spec's nested options classes, imported now."""
+        out = {}
+        for name, path in self.nested.items():
+            mod, _, cls = path.partition(":")
+            out[name] = getattr(importlib.import_module(mod), cls)
+        return out
+
+
+_NEWTON = {"newton": "explorer_core.solve.options:NewtonOptions"}
+_A = "explorer_core.analyses."
+
+ANALYSES: dict[str, Analysis] = {
+    a.name: a
+    for a in (
+        Analysis("section", "explorer_core.solve.section", "section", "Section", command="section"),
+        Analysis("density", _A + "density", "density", "Density", "iter_density", command="density"),
+        Analysis(
+            "equilibria",
+            _A + "equilibria",
+            "equilibrium_tracks",
+            "Tracks",
+            "iter_equilibrium_tracks",
+            command="critical",
+        ),
+        Analysis("tprime", _A + "tprime", "tprime_map", "TPrimeMap", command="tprime"),
+        Analysis(
+            "lyapunov",
+            _A + "lyapunov",
+            "lyapunov_spectrum",
+            "LyapunovResult",
+            "iter_lyapunov",
+            "lyapunov_spec",
+            "LyapunovSpec",
+            command="lyapunov",
+        ),
+        Analysis(
+            "bifurcation",
+            _A + "bifurcation",
+            "bifurcation_diagram",
+            "OrbitDiagram",
+            "iter_bifurcation_diagram",
+            "diagram_spec",
+            "DiagramSpec",
+            command="bifurcation",
+            nested=_NEWTON,
+            reference_rtol=_A + "bifurcation:DIAGRAM_RTOL",
+        ),
+        Analysis("orbits", _A + "orbits", "find_orbits", "OrbitSearch", command="orbits"),
+        Analysis("manifolds", _A + "manifolds", "manifolds", "Manifolds", "iter_manifolds", command="manifolds"),
+        Analysis(
+            "continuation",
+            _A + "continuation",
+            "continue_orbit",
+            "Continuation",
+            "iter_continue_orbit",
+            "continuation_spec",
+            "ContinuationSpec",
+            command="continue",
+            nested={"options": _A + "continuation:ContinuationOptions"},
+        ),
+        Analysis(
+            "continue_from_seeds",
+            _A + "continuation",
+            "continue_from_seeds",
+            "Continuation",
+            "iter_continue_from_seeds",
+        ),
+        Analysis("chart_boundaries", _A + "continuation", "chart_boundaries", "Boundaries", "iter_chart_boundaries"),
+        Analysis(
+            "chart",
+            _A + "regimes",
+            "regime_chart",
+            "Chart",
+            "iter_chart",
+            "chart_spec",
+            "ChartSpec",
+            command="chart",
+            nested=_NEWTON,
+            reference_rtol=_A + "regimes:DEFAULT_CHART_TOL",
+        ),
+        Analysis(
+            "basins",
+            _A + "basins",
+            "basins",
+            "Basins",
+            "iter_basins",
+            "basin_spec",
+            "BasinSpec",
+            command="basins",
+            nested=_NEWTON,
+            reference_rtol=_A + "basins:DEFAULT_BASIN_TOL",
+        ),
+        Analysis(
+            "drift", _A + "drift", "drift_fit", "DriftFit", "iter_drift_fit", "drift_spec", "DriftSpec", command="fit"
+        ),
+        Analysis("body", _A + "body", "body_series", "BodySeries", "iter_body_series", command="body"),
+        Analysis("symmetry", _A + "symmetry", "check_symmetry", "SymmetryCheck", command="symmetry"),
+    )
+}
+
+
+def by_command(command: str) -> Analysis | None:
+    """The analysis behind a CLI command (None: the command is no analysis: scenes, serve, bench, ...)."""
+    return next((a for a in ANALYSES.values() if a.command == command), None)
