@@ -611,73 +611,31 @@ def _orbits_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--thorough", action="store_true", help="no early stop of slow seeds (slower, finds more)")
 
 
-def _point_in_bound(text: str, name: str, numerics: Numerics) -> tuple[float, float]:
-    q, r = _floats(text, 2, name)
-    if abs(q) > numerics.bound or abs(r) > numerics.bound:
-        raise UsageError(f"{name} {q:g},{r:g} is outside the escape bound {numerics.bound:g}")
-    return q, r
-
-
 def cmd_orbits(args: argparse.Namespace) -> int:
-    from explorer_core.analyses import orbits as orb
+    from explorer_core.analyses.orbits import ORBIT_NUMERICS, orbit_search, orbit_spec
 
     params, scene = _params(args)
-    if args.period is not None and args.max_period is not None:
-        raise UsageError("give --period N (that period only) or --max-period N (1..N), not both")
-    cap = args.period or args.max_period or 1
-    if not 1 <= cap <= orb.MAX_PERIOD:
-        raise UsageError(f"the period must be in [1, {orb.MAX_PERIOD}], got {cap}")
-    periods = [cap] if args.period is not None else list(range(1, cap + 1))
-    numerics = _numerics(args, None, 1, base=orb.ORBIT_NUMERICS)
-    seeds = [_point_in_bound(v, "--seed", numerics) for v in args.seed or []]
-    box = _box(args.box, "--box", scene.box if scene else (-2.0, 2.0, -2.0, 2.0))
-    grid = _ints(args.seeds, "--seeds", "NX,NY", 1, config.MAX_GRID) if args.seeds else None
-    pairs: list[tuple[tuple[float, float], list[int]]] = [(s_, periods) for s_ in seeds]
-    if grid is not None or not (seeds or args.returns):
-        pairs += [((float(q), float(r)), periods) for q, r in orb.grid_seeds(box, *(grid or (10, 10)))]
-    if args.returns:
-        from explorer_core.solve.section import section
-
-        sec = section(params, random_ics(args.returns, box, seed=0), 200, transient=300, numerics=numerics)
-        tol = 0.02 * max(box[1] - box[0], box[3] - box[2])
-        pairs += [((float(x[0]), float(x[1])), [n]) for x, n in orb.return_seeds(sec.points, sec.npts, cap, tol)
-                  if n in periods]  # fmt: skip
-    by_periods: dict[tuple[int, ...], list] = {}
-    for seed_, per in pairs:
-        by_periods.setdefault(tuple(per), []).append(seed_)
-    found: list = []
-    failures: list = []
-    elapsed = 0.0
+    spec = _build(args, orbit_spec, params, period=args.period, max_period=args.max_period,
+                  seeds=[_floats(v, 2, "--seed") for v in args.seed or []],
+                  box=_box(args.box, "--box", scene.box if scene else (-2.0, 2.0, -2.0, 2.0)),
+                  grid=_ints(args.seeds, "--seeds", "NX,NY", 1, config.MAX_GRID) if args.seeds else None,
+                  returns=args.returns, in_box=args.in_box, thorough=args.thorough,
+                  numerics=_numerics(args, None, 1, base=ORBIT_NUMERICS))  # fmt: skip
     with _Run(args) as run:
-        for per, group in by_periods.items():
-            run.line(f"{len(group)} seeds x periods {per[0]}..{per[-1]}")
-            res = orb.find_orbits(params, np.array(group), list(per), numerics=numerics, cancel=run,
-                                  bound=box if args.in_box else None, patience=None if args.thorough else orb.PATIENCE,
-                                  max_iter=80 if args.thorough else orb.MAX_ITER)  # fmt: skip
-            elapsed += res.elapsed_s
-            failures += res.failures
-            for o in res.orbits:
-                if not any(orb.same_orbit(o, f) for f in found):
-                    found.append(o)
-            if not res.completed:
-                break
-    found.sort(key=lambda o: (o.period, float(o.points[0, 0]), float(o.points[0, 1])))
-    summary = {"orbits": [o.as_dict() for o in found], "failures": [f.as_dict() for f in failures],
-               "seeds": len(pairs), "periods": periods, "completed": not run(), "elapsed_s": round(elapsed, 6),
-               "params": params.as_dict(), "numerics": numerics.as_dict()}  # fmt: skip
-    _with_scene(summary, args)
+        search = orbit_search(spec, cancel=run, progress=lambda u: u.detail and run.line(u.detail))
+    summary = _with_scene(search.summary(), args)
     if args.out:
-        search = orb.OrbitSearch(params, numerics, found, failures, len(pairs), elapsed, not run())
         summary["csv"] = search.write(args.out)
+    found = search.orbits
 
     def lines() -> list[str]:
         out = []
         for o in found:
             mu = ", ".join(f"{m.real:.6g}{m.imag:+.6g}i" if m.imag else f"{m.real:.6g}" for m in o.multipliers)
             out.append(f"period {o.period} {o.kind:15s} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g})  mu = {mu}")
-        return [*out, f"{len(found)} orbits, {len(failures)} seeds without one, {elapsed:.2f} s"]
+        return [*out, f"{len(found)} orbits, {len(search.failures)} seeds without one, {search.elapsed_s:.2f} s"]
 
-    return _finish(args, summary, lines, completed=not run(), what="orbits")
+    return _finish(args, summary, lines, completed=search.completed, what="orbits")
 
 
 def _continue_args(p: argparse.ArgumentParser) -> None:

@@ -272,3 +272,19 @@ def test_a_charts_json_records_the_newton_it_ran_with(tmp_path) -> None:
     code, _, err = run_cli("chart", "--scene", "fig10", "--x-param", "alpha", "--x-range", "-0.4,-0.39", "--y-param",
                            "g1", "--y-range", "1,1.01", "--grid", "2,2", "--json", "--newton-ftol", "-1")  # fmt: skip
     assert code == 2 and "--newton-ftol: ftol must be a positive finite number, got -1.0" in err
+
+
+def test_an_orbit_search_is_a_spec_the_command_line_only_builds() -> None:
+    from explorer_core.analyses.orbits import orbit_search, orbit_spec
+
+    spec = orbit_spec(FIG8B, max_period=2, seeds=[(-0.04, -2.4)], thorough=True)
+    assert spec.periods == (1, 2) and spec.grid is None and spec.newton == ORBITS.replace(patience=None, max_iter=80)
+    assert orbit_spec(FIG8B).grid == (10, 10)  # no seeds: the grid over the box
+    with pytest.raises(ParameterError, match="not both") as err:
+        orbit_spec(FIG8B, period=1, max_period=2)
+    assert err.value.option == "period"
+    with pytest.raises(ParameterError, match="outside the escape bound") as err:
+        orbit_spec(FIG8B, seeds=[(1e9, 0.0)])
+    assert err.value.option == "seeds"
+    res = orbit_search(orbit_spec(FIG8B, period=1, seeds=[(-0.04, -2.4)]))
+    assert res.completed and len(res.orbits) == 1 and res.summary()["spec"]["newton"] == ORBITS.as_dict()

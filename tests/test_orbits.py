@@ -153,7 +153,7 @@ def test_cli_orbits_json_and_errors(tmp_path) -> None:
     assert len(o["points"]) == o["period"] and len(o["multipliers"]) == 2
     assert out.read_text().splitlines()[0].startswith("orbit,period,type,stable,j,q,r")
     for args, msg in (
-        (("--period", "999"), "period must be in"),
+        (("--period", "999"), "--period: period must be an integer in [1, 64], got 999"),
         (("--seed", "1e9,0"), "outside the escape bound"),
         (("--period", "1", "--max-period", "2"), "not both"),
         (("--seeds", "0,3"), "--seeds"),

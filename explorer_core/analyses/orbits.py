@@ -22,17 +22,21 @@ from __future__ import annotations
 import csv
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from explorer_core import config, export
+from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
+from explorer_core.progress import Progress, Step
+from explorer_core.progress import run as run_updates
 from explorer_core.solve import poincare
-from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
-from explorer_core.solve.options import ORBITS
+from explorer_core.solve.checks import check_bool, check_ints, check_optional_int, check_point
+from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int, random_ics
+from explorer_core.solve.options import ORBITS, NewtonOptions, instance
 from explorer_core.solve.poincare import PATIENCE, NewtonResult, PoincareMap, least_period
 from explorer_core.solve.tangent import Monodromy
 from explorer_core.status import Status
@@ -384,3 +388,134 @@ def return_seeds(points: np.ndarray, npts: np.ndarray, max_period: int, tol: flo
             if d[k] <= tol:
                 out.append((x[k].copy(), n))
     return out
+
+
+# ---------------------------------------------------------------------------
+# A search as a spec: where the seeds come from, which periods, the numerics and Newton's options.
+
+
+@dataclass(frozen=True)
+class OrbitSpec:
+    """What defines a search for periodic orbits (``bilimovich orbits``), made by :func:`orbit_spec`.
+
+    ``seeds`` are tried with every period of ``periods``; ``grid`` (NX, NY) adds the pixel centres of a grid over
+    ``box``; ``returns`` adds the near-returns of a section of that many random trajectories in ``box`` (each
+    with its own period); ``in_box`` keeps only orbits whose points are all in ``box``. Newton iterates the map
+    of ``numerics`` to ``newton.ftol``.
+    """
+
+    params: Params
+    periods: tuple[int, ...]
+    seeds: tuple[tuple[float, float], ...] = ()
+    box: tuple[float, float, float, float] = (-2.0, 2.0, -2.0, 2.0)
+    grid: tuple[int, int] | None = None
+    returns: int | None = None
+    in_box: bool = False
+    numerics: Numerics = ORBIT_NUMERICS
+    newton: NewtonOptions = ORBITS
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "periods": list(self.periods), "seeds": [list(s) for s in self.seeds],
+                "box": list(self.box), "grid": None if self.grid is None else list(self.grid),
+                "returns": self.returns, "in_box": self.in_box, "numerics": self.numerics.as_dict(),
+                "newton": self.newton.as_dict()}  # fmt: skip
+
+
+def orbit_spec(
+    params: Params,
+    *,
+    period: int | None = None,
+    max_period: int | None = None,
+    seeds: Any = (),
+    box: Sequence[float] = (-2.0, 2.0, -2.0, 2.0),
+    grid: Sequence[int] | None = None,
+    returns: int | None = None,
+    in_box: bool = False,
+    thorough: bool = False,
+    numerics: Numerics | None = None,
+    newton: NewtonOptions = ORBITS,
+) -> OrbitSpec:
+    """A validated :class:`OrbitSpec`; a bad value raises ParameterError naming it (``exc.option``: its keyword).
+
+    ``period`` (that period only) or ``max_period`` (periods 1..N; default 1), not both, in [1, MAX_PERIOD].
+    Without ``seeds`` nor ``returns`` the seeds are a 10 x 10 ``grid``. ``thorough``: no early stop of slow seeds
+    and 80 iterations (``newton`` with ``patience=None, max_iter=80``). ``numerics``: the map (default
+    :data:`ORBIT_NUMERICS`).
+    """
+    with Checking() as at:
+        at("period")
+        if period is not None and max_period is not None:
+            raise ParameterError(
+                f"give period (that period only) or max_period (1..N), not both: {period}, {max_period}"
+            )
+        cap = check_int("period" if period is not None else "max_period", period or max_period or 1, 1, MAX_PERIOD)
+        periods = (cap,) if period is not None else tuple(range(1, cap + 1))
+        at("numerics")
+        numerics = instance(Numerics)("numerics", ORBIT_NUMERICS if numerics is None else numerics)
+        at("seeds")
+        points = () if seeds is None or len(seeds) == 0 else tuple(
+            check_point("seed", s, numerics.bound) for s in np.asarray(seeds, dtype=float).reshape(-1, 2))  # fmt: skip
+        at("box")
+        box_ = check_box(box)
+        at("grid")
+        grid_ = None if grid is None else check_ints("grid", grid, 2, 1, config.MAX_GRID)
+        at("returns")
+        returns = check_optional_int("returns", returns, 1, 10_000)
+        if grid_ is None and not (points or returns):
+            grid_ = (10, 10)
+        at("in_box")
+        in_box = check_bool("in_box", in_box)
+        at("newton")
+        newton = instance(NewtonOptions)("newton", newton)
+        if check_bool("thorough", thorough):
+            newton = newton.replace(patience=None, max_iter=80)
+    return OrbitSpec(params, periods, points, box_, grid_, returns, in_box, numerics, newton)  # type: ignore[arg-type]
+
+
+def iter_orbit_search(spec: OrbitSpec, cancel: Callable[[], bool] | None = None) -> Iterator[Step[OrbitSearch]]:
+    """The search of ``spec``: one Newton per group of seeds with the same periods (progress in seed groups); the
+    last update's result is the :class:`OrbitSearch` (distinct orbits sorted by period, then position)."""
+    start = time.perf_counter()
+    pairs: list[tuple[tuple[float, float], tuple[int, ...]]] = [(s, spec.periods) for s in spec.seeds]
+    if spec.grid is not None:
+        pairs += [((float(q), float(r)), spec.periods) for q, r in grid_seeds(spec.box, *spec.grid)]
+    if spec.returns:
+        from explorer_core.solve.section import section
+
+        sec = section(spec.params, random_ics(spec.returns, spec.box, seed=0), 200, transient=300,
+                      numerics=spec.numerics)  # fmt: skip
+        tol = 0.02 * max(spec.box[1] - spec.box[0], spec.box[3] - spec.box[2])
+        pairs += [((float(x[0]), float(x[1])), (n,)) for x, n in
+                  return_seeds(sec.points, sec.npts, spec.periods[-1], tol) if n in spec.periods]  # fmt: skip
+    by_periods: dict[tuple[int, ...], list[tuple[float, float]]] = {}
+    for seed, per in pairs:
+        by_periods.setdefault(per, []).append(seed)
+    found: list[Orbit] = []
+    failures: list[OrbitFailure] = []
+    work = 0.0
+    done, completed = 0, True
+    opts = spec.newton
+    for per, group in by_periods.items():
+        yield Step(Progress(done, len(by_periods), "seed groups", time.perf_counter() - start),
+                   f"{len(group)} seeds x periods {per[0]}..{per[-1]}")  # fmt: skip
+        res = find_orbits(spec.params, np.array(group), list(per), numerics=spec.numerics, ftol=opts.ftol,
+                          max_iter=opts.max_iter, max_step=opts.max_step, patience=opts.patience, coarse=opts.coarse,
+                          bound=spec.box if spec.in_box else None, cancel=cancel)  # fmt: skip
+        work += res.elapsed_s
+        failures += res.failures
+        found += [o for o in res.orbits if not any(same_orbit(o, f) for f in found)]
+        if not res.completed:
+            completed = False
+            break
+        done += 1
+    found.sort(key=lambda o: (o.period, float(o.points[0, 0]), float(o.points[0, 1])))
+    result = OrbitSearch(spec.params, spec.numerics, found, failures, len(pairs), work, completed,
+                         {"periods": list(spec.periods), "spec": spec.as_dict()})  # fmt: skip
+    yield Step(Progress(done, max(1, len(by_periods)), "seed groups", time.perf_counter() - start), None, result)
+
+
+def orbit_search(
+    spec: OrbitSpec, progress: Callable[[Any], None] | None = None, cancel: Callable[[], bool] | None = None
+) -> OrbitSearch:
+    """:func:`iter_orbit_search` run to its end (``progress`` gets every update)."""
+    return run_updates(iter_orbit_search(spec, cancel=cancel), progress)

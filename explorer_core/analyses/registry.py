@@ -95,7 +95,17 @@ ANALYSES: dict[str, Analysis] = {
             nested=_NEWTON,
             reference_rtol=_A + "bifurcation:DIAGRAM_RTOL",
         ),
-        Analysis("orbits", _A + "orbits", "find_orbits", "OrbitSearch", command="orbits"),
+        Analysis(
+            "orbits",
+            _A + "orbits",
+            "orbit_search",
+            "OrbitSearch",
+            "iter_orbit_search",
+            "orbit_spec",
+            "OrbitSpec",
+            command="orbits",
+            nested=_NEWTON,
+        ),
         Analysis("manifolds", _A + "manifolds", "manifolds", "Manifolds", "iter_manifolds", command="manifolds"),
         Analysis(
             "continuation",
