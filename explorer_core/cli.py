@@ -267,7 +267,7 @@ _NESTED = "__"
 def _add_nested_args(p: argparse.ArgumentParser, command: str) -> None:
     """The flags of the nested options of the command's analysis (the registry), from the options' declarations:
     ``--newton-ftol`` etc. Their defaults are the analysis' (its builder's), read when the command runs."""
-    from explorer_core.analyses.registry import by_command
+    from explorer_core.registry import by_command
 
     analysis = by_command(command)
     if analysis is None or "newton" not in analysis.nested:

@@ -215,7 +215,7 @@ def test_every_analysis_is_in_the_registry_and_its_entry_points_exist() -> None:
     import dataclasses
     import inspect
 
-    from explorer_core.analyses.registry import ANALYSES, by_command
+    from explorer_core.registry import ANALYSES, by_command
     from explorer_core.cli import COMMANDS
 
     for a in ANALYSES.values():
@@ -244,7 +244,7 @@ def test_every_analysis_is_in_the_registry_and_its_entry_points_exist() -> None:
 def test_the_command_line_sets_nested_newton_options_from_their_declarations(command, preset) -> None:
     import argparse
 
-    from explorer_core.analyses.registry import by_command
+    from explorer_core.registry import by_command
     from explorer_core.cli import _nested, build_parser
 
     parser = build_parser()
