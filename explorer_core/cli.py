@@ -31,7 +31,6 @@ from typing import Any
 import numpy as np
 
 from explorer_core import __version__, config, export
-from explorer_core.progress import run as run_updates
 from explorer_core.scenes import Scene, get_scene, list_scenes
 from explorer_core.solve.numerics import Numerics, check_box, random_ics
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
@@ -155,7 +154,9 @@ def _add_numerics_args(p: argparse.ArgumentParser) -> None:
                    help=f"default {config.DEFAULT_METHOD}: vern9 (Verner 9(8)) at rtol {config.VERN9_MIN_RTOL:g}.."
                         f"{config.VERN9_MAX_RTOL:g}, where it needs less work, else dop853; taylor: sections only, "
                         "for now")  # fmt: skip
-    g.add_argument("--rtol", type=_number("rtol"), help=f"relative tolerance (default {config.DEFAULT_RTOL:g})")
+    g.add_argument(
+        "--rtol", type=_number("rtol"), help="relative tolerance (default: the command's own, in the JSON's numerics)"
+    )
     g.add_argument("--atol", type=_number("atol"), help="absolute tolerance (default: same as rtol)")
     g.add_argument("--steps-per-period", type=_count("steps-per-period", 1, 10_000_000), help="RK4 steps")
     g.add_argument("--bound", type=_number("bound"), help="escape bound on |q|, |r|")
@@ -255,8 +256,9 @@ def _build(args: argparse.Namespace, builder: Callable[..., Any], *a: Any, **kw:
         text, key = str(exc), getattr(exc, "option", None) or ""
         for name in (k for k in vars(args) if "_" in k.strip("_")):
             text = re.sub(rf"\b{name}\b", name.replace("_", "-"), text)
+        declared = _declared(builder).get(key)
         dest = next((d for d in (_DESTS.get(key), key) if d and hasattr(args, d)), None)  # lyapunov's seed: --seed
-        flag = f"--{dest.strip('_').replace('_', '-')}: " if dest else ""
+        flag = f"{declared.flag_of(key)}: " if declared else f"--{dest.strip('_').replace('_', '-')}: " if dest else ""
         raise UsageError(flag + text) from None
 
 
@@ -335,6 +337,151 @@ def _with_scene(summary: dict[str, Any], args: argparse.Namespace) -> dict[str, 
     if getattr(args, "scene", None):
         summary["scene"] = args.scene
     return summary
+
+
+# --- commands generated from the analyses' declarations ---------------------------------------------------
+#
+# An analysis command (``Command(analysis=...)``) has no body here: its flags come from the ``@command_line``
+# declarations of its builder and runner (``explorer_core.solve.options.Arg``, defaults from their signatures),
+# its run is builder -> runner -> ``result.write`` for every output -> ``result.report()`` (the lines printed),
+# and its JSON is ``result.summary()`` with ``out`` (one record per file written) and ``scene``.
+
+
+def _declared(fn: Callable[..., Any]) -> dict[str, Any]:
+    return getattr(fn, "__cli__", {})
+
+
+#: The metavar of a declared option by how it is parsed (unless it declares one).
+_METAVARS = {"points": "Q,R", "range": "A,B", "box": "Q0,Q1,R0,R1", "ints": "NX,NY"}
+
+
+def _add_declared_args(p: argparse.ArgumentParser, fn: Callable[..., Any], title: str) -> None:
+    """The flags of ``fn``'s declared keywords (help with the signature's default)."""
+    import inspect
+
+    params = inspect.signature(fn).parameters
+    g = p.add_argument_group(title)
+    for name, arg in _declared(fn).items():
+        default = params[name].default if arg.default is None else arg.default
+        text = arg.help
+        if default not in (inspect.Parameter.empty, None, False) and arg.parse != "switch":
+            text += f" (default {_shown(default)})"
+        if arg.scene:
+            text += f" (with --scene: the scene's {arg.scene})"
+        kw: dict[str, Any] = {"dest": name, "help": text.strip() or None}
+        if arg.parse == "switch":
+            g.add_argument(arg.flag_of(name), action="store_true", **kw)
+        elif arg.parse == "points":
+            g.add_argument(arg.flag_of(name), action="append", metavar=arg.metavar or "Q,R", **kw)
+        else:
+            metavar = arg.metavar or _METAVARS.get(arg.parse, name.upper())
+            g.add_argument(arg.flag_of(name), metavar=metavar, required=arg.required,
+                           choices=arg.choices, **kw)  # fmt: skip
+
+
+def _shown(v: Any) -> str:
+    if isinstance(v, tuple | list):
+        return ",".join(_shown(x) for x in v)
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _declared_values(args: argparse.Namespace, fn: Callable[..., Any], scene: Scene | None) -> tuple[list, dict]:
+    """``fn``'s declared keywords from the command line (text parsed), or the scene's where declared; the
+    positional ones in order and the others by keyword (only those given: the signature has the defaults)."""
+    pos: list[Any] = []
+    kw: dict[str, Any] = {}
+    for name, arg in _declared(fn).items():
+        raw = getattr(args, name, None)
+        flag = arg.flag_of(name)
+        if raw is None or raw is False:
+            value = _scene_value(scene, arg.scene) if raw is None else None
+            value = arg.default if value is None else value
+            if value is None and arg.positional and arg.required is False and _no_default(fn, name):
+                where = " (no --scene to take it from)" if arg.scene else ""
+                raise UsageError(f"give {flag} {arg.metavar or _METAVARS.get(arg.parse, name.upper())}{where}")
+        elif arg.parse == "switch":
+            value = True
+        elif arg.parse == "int":
+            value = _count(flag, -(2**63), 2**63 - 1)(raw) if isinstance(raw, str) else raw
+        elif arg.parse == "float":
+            value = _number(flag)(raw)
+        elif arg.parse == "range":
+            value = _span(raw, flag)
+        elif arg.parse == "ints":
+            value = _ints(raw, flag, arg.metavar or "NX,NY")
+        elif arg.parse == "box":
+            value = _floats(raw, 4, flag)
+        elif arg.parse == "points":
+            value = [_floats(v, 2, flag) for v in raw]
+        elif arg.parse == "list":
+            value = [w.strip() for w in str(raw).split(",")]
+        else:
+            value = raw
+        if arg.positional:
+            pos.append(value)
+        elif value is not None:
+            kw[name] = value
+    return pos, kw
+
+
+def _no_default(fn: Callable[..., Any], name: str) -> bool:
+    import inspect
+
+    return inspect.signature(fn).parameters[name].default is inspect.Parameter.empty
+
+
+def _scene_value(scene: Scene | None, attr: str | None) -> Any:
+    """What a scene gives an option declared with ``scene=attr`` (None: nothing, the builder's default)."""
+    if scene is None or attr is None:
+        return None
+    if attr == "points":
+        return [list(p) for p in scene.points[:1]] or None
+    if attr == "view":
+        return [*scene.q_range, *scene.r_range]
+    return getattr(scene, attr)
+
+
+def _numerics_given(args: argparse.Namespace) -> bool:
+    return any(getattr(args, n, None) is not None for n in ("method", "rtol", "atol", "steps_per_period", "bound",
+                                                               "max_steps"))  # fmt: skip
+
+
+def cmd_analysis(args: argparse.Namespace) -> int:
+    """An analysis command: builder -> runner -> outputs -> report, from the registry and the declarations."""
+    from explorer_core.registry import by_command
+
+    c = COMMANDS[args.command]
+    a = by_command(args.command)
+    builder, runner = a.get("builder"), a.get("run")
+    out = getattr(args, "out", None)
+    outs = out if isinstance(out, list) else [out] if out else []
+    if c.needs_output and not outs and not args.json:
+        raise UsageError(f"give --out FILE ({', '.join(c.out)}) and/or --json")
+    params, scene = _params(args)
+    pos, kw = _declared_values(args, builder, scene)
+    spec = _build(args, builder, params, *pos, **kw)
+    if _numerics_given(args):  # the flags change the analysis' own default numerics, whatever it is
+        spec = _build(args, builder, params, *pos, **kw, numerics=_numerics(args, None, 1, base=spec.numerics))
+    _, run_kw = _declared_values(args, runner, scene)
+    if c.scheduler:
+        run_kw["executor"] = _executor(args)
+    with _Run(args) as run:
+        result = runner(spec, cancel=run, progress=run.update, **run_kw)
+    summary = _with_scene(result.summary(), args)
+    if getattr(args, "scheduler", None):
+        summary["scheduler"] = args.scheduler
+    written = []
+    for path in [*outs, *(getattr(args, f) for f in c.files if getattr(args, f, None))]:
+        picture = next((fn for suffix, fn in c.pictures.items() if path.lower().endswith(suffix)), None)
+        if picture is None:
+            written.append(result.write(path))
+        else:  # matplotlib (reports/) only when a picture is asked for
+            module, _, name = picture.partition(":")
+            getattr(__import__(module, fromlist=[name]), name)(result, path)
+            written.append({"path": path})
+    if written:
+        summary["out"] = written
+    return _finish(args, summary, result.report, result=result, what=c.what)
 
 
 # --- commands ----------------------------------------------------------------------------------------------
@@ -505,47 +652,6 @@ def cmd_tprime(args: argparse.Namespace) -> int:
     return 0
 
 
-def _lyapunov_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable: one member each)")
-    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), help="periods dropped first")
-    p.add_argument("--periods", type=_count("periods", 1, config.MAX_PERIODS), default=2000, help="measured periods")
-    p.add_argument("--ensemble", type=_count("ensemble", 1, 10_000), default=1, metavar="M", help="members")
-    p.add_argument("--offset", type=_number("offset"), default=1e-6, help="relative offset of ensemble members")
-    p.add_argument("--seed", type=SEED, default=0)
-    p.add_argument("--history", metavar="FILE.csv", help="running estimates per period (member,k,L1,L2,...)")
-
-
-def cmd_lyapunov(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.lyapunov import lyapunov_spec, lyapunov_spectrum
-
-    params, scene = _params(args)
-    ics = _ics(args)
-    if ics is None:
-        if scene is None or not scene.points:
-            raise UsageError("give an initial condition: --ic Q,R")
-        ics = np.array(scene.points[:1])
-    transient = args.transient if args.transient is not None else (scene.transient if scene else 100)
-    spec = _build(args, lyapunov_spec, params, ics, args.periods, transient=transient, ensemble=args.ensemble,
-                  numerics=_numerics(args, None, args.periods), offset=args.offset, seed=args.seed)  # fmt: skip
-    with _Run(args) as run:
-        res = lyapunov_spectrum(spec, cancel=run, progress=run.update)
-    summary = _with_scene(res.summary(), args)
-    if args.history:
-        res.write(args.history)
-        summary["history_csv"] = args.history
-
-    def lines() -> list[str]:
-        if summary["exponents"] is None:
-            return [f"status {summary['status']}: no member completed the measurement"]
-        (l1, l2, _), (s1, s2, _), it = summary["exponents"], summary["spread"], summary["per_iteration"]
-        return [f"Lambda (per unit time) = {l1:.6f} +- {s1:.6f}, {l2:.6f} +- {s2:.6f}, 0",
-                f"per iteration (x T = {res.period:.6g}): {it[0]:.6f}, {it[1]:.6f}",
-                f"Kaplan-Yorke D = {summary['kaplan_yorke']:.6f}; L1 + L2 = {l1 + l2:.6e}, "
-                f"mean divergence = {summary['divergence_mean']:.6e}; status {summary['status']}"]  # fmt: skip
-
-    return _finish(args, summary, lines, result=res, what="periods' estimates")
-
-
 def _param_range_args(p: argparse.ArgumentParser, help_: str = "parameter range") -> None:
     p.add_argument("--param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
     p.add_argument("--range", required=True, metavar="A,B", help=help_)
@@ -561,81 +667,6 @@ def _executor(args: argparse.Namespace) -> Any:
 
 def _scheduler_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask cluster: tcp://HOST:PORT or local:N (docs/dask.md)")
-
-
-def _bifurcation_args(p: argparse.ArgumentParser) -> None:
-    _param_range_args(p)
-    p.add_argument("--n-values", type=_count("n-values", 1, 65536), default=200, metavar="N")
-    p.add_argument("--points", type=_count("points", 1, 1_000_000), default=200, help="section points per value")
-    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), default=500)
-    p.add_argument("--seeding", choices=["continuation", "fixed"], default="continuation")
-    p.add_argument("--sweeps", metavar="forward,backward", help="continuation sweeps (default both)")
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
-    _scheduler_arg(p)
-
-
-def cmd_bifurcation(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.bifurcation import bifurcation_diagram, diagram_spec
-    from explorer_core.analyses.sweeps import sweep_values
-
-    params, scene = _params(args)
-    if not args.out and not args.json:
-        raise UsageError("give --out FILE.csv and/or --json")
-    values = sweep_values(tuple(_span(args.range, "--range")), args.n_values)
-    ics = _ics(args)
-    sweeps = tuple(s.strip() for s in args.sweeps.split(",")) if args.sweeps else ("forward", "backward")
-    spec = _build(args, diagram_spec, params, args.param, values, points=args.points, transient=args.transient,
-                  seeding=args.seeding, ics=_scene_point(scene) if ics is None else ics, sweeps=sweeps,
-                  numerics=_numerics(args, None, args.transient + args.points))  # fmt: skip
-    with _Run(args) as run:
-        diag = bifurcation_diagram(spec, cancel=run, progress=run.update, executor=_executor(args))
-    summary = diag.summary()
-    if args.scheduler:
-        summary["scheduler"] = args.scheduler
-    if args.out:
-        summary["csv"] = diag.write(args.out)
-    return _finish(args, summary, lambda: [f"{diag.values.size} values x {diag.sweeps.size} sweeps, status "
-                                           f"{summary['status']}, {diag.elapsed_s:.2f} s"],
-                   result=diag, what="values")  # fmt: skip
-
-
-def _orbits_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--period", type=_count("period", 1, 1_000_000), help="this period only")
-    p.add_argument("--max-period", type=_count("max-period", 1, 1_000_000), help="periods 1..N (default 1)")
-    p.add_argument("--seed", action="append", metavar="Q,R", help="a starting point (repeatable)")
-    p.add_argument("--box", help="Q0,Q1,R0,R1: the grid of seeds (default: the scene's box)")
-    p.add_argument("--seeds", metavar="NX,NY", help="a grid of NX x NY seeds over --box (default 10,10 without --seed)")
-    p.add_argument("--returns", type=_count("returns", 1, 10_000), metavar="N",
-                   help="also seed from near-returns of a section of N random trajectories in the box")  # fmt: skip
-    p.add_argument("--in-box", action="store_true", help="keep only orbits whose points are all in the box")
-    p.add_argument("--thorough", action="store_true", help="no early stop of slow seeds (slower, finds more)")
-
-
-def cmd_orbits(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.orbits import ORBIT_NUMERICS, orbit_search, orbit_spec
-
-    params, scene = _params(args)
-    spec = _build(args, orbit_spec, params, period=args.period, max_period=args.max_period,
-                  seeds=[_floats(v, 2, "--seed") for v in args.seed or []],
-                  box=_box(args.box, "--box", scene.box if scene else (-2.0, 2.0, -2.0, 2.0)),
-                  grid=_ints(args.seeds, "--seeds", "NX,NY", 1, config.MAX_GRID) if args.seeds else None,
-                  returns=args.returns, in_box=args.in_box, thorough=args.thorough,
-                  numerics=_numerics(args, None, 1, base=ORBIT_NUMERICS))  # fmt: skip
-    with _Run(args) as run:
-        search = orbit_search(spec, cancel=run, progress=lambda u: u.detail and run.line(u.detail))
-    summary = _with_scene(search.summary(), args)
-    if args.out:
-        summary["csv"] = search.write(args.out)
-    found = search.orbits
-
-    def lines() -> list[str]:
-        out = []
-        for o in found:
-            mu = ", ".join(f"{m.real:.6g}{m.imag:+.6g}i" if m.imag else f"{m.real:.6g}" for m in o.multipliers)
-            out.append(f"period {o.period} {o.kind:15s} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g})  mu = {mu}")
-        return [*out, f"{len(found)} orbits, {len(search.failures)} seeds without one, {search.elapsed_s:.2f} s"]
-
-    return _finish(args, summary, lines, completed=search.completed, what="orbits")
 
 
 def _continue_args(p: argparse.ArgumentParser) -> None:
@@ -726,138 +757,6 @@ def cmd_manifolds(args: argparse.Namespace) -> int:
         return [*out, f"{len(result.crossings)} crossings ({homoclinic} homoclinic), {result.elapsed_s:.2f} s"]
 
     return _finish(args, summary, lines, result=result, completed=not run(), what="manifolds' points")
-
-
-def _chart_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--x-param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
-    p.add_argument("--x-range", required=True, metavar="A,B")
-    p.add_argument("--y-param", required=True)
-    p.add_argument("--y-range", required=True, metavar="C,D")
-    p.add_argument("--grid", default="40,40", metavar="NX,NY", help="pixels (default 40,40)")
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition per pixel (repeatable)")
-    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), default=500)
-    p.add_argument("--periods", type=_count("periods", 4, 1_000_000), default=500, help="measured periods")
-    p.add_argument("--p-max", type=_count("p-max", 1, 1000), default=16, help="longest cycle detected")
-    p.add_argument("--tol", type=_number("tol"), default=1e-5, help="return tolerance (relative to 1 + |x|)")
-    p.add_argument("--lyap-threshold", type=_number("lyap-threshold"), default=5e-3, help="chaos above (per time)")
-    p.add_argument("--coarse", type=_count("coarse", 1, 1024), default=8, help="stride of the first coarse pass")
-    p.add_argument("--refine", action="store_true", help="finer levels only where neighbours differ (README)")
-    _scheduler_arg(p)
-
-
-def cmd_chart(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.regimes import DEFAULT_CHART_TOL, chart_spec, regime_chart
-
-    params, scene = _params(args)
-    outs = args.out or []
-    if not outs and not args.json:
-        raise UsageError("give --out FILE(.npz/.csv/.png) (repeatable) and/or --json")
-    ics = _ics(args)
-    if args.rtol is None and args.atol is None:
-        args.rtol = DEFAULT_CHART_TOL  # a chart needs the regime, not 1e-10 accuracy
-    spec = _build(args, chart_spec, params, args.x_param, _span(args.x_range, "--x-range"), args.y_param,
-                      _span(args.y_range, "--y-range"), _ints(args.grid, "--grid", "NX,NY"),
-                      ics=_scene_point(scene) if ics is None else ics, transient=args.transient, periods=args.periods,
-                      p_max=args.p_max, tol=args.tol, lyap_threshold=args.lyap_threshold,
-                      numerics=_numerics(args, None, args.transient + args.periods))  # fmt: skip
-    with _Run(args) as run:
-        chart = regime_chart(spec, coarse=args.coarse, cancel=run, executor=_executor(args), refine=args.refine,
-                             progress=run.update)  # fmt: skip
-    summary = chart.summary()
-    if args.scheduler:
-        summary["scheduler"] = args.scheduler
-    for path in outs:
-        if not path.lower().endswith(".png"):
-            chart.write(path)
-        else:
-            from explorer_core.reports.render import render_chart  # matplotlib only when a picture is asked for
-
-            render_chart(chart, path)
-    summary["out"] = outs
-    return _finish(args, summary, lambda: [f"{summary['computed']}/{summary['pixels']} pixels, {summary['counts']}, "
-                                           f"{chart.elapsed_s:.1f} s"], result=chart, what="pixels")  # fmt: skip
-
-
-def _basins_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--box", metavar="Q0,Q1,R0,R1", help="the initial conditions' window (default: the scene's box)")
-    p.add_argument("--grid", default="100,100", metavar="NX,NY", help="pixels (default 100,100)")
-    p.add_argument("--max-periods", type=_count("max-periods", 1, config.MAX_PERIODS), default=3000,
-                   help="a pixel with no fate after this many periods is undecided (label -3)")  # fmt: skip
-    p.add_argument("--cell-box", metavar="Q0,Q1,R0,R1", help="box of the recurrence cells (default: --box widened "
-                   "by its size on every side)")  # fmt: skip
-    p.add_argument("--cells", metavar="NQ,NR", help="recurrence cells per axis (default 64 across --box)")
-
-
-def cmd_basins(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.basins import basin_spec, iter_basins
-    from explorer_core.status import describe
-
-    params, scene = _params(args)
-    box = _box(args.box, "--box", scene.box if scene else None)
-    if box is None:
-        raise UsageError("give --box Q0,Q1,R0,R1 (no --scene to take it from)")
-    grid = _ints(args.grid, "--grid", "NX,NY")
-    opts: dict[str, Any] = {"max_periods": args.max_periods}
-    if args.cell_box:
-        opts["cell_box"] = _box(args.cell_box, "--cell-box", None)
-    if args.cells:
-        opts["cells"] = _ints(args.cells, "--cells", "NQ,NR")
-    base = _build(args, basin_spec, params, box, grid, **opts)
-    spec = _build(args, basin_spec, params, box, grid, numerics=_numerics(args, None, 1, base=base.numerics), **opts)
-    with _Run(args) as run:
-        result = run_updates(iter_basins(spec, cancel=run), run.update)
-    summary = _with_scene(result.summary(), args)
-    if args.out:
-        result.write(args.out)
-        summary["out"] = args.out
-
-    def lines() -> list[str]:
-        out = []
-        for a in result.attractors:
-            per = f" period {a.period}" if a.period else ""
-            at = f" at ({a.points[0, 0]:.6g}, {a.points[0, 1]:.6g})" if a.points.shape[0] else ""
-            what = "attractor" if a.attracting else "not an attractor"  # a conservative island's curves
-            out.append(f"{what} {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%")
-        out.append(
-            f"{summary['computed']}/{summary['pixels']} pixels ({describe(result.status[result.computed])}), "
-            f"{result.elapsed_s:.2f} s"
-        )
-        return out + ([summary["note"]] if "note" in summary else [])
-
-    return _finish(args, summary, lines, result=result, what="pixels")
-
-
-def _fit_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--window", required=True, metavar="K0,K1", help="inclusive k range (k = 0 is the IC)")
-    p.add_argument("--degree", default="1,2", metavar="DQ,DR", help="degrees of the q and r polynomials")
-    p.add_argument("--members", type=_count("members", 1, 10_000), default=10, help="drifting ICs to average")
-    p.add_argument("--ic", action="append", metavar="Q,R", help="explicit ICs instead of random ones")
-    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for random ICs (default: the scene's)")
-    p.add_argument("--seed", type=SEED, default=0)
-    p.add_argument("--criterion", choices=["on_curve", "leaves"], default="on_curve", help="which ICs count")
-
-
-def cmd_fit(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.drift import drift_fit, drift_spec
-
-    params, scene = _params(args)
-    spec = _build(args, drift_spec, params, _ints(args.window, "--window", "K0,K1"), m=args.members, ics=_ics(args),
-                  degree=_ints(args.degree, "--degree", "DQ,DR"), box=_box(args.box, "--box", scene.box if scene
-                  else None), seed=args.seed, criterion=args.criterion, numerics=_numerics(args, None, 1))  # fmt: skip
-    with _Run(args) as run:
-        fit = drift_fit(spec, cancel=run, progress=run.update)
-    summary = fit.summary()
-    if args.out:
-        fit.write(args.out)
-        summary["csv"] = args.out
-
-    def lines() -> list[str]:
-        s = summary
-        return [f"{s['members']} members (rejected {s['rejected']}, failed {s['failed']})",
-                f"q(k) = {s['q']['formula']}", f"r(k) = {s['r']['formula']}",
-                f"residual RMS q {s['residual_rms']['q']:.4g}, r {s['residual_rms']['r']:.4g}"]  # fmt: skip
-
-    return _finish(args, summary, lines, result=fit, completed=True)
 
 
 def _symmetry_args(p: argparse.ArgumentParser) -> None:
@@ -1133,6 +1032,18 @@ class Command:
     numerics: bool = True
     flags: tuple[str, ...] = ("json", "quiet")
     files: dict[str, tuple[str, ...]] = field(default_factory=dict)  # other output options: dest -> suffixes
+    #: An analysis command (run by :func:`cmd_analysis`, its flags from the registry's builder and runner).
+    analysis: bool = False
+    #: It refuses to run with neither ``--out`` nor ``--json`` (nothing would be kept).
+    needs_output: bool = False
+    #: ``--scheduler`` (a Dask cluster) is passed to the runner as ``executor``.
+    scheduler: bool = False
+    #: Output suffixes drawn by a function of reports/ (``module:name``, called with the result and the path).
+    pictures: dict[str, str] = field(default_factory=dict)
+    #: What an interrupted run wrote ("pixels", "values", ...).
+    what: str = "results"
+    #: Help of the other output options (``files``).
+    file_help: dict[str, str] = field(default_factory=dict)
 
 
 def _no_args(p: argparse.ArgumentParser) -> None:
@@ -1149,22 +1060,27 @@ COMMANDS: dict[str, Command] = {
                         "CSV branch,t,q,r,type,eig... of --track", numerics=False, flags=("json",)),
     "tprime": Command("sign and value of T' = dT/dt on a (q, r) grid", _tprime_args, cmd_tprime, NPZ,
                       "arrays kind,t,q,r,values,sign,ok,status,params", flags=("json",)),
-    "lyapunov": Command("Lyapunov exponents, Kaplan-Yorke dimension, divergence check", _lyapunov_args,
-                        cmd_lyapunov, files={"history": CSV}),
-    "bifurcation": Command("orbit diagram of the Poincare map over one parameter", _bifurcation_args,
-                           cmd_bifurcation, CSV, "CSV sweep,value_index,value,ic,k,q,r,status"),
-    "orbits": Command("periodic orbits of the Poincare map: Newton on P^n(x) - x, multipliers, type", _orbits_args,
-                      cmd_orbits, CSV, "orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im"),
+    "lyapunov": Command("Lyapunov exponents, Kaplan-Yorke dimension, divergence check", None, cmd_analysis,
+                        files={"history": CSV}, analysis=True, what="periods' estimates",
+                        file_help={"history": "running estimates per period (member,k,L1,L2,...)"}),
+    "bifurcation": Command("orbit diagram of the Poincare map over one parameter", None, cmd_analysis, CSV,
+                           "CSV sweep,value_index,value,ic,k,q,r,status", analysis=True, needs_output=True,
+                           scheduler=True, what="values"),
+    "orbits": Command("periodic orbits of the Poincare map: Newton on P^n(x) - x, multipliers, type", None,
+                      cmd_analysis, CSV, "orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im", analysis=True,
+                      what="orbits"),
     "manifolds": Command("stable and unstable manifolds of a saddle orbit, homoclinic points", _manifolds_args,
                          cmd_manifolds, CSV, "CSV branch,kind,s,q,r (s: arc length from the saddle)"),
     "continue": Command("follow a periodic orbit in a parameter through folds and period doublings", _continue_args,
                         cmd_continue, CSV, "branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable"),
-    "chart": Command("chart of dynamical regimes on a plane of two parameters", _chart_args, cmd_chart,
-                     (".npz", ".csv", ".png"), ".npz, .csv or .png (repeatable)"),
-    "basins": Command("basins of attraction: which attractor each IC of a grid reaches", _basins_args, cmd_basins,
-                      NPZ, "arrays q (NX), r (NY), label (NY x NX)"),
-    "fit": Command("polynomial fits of the drift q_k, r_k over a window of k, and the implied map", _fit_args,
-                   cmd_fit, CSV, "the members' series member,k,q,r"),
+    "chart": Command("chart of dynamical regimes on a plane of two parameters", None, cmd_analysis,
+                     (".npz", ".csv", ".png", ".json"), ".npz, .csv, .json or .png (repeatable)", analysis=True,
+                     needs_output=True, scheduler=True, what="pixels",
+                     pictures={".png": "explorer_core.reports.render:render_chart"}),
+    "basins": Command("basins of attraction: which attractor each IC of a grid reaches", None, cmd_analysis,
+                      NPZ, "arrays q (NX), r (NY), label (NY x NX)", analysis=True, what="pixels"),
+    "fit": Command("polynomial fits of the drift q_k, r_k over a window of k, and the implied map", None,
+                   cmd_analysis, CSV, "the members' series member,k,q,r", analysis=True),
     "body": Command("the rigid body's orientation along a trajectory (quaternions, omega, T; frames in a period)",
                     _body_args, cmd_body, (".csv", ".npz", ".json"), "frame,k,t,p,q,r,w,x,y,z,T (.csv), or .npz/.json"),
     "symmetry": Command("check the involution t -> -t, q -> q, r -> -r on sections", _symmetry_args, cmd_symmetry,
@@ -1194,7 +1110,9 @@ _FLAG_HELP = {
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser; ``command``'s analysis flags (from its builder's declarations) are added when it is the command
+    being run or asked for help: building the parser for another command, or for ``--help``, loads no analysis."""
     description = "Inhomogeneous nonholonomic Bilimovich system: sections, equilibria, T' maps."
     parser = _Parser(prog="bilimovich", description=description)
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -1207,6 +1125,17 @@ def build_parser() -> argparse.ArgumentParser:
             _add_numerics_args(p)
         if c.arguments is not None:
             c.arguments(p)
+        if c.analysis and name == command:
+            from explorer_core.registry import by_command
+
+            a = by_command(name)
+            _add_declared_args(p, a.get("builder"), f"{name} (the analysis' options)")
+            if _declared(a.get("run")):
+                _add_declared_args(p, a.get("run"), "how it runs")
+        if c.scheduler:
+            _scheduler_arg(p)
+        for dest, suffixes in c.files.items():
+            p.add_argument(f"--{dest}", metavar=f"FILE{suffixes[0]}", help=c.file_help.get(dest))
         _add_nested_args(p, name)
         if c.out:
             dir_ = c.out == ("dir",)
@@ -1231,8 +1160,9 @@ def _check_outputs(args: argparse.Namespace, c: Command) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
+    args = parser.parse_args(argv)
     prefix = f"bilimovich {args.command}"
     # Python warnings (numpy's overflow in a hostile input, say) are collected: one line each, in this
     # command's words, after a run that succeeded; a failed run says only why it failed.

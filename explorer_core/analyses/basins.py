@@ -79,9 +79,9 @@ from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
-from explorer_core.solve.options import ORBITS, NewtonOptions, instance
+from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance
 from explorer_core.solve.poincare import PoincareMap
-from explorer_core.status import Status, count_names, status_names
+from explorer_core.status import Status, count_names, describe, status_names
 from explorer_core.system.params import ParameterError, Params
 
 #: Labels of pixels that reach no attractor (attractor ids are >= 0); why is the pixel's ``Basins.status``.
@@ -358,6 +358,19 @@ class Basins(Drawable):
             out["note"] = note
         return out
 
+    def report(self) -> list[str]:
+        """What the command line prints: the attractors with their basins, then the pixels."""
+        s = self.summary()
+        out = []
+        for a in self.attractors:
+            per = f" period {a.period}" if a.period else ""
+            at = f" at ({a.points[0, 0]:.6g}, {a.points[0, 1]:.6g})" if a.points.shape[0] else ""
+            what = "attractor" if a.attracting else "not an attractor"  # a conservative island's curves
+            out.append(f"{what} {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%")
+        out.append(f"{s['computed']}/{s['pixels']} pixels ({describe(self.status[self.computed])}), "
+                   f"{self.elapsed_s:.2f} s")  # fmt: skip
+        return out + ([s["note"]] if "note" in s else [])
+
     def write(self, path: str) -> dict[str, Any]:
         """``.npz``: :meth:`to_npz`; ``.json``: the summary."""
         npz = lambda p: export.write_through(p, self.to_npz)  # noqa: E731
@@ -402,10 +415,19 @@ class BasinsUpdate:
 # Validation.
 
 
+@command_line(
+    box=Arg("the initial conditions' window", "box", metavar="Q0,Q1,R0,R1", scene="box", positional=True),
+    grid=Arg("pixels", "ints", metavar="NX,NY", positional=True),
+    max_periods=Arg("a pixel with no fate after this many periods is undecided (label -3)", "int"),
+    cell_box=Arg(
+        "box of the recurrence cells (default: --box widened by its size on every side)", "box", metavar="Q0,Q1,R0,R1"
+    ),
+    cells=Arg("recurrence cells per axis (default 64 across --box)", "ints", metavar="NQ,NR"),
+)
 def basin_spec(
     params: Params,
     box: Sequence[float],
-    grid: Sequence[int],
+    grid: Sequence[int] = (100, 100),
     *,
     numerics: Numerics | None = None,
     cell_box: Sequence[float] | None = None,

@@ -41,7 +41,7 @@ import numpy as np
 
 from explorer_core import config, export
 from explorer_core.analyses.specs import spec_of
-from explorer_core.analyses.sweeps import check_param, detect_period, params_at
+from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor
@@ -49,7 +49,7 @@ from explorer_core.progress import Progress, stream
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.options import JUMPS, NewtonOptions, instance
+from explorer_core.solve.options import JUMPS, Arg, NewtonOptions, command_line, instance
 from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.status import Status, count_names
 from explorer_core.system.params import ParameterError, Params
@@ -247,6 +247,11 @@ class OrbitDiagram(Drawable):
     @property
     def complete(self) -> bool:
         return self.completed and not self.lost
+
+    def report(self) -> list[str]:
+        """What the command line prints."""
+        return [f"{self.values.size} values x {self.sweeps.size} sweeps, status {self.summary()['status']}, "
+                f"{self.elapsed_s:.2f} s"]  # fmt: skip
 
     def write(self, path: str) -> dict[str, Any]:
         """``.csv``: :meth:`to_csv`; ``.json``: the summary."""
@@ -667,12 +672,28 @@ class DiagramSpec:
     seeding: str
     sweeps: tuple[str, ...]
 
+    @property
+    def numerics(self) -> Numerics:
+        return self.sweep.numerics
 
+
+@command_line(
+    param=Arg("alpha, I11..I23, g0, g1, g2 or omega", "str", required=True, positional=True),
+    value_range=Arg("the parameter's range", "range", flag="--range", metavar="A,B", required=True),
+    n_values=Arg("values over the range", "int", metavar="N"),
+    points=Arg("section points per value", "int"),
+    transient=Arg("periods run first at every value", "int"),
+    seeding=Arg("how each value is seeded", "str", choices=SEEDINGS),
+    sweeps=Arg("continuation sweeps (default both)", "list", metavar="forward,backward"),
+    ics=Arg("initial condition (repeatable)", "points", flag="--ic", scene="points"),
+)
 def diagram_spec(
     params: Params,
     param: str,
-    values: Any,
+    values: Any = None,
     *,
+    value_range: Sequence[float] | None = None,
+    n_values: int = 200,
     points: int = 200,
     transient: int = 500,
     seeding: str = "continuation",
@@ -688,8 +709,8 @@ def diagram_spec(
     params : the system at the other parameters' values.
     param : one of :data:`SWEEP_PARAMS` (case-insensitive).
     values : the parameter values (1-D, in sweep order for ``forward``), e.g.
-        :func:`sweep_values` ``((lo, hi), n)``. A value that is not a valid system is no error: the
-        diagram says so at that value (``errors``).
+        :func:`sweep_values` ``((lo, hi), n)``; or ``value_range = (lo, hi)`` and ``n_values`` (not both). A
+        value that is not a valid system is no error: the diagram says so at that value (``errors``).
     points : section points kept per value and initial condition.
     transient : periods run first at every value.
     seeding : ``"continuation"`` or ``"fixed"``.
@@ -699,6 +720,10 @@ def diagram_spec(
     newton : Newton on a settling member's cycle (default :data:`~explorer_core.solve.options.JUMPS`).
     """
     param = check_param(param)
+    if (values is None) == (value_range is None):
+        raise ParameterError(f"give values or value_range (not both), got {values!r} and {value_range!r}")
+    if values is None:
+        values = sweep_values(value_range, n_values)
     vals = np.asarray(values, dtype=float).ravel()
     if vals.size == 0 or not np.all(np.isfinite(vals)):
         raise ParameterError(f"values must be a non-empty list of finite numbers, got {values!r}")

@@ -41,6 +41,7 @@ from explorer_core.progress import Progress, Step, stream
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
+from explorer_core.solve.options import Arg, command_line
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import Status
 from explorer_core.system.model import Model
@@ -241,6 +242,13 @@ class DriftFit:
         out["mean_step"] = float(np.mean(np.abs(nxt - r)))
         return out
 
+    def report(self) -> list[str]:
+        """What the command line prints: the members, the fitted polynomials, the residuals."""
+        s = self.summary()
+        return [f"{s['members']} members (rejected {s['rejected']}, failed {s['failed']})",
+                f"q(k) = {s['q']['formula']}", f"r(k) = {s['r']['formula']}",
+                f"residual RMS q {s['residual_rms']['q']:.4g}, r {s['residual_rms']['r']:.4g}"]  # fmt: skip
+
     def summary(self) -> dict[str, Any]:
         if self.members.shape[0] == 0:  # cancelled before any member was found
             return {"window": list(self.window), "degree": list(self.degree), "criterion": self.criterion,
@@ -355,6 +363,15 @@ def _whole(name: str, value: Any, what: str) -> tuple[int, int]:
     return int(vals[0]), int(vals[1])
 
 
+@command_line(
+    window=Arg("inclusive k range (k = 0 is the IC)", "ints", metavar="K0,K1", required=True, positional=True),
+    degree=Arg("degrees of the q and r polynomials", "ints", metavar="DQ,DR"),
+    m=Arg("drifting ICs to average", "int", flag="--members"),
+    ics=Arg("explicit ICs instead of random ones (repeatable)", "points", flag="--ic"),
+    box=Arg("box for random ICs", "box", metavar="QMIN,QMAX,RMIN,RMAX", scene="box"),
+    seed=Arg("random seed of the ICs", "int"),
+    criterion=Arg("which ICs count", "str", choices=CRITERIA),
+)
 def drift_spec(
     params: Params | None,
     window: Sequence[int],

@@ -50,6 +50,7 @@ from explorer_core.progress import Progress, run, stream
 from explorer_core.solve import rk, tangent
 from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
+from explorer_core.solve.options import Arg, command_line
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import Status
 from explorer_core.system.model import Model
@@ -245,6 +246,17 @@ class LyapunovResult(Drawable):
             "L1": [float(v) for v in run[ks - 1, 0]],
             "L2": [float(v) for v in run[ks - 1, 1]],
         }
+
+    def report(self) -> list[str]:
+        """What the command line prints: the exponents with their spread, Kaplan-Yorke, the divergence check."""
+        s = self.summary()
+        if s["exponents"] is None:
+            return [f"status {s['status']}: no member completed the measurement"]
+        (l1, l2, _), (s1, s2, _), it = s["exponents"], s["spread"], s["per_iteration"]
+        return [f"Lambda (per unit time) = {l1:.6f} +- {s1:.6f}, {l2:.6f} +- {s2:.6f}, 0",
+                f"per iteration (x T = {self.period:.6g}): {it[0]:.6f}, {it[1]:.6f}",
+                f"Kaplan-Yorke D = {s['kaplan_yorke']:.6f}; L1 + L2 = {l1 + l2:.6e}, "
+                f"mean divergence = {s['divergence_mean']:.6e}; status {s['status']}"]  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
         """JSON summary: mean exponents (with ``Lambda_3 = 0``), dimension, check, members."""
@@ -469,6 +481,14 @@ class LyapunovSpec:
                 "offset": self.offset, "seed": self.seed}  # fmt: skip
 
 
+@command_line(
+    ics=Arg("initial condition (repeatable: one member each)", "points", flag="--ic", scene="points", positional=True),
+    periods=Arg("measured periods", "int", positional=True, default=2000),
+    transient=Arg("periods dropped first", "int", scene="transient", default=100),
+    ensemble=Arg("members placed on the attractor of the one initial condition", "int", metavar="M"),
+    offset=Arg("relative offset of the ensemble's members"),
+    seed=Arg("the offsets' random seed", "int"),
+)
 def lyapunov_spec(
     params: Params,
     ics: Any,

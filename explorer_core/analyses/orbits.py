@@ -36,7 +36,7 @@ from explorer_core.progress import run as run_updates
 from explorer_core.solve import poincare
 from explorer_core.solve.checks import check_bool, check_ints, check_optional_int, check_point
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int, random_ics
-from explorer_core.solve.options import ORBITS, NewtonOptions, instance
+from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance
 from explorer_core.solve.poincare import PATIENCE, NewtonResult, PoincareMap, least_period
 from explorer_core.solve.tangent import Monodromy
 from explorer_core.status import Status
@@ -142,6 +142,14 @@ class OrbitSearch(Drawable):
             "numerics": self.numerics.as_dict(),
             **self.extra,
         }
+
+    def report(self) -> list[str]:
+        """What the command line prints: one line per orbit (period, type, first point, multipliers)."""
+        out = []
+        for o in self.orbits:
+            mu = ", ".join(f"{m.real:.6g}{m.imag:+.6g}i" if m.imag else f"{m.real:.6g}" for m in o.multipliers)
+            out.append(f"period {o.period} {o.kind:15s} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g})  mu = {mu}")
+        return [*out, f"{len(self.orbits)} orbits, {len(self.failures)} seeds without one, {self.elapsed_s:.2f} s"]
 
     def write(self, path: str) -> dict[str, Any]:
         """``.csv``: :meth:`to_csv`; ``.json``: the summary."""
@@ -421,6 +429,18 @@ class OrbitSpec:
                 "newton": self.newton.as_dict()}  # fmt: skip
 
 
+@command_line(
+    period=Arg("this period only", "int"),
+    max_period=Arg("periods 1..N (default 1)", "int"),
+    seeds=Arg("a starting point (repeatable)", "points", flag="--seed"),
+    box=Arg("the box of the grid of seeds and of --returns", "box", metavar="Q0,Q1,R0,R1", scene="box"),
+    grid=Arg(
+        "a grid of NX x NY seeds over --box (default 10,10 without --seed)", "ints", flag="--seeds", metavar="NX,NY"
+    ),
+    returns=Arg("also seed from near-returns of a section of N random trajectories in the box", "int", metavar="N"),
+    in_box=Arg("keep only orbits whose points are all in the box", "switch"),
+    thorough=Arg("no early stop of slow seeds (slower, finds more)", "switch"),
+)
 def orbit_spec(
     params: Params,
     *,
@@ -503,7 +523,9 @@ def iter_orbit_search(spec: OrbitSpec, cancel: Callable[[], bool] | None = None)
                           bound=spec.box if spec.in_box else None, cancel=cancel)  # fmt: skip
         work += res.elapsed_s
         failures += res.failures
-        found += [o for o in res.orbits if not any(same_orbit(o, f) for f in found)]
+        for o in res.orbits:  # one by one: an orbit of this group is compared with those added before it too
+            if not any(same_orbit(o, f) for f in found):
+                found.append(o)
         if not res.completed:
             completed = False
             break

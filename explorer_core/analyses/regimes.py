@@ -56,7 +56,7 @@ from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
 from explorer_core.solve.integrators import coefficients, lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.options import SETTLING, NewtonOptions, instance
+from explorer_core.solve.options import SETTLING, Arg, NewtonOptions, command_line, instance
 from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.solve.rk import Coefficients
 from explorer_core.status import Status, count_names, status_names
@@ -159,13 +159,29 @@ def chart_numerics() -> Numerics:
     return Numerics(rtol=DEFAULT_CHART_TOL, atol=DEFAULT_CHART_TOL)
 
 
+_PARAM = "alpha, I11..I23, g0, g1, g2 or omega"
+
+
+@command_line(
+    x_param=Arg(_PARAM, "str", required=True, positional=True),
+    x_range=Arg("the x parameter's range", "range", metavar="A,B", required=True, positional=True),
+    y_param=Arg(_PARAM, "str", required=True, positional=True),
+    y_range=Arg("the y parameter's range", "range", metavar="C,D", required=True, positional=True),
+    grid=Arg("pixels", "ints", metavar="NX,NY", positional=True),
+    ics=Arg("initial condition at every pixel (repeatable)", "points", flag="--ic", scene="points"),
+    transient=Arg("periods dropped first", "int"),
+    periods=Arg("measured periods", "int"),
+    p_max=Arg("longest cycle detected", "int"),
+    tol=Arg("return tolerance (relative to 1 + |x|)"),
+    lyap_threshold=Arg("chaos above this exponent (per unit time)"),
+)
 def chart_spec(
     params: Params,
     x_param: str,
     x_range: Sequence[float],
     y_param: str,
     y_range: Sequence[float],
-    grid: Sequence[int],
+    grid: Sequence[int] = (40, 40),
     *,
     ics: Any = ((0.1, 0.1),),
     transient: int = 500,
@@ -926,6 +942,11 @@ class Chart(Drawable):
             "elapsed_s": round(self.elapsed_s, 6),
         }
 
+    def report(self) -> list[str]:
+        """What the command line prints."""
+        s = self.summary()
+        return [f"{s['computed']}/{s['pixels']} pixels, {s['counts']}, {self.elapsed_s:.1f} s"]
+
     def write(self, path: str) -> dict[str, Any]:
         """``.npz``: :meth:`to_npz`; ``.csv``: :meth:`to_csv`; ``.json``: the summary."""
         npz = lambda p: export.write_through(p, self.to_npz)  # noqa: E731
@@ -1084,6 +1105,10 @@ def _iter_refined(
         yield ChartUpdate(None, done, planned, chart)
 
 
+@command_line(
+    coarse=Arg("stride of the first coarse pass", "int"),
+    refine=Arg("finer levels only where neighbours differ (README)", "switch"),
+)
 def regime_chart(
     spec: ChartSpec,
     *,

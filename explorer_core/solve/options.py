@@ -245,3 +245,47 @@ JUMPS = NewtonOptions(ftol=0.1 * 1e-9, max_iter=6, max_step=math.inf, patience=N
 #: Continuation's corrector (Newton on F = 0 and the arclength condition) at the orbits' map.
 CORRECTOR = NewtonOptions(ftol=1e-10, max_iter=8, max_step=math.inf, patience=None, coarse=False, rtol=1e-12)
 PRESETS = {"orbits": ORBITS, "settling": SETTLING, "jumps": JUMPS, "corrector": CORRECTOR}
+
+
+# ---------------------------------------------------------------------------
+# How a builder's keywords are given on the command line (the command line is generated from these).
+
+
+@dataclass(frozen=True)
+class Arg:
+    """How a builder's keyword is given on the command line: declared beside the builder (``@command_line``), its
+    default read from the builder's signature (declared once, there).
+
+    parse : how the text becomes the value: ``"int"``, ``"float"``, ``"str"``, ``"switch"`` (a flag without a
+        value: True), ``"range"`` (``A,B``), ``"ints"`` (``NX,NY``), ``"box"`` (``Q0,Q1,R0,R1``), ``"points"``
+        (``Q,R``, repeatable), ``"list"`` (comma-separated words).
+    flag : default ``--`` and the keyword with dashes.
+    scene : under ``--scene``, the default is this attribute of the scene (``box``, ``points``, ``view``,
+        ``transient``, ``periods``) when the flag is not given.
+    positional : passed to the builder by position (in the declared order), not by keyword.
+    default : the command line's default where it differs from the call's (a command runs a transient that the
+        call leaves to its caller); the help shows it.
+    """
+
+    help: str = ""
+    parse: str = "float"
+    flag: str | None = None
+    metavar: str | None = None
+    required: bool = False
+    scene: str | None = None
+    choices: tuple[str, ...] | None = None
+    positional: bool = False
+    default: Any = None
+
+    def flag_of(self, name: str) -> str:
+        return self.flag or "--" + name.replace("_", "-")
+
+
+def command_line(**args: Arg) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Declare how a builder's (or a runner's) keywords are given on the command line: ``builder.__cli__``."""
+
+    def attach(fn: Callable[..., Any]) -> Callable[..., Any]:
+        fn.__cli__ = dict(args)  # type: ignore[attr-defined]
+        return fn
+
+    return attach
