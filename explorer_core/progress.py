@@ -90,6 +90,30 @@ def run(updates: Iterable[Any], progress: ProgressCallback | None = None) -> Any
     return result
 
 
+def stoppable(body: Callable[[Cancel], Iterable[Any]], cancel: Cancel | None = None) -> Iterator[Any]:
+    """The updates of ``body(stop)``, an analysis written as a generator that polls ``stop()`` where it may stop,
+    as an ``iter_X``: no thread (the generator counterpart of :func:`stream`).
+
+    ``stop()`` is ``cancel()``: the analysis runs only while the consumer asks for its next update, so a
+    ``progress`` callback that sets ``cancel`` is seen at the analysis's next poll. Closing the iterator early
+    (``break``, ``close()``, Ctrl-C) makes ``stop()`` True and runs ``body`` on to that poll, where it ends as a
+    cancelled run does, its remaining updates dropped: the live result that earlier updates carried is left
+    marked incomplete, with its ``Loss``, exactly as a cancel leaves it.
+    """
+    closed = False
+
+    def stop() -> bool:
+        return closed or (cancel is not None and bool(cancel()))
+
+    for update in body(stop):
+        if closed:
+            continue
+        try:
+            yield update
+        except GeneratorExit:  # closed by the consumer: the analysis stops at its next poll
+            closed = True
+
+
 _DONE = object()
 
 

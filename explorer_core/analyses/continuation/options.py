@@ -1,0 +1,250 @@
+"""What a continuation is asked: the engine's settings (:class:`ContinuationOptions`, one set for branches,
+switched branches and two-parameter curves) and the run's definition (:class:`ContinuationSpec`, validated by
+:func:`continuation_spec`: every bad value raises :class:`~explorer_core.system.params.ParameterError`
+naming it)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from explorer_core.analyses.orbits import ORBIT_NUMERICS
+from explorer_core.analyses.specs import Checking
+from explorer_core.analyses.sweeps import check_param
+from explorer_core.solve.numerics import Numerics, check_ics, check_int
+from explorer_core.system.params import ParameterError, Params
+
+#: Newton on a corrected point stops when ``|F| <= CORRECTOR_TOL (1 + |x|)``.
+CORRECTOR_TOL = 1e-10
+MAX_POINTS = 5000
+#: The longest period a cascade is followed to.
+DEFAULT_MAX_PERIOD = 16
+
+
+@dataclass(frozen=True)
+class ContinuationOptions:
+    """The settings of the continuation engine (one set for branches, switched branches and curves).
+
+    Steps are arclengths in the scaled coordinates ``(q, r, s)``, ``s = (p - A) / (B - A)`` the
+    parameter as a fraction of its range (two-parameter curves: each parameter scaled to its range).
+
+    ds : the first step of every branch and curve.
+    ds_min : the minimum step. A refused step (the corrector did not converge, went further than
+        ``max_distance`` times the step from the prediction, the tangent turned by more than
+        ``max_turn``, the orbit lost its period, a bifurcation could not be located) is retried with the
+        step times ``shrink``, down to ``ds_min``; refused at ``ds_min``, the branch stops and is a loss.
+    ds_max : the longest step on a branch (a step moves the parameter by at most this fraction of the range).
+    curve_ds_max : the longest step on a two-parameter curve.
+    growth : the largest factor the step grows by after an accepted step.
+    shrink : the factor a refused step is shortened by.
+    contraction : the target Newton contraction ``|dX_k+1| / |dX_k|`` of the corrector; the next step is
+        scaled by ``sqrt(contraction / observed)``, within ``[shrink, growth]``.
+    max_points : the most points of one branch (of each half of a curve).
+    corrector_tol : Newton stops when ``|P^n(x) - x| <= corrector_tol (1 + |x|) max(1, |DP^n|)``.
+    max_iter : corrector iterations per step.
+    max_turn : the largest angle (radians) between the tangents at two successive points.
+    max_distance : the largest distance of the corrected point from the prediction, relative to the step.
+    period_tol : a point whose orbit has ``|P^d(x) - x| <= period_tol (1 + |x|)`` for a divisor ``d`` of
+        the period has collapsed onto a period-``d`` orbit.
+    """
+
+    ds: float = 0.02
+    ds_min: float = 1e-7
+    ds_max: float = 0.1
+    curve_ds_max: float = 0.05
+    growth: float = 1.5
+    shrink: float = 0.5
+    contraction: float = 0.5
+    max_points: int = MAX_POINTS
+    corrector_tol: float = CORRECTOR_TOL
+    max_iter: int = 8
+    max_turn: float = 0.45
+    max_distance: float = 0.5
+    period_tol: float = 1e-6
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in ("max_points", "max_iter"):
+                object.__setattr__(self, f.name, check_int(f.name, v, 2, 1_000_000))  # a plain int
+                continue
+            if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
+                raise ParameterError(f"{f.name} must be a number, got {v!r}")
+            v = float(v)
+            object.__setattr__(self, f.name, v)  # plain floats (JSON, repr)
+            if not (math.isfinite(v) and v > 0):
+                raise ParameterError(f"{f.name} must be a positive finite number, got {v!r}")
+        if not self.ds_min <= self.ds <= self.ds_max:
+            raise ParameterError(
+                f"the steps must satisfy ds_min <= ds <= ds_max, got ds_min = {self.ds_min!r}, ds = {self.ds!r}, "
+                f"ds_max = {self.ds_max!r}"
+            )
+        if self.curve_ds_max < self.ds_min:
+            raise ParameterError(f"curve_ds_max must be at least ds_min = {self.ds_min!r}, got {self.curve_ds_max!r}")
+        if self.growth < 1.0:
+            raise ParameterError(f"growth must be at least 1, got {self.growth!r}")
+        for name in ("shrink", "contraction", "max_distance"):
+            if getattr(self, name) >= 1.0:
+                raise ParameterError(f"{name} must be below 1, got {getattr(self, name)!r}")
+        if self.max_turn >= math.pi / 2:
+            raise ParameterError(f"max_turn must be below pi/2 (radians), got {self.max_turn!r}")
+        if self.corrector_tol >= 1e-3 or self.period_tol >= 1e-2:
+            raise ParameterError(
+                f"corrector_tol must be below 1e-3 and period_tol below 1e-2, got {self.corrector_tol!r}, "
+                f"{self.period_tol!r}"
+            )
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class ContinuationSpec:
+    """Everything that defines a continuation (validated by :func:`continuation_spec`; plain data: picklable,
+    comparable). ``params``: the system at the other parameters' values; ``seed`` a point near the
+    period-``period`` orbit at ``range[0]``; ``window1``: ``param``'s range on the two-parameter curves
+    (None: ``range``)."""
+
+    params: Params
+    param: str
+    range: tuple[float, float]
+    seed: tuple[float, float]
+    period: int
+    switch: bool = False
+    max_period: int = DEFAULT_MAX_PERIOD
+    options: ContinuationOptions = field(default_factory=ContinuationOptions)
+    numerics: Numerics = ORBIT_NUMERICS
+    param2: str | None = None
+    range2: tuple[float, float] | None = None
+    window1: tuple[float, float] | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "param": self.param, "range": list(self.range),
+                "seed": list(self.seed), "period": self.period, "switch": self.switch, "max_period": self.max_period,
+                "options": self.options.as_dict(), "numerics": self.numerics.as_dict(), "param2": self.param2,
+                "range2": None if self.range2 is None else list(self.range2),
+                "window1": None if self.window1 is None else list(self.window1)}  # fmt: skip
+
+
+def _two(name: str, value: Any, what: str) -> tuple[float, float]:
+    """Two finite numbers (a range), or a ParameterError naming ``name`` and ``value``."""
+    try:
+        a, b = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be two numbers {what}, got {value!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(b - a)):
+        raise ParameterError(f"{name} must be two finite numbers {what} (a finite width), got {value!r}")
+    return a, b
+
+
+def continuation_spec(
+    params: Params,
+    param: str,
+    value_range: Sequence[float],
+    seed: Sequence[float],
+    period: int,
+    *,
+    switch: bool = False,
+    max_period: int = DEFAULT_MAX_PERIOD,
+    options: ContinuationOptions | None = None,
+    ds: float | None = None,
+    ds_min: float | None = None,
+    ds_max: float | None = None,
+    max_points: int | None = None,
+    numerics: Numerics | None = None,
+    param2: str | None = None,
+    range2: Sequence[float] | None = None,
+    window1: Sequence[float] | None = None,
+    check_end: bool = False,
+) -> ContinuationSpec:
+    """A validated :class:`ContinuationSpec`; every bad value raises :class:`ParameterError` naming it (and
+    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`).
+
+    Parameters
+    ----------
+    params : the system at the other parameters' values (``param`` is set to ``value_range[0]``).
+    param : ``alpha``, an inertia entry, ``g0``, ``g1``, ``g2`` or ``omega``.
+    value_range : ``(A, B)``, different and finite: from ``A`` (a valid system; where the orbit is seeded)
+        to ``B``. A branch that leaves the valid systems stops there, a loss of the result; ``check_end=True``
+        refuses a ``B`` that is no valid system instead (the CLI's check: positive-definite tensors are
+        convex, so with both ends valid the whole range is).
+    seed : one point ``(q, r)`` near the orbit at ``A``, inside the escape bound of ``numerics``.
+    period : the orbit's period, in ``[1, 1024]``; ``max_period`` (``>= period``) caps a cascade.
+    switch : at each period doubling, also follow the doubled branch (up to ``max_period``).
+    options : the engine's settings (:class:`ContinuationOptions`); ``ds``, ``ds_min``, ``ds_max`` and
+        ``max_points``, when given, replace theirs (``ds_max`` alone also bounds the first step).
+    numerics : integration (default :data:`~explorer_core.analyses.orbits.ORBIT_NUMERICS`).
+    param2, range2 : together or neither: also follow every fold and period doubling found as a curve in
+        ``(param, param2)``, ``param2`` (not ``param``) over ``range2 = (C, D)``, ``C < D``, and ``param``
+        over ``window1`` (default: the range).
+    """
+    with Checking() as at:
+        at("param")
+        param = check_param(param)
+        at("value_range")
+        a, b = _two("range", value_range, "A,B")
+        if a == b:
+            raise ParameterError(f"range must be two different numbers, got {value_range!r}")
+        for end, v in (("first value", a), ("end", b))[: 2 if check_end else 1]:
+            try:
+                params.with_(**{param: v})
+            except ParameterError as exc:
+                raise ParameterError(f"the range's {end} {param} = {v:g} is not a valid system: {exc}") from None
+        at("period")
+        period = check_int("period", period, 1, 1024)
+        at("max_period")
+        max_period = check_int("max_period", max_period, period, 1024)
+        at("options")
+        if not isinstance(options, ContinuationOptions | None):
+            raise ParameterError(f"options must be a ContinuationOptions, got {options!r}")
+        opts = options or ContinuationOptions()
+        given = {}
+        for key, v in (("ds", ds), ("ds_min", ds_min), ("ds_max", ds_max), ("max_points", max_points)):
+            if v is not None:
+                at(key)
+                given[key] = check_int(key, v, 2, 1_000_000) if key == "max_points" else _positive(key, v)
+        if given:
+            at("ds" if "ds" in given else next(iter(given)))
+            if "ds" not in given and "ds_max" in given:  # an old-style ds_max alone bounds the default first step
+                given["ds"] = min(float(opts.ds), float(given["ds_max"]))
+            opts = ContinuationOptions(**{**asdict(opts), **given})
+        at("numerics")
+        numerics = ORBIT_NUMERICS if numerics is None else numerics
+        if not isinstance(numerics, Numerics):
+            raise ParameterError(f"numerics must be a Numerics, got {numerics!r}")
+        at("seed")
+        x0 = check_ics(seed)
+        if x0.shape[0] != 1:
+            raise ParameterError(f"seed must be one point (q, r), got {x0.shape[0]}")
+        q, r = (float(v) for v in x0[0])
+        if max(abs(q), abs(r)) > numerics.bound:
+            raise ParameterError(f"seed {q:g},{r:g} is outside the escape bound {numerics.bound:g}")
+        at("param2")
+        if (param2 is None) != (range2 is None):
+            raise ParameterError(f"param2 and range2 go together (both or neither), got {param2!r} and {range2!r}")
+        rng2 = None
+        if param2 is not None:
+            param2 = check_param(param2)
+            if param2 == param:
+                raise ParameterError(f"param2 must differ from param, got {param2!r} twice")
+            at("range2")
+            c, d = _two("range2", range2, "C,D")
+            if not c < d:
+                raise ParameterError(f"range2 must have C < D, got {range2!r}")
+            rng2 = (c, d)
+        at("window1")
+        w1 = None if window1 is None else _two("window1", window1, "A,B")
+        w1 = None if w1 is None else (min(w1), max(w1))
+    return ContinuationSpec(params, param, (a, b), (q, r), period, bool(switch), max_period, opts, numerics,
+                            param2, rng2, w1)  # fmt: skip
+
+
+def _positive(name: str, v: Any) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating) or not math.isfinite(v) \
+            or v <= 0:  # fmt: skip
+        raise ParameterError(f"{name} must be a positive finite number, got {v!r}")
+    return float(v)

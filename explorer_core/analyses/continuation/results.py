@@ -1,0 +1,227 @@
+"""What a continuation computed: its branches (:class:`Branch`), the bifurcations located on them
+(:class:`Bifurcation`), its two-parameter curves (:class:`Curve`), all in one :class:`Continuation`, and the set of
+continuations that bound a chart's regions (:class:`Boundaries`). Each writes its own files (``.csv``, ``.json``).
+
+Nothing is lost in silence: a branch or curve that stopped other than at a range end or at a located bifurcation
+where it was meant to stop is a :class:`~explorer_core.losses.Loss` of the result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from explorer_core import export
+from explorer_core.analyses.continuation.engine import _Point
+from explorer_core.analyses.continuation.options import ContinuationOptions, ContinuationSpec
+from explorer_core.analyses.orbits import UNIT_TOL, classify, multipliers
+from explorer_core.drawing import Drawable
+from explorer_core.losses import Loss
+from explorer_core.solve.numerics import Numerics
+from explorer_core.status import Status
+from explorer_core.system.params import Params
+
+
+@dataclass
+class Branch:
+    """Points of one branch: ``values`` (m,), ``states`` (m,) of ``(q, r)``, ``mults`` (m,) of 2 complex numbers.
+
+    Plain Python numbers throughout (written to CSV and JSON as they are). ``status``: how the branch ended in the
+    one vocabulary (``ok``: at the range's end, its birth point or a stop it meant; ``cancelled``; ``budget``:
+    ``max_points``; ``not_converged``; ``invalid``: it left the valid parameters; an engine failure); ``stop``
+    the detail in words.
+    """
+
+    period: int
+    values: list[float] = field(default_factory=list)
+    states: list[tuple[float, float]] = field(default_factory=list)
+    mults: list[tuple[complex, complex]] = field(default_factory=list)
+    orbits: list[np.ndarray] = field(default_factory=list)  # (n, 2) each: x, P(x), ..., P^(n-1)(x)
+    stop: str = ""
+    parent: int | None = None
+    status: Status = Status.OK
+
+    def add(self, p: float, pt: _Point) -> None:
+        self.values.append(float(p))
+        self.states.append((float(pt.X[0]), float(pt.X[1])))
+        self.mults.append(tuple(complex(m) for m in multipliers(pt.A)))
+        self.orbits.append(np.array(pt.pts, dtype=float))
+
+    @property
+    def stable(self) -> np.ndarray:
+        return np.array([bool(np.all(np.abs(m) < 1.0 - UNIT_TOL)) for m in self.mults], dtype=bool)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "period": self.period,
+            "status": self.status.label,
+            "stop": self.stop,
+            "parent": self.parent,
+            "points": [
+                {"value": v, "q": x[0], "r": x[1],
+                 "multipliers": [[m.real, m.imag] for m in mu],
+                 "stable": bool(np.all(np.abs(mu) < 1.0 - UNIT_TOL))}
+                for v, x, mu in zip(self.values, self.states, self.mults, strict=True)
+            ],
+        }  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Bifurcation:
+    """A located bifurcation on a branch."""
+
+    kind: str
+    value: float
+    error: float
+    period: int
+    point: np.ndarray
+    multipliers: np.ndarray
+    branch: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "type": self.kind,
+            "value": float(self.value),
+            "error": float(self.error),
+            "period": int(self.period),
+            "point": [float(self.point[0]), float(self.point[1])],
+            "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
+            "branch": int(self.branch),
+        }
+
+
+@dataclass
+class Curve:
+    """A fold or period-doubling point followed in two parameters: rows ``(p1, p2, q, r)``; ``status`` as a
+    branch's (the first half that did not end well decides), ``stop`` both halves' ends in words."""
+
+    kind: str
+    period: int
+    rows: list[tuple[float, float, float, float]] = field(default_factory=list)
+    stop: str = ""
+    status: Status = Status.OK
+
+    def as_dict(self, name1: str, name2: str) -> dict[str, Any]:
+        return {
+            "type": self.kind,
+            "period": self.period,
+            "status": self.status.label,
+            "stop": self.stop,
+            "points": [{name1: a, name2: b, "q": q, "r": r} for a, b, q, r in self.rows],
+        }
+
+
+@dataclass
+class Continuation(Drawable):
+    """Branches, the bifurcations on them and (two-parameter) curves.
+
+    ``completed`` is False when the run was cancelled; ``complete`` is False when anything was lost
+    (cancellation included): ``lost`` says what and why.
+    """
+
+    params: Params
+    param: str
+    range: tuple[float, float]
+    numerics: Numerics
+    branches: list[Branch]
+    bifurcations: list[Bifurcation]
+    curves: list[Curve] = field(default_factory=list)
+    param2: str | None = None
+    range2: tuple[float, float] | None = None
+    elapsed_s: float = 0.0
+    completed: bool = True
+    messages: list[str] = field(default_factory=list)
+    lost: list[Loss] = field(default_factory=list)
+    options: ContinuationOptions = field(default_factory=ContinuationOptions)
+    #: what was asked (None for the orbits of several seeds, :func:`continue_from_seeds`)
+    spec: ContinuationSpec | None = None
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
+    @property
+    def n_points(self) -> int:
+        return sum(len(b.values) for b in self.branches)
+
+    def summary(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "param": self.param,
+            "range": [float(v) for v in self.range],
+            "branches": [b.as_dict() for b in self.branches],
+            "bifurcations": [b.as_dict() for b in self.bifurcations],
+            "points": self.n_points,
+            "messages": list(self.messages),
+            "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
+            "elapsed_s": round(float(self.elapsed_s), 6),
+            "options": self.options.as_dict(),
+            "params": self.params.as_dict(),
+            "numerics": self.numerics.as_dict(),
+        }
+        if self.param2 is not None:
+            out["param2"] = self.param2
+            out["range2"] = [float(v) for v in self.range2 or ()]
+            out["curves"] = [c.as_dict(self.param, self.param2) for c in self.curves]
+        if self.spec is not None:  # what was asked: the seed, period, switching, ... (enough to run it again)
+            out["spec"] = self.spec.as_dict()
+        return out
+
+    as_dict = summary
+
+    #: the CSV's columns (:meth:`csv_rows`)
+    CSV_HEADER = ("branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable")
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: a row per point (:attr:`CSV_HEADER`); ``.json``: the summary."""
+        csv_ = lambda p: export.write_csv(p, self.CSV_HEADER, self.csv_rows())  # noqa: E731
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "continuation"
+        )
+
+    def csv_rows(self) -> list[tuple[int, int, float, float, float, float, float, float, float, int]]:
+        """``branch, period, value, q, r, mu1_re, mu1_im, mu2_re, mu2_im, stable`` per point, plain numbers."""
+        rows = []
+        for i, br in enumerate(self.branches):
+            for v, x, mu, st in zip(br.values, br.states, br.mults, br.stable, strict=True):
+                rows.append((i, br.period, v, x[0], x[1], mu[0].real, mu[0].imag, mu[1].real, mu[1].imag, int(st)))
+        return rows
+
+
+def classify_branch(br: Branch) -> list[str]:
+    """The type of every point of a branch (see :func:`explorer_core.analyses.orbits.classify`)."""
+    return [classify(m) for m in br.mults]
+
+
+class Boundaries(list):
+    """The continuations of :func:`chart_boundaries` (a list of :class:`Continuation`), with what was lost:
+    directions not continued because cancelled, and every loss of the continuations themselves."""
+
+    completed: bool = True
+
+    @property
+    def lost(self) -> list[Loss]:
+        own = getattr(self, "_lost", [])
+        return own + [loss for c in self for loss in c.lost]
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
+    def summary(self) -> dict[str, Any]:
+        return {"continuations": [c.summary() for c in self], "completed": self.completed,
+                "complete": self.complete, "lost": [loss.as_dict() for loss in self.lost]}  # fmt: skip
+
+    def write(self, path: str) -> dict[str, Any]:
+        """``.csv``: the continuations' points, a column ``continuation`` first; ``.json``: the summary."""
+
+        def csv_(p: str) -> int:
+            rows = ((k, *row) for k, c in enumerate(self) for row in c.csv_rows())
+            return export.write_csv(p, ("continuation", *Continuation.CSV_HEADER), rows)
+
+        return export.write_by_suffix(
+            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "set of boundaries"
+        )
