@@ -27,7 +27,7 @@ from bokeh.plotting import figure
 from app.controller import ExplorerSession
 from app.layers.base import plain as _plain
 from app.views import BACKEND
-from explorer_core.analyses.bifurcation import DIAGRAM_PLOT_RTOL, bifurcation_diagram
+from explorer_core.analyses.bifurcation import DIAGRAM_PLOT_BOUND, DIAGRAM_PLOT_RTOL, bifurcation_diagram
 from explorer_core.analyses.continuation import chart_boundaries, continue_from_seeds
 from explorer_core.analyses.lyapunov import lyapunov_spec, lyapunov_spectrum
 from explorer_core.analyses.regimes import REGIMES, chart_spec, iter_chart
@@ -286,7 +286,7 @@ class BifurcationTab(AnalysisTab):
             return
         n, pts, tr, seeding = st.bif_values, st.bif_points, st.bif_transient, st.bif_seeding
         values = sweep_values((lo, hi), n)
-        numerics, self.ran_with = st.numerics_for(None, plot_rtol=DIAGRAM_PLOT_RTOL, bound=st.page_bound())
+        numerics, self.ran_with = st.numerics_for(None, plot_rtol=DIAGRAM_PLOT_RTOL, bound=DIAGRAM_PLOT_BOUND)
         follow = st.bif_orbits
 
         def job(cancelled, emit) -> None:

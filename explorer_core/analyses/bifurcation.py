@@ -394,6 +394,8 @@ DIAGRAM_RTOL = config.DEFAULT_RTOL
 #: The tolerance of a diagram as a picture (the app's Accuracy "plot"): its points are far below its pixels
 #: (vern9 by the "auto" rule).
 DIAGRAM_PLOT_RTOL = 1e-9
+#: Its escape bound as a picture: a trajectory beyond it is off any diagram's axes (and stops costing work).
+DIAGRAM_PLOT_BOUND = 1e3
 JUMP_TOL = 1e-3
 JUMP_SAFETY = 10.0
 JUMP_TRIES = 2
