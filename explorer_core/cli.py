@@ -352,7 +352,7 @@ def _declared(fn: Callable[..., Any]) -> dict[str, Any]:
 
 
 #: The metavar of a declared option by how it is parsed (unless it declares one).
-_METAVARS = {"points": "Q,R", "range": "A,B", "box": "Q0,Q1,R0,R1", "ints": "NX,NY"}
+_METAVARS = {"points": "Q,R", "point": "Q,R", "range": "A,B", "box": "Q0,Q1,R0,R1", "ints": "NX,NY"}
 
 
 def _add_declared_args(p: argparse.ArgumentParser, fn: Callable[..., Any], title: str) -> None:
@@ -413,6 +413,8 @@ def _declared_values(args: argparse.Namespace, fn: Callable[..., Any], scene: Sc
             value = _floats(raw, 4, flag)
         elif arg.parse == "points":
             value = [_floats(v, 2, flag) for v in raw]
+        elif arg.parse == "point":
+            value = _floats(raw, 2, flag)
         elif arg.parse == "list":
             value = [w.strip() for w in str(raw).split(",")]
         else:
@@ -459,6 +461,7 @@ def cmd_analysis(args: argparse.Namespace) -> int:
         raise UsageError(f"give --out FILE ({', '.join(c.out)}) and/or --json")
     params, scene = _params(args)
     pos, kw = _declared_values(args, builder, scene)
+    kw.update(c.fixed)
     spec = _build(args, builder, params, *pos, **kw)
     if _numerics_given(args):  # the flags change the analysis' own default numerics, whatever it is
         spec = _build(args, builder, params, *pos, **kw, numerics=_numerics(args, None, 1, base=spec.numerics))
@@ -652,11 +655,6 @@ def cmd_tprime(args: argparse.Namespace) -> int:
     return 0
 
 
-def _param_range_args(p: argparse.ArgumentParser, help_: str = "parameter range") -> None:
-    p.add_argument("--param", required=True, help="alpha, I11..I23, g0, g1, g2 or omega")
-    p.add_argument("--range", required=True, metavar="A,B", help=help_)
-
-
 def _executor(args: argparse.Namespace) -> Any:
     """The Dask executor of ``--scheduler`` (None: this machine's threads)."""
     from explorer_core.parallel.cluster import executor_for
@@ -667,48 +665,6 @@ def _executor(args: argparse.Namespace) -> Any:
 
 def _scheduler_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask cluster: tcp://HOST:PORT or local:N (docs/dask.md)")
-
-
-def _continue_args(p: argparse.ArgumentParser) -> None:
-    _param_range_args(p, "from A (where the orbit is seeded) to B")
-    p.add_argument("--from", dest="from_", metavar="Q,R", help="a point near the period-N orbit at A")
-    p.add_argument("--period", type=_count("period", 1, 1024), default=1)
-    p.add_argument("--switch", action="store_true", help="at each period doubling, follow the doubled orbit too")
-    p.add_argument("--max-period", type=_count("max-period", 1, 1024), default=16, help="cap of a cascade")
-    p.add_argument("--max-points", type=_count("max-points", 2, 1_000_000), default=5000, help="per branch")
-    p.add_argument("--ds", type=_number("ds"), help="first arclength step in (q, r, (p - A) / (B - A)) (default 0.02)")
-    p.add_argument("--ds-min", type=_number("ds-min"), help="smallest step before a branch gives up (default 1e-7)")
-    p.add_argument("--ds-max", type=_number("ds-max"), help="largest step (default 0.1)")
-    p.add_argument("--param2", help="also follow each fold / period doubling in (PARAM, PARAM2)")
-    p.add_argument("--range2", metavar="C,D", help="the range of PARAM2")
-
-
-def cmd_continue(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.continuation import continuation_spec, continue_orbit
-    from explorer_core.analyses.orbits import ORBIT_NUMERICS
-
-    params, _ = _params(args)
-    if args.from_ is None:
-        raise UsageError("give --from Q,R: a point near the period-N orbit at the range's first value")
-    spec = _build(args, continuation_spec, params, args.param, _span(args.range, "--range"),
-                  _floats(args.from_, 2, "--from"), args.period, switch=args.switch, max_period=args.max_period,
-                  max_points=args.max_points, ds=args.ds, ds_min=args.ds_min, ds_max=args.ds_max,
-                  numerics=_numerics(args, None, 1, base=ORBIT_NUMERICS), param2=args.param2,
-                  range2=_span(args.range2, "--range2") if args.range2 else None, check_end=True)  # fmt: skip
-    with _Run(args) as run:
-        res = continue_orbit(spec, cancel=run, progress=run.update)
-    name = spec.param
-    summary = res.summary()
-    if args.out:
-        summary["csv"] = res.write(args.out)
-
-    def lines() -> list[str]:
-        return [*(f"branch {i}: period {br.period}, {len(br.values)} points, {name} {br.values[0]:.10g} .. "
-                  f"{br.values[-1]:.10g} ({br.stop})" for i, br in enumerate(res.branches)),
-                *(f"{b.kind} of the period-{b.period} orbit at {name} = {b.value:.12g} +- {b.error:.1g}"
-                  for b in res.bifurcations), *res.messages]  # fmt: skip
-
-    return _finish(args, summary, lines, result=res, what="branches")
 
 
 def _manifolds_args(p: argparse.ArgumentParser) -> None:
@@ -1044,6 +1000,8 @@ class Command:
     what: str = "results"
     #: Help of the other output options (``files``).
     file_help: dict[str, str] = field(default_factory=dict)
+    #: Keywords the command always gives the builder (the range's end checked before the work: ``check_end``).
+    fixed: dict[str, Any] = field(default_factory=dict)
 
 
 def _no_args(p: argparse.ArgumentParser) -> None:
@@ -1071,8 +1029,9 @@ COMMANDS: dict[str, Command] = {
                       what="orbits"),
     "manifolds": Command("stable and unstable manifolds of a saddle orbit, homoclinic points", _manifolds_args,
                          cmd_manifolds, CSV, "CSV branch,kind,s,q,r (s: arc length from the saddle)"),
-    "continue": Command("follow a periodic orbit in a parameter through folds and period doublings", _continue_args,
-                        cmd_continue, CSV, "branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable"),
+    "continue": Command("follow a periodic orbit in a parameter through folds and period doublings", None,
+                        cmd_analysis, CSV, "branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable",
+                        analysis=True, what="branches", fixed={"check_end": True}),
     "chart": Command("chart of dynamical regimes on a plane of two parameters", None, cmd_analysis,
                      (".npz", ".csv", ".png", ".json"), ".npz, .csv, .json or .png (repeatable)", analysis=True,
                      needs_output=True, scheduler=True, what="pixels",

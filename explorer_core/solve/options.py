@@ -242,8 +242,8 @@ SETTLING = NewtonOptions(ftol=1e-8, max_iter=8, max_step=math.inf, patience=None
 #: The orbit diagram's jump onto an attracting cycle: the diagram's own map, 6 plain steps to a tenth of the
 #: diagram's SETTLE_TOL (written as the product, the float the diagram has always used).
 JUMPS = NewtonOptions(ftol=0.1 * 1e-9, max_iter=6, max_step=math.inf, patience=None, coarse=False, rtol=None)
-#: Continuation's corrector (Newton on F = 0 and the arclength condition) at the orbits' map.
-CORRECTOR = NewtonOptions(ftol=1e-10, max_iter=8, max_step=math.inf, patience=None, coarse=False, rtol=1e-12)
+#: Continuation's corrector (Newton on F = 0 and the arclength condition) on the continuation's own map.
+CORRECTOR = NewtonOptions(ftol=1e-10, max_iter=8, max_step=math.inf, patience=None, coarse=False, rtol=None)
 PRESETS = {"orbits": ORBITS, "settling": SETTLING, "jumps": JUMPS, "corrector": CORRECTOR}
 
 

@@ -40,7 +40,7 @@ def _follow_curve(eng: _Engine, base: Params, name1: str, name2: str, bif: Bifur
         return curve, [Loss(what, 1, curve.stop)]
     origin = np.array([0.0, 0.0, min(rng1), lo])
     width = np.array([1.0, 1.0, abs(rng1[1] - rng1[0]), hi - lo])
-    prob = _CurveProblem(sys, kind, n, origin, width, eng.opts.corrector_tol)
+    prob = _CurveProblem(sys, kind, n, origin, width, eng.opts.corrector.ftol)
     Z0 = (np.array([bif.point[0], bif.point[1], bif.value, p2_0]) - origin) / width
     try:
         pt0 = eng.first(prob, Z0, np.zeros(4))

@@ -39,6 +39,7 @@ from explorer_core.analyses.sweeps import check_param
 from explorer_core.losses import Loss
 from explorer_core.progress import Cancel, Progress, Step, run, stoppable
 from explorer_core.solve.numerics import Numerics
+from explorer_core.solve.options import ORBITS
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.system.params import ParameterError, Params
 
@@ -119,7 +120,7 @@ class _OrbitRun:
             br = Branch(n, parent=parent)
             res.branches.append(br)
             k = len(res.branches) - 1
-            prob = _BranchProblem(self.sys, (a, b), n, opts.corrector_tol)
+            prob = _BranchProblem(self.sys, (a, b), n, opts.corrector.ftol)
             what = f"branch {k} (period {n}, from {param} = {p:.12g})"
             try:
                 # A doubled branch leaves its doubling point on the side where it exists.
@@ -193,7 +194,7 @@ class _OrbitRun:
             br.add(bif.value, at)
             if kind == "period_doubling" and spec.switch and 2 * n <= spec.max_period:
                 try:
-                    xs, ps = _switch(eng, _BranchProblem(self.sys, spec.range, 2 * n, opts.corrector_tol), at)
+                    xs, ps = _switch(eng, _BranchProblem(self.sys, spec.range, 2 * n, opts.corrector.ftol), at)
                     self.queue.append((2 * n, xs, ps, len(res.bifurcations) - 1))
                 except _Stop as exc:
                     res.messages.append(f"period doubling at {spec.param} = {bif.value:.12g}: {exc}")
@@ -390,11 +391,15 @@ def _chart_boundaries(
     transient, Newton finds the period-``p`` orbit there, and that orbit is continued in the chart's ``x``
     towards both ends with every fold and period doubling followed as a curve in ``(x, y)`` over the
     chart. The last update's result holds one :class:`Continuation` per continued direction (their
-    ``curves`` are the boundaries).
+    ``curves`` are the boundaries). ``numerics`` (default: the orbits' map as it follows the chart's tolerance,
+    :meth:`~explorer_core.solve.options.NewtonOptions.at` of :data:`~explorer_core.solve.options.ORBITS`: vern9 at
+    1e-12 for a chart at its default 1e-8, 1e-10 for a chart at 1e-6) integrate the orbits and their continuation.
     """
-    from explorer_core.analyses.regimes import PERIODIC
+    from explorer_core.analyses.regimes import DEFAULT_CHART_TOL, PERIODIC
 
     spec = chart.spec
+    if numerics is None:
+        numerics = ORBITS.at(spec.numerics, DEFAULT_CHART_TOL)[0]
     xs, ys = np.asarray(spec.x_values, float), np.asarray(spec.y_values, float)
     xr, yr = (float(xs.min()), float(xs.max())), (float(ys.min()), float(ys.max()))
     out = Boundaries()

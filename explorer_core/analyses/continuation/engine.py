@@ -116,7 +116,7 @@ class _Engine:
         ``chord``: a Jacobian whose parameter columns are kept throughout (one trajectory less per
         iteration), refreshed at the solution for its tangent.
         """
-        max_iter = self.opts.max_iter if max_iter is None else max_iter
+        max_iter = self.opts.corrector.max_iter if max_iter is None else max_iter
         X = X_pred.copy()
         norms: list[float] = []
         for _ in range(max_iter):
@@ -157,7 +157,7 @@ class _Engine:
                 h00, h10, h01, h11 = 2 * u**3 - 3 * u**2 + 1, u**3 - 2 * u**2 + u, -2 * u**3 + 3 * u**2, u**3 - u**2
                 cubic = h00 * pt.X + h10 * length * pt.t + h01 * end.X + h11 * length * end.t
                 X_pred = cubic + (sigma - float(pt.t @ (cubic - pt.X))) * pt.t  # onto the plane
-        return self.correct(prob, X_pred, pt.t, pt.t, max_iter=self.opts.max_iter + 4)[0]
+        return self.correct(prob, X_pred, pt.t, pt.t, max_iter=self.opts.corrector.max_iter + 4)[0]
 
     def _check(self, pt: _Point, new: _Point, X_pred: np.ndarray, h: float) -> None:
         d = float(np.linalg.norm(new.X - X_pred))
@@ -187,7 +187,7 @@ class _Engine:
         X_pred[k] = bound
         c = np.zeros_like(X_pred)
         c[k] = 1.0
-        new, theta = self.correct(prob, X_pred, c, pt.t, max_iter=self.opts.max_iter + 4)
+        new, theta = self.correct(prob, X_pred, c, pt.t, max_iter=self.opts.corrector.max_iter + 4)
         new.X[k] = bound  # exact: the constraint is linear
         self._check(pt, new, X_pred, float(np.linalg.norm(X_pred - pt.X)))
         for j, lo, hi in prob.box:

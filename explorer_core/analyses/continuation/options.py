@@ -16,10 +16,11 @@ from explorer_core.analyses.orbits import ORBIT_NUMERICS
 from explorer_core.analyses.specs import Checking
 from explorer_core.analyses.sweeps import check_param
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
+from explorer_core.solve.options import CORRECTOR, Arg, NewtonOptions, command_line
 from explorer_core.system.params import ParameterError, Params
 
-#: Newton on a corrected point stops when ``|F| <= CORRECTOR_TOL (1 + |x|)``.
-CORRECTOR_TOL = 1e-10
+#: Newton on a corrected point stops when ``|F| <= CORRECTOR_TOL (1 + |x|)`` (the ``CORRECTOR`` preset's ftol).
+CORRECTOR_TOL = CORRECTOR.ftol
 MAX_POINTS = 5000
 #: The longest period a cascade is followed to.
 DEFAULT_MAX_PERIOD = 16
@@ -61,7 +62,7 @@ class ContinuationOptions:
     contraction: float = 0.5
     max_points: int = MAX_POINTS
     corrector_tol: float = CORRECTOR_TOL
-    max_iter: int = 8
+    max_iter: int = CORRECTOR.max_iter
     max_turn: float = 0.45
     max_distance: float = 0.5
     period_tol: float = 1e-6
@@ -97,6 +98,12 @@ class ContinuationOptions:
                 f"corrector_tol must be below 1e-3 and period_tol below 1e-2, got {self.corrector_tol!r}, "
                 f"{self.period_tol!r}"
             )
+
+    @property
+    def corrector(self) -> NewtonOptions:
+        """The corrector's Newton (what the engine reads): the ``CORRECTOR`` preset with these ``corrector_tol`` and
+        ``max_iter`` (plain Newton steps on the continuation's own map, no trust region)."""
+        return CORRECTOR.replace(ftol=self.corrector_tol, max_iter=self.max_iter)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -141,6 +148,27 @@ def _two(name: str, value: Any, what: str) -> tuple[float, float]:
     return a, b
 
 
+@command_line(
+    param=Arg("alpha, I11..I23, g0, g1, g2 or omega", "str", required=True, positional=True),
+    value_range=Arg(
+        "from A (where the orbit is seeded) to B",
+        "range",
+        flag="--range",
+        metavar="A,B",
+        required=True,
+        positional=True,
+    ),
+    seed=Arg("a point near the period-N orbit at A", "point", flag="--from", metavar="Q,R", positional=True),
+    period=Arg("the orbit's period", "int", positional=True, default=1),
+    switch=Arg("at each period doubling, follow the doubled orbit too", "switch"),
+    max_period=Arg("cap of a cascade", "int"),
+    max_points=Arg("points per branch (default 5000)", "int"),
+    ds=Arg("first arclength step in (q, r, (p - A) / (B - A)) (default 0.02)"),
+    ds_min=Arg("smallest step before a branch gives up (default 1e-7)"),
+    ds_max=Arg("largest step (default 0.1)"),
+    param2=Arg("also follow each fold / period doubling in (PARAM, PARAM2)", "str"),
+    range2=Arg("the range of PARAM2", "range", metavar="C,D"),
+)
 def continuation_spec(
     params: Params,
     param: str,

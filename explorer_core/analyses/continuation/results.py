@@ -146,6 +146,13 @@ class Continuation(Drawable):
     def n_points(self) -> int:
         return sum(len(b.values) for b in self.branches)
 
+    def report(self) -> list[str]:
+        """What the command line prints: the branches, the bifurcations with their errors, the messages."""
+        return [*(f"branch {i}: period {br.period}, {len(br.values)} points, {self.param} {br.values[0]:.10g} .. "
+                  f"{br.values[-1]:.10g} ({br.stop})" for i, br in enumerate(self.branches)),
+                *(f"{b.kind} of the period-{b.period} orbit at {self.param} = {b.value:.12g} +- {b.error:.1g}"
+                  for b in self.bifurcations), *self.messages]  # fmt: skip
+
     def summary(self) -> dict[str, Any]:
         out: dict[str, Any] = {
             "param": self.param,
