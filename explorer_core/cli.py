@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import inspect
 import math
 import os
 import re
@@ -396,15 +397,19 @@ def _declared_values(args: argparse.Namespace, fn: Callable[..., Any], scene: Sc
         if raw is None or raw is False:
             value = _scene_value(scene, arg.scene) if raw is None else None
             value = arg.default if value is None else value
-            if value is None and arg.positional and arg.required is False and _no_default(fn, name):
-                where = " (no --scene to take it from)" if arg.scene else ""
-                raise UsageError(f"give {flag} {arg.metavar or _METAVARS.get(arg.parse, name.upper())}{where}")
+            if value is None and arg.positional:  # a positional keyword left out: its default, or say what is missing
+                if _no_default(fn, name):
+                    where = " (no --scene to take it from)" if arg.scene else ""
+                    raise UsageError(f"give {flag} {arg.metavar or _METAVARS.get(arg.parse, name.upper())}{where}")
+                value = inspect.signature(fn).parameters[name].default
         elif arg.parse == "switch":
             value = True
-        elif arg.parse == "int":
-            value = _count(flag, -(2**63), 2**63 - 1)(raw) if isinstance(raw, str) else raw
-        elif arg.parse == "float":
-            value = _number(flag)(raw)
+        elif arg.parse in ("int", "float"):
+            try:  # the value's range is the builder's check, which names the option
+                value = int(raw) if arg.parse == "int" else float(raw)
+            except ValueError:
+                raise UsageError(f"{flag} must be {'an integer' if arg.parse == 'int' else 'a number'}, "
+                                 f"got {raw!r}") from None  # fmt: skip
         elif arg.parse == "range":
             value = _span(raw, flag)
         elif arg.parse == "ints":
@@ -744,49 +749,6 @@ def cmd_symmetry(args: argparse.Namespace) -> int:
     return _finish(args, summary, lines, result=check, completed=True)
 
 
-def _body_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--ic", action="append", metavar="Q,R",
-                   help="initial condition at t0 (default: the scene's first point, else 0.1,0.1)")  # fmt: skip
-    p.add_argument("--periods", type=_count("periods", 1, 10_000), default=20, help="periods of the series")
-    p.add_argument("--samples", type=_count("samples", 4, 512), default=48, help="frames per period (default 48)")
-    p.add_argument("--k0", type=_count("k0", 0, config.MAX_PERIODS), default=0,
-                   help="start after this many periods (the orientation is the identity there)")  # fmt: skip
-
-
-def cmd_body(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.body import body_series
-
-    params, scene = _params(args)
-    ics = _ics(args)
-    if ics is not None and ics.shape[0] > 1:
-        raise UsageError("--ic: the body follows one trajectory, give one Q,R")
-    ic = _scene_point(scene)[0] if ics is None else ics[0]
-    numerics = _numerics(args, None, args.k0 + args.periods)
-    with _Run(args) as run:
-        series = body_series(params, ic, args.periods, samples=args.samples, k0=args.k0, numerics=numerics,
-                             cancel=run, progress=run.update)  # fmt: skip
-    summary = _with_scene(series.summary(), args)
-    for path in args.out or []:
-        series.write(path)
-    if args.out:
-        summary["out"] = args.out
-
-    def lines() -> list[str]:
-        s = summary
-        if not series.frames:
-            return [f"status {s['status']}: no frame recorded"]
-        (w, x, y, z), e = series.quaternion[-1], s["energy"]
-        return [f"{s['frames']} frames ({s['samples']} a period), t {s['t'][0]:.6g} .. {s['t'][1]:.6g}, "
-                f"status {s['status']}",
-                f"principal moments {', '.join(f'{m:.6g}' for m in s['moments'])}"
-                + ("" if s["box_exists"] else " (no box has them: they break the triangle inequality)"),
-                f"orientation at the end (w, x, y, z) = ({w:.10g}, {x:.10g}, {y:.10g}, {z:.10g}); "
-                f"|Q| drift {s['quaternion_norm_drift']:.2g}",
-                f"T from {e['first']:.10g} to {e['last']:.10g} (min {e['min']:.6g}, max {e['max']:.6g})"]  # fmt: skip
-
-    return _finish(args, summary, lines, result=series, what="frames")
-
-
 def _serve_args(p: argparse.ArgumentParser) -> None:
     env = os.environ  # defaults from the environment, so a container (exec-form CMD) can be configured
     p.add_argument("--port", type=_count("port", 1, 65535), default=env.get("BILIMOVICH_PORT", "5006"))
@@ -1041,7 +1003,8 @@ COMMANDS: dict[str, Command] = {
     "fit": Command("polynomial fits of the drift q_k, r_k over a window of k, and the implied map", None,
                    cmd_analysis, CSV, "the members' series member,k,q,r", analysis=True),
     "body": Command("the rigid body's orientation along a trajectory (quaternions, omega, T; frames in a period)",
-                    _body_args, cmd_body, (".csv", ".npz", ".json"), "frame,k,t,p,q,r,w,x,y,z,T (.csv), or .npz/.json"),
+                    None, cmd_analysis, (".csv", ".npz", ".json"), "frame,k,t,p,q,r,w,x,y,z,T (.csv), or .npz/.json",
+                    analysis=True, what="frames"),
     "symmetry": Command("check the involution t -> -t, q -> q, r -> -r on sections", _symmetry_args, cmd_symmetry,
                         flags=("json",)),
     "serve": Command("run the web explorer (panel serve app/main.py)", _serve_args, cmd_serve, system=False,

@@ -153,7 +153,16 @@ ANALYSES: dict[str, Analysis] = {
         Analysis(
             "drift", _A + "drift", "drift_fit", "DriftFit", "iter_drift_fit", "drift_spec", "DriftSpec", command="fit"
         ),
-        Analysis("body", _A + "body", "body_series", "BodySeries", "iter_body_series", command="body"),
+        Analysis(
+            "body",
+            _A + "body",
+            "body_series",
+            "BodySeries",
+            "iter_body_series",
+            "body_spec",
+            "BodySpec",
+            command="body",
+        ),
         Analysis("symmetry", _A + "symmetry", "check_symmetry", "SymmetryCheck", command="symmetry"),
     )
 }

@@ -188,7 +188,7 @@ def test_basins_json_and_npz(tmp_path) -> None:
     assert sorted((a["kind"], a["period"]) for a in s["attractors"]) == [("periodic", 1), ("periodic", 3)]
     for a in s["attractors"]:
         assert len(a["points"]) == a["period"] and 0 < a["fraction"] < 1
-    assert s["grid"] == [12, 10] and s["completed"] is True and s["out"] == str(out)
+    assert s["grid"] == [12, 10] and s["completed"] is True and s["out"] == [{"path": str(out)}]
     with np.load(out) as z:
         assert z["q"].shape == (12,) and z["r"].shape == (10,) and z["label"].shape == (10, 12)
         assert set(np.unique(z["label"])) == {a["id"] for a in s["attractors"]}
@@ -207,7 +207,7 @@ def test_basins_json_and_npz(tmp_path) -> None:
         (["--out", "/no/such/dir/b.npz"], "does not exist"),
         (["--out", "b.csv"], "--out must end in .npz"),
         (["--cells", "0,4"], "cells NQ"),
-        (["--max-periods", "0"], "max-periods must be between 1"),
+        (["--max-periods", "0"], "max-periods must be an integer in [1, "),
     ],
 )
 def test_basins_bad_input_one_line(args, needle) -> None:
@@ -316,12 +316,18 @@ class _FakeContinuation:
                                          stable=np.array([True, True]))]  # fmt: skip
         self.bifurcations: list = []
         self.messages: list = []
+        self.param = "alpha"
         self.completed = True
         self.complete = False
         self.lost = [Loss("branch 1 (period 2)", 1, "the corrector did not converge at the smallest step")]
 
     def summary(self) -> dict:
         return {"branches": len(self.branches), "completed": self.completed}
+
+    def report(self) -> list:
+        from explorer_core.analyses.continuation import Continuation
+
+        return Continuation.report(self)  # type: ignore[arg-type]
 
     # The result writes its own files: the real writer on these fields (a fake with numpy values).
     def csv_rows(self) -> list:

@@ -29,6 +29,7 @@ from explorer_core.progress import Progress, Step
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import advance_body, body_start
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
+from explorer_core.solve.options import Arg, command_line
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.tableaus import get_method
 from explorer_core.status import Status
@@ -175,6 +176,20 @@ class BodySeries(Drawable):
         table = np.column_stack([f, k, self.t, self.omega, self.quaternion, self.energy])
         return ["frame", "k", "t", "p", "q", "r", "w", "x", "y", "z", "T"], table
 
+    def report(self) -> list[str]:
+        """What the command line prints: frames, moments, the orientation at the end, the energy."""
+        s = self.summary()
+        if not self.frames:
+            return [f"status {s['status']}: no frame recorded"]
+        (w, x, y, z), e = self.quaternion[-1], s["energy"]
+        return [f"{s['frames']} frames ({s['samples']} a period), t {s['t'][0]:.6g} .. {s['t'][1]:.6g}, "
+                f"status {s['status']}",
+                f"principal moments {', '.join(f'{m:.6g}' for m in s['moments'])}"
+                + ("" if s["box_exists"] else " (no box has them: they break the triangle inequality)"),
+                f"orientation at the end (w, x, y, z) = ({w:.10g}, {x:.10g}, {y:.10g}, {z:.10g}); "
+                f"|Q| drift {s['quaternion_norm_drift']:.2g}",
+                f"T from {e['first']:.10g} to {e['last']:.10g} (min {e['min']:.6g}, max {e['max']:.6g})"]  # fmt: skip
+
     def write(self, path: str) -> dict[str, Any]:
         """``.csv``: one row per frame (:meth:`columns`); ``.npz``: the arrays and ``summary`` (JSON text);
         ``.json``: the summary."""
@@ -236,10 +251,48 @@ def _check(params: Params, ic: Any, periods: int, samples: int, k0: int, numeric
     return x[0]
 
 
+@dataclass(frozen=True)
+class BodySpec:
+    """What defines a body series (validated by :func:`body_spec`; plain data)."""
+
+    params: Params
+    ic: tuple[float, float]
+    periods: int = 20
+    samples: int = 48
+    k0: int = 0
+    numerics: Numerics = field(default_factory=Numerics)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "ic": list(self.ic), "periods": self.periods, "samples": self.samples,
+                "k0": self.k0, "numerics": self.numerics.as_dict()}  # fmt: skip
+
+
+@command_line(
+    ic=Arg(
+        "initial condition at t0 (one: the body follows one trajectory)",
+        "points",
+        flag="--ic",
+        scene="points",
+        positional=True,
+        default=[(0.1, 0.1)],
+    ),
+    periods=Arg("periods of the series", "int", positional=True),
+    samples=Arg("frames per period", "int"),
+    k0=Arg("start after this many periods (the orientation is the identity there)", "int"),
+)
+def body_spec(
+    params: Params, ic: Any, periods: int = 20, *, samples: int = 48, k0: int = 0, numerics: Numerics | None = None
+) -> BodySpec:
+    """A validated :class:`BodySpec` (the checks of :func:`body_series`, naming the bad value)."""
+    numerics = numerics or Numerics()
+    x = _check(params, ic, periods, samples, k0, numerics)
+    return BodySpec(params, (float(x[0]), float(x[1])), int(periods), int(samples), int(k0), numerics)
+
+
 def body_series(
-    params: Params,
-    ic: Any,
-    periods: int,
+    params: Params | BodySpec,
+    ic: Any = None,
+    periods: int = 20,
     *,
     samples: int = 48,
     k0: int = 0,
@@ -259,6 +312,12 @@ def body_series(
     Raises ParameterError (naming the value) for periods outside 1..10_000, samples outside 4..512, more than
     200_000 frames, an initial condition not finite or outside the escape bound, or the method taylor.
     """
+    if isinstance(params, BodySpec):
+        if ic is not None:
+            raise TypeError(f"a BodySpec comes alone, not with {ic!r}")
+        spec = params
+        params, ic, periods, samples, k0, numerics = spec.params, spec.ic, spec.periods, spec.samples, spec.k0, \
+            spec.numerics  # fmt: skip
     updates = iter_body_series(params, ic, periods, samples=samples, k0=k0, numerics=numerics, cancel=cancel)
     return run_updates(updates, progress)
 
