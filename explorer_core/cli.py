@@ -474,7 +474,9 @@ def cmd_analysis(args: argparse.Namespace) -> int:
     if c.scheduler:
         run_kw["executor"] = _executor(args)
     with _Run(args) as run:
-        result = runner(spec, cancel=run, progress=run.update, **run_kw)
+        accepts = inspect.signature(runner).parameters  # a short check has neither progress nor cancel
+        run_kw.update({k: v for k, v in (("cancel", run), ("progress", run.update)) if k in accepts})
+        result = runner(spec, **run_kw)
     summary = _with_scene(result.summary(), args)
     if getattr(args, "scheduler", None):
         summary["scheduler"] = args.scheduler
@@ -718,35 +720,6 @@ def cmd_manifolds(args: argparse.Namespace) -> int:
         return [*out, f"{len(result.crossings)} crossings ({homoclinic} homoclinic), {result.elapsed_s:.2f} s"]
 
     return _finish(args, summary, lines, result=result, completed=not run(), what="manifolds' points")
-
-
-def _symmetry_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
-    p.add_argument("--random", type=_count("random", 1, 10_000), default=4, metavar="N", help="random ICs")
-    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for random ICs (default +-1)")
-    p.add_argument("--seed", type=SEED, default=0)
-    p.add_argument("--periods", type=_count("periods", 1, 100_000), default=10, help="compared section points")
-    p.add_argument("--centre", type=_number("centre"), help="centre s of t -> 2s - t (default t0)")
-    p.add_argument("--tol", type=_number("tol"), default=1e-6, help="largest distance counted as symmetric")
-
-
-def cmd_symmetry(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.symmetry import check_symmetry
-
-    params, _ = _params(args)
-    ics = _ics(args)
-    if ics is None:
-        ics = random_ics(args.random, _box(args.box, "--box", (-1.0, 1.0, -1.0, 1.0)), seed=args.seed)
-    numerics = _numerics(args, None, args.periods) if (args.rtol or args.method) else None
-    check = check_symmetry(params, ics, args.periods, centre=args.centre, tol=args.tol, numerics=numerics)
-    summary = check.summary()
-
-    def lines() -> list[str]:
-        verdict = "holds" if check.holds else "is broken"
-        return [f"involution t -> {2 * check.centre:g} - t, r -> -r {verdict}: max distance {check.max_distance:.3g}",
-                *(f"  broken by: {reason}" for reason in summary["broken_by"])]  # fmt: skip
-
-    return _finish(args, summary, lines, result=check, completed=True)
 
 
 def _serve_args(p: argparse.ArgumentParser) -> None:
@@ -1005,8 +978,8 @@ COMMANDS: dict[str, Command] = {
     "body": Command("the rigid body's orientation along a trajectory (quaternions, omega, T; frames in a period)",
                     None, cmd_analysis, (".csv", ".npz", ".json"), "frame,k,t,p,q,r,w,x,y,z,T (.csv), or .npz/.json",
                     analysis=True, what="frames"),
-    "symmetry": Command("check the involution t -> -t, q -> q, r -> -r on sections", _symmetry_args, cmd_symmetry,
-                        flags=("json",)),
+    "symmetry": Command("check the involution t -> -t, q -> q, r -> -r on sections", None, cmd_analysis,
+                        flags=("json",), analysis=True),
     "serve": Command("run the web explorer (panel serve app/main.py)", _serve_args, cmd_serve, system=False,
                      numerics=False, flags=()),
     "reproduce": Command("every figure of the paper as PNG and the table of its numbers",

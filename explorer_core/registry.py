@@ -163,7 +163,16 @@ ANALYSES: dict[str, Analysis] = {
             "BodySpec",
             command="body",
         ),
-        Analysis("symmetry", _A + "symmetry", "check_symmetry", "SymmetryCheck", command="symmetry"),
+        Analysis(
+            "symmetry",
+            _A + "symmetry",
+            "check_symmetry",
+            "SymmetryCheck",
+            None,
+            "symmetry_spec",
+            "SymmetrySpec",
+            command="symmetry",
+        ),
     )
 }
 

@@ -26,12 +26,15 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.analyses.specs import Checking
+from explorer_core.solve.checks import check_number, check_positive
+from explorer_core.solve.numerics import Numerics, check_ics, check_int, random_ics
+from explorer_core.solve.options import Arg, command_line, instance
 from explorer_core.solve.section import section
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params, check_time
@@ -130,6 +133,12 @@ class SymmetryCheck:
             out.append("numerical distance above tol (chaotic amplification or loose tolerance?)")
         return out
 
+    def report(self) -> list[str]:
+        """What the command line prints: the verdict and what breaks the involution."""
+        verdict = "holds" if self.holds else "is broken"
+        return [f"involution t -> {2 * self.centre:g} - t, r -> -r {verdict}: max distance {self.max_distance:.3g}",
+                *(f"  broken by: {reason}" for reason in self.broken_by())]  # fmt: skip
+
     def summary(self) -> dict[str, Any]:
         return {
             "holds": self.holds,
@@ -154,9 +163,63 @@ class SymmetryCheck:
         }
 
 
-def check_symmetry(
+@dataclass(frozen=True)
+class SymmetrySpec:
+    """What defines a symmetry check (validated by :func:`symmetry_spec`; plain data)."""
+
+    params: Params
+    ics: tuple[tuple[float, float], ...]
+    periods: int = 10
+    centre: float | None = None
+    tol: float = 1e-6
+    numerics: Numerics = field(default_factory=lambda: Numerics(rtol=1e-12, atol=1e-12))
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "ics": [list(x) for x in self.ics], "periods": self.periods,
+                "centre": self.centre, "tol": self.tol, "numerics": self.numerics.as_dict()}  # fmt: skip
+
+
+@command_line(
+    ics=Arg("initial condition (repeatable)", "points", flag="--ic"),
+    periods=Arg("compared section points", "int"),
+    random=Arg("random initial conditions in --box (without --ic)", "int", metavar="N"),
+    box=Arg("box of the random initial conditions", "box", metavar="QMIN,QMAX,RMIN,RMAX"),
+    seed=Arg("random seed of the initial conditions", "int"),
+    centre=Arg("centre s of t -> 2s - t (default t0)"),
+    tol=Arg("largest distance counted as symmetric"),
+)
+def symmetry_spec(
     params: Params,
-    ics: Any,
+    ics: Any = None,
+    periods: int = 10,
+    *,
+    random: int = 4,
+    box: Any = (-1.0, 1.0, -1.0, 1.0),
+    seed: int = 0,
+    centre: float | None = None,
+    tol: float = 1e-6,
+    numerics: Numerics | None = None,
+) -> SymmetrySpec:
+    """A validated :class:`SymmetrySpec`: ``ics``, or ``random`` ones in ``box`` (``seed``) without them; the other
+    options as :func:`check_symmetry`'s (a bad value raises ParameterError naming it)."""
+    with Checking() as at:
+        at("ics" if ics is not None else "random")
+        x = check_ics(ics) if ics is not None else random_ics(check_int("random", random, 1, 10_000), box, seed=seed)
+        at("periods")
+        periods = check_int("periods", periods, 1, 100_000)
+        at("centre")
+        if centre is not None:
+            centre = check_number("centre", centre)
+        at("tol")
+        tol = check_positive("tol", tol)
+        at("numerics")
+        numerics = instance(Numerics)("numerics", numerics or Numerics(rtol=1e-12, atol=1e-12))
+    return SymmetrySpec(params, tuple((float(q), float(r)) for q, r in x), periods, centre, tol, numerics)
+
+
+def check_symmetry(
+    params: Params | SymmetrySpec,
+    ics: Any = None,
     periods: int = 10,
     *,
     centre: float | None = None,
@@ -176,6 +239,11 @@ def check_symmetry(
     numerics : default rtol = atol = 1e-12 (the "auto" method: vern9).
     """
     start = time.perf_counter()
+    if isinstance(params, SymmetrySpec):
+        if ics is not None:
+            raise TypeError(f"a SymmetrySpec comes alone, not with {ics!r}")
+        sp = params
+        params, ics, periods, centre, tol, numerics = sp.params, sp.ics, sp.periods, sp.centre, sp.tol, sp.numerics
     ics = check_ics(ics)
     s = float(params.t0 if centre is None else centre)
     if not math.isfinite(s):
