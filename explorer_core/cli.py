@@ -363,6 +363,8 @@ def _add_declared_args(p: argparse.ArgumentParser, fn: Callable[..., Any], title
     params = inspect.signature(fn).parameters
     g = p.add_argument_group(title)
     for name, arg in _declared(fn).items():
+        if arg.flag == "":  # taken from the scene only (a scene's escape bound): no flag of its own
+            continue
         default = params[name].default if arg.default is None else arg.default
         text = arg.help
         if default not in (inspect.Parameter.empty, None, False) and arg.parse != "switch":
@@ -674,54 +676,6 @@ def _scheduler_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask cluster: tcp://HOST:PORT or local:N (docs/dask.md)")
 
 
-def _manifolds_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--orbit", required=True, metavar="Q,R", help="a point near the saddle orbit (Newton finds it)")
-    p.add_argument("--period", type=_count("period", 1, 64), default=1, help="the orbit's period (default 1)")
-    p.add_argument("--length", type=_number("length"), default=10.0, help="arc length of each branch (default 10)")
-    p.add_argument("--kinds", metavar="K[,K]", help="unstable, stable or both (default both)")
-    p.add_argument("--view", metavar="Q0,Q1,R0,R1", help="the plot window the curves are refined for "
-                   "(default: the scene's, else around the orbit)")  # fmt: skip
-    p.add_argument("--pixels", metavar="W,H", help="the window's size in pixels (default 800,600)")
-    p.add_argument("--delta-px", type=_number("delta-px"), default=3.0, help="longest segment in pixels (default 3)")
-    p.add_argument("--max-points", type=_count("max-points", 100, 10_000_000), default=200_000,
-                   help="points computed over all branches (default 200000)")  # fmt: skip
-
-
-def cmd_manifolds(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.manifolds import KINDS, PIXELS, manifolds, saddle_orbit
-
-    params, scene = _params(args)
-    bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
-    numerics = _numerics(args, None, 1, base=Numerics(rtol=1e-10, atol=1e-10, bound=bound))
-    point = _floats(args.orbit, 2, "--orbit")
-    kinds = [k.strip() for k in args.kinds.split(",")] if args.kinds else list(KINDS)
-    if not kinds or any(k not in KINDS for k in kinds):
-        raise UsageError(f"--kinds must be unstable, stable or both (comma-separated), got {args.kinds!r}")
-    view = _box(args.view, "--view", (*scene.q_range, *scene.r_range) if scene else None)
-    pixels = _ints(args.pixels, "--pixels", "W,H") if args.pixels else list(PIXELS)
-    orbit = saddle_orbit(params, point, args.period)
-    with _Run(args) as run:
-        result = manifolds(params, orbit, kinds=kinds, length=args.length, view=view, pixels=pixels,
-                           delta_px=args.delta_px, numerics=numerics, max_points=args.max_points, cancel=run,
-                           progress=run.update)  # fmt: skip
-    summary = _with_scene(result.summary(), args)
-    if args.out:
-        summary["csv"] = result.write(args.out)
-
-    def lines() -> list[str]:
-        o = result.orbit
-        out = [f"period {o.period} {o.kind} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g}), "
-               f"mu = {o.multipliers[0].real:.6g}, {o.multipliers[1].real:.6g}"]  # fmt: skip
-        for b in result.branches:
-            npts = sum(p.shape[0] for p in b.pieces)
-            out.append(f"  {b.kind:8s} {b.label}: length {b.length:.4g}, {npts} points, {len(b.pieces)} piece(s), "
-                       f"{b.end}" + (f", {b.escaped} escaped" if b.escaped else ""))  # fmt: skip
-        homoclinic = sum(c.kind == "homoclinic" for c in result.crossings)
-        return [*out, f"{len(result.crossings)} crossings ({homoclinic} homoclinic), {result.elapsed_s:.2f} s"]
-
-    return _finish(args, summary, lines, result=result, completed=not run(), what="manifolds' points")
-
-
 def _serve_args(p: argparse.ArgumentParser) -> None:
     env = os.environ  # defaults from the environment, so a container (exec-form CMD) can be configured
     p.add_argument("--port", type=_count("port", 1, 65535), default=env.get("BILIMOVICH_PORT", "5006"))
@@ -962,8 +916,9 @@ COMMANDS: dict[str, Command] = {
     "orbits": Command("periodic orbits of the Poincare map: Newton on P^n(x) - x, multipliers, type", None,
                       cmd_analysis, CSV, "orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im", analysis=True,
                       what="orbits"),
-    "manifolds": Command("stable and unstable manifolds of a saddle orbit, homoclinic points", _manifolds_args,
-                         cmd_manifolds, CSV, "CSV branch,kind,s,q,r (s: arc length from the saddle)"),
+    "manifolds": Command("stable and unstable manifolds of a saddle orbit, homoclinic points", None, cmd_analysis,
+                         CSV, "CSV branch,kind,s,q,r (s: arc length from the saddle)", analysis=True,
+                         what="manifolds' points"),
     "continue": Command("follow a periodic orbit in a parameter through folds and period doublings", None,
                         cmd_analysis, CSV, "branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable",
                         analysis=True, what="branches", fixed={"check_end": True}),

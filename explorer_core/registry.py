@@ -106,7 +106,16 @@ ANALYSES: dict[str, Analysis] = {
             command="orbits",
             nested=_NEWTON,
         ),
-        Analysis("manifolds", _A + "manifolds", "manifolds", "Manifolds", "iter_manifolds", command="manifolds"),
+        Analysis(
+            "manifolds",
+            _A + "manifolds",
+            "manifolds",
+            "Manifolds",
+            "iter_manifolds",
+            "manifold_spec",
+            "ManifoldSpec",
+            command="manifolds",
+        ),
         Analysis(
             "continuation",
             _A + "continuation",

@@ -225,7 +225,7 @@ def test_cli(tmp_path) -> None:
     assert rc == 0, err
     s = json.loads(out)
     assert s["param"] == "alpha" and s["n_values"] == 3 and s["sweeps"] == ["forward", "backward"]
-    assert s["status"] == {"ok": 6} and s["csv"]["rows"] == 6 * 8
+    assert s["status"] == {"ok": 6} and s["out"][0]["rows"] == 6 * 8
     assert len(list(csv.reader(path.open()))) == 1 + 48
     rc, _, err = run_cli("bifurcation", "--param", "beta", "--range", "0,1", "--n-values", "3", "--out", "x.csv")
     assert rc == 2 and "beta" in err

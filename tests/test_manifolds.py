@@ -203,12 +203,12 @@ def test_cli_manifolds_csv_and_json(tmp_path) -> None:
     data = json.loads(stdout)
     assert data["orbit"]["type"] == "flip saddle"
     assert {b["kind"] for b in data["branches"]} == {"stable", "unstable"}
-    assert data["csv"]["rows"] > 100
+    assert data["out"][0]["rows"] > 100
     rows = list(csv.reader(out.open()))
     assert rows[0] == ["branch", "kind", "s", "q", "r"]
     assert {r[1] for r in rows[1:]} == {"stable", "unstable"}
     assert {r[0] for r in rows[1:]} == {"0+", "0-"}
-    assert len(rows) - 1 == data["csv"]["rows"]
+    assert len(rows) - 1 == data["out"][0]["rows"]
 
 
 @pytest.mark.parametrize(

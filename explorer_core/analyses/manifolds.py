@@ -43,12 +43,15 @@ from numba import njit
 
 from explorer_core import config, export
 from explorer_core.analyses.orbits import ORBIT_NUMERICS, Orbit, find_orbits
+from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
+from explorer_core.solve.checks import check_ints, check_optional_box, check_point, check_positive
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
+from explorer_core.solve.options import Arg, command_line, instance
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
@@ -200,6 +203,18 @@ class Manifolds(Drawable):
     @property
     def complete(self) -> bool:
         return self.completed and not self.lost
+
+    def report(self) -> list[str]:
+        """What the command line prints: the saddle, each branch, the crossings."""
+        o = self.orbit
+        out = [f"period {o.period} {o.kind} at ({o.points[0, 0]:.10g}, {o.points[0, 1]:.10g}), "
+               f"mu = {o.multipliers[0].real:.6g}, {o.multipliers[1].real:.6g}"]  # fmt: skip
+        for b in self.branches:
+            npts = sum(p.shape[0] for p in b.pieces)
+            out.append(f"  {b.kind:8s} {b.label}: length {b.length:.4g}, {npts} points, {len(b.pieces)} piece(s), "
+                       f"{b.end}" + (f", {b.escaped} escaped" if b.escaped else ""))  # fmt: skip
+        homoclinic = sum(c.kind == "homoclinic" for c in self.crossings)
+        return [*out, f"{len(self.crossings)} crossings ({homoclinic} homoclinic), {self.elapsed_s:.2f} s"]
 
     def summary(self) -> dict[str, Any]:
         return {
@@ -695,10 +710,107 @@ def iter_manifolds(
 
 
 def manifolds(
-    params: Params, orbit: Orbit, *, progress: Callable[[Manifolds], None] | None = None, **kw: Any
+    params: Params | ManifoldSpec,
+    orbit: Orbit | None = None,
+    *,
+    progress: Callable[[Manifolds], None] | None = None,
+    **kw: Any,
 ) -> Manifolds:
-    """The final result of :func:`iter_manifolds` (same arguments); ``progress`` gets each of its updates."""
+    """The final result of :func:`iter_manifolds` (same arguments; or a :class:`ManifoldSpec` alone, whose saddle
+    Newton finds first); ``progress`` gets each of its updates."""
+    if isinstance(params, ManifoldSpec):
+        if orbit is not None:
+            raise TypeError("a ManifoldSpec comes alone, not with an orbit")
+        spec = params
+        params, orbit = spec.params, saddle_orbit(spec.params, spec.point, spec.period)
+        kw = {"kinds": spec.kinds, "length": spec.length, "view": spec.view, "pixels": spec.pixels,
+              "delta_px": spec.delta_px, "numerics": spec.numerics, "max_points": spec.max_points, **kw}  # fmt: skip
     return run_updates(iter_manifolds(params, orbit, **kw), progress)
+
+
+@dataclass(frozen=True)
+class ManifoldSpec:
+    """What defines the manifolds of a saddle orbit (``bilimovich manifolds``), made by :func:`manifold_spec`:
+    the orbit (a point near it and its period: Newton finds it when the manifolds are grown), the branches, the
+    window they are refined for and the numerics."""
+
+    params: Params
+    point: tuple[float, float]
+    period: int = 1
+    kinds: tuple[str, ...] = KINDS
+    length: float = 10.0
+    view: tuple[float, float, float, float] | None = None
+    pixels: tuple[int, int] = PIXELS
+    delta_px: float = DELTA_PX
+    max_points: int = 200_000
+    numerics: Numerics = MANIFOLD_NUMERICS
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "point": list(self.point), "period": self.period,
+                "kinds": list(self.kinds), "length": self.length,
+                "view": None if self.view is None else list(self.view),
+                "pixels": list(self.pixels), "delta_px": self.delta_px, "max_points": self.max_points,
+                "numerics": self.numerics.as_dict()}  # fmt: skip
+
+
+@command_line(
+    point=Arg(
+        "a point near the saddle orbit (Newton finds it)",
+        "point",
+        flag="--orbit",
+        metavar="Q,R",
+        required=True,
+        positional=True,
+    ),
+    period=Arg("the orbit's period", "int", positional=True),
+    length=Arg("arc length of each branch"),
+    kinds=Arg("unstable, stable or both (default both)", "list", metavar="K[,K]"),
+    view=Arg("the plot window the curves are refined for (default: around the orbit)", "box", scene="view"),
+    pixels=Arg("the window's size in pixels", "ints", metavar="W,H"),
+    delta_px=Arg("longest segment in pixels", "float"),
+    max_points=Arg("points computed over all branches", "int"),
+    bound=Arg("", scene="bound", flag=""),
+)
+def manifold_spec(
+    params: Params,
+    point: Any,
+    period: int = 1,
+    *,
+    kinds: Sequence[str] = KINDS,
+    length: float = 10.0,
+    view: Sequence[float] | None = None,
+    pixels: Sequence[int] = PIXELS,
+    delta_px: float = DELTA_PX,
+    max_points: int = 200_000,
+    bound: float | None = None,
+    numerics: Numerics | None = None,
+) -> ManifoldSpec:
+    """A validated :class:`ManifoldSpec` (a bad value raises ParameterError naming it). ``numerics`` default:
+    :data:`MANIFOLD_NUMERICS` with the escape ``bound`` (a scene's)."""
+    with Checking() as at:
+        at("numerics")
+        if numerics is None:
+            numerics = MANIFOLD_NUMERICS if bound is None else replace(MANIFOLD_NUMERICS, bound=float(bound))
+        numerics = instance(Numerics)("numerics", numerics)
+        at("point")
+        q, r = check_point("orbit", point, numerics.bound)
+        at("period")
+        period = check_int("period", period, 1, 64)
+        at("kinds")
+        kinds = tuple(kinds)
+        if not kinds or any(k not in KINDS for k in kinds):
+            raise ParameterError(f"kinds must be unstable, stable or both (comma-separated), got {','.join(kinds)!r}")
+        at("length")
+        length = check_positive("length", length)
+        at("view")
+        view = check_optional_box(view, "view")
+        at("pixels")
+        pixels = check_ints("pixels", pixels, 2, 1, 100_000, "W,H")
+        at("delta_px")
+        delta_px = check_positive("delta_px", delta_px)
+        at("max_points")
+        max_points = check_int("max_points", max_points, 100, 10_000_000)
+    return ManifoldSpec(params, (q, r), period, kinds, length, view, pixels, delta_px, max_points, numerics)  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------------------
