@@ -215,8 +215,8 @@ def test_every_analysis_is_in_the_registry_and_its_entry_points_exist() -> None:
     import dataclasses
     import inspect
 
-    from explorer_core.registry import ANALYSES, by_command
     from explorer_core.cli import COMMANDS
+    from explorer_core.registry import ANALYSES, by_command
 
     for a in ANALYSES.values():
         assert callable(a.get("run")) and isinstance(a.get("result"), type)
@@ -244,8 +244,8 @@ def test_every_analysis_is_in_the_registry_and_its_entry_points_exist() -> None:
 def test_the_command_line_sets_nested_newton_options_from_their_declarations(command, preset) -> None:
     import argparse
 
-    from explorer_core.registry import by_command
     from explorer_core.cli import _nested, build_parser
+    from explorer_core.registry import by_command
 
     parser = build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[command]
@@ -288,3 +288,114 @@ def test_an_orbit_search_is_a_spec_the_command_line_only_builds() -> None:
     assert err.value.option == "seeds"
     res = orbit_search(orbit_spec(FIG8B, period=1, seeds=[(-0.04, -2.4)]))
     assert res.completed and len(res.orbits) == 1 and res.summary()["spec"]["newton"] == ORBITS.as_dict()
+
+
+#: Each generated command's own flags at c3075ef (before the command line was generated from the declarations):
+#: every one of them must still be there (issue 31: the same options as today plus the new ones).
+TODAYS_FLAGS = {
+    "lyapunov": ["--ensemble", "--history", "--ic", "--offset", "--periods", "--seed", "--transient"],
+    "bifurcation": [
+        "--ic",
+        "--n-values",
+        "--out",
+        "--param",
+        "--points",
+        "--range",
+        "--scheduler",
+        "--seeding",
+        "--sweeps",
+        "--transient",
+    ],
+    "orbits": [
+        "--box",
+        "--in-box",
+        "--max-period",
+        "--out",
+        "--period",
+        "--returns",
+        "--seed",
+        "--seeds",
+        "--thorough",
+    ],
+    "continue": [
+        "--ds",
+        "--ds-max",
+        "--ds-min",
+        "--from",
+        "--max-period",
+        "--max-points",
+        "--out",
+        "--param",
+        "--param2",
+        "--period",
+        "--range",
+        "--range2",
+        "--switch",
+    ],
+    "chart": [
+        "--coarse",
+        "--grid",
+        "--ic",
+        "--lyap-threshold",
+        "--out",
+        "--p-max",
+        "--periods",
+        "--refine",
+        "--scheduler",
+        "--tol",
+        "--transient",
+        "--x-param",
+        "--x-range",
+        "--y-param",
+        "--y-range",
+    ],
+    "basins": ["--box", "--cell-box", "--cells", "--grid", "--max-periods", "--out"],
+    "fit": ["--box", "--criterion", "--degree", "--ic", "--members", "--out", "--seed", "--window"],
+    "body": ["--ic", "--k0", "--out", "--periods", "--samples"],
+    "symmetry": ["--box", "--centre", "--ic", "--periods", "--random", "--seed", "--tol"],
+    "manifolds": [
+        "--delta-px",
+        "--kinds",
+        "--length",
+        "--max-points",
+        "--orbit",
+        "--out",
+        "--period",
+        "--pixels",
+        "--view",
+    ],
+}
+
+
+@pytest.mark.parametrize("command", sorted(TODAYS_FLAGS))
+def test_a_generated_command_has_no_body_and_keeps_todays_flags(command) -> None:
+    import argparse
+
+    from explorer_core.cli import COMMANDS, build_parser, cmd_analysis
+
+    assert COMMANDS[command].run is cmd_analysis  # no cmd_X body: builder -> runner -> write -> report
+    parser = build_parser(command)
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[command]
+    flags = {s for a in sub._actions for s in a.option_strings}
+    assert set(TODAYS_FLAGS[command]) <= flags, set(TODAYS_FLAGS[command]) - flags
+    # building the parser for another command loads none of this one's analysis
+    other = build_parser("scenes")
+    sub = next(a for a in other._actions if isinstance(a, argparse._SubParsersAction)).choices[command]
+    assert "--newton-ftol" not in {s for a in sub._actions for s in a.option_strings} or command in (
+        "chart",
+        "basins",
+        "bifurcation",
+        "orbits",
+    )
+
+
+def test_generated_commands_write_one_record_per_file_under_out(tmp_path) -> None:
+    from tests.clirun import run_cli
+
+    out = tmp_path / "o.csv"
+    args = ["orbits", "--scene", "fig8B", "--seed", "-0.04,-2.4", "--period", "1", "--out", str(out), "--json"]
+    code, stdout, err = run_cli(*args)
+    assert code == 0, err
+    d = json.loads(stdout)
+    assert d["out"] == [{"path": str(out), "rows": 1}] and "csv" not in d
+    assert np.genfromtxt(out, delimiter=",", names=True)["period"].tolist() == 1
