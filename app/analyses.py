@@ -30,7 +30,7 @@ from app.views import BACKEND
 from explorer_core.analyses.bifurcation import DIAGRAM_PLOT_BOUND, DIAGRAM_PLOT_RTOL, bifurcation_diagram
 from explorer_core.analyses.continuation import chart_boundaries, continue_from_seeds
 from explorer_core.analyses.lyapunov import lyapunov_spec, lyapunov_spectrum
-from explorer_core.analyses.regimes import REGIMES, chart_spec, iter_chart
+from explorer_core.analyses.regimes import REGIMES, chart_numerics, chart_spec, iter_chart
 from explorer_core.analyses.sweeps import sweep_values
 from explorer_core.parallel.cluster import SchedulerError, executor_for, scheduler_from_env
 from explorer_core.status import Status, describe
@@ -83,6 +83,8 @@ class AnalysisTab:
 
     channel = "analysis"
     help = ""
+    #: The numerics the last run used and why (the core's rule for the page's Method and Accuracy), said on screen.
+    ran_with = ""
 
     def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
         self.session = session
@@ -427,8 +429,9 @@ class ChartTab(AnalysisTab):
             params = st.system()
             nx, ny = st.chart_grid
             periods = st.chart_periods
+            numerics, self.ran_with = st.numerics_for(chart_numerics())
             spec = chart_spec(params, st.chart_x, st.chart_xrange, st.chart_y, st.chart_yrange, (nx, ny),
-                              ics=st.analysis_ics()[:1], transient=st.chart_transient,
+                              ics=st.analysis_ics()[:1], transient=st.chart_transient, numerics=numerics,
                               periods=periods, p_max=max(1, min(16, (periods - 1) // 2)))  # fmt: skip
             scheduler = scheduler_from_env()  # BILIMOVICH_SCHEDULER: tiles run on a Dask cluster
         except (ParameterError, SchedulerError, ValueError) as exc:
@@ -503,6 +506,7 @@ class ChartTab(AnalysisTab):
             if classified and inferred:
                 result.append(f"{inferred} of {chart.inferred.size} pixels filled from a uniform neighbourhood "
                               "(refinement: only where neighbours differ are finer pixels computed)")  # fmt: skip
+            result.append(f"numerics: {self.ran_with}")
         self.set_view(download=True, result=result)
         self.set_progress(done, total, f"{done}/{total} tiles" + ("" if not final or chart.completed else " (stopped)"))
 

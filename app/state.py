@@ -264,8 +264,10 @@ CONTROLS: tuple[Control, ...] = (
             ("rk4", "RK4, fixed steps"),
         ),
         help="Verner 9(8) takes fewer steps than DOP853 at high accuracy; auto picks the one measured fastest at the "
-        "tolerance in use (README, performance).",
-        default="dop853",
+        "tolerance in use (README, performance), for every computation of the page.",
+        # auto, as the command line: the page's method reaches every computation (the Lyapunov spectrum at 1e-10,
+        # the orbit diagram at 1e-9 run vern9, the sections at plot tolerances DOP853).
+        default="auto",
     ),
     Control(
         "accuracy",

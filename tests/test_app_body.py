@@ -310,7 +310,7 @@ def test_a_series_that_ends_early_says_what_it_lost() -> None:
     back = decode_series(payload)
     assert back["frames"] == series.t.size < PERIODS * SAMPLES + 1 and back["complete"] is False
     assert back["lost"] == [loss.as_dict() for loss in series.lost] and back["status"] == "escaped"
-    inputs = BodyInputs(params, 0, 0, 0.0, 8.0, PERIODS, 9.0)
+    inputs = BodyInputs(params, 0, 0, 0.0, 8.0, PERIODS, Numerics(method="dop853", rtol=1e-10, atol=1e-10, bound=9.0))
     text = BodyView.describe(series, inputs, payload, 0.01)
     assert text.startswith("the series ends early (escaped, at k = ") and series.lost[0].why in text
 

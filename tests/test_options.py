@@ -196,17 +196,15 @@ def test_the_lyapunov_tab_measures_what_the_command_lines_ensemble_measures(monk
     st.param.update(lyap_ic=(-0.5, -1.0), lyap_transient=20, lyap_periods=30, lyap_ensemble=3)
     tab.figure()
     tab.run()
-    # The page's Method (the scene's: DOP853, 200 fixed steps) at the spectrum's own tolerance under "plot":
-    # `bilimovich lyapunov --scene fig8B --ic -0.5,-1 --transient 20 --periods 30 --ensemble 3 --method dop853
-    #  --steps-per-period 200`
-    assert (st.method, st.accuracy, st.steps_per_period) == ("dop853", "plot", 200)
-    cli = lyapunov_spec(FIG8B, [(-0.5, -1.0)], 30, transient=20, ensemble=3,
-                        numerics=Numerics(method="dop853", steps_per_period=200))  # fmt: skip
+    # The page's Method (auto) at the spectrum's own tolerance under "plot":
+    # `bilimovich lyapunov --scene fig8B --ic -0.5,-1 --transient 20 --periods 30 --ensemble 3 --steps-per-period 200`
+    assert (st.method, st.accuracy, st.steps_per_period) == ("auto", "plot", 200)
+    cli = lyapunov_spec(FIG8B, [(-0.5, -1.0)], 30, transient=20, ensemble=3, numerics=Numerics(steps_per_period=200))
     assert seen == [cli]
-    assert "numerics: dop853 at rtol 1e-10 (Accuracy plot: this computation's own tolerance" in "\n".join(
-        tab.view["result"]
-    )
+    text = "\n".join(tab.view["result"])
+    assert "numerics: vern9 at rtol 1e-10 (Accuracy plot: this computation's own tolerance" in text
     st.accuracy = "high"
+    st.method = "dop853"
     tab.run()
     assert seen[-1].numerics == Numerics(method="dop853", rtol=1e-12, atol=1e-12, steps_per_period=200)
 
