@@ -960,6 +960,10 @@ _FLAG_HELP = {
 }
 
 
+#: ``build_parser(EVERY)``: every analysis command's flags (loads every analysis: for tests and docs).
+EVERY = "*"
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The parser; ``command``'s analysis flags (from its builder's declarations) are added when it is the command
     being run or asked for help: building the parser for another command, or for ``--help``, loads no analysis."""
@@ -975,7 +979,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
             _add_numerics_args(p)
         if c.arguments is not None:
             c.arguments(p)
-        if c.analysis and name == command:
+        if c.analysis and command in (name, EVERY):
             from explorer_core.registry import by_command
 
             a = by_command(name)

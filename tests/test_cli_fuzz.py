@@ -157,7 +157,7 @@ CORE_FAULTS: dict[str, list[str]] = {}
 def _mutants(rng: random.Random) -> dict[str, list[str]]:
     """For each command, MUTANTS_PER_COMMAND copies of its valid run with one option set to a hostile value
     (the command's own options twice as often as the shared system and numerics flags)."""
-    parser = cli.build_parser()
+    parser = cli.build_parser(cli.EVERY)
     subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
     shared = {"-h", "--help", *(o for a in subs["section"]._action_groups if a.title and a.title.startswith((
         "system", "numerics")) for act in a._group_actions for o in act.option_strings)}  # fmt: skip
@@ -349,7 +349,7 @@ def _parse(argv: list[str], monkeypatch: pytest.MonkeyPatch) -> tuple[str, objec
     err = io.StringIO()
     with monkeypatch.context() as m, contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         m.setattr(argparse.ArgumentParser, "parse_args", stop_after_parsing)
-        m.setattr(cli, "build_parser", lambda: PARSER)  # built once: a parser is reusable
+        m.setattr(cli, "build_parser", lambda *a: PARSER)  # built once: a parser is reusable
         try:
             cli.main(argv)
         except _Parsed as parsed:
@@ -361,7 +361,7 @@ def _parse(argv: list[str], monkeypatch: pytest.MonkeyPatch) -> tuple[str, objec
 
 def _value_options() -> list[tuple[str, str, argparse.Action, list[str]]]:
     """Every (command, option, action, filler) for options taking one value; filler: the other required args."""
-    parser = cli.build_parser()
+    parser = cli.build_parser(cli.EVERY)
     subs = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
     out = []
     for cmd, sub in subs.items():
@@ -380,7 +380,7 @@ def _value_options() -> list[tuple[str, str, argparse.Action, list[str]]]:
     return out
 
 
-PARSER = cli.build_parser()
+PARSER = cli.build_parser(cli.EVERY)
 VALUE_OPTIONS = _value_options()
 COMMANDS = sorted({c for c, _, _, _ in VALUE_OPTIONS})
 NEGATIVE = ["-1", "-0.0959,-1.962", "-inf", "-x"]
