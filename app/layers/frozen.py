@@ -14,6 +14,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from app.controls import Control, UrlKey, choice
 from app.layers.base import KEEP, Layer
 from app.runner import LAYER
 from explorer_core.analyses.equilibria import equilibrium_tracks
@@ -30,6 +31,10 @@ FRAME_TRACK_SAMPLES = 60
 FRAME_TRACK_REFINE = 30
 TPRIME_GRID = 160
 PER_PERIOD_GRID = 80
+#: The T′ map's URL key: one value for both its controls.
+_TPRIME = {"inst": {"show_tprime": True, "tprime_kind": "instantaneous"},
+           "period": {"show_tprime": True, "tprime_kind": "per-period"}, "off": {"show_tprime": False}}  # fmt: skip
+_TPRIME_KEY = {"instantaneous": "inst", "per-period": "period"}
 
 
 class _Frozen(Layer):
@@ -51,6 +56,11 @@ class TracksLayer(_Frozen):
     name = "tracks"
     channels: ClassVar[dict[str, str]] = {"tracks": LAYER}
     fields = ("show_tracks",)
+    controls = (
+        Control("show_tracks", "Frozen-field equilibria (tracks over one period)", "check", "layers", "tracks",
+                help="Equilibria of the field with t frozen: a heuristic for slow forcing, not orbits of P.",
+                default=True),
+    )  # fmt: skip
 
     def inputs(self) -> tuple[Params, int, int | None] | object | None:
         """``(params, samples, bisections)``: a frame's (fewer) or a still's (the default refinement)."""
@@ -93,6 +103,15 @@ class TPrimeLayer(_Frozen):
     name = "tprime"
     channels: ClassVar[dict[str, str]] = {"tprime": LAYER}
     fields = ("show_tprime", "tprime_kind")
+    controls = (
+        Control("show_tprime", "T′ map under the points", "check", "layers", default=True),
+        Control("tprime_kind", "T′ map", "radio", "layers", None,
+                options=(("instantaneous", "at t0"), ("per-period", "over a period")), default="instantaneous"),
+    )  # fmt: skip
+    urls = (
+        UrlKey("tprime", ("show_tprime", "tprime_kind"),
+               lambda s: _TPRIME_KEY[s.tprime_kind] if s.show_tprime else "off", choice(_TPRIME), words="T′ map"),
+    )  # fmt: skip
 
     def inputs(self) -> TPrimeInputs | object | None:
         params = self.system_params()
@@ -125,6 +144,17 @@ class TPrimeLayer(_Frozen):
     def clear(self) -> None:
         self.params = None
         self.host.fig.set_tprime(None, np.zeros(0), np.zeros(0), "")
+
+    def view(self) -> dict[str, Any]:
+        return {"colour_note": colour_note(self.host.fig.tprime_hidden_by)}
+
+
+def colour_note(hidden_by: str) -> str:
+    """Why the T' map is not drawn although it is on (its colours would tint those of the layer over it)."""
+    if not hidden_by:
+        return ""
+    verb = "are" if hidden_by == "the basins" else "is"
+    return f"The T′ map is hidden while {hidden_by} {verb} shown (its colours would mix with theirs)."
 
 
 def segments_by_type(branches: Any) -> list[tuple[np.ndarray, np.ndarray, str]]:
