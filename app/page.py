@@ -12,13 +12,14 @@ is first opened.
 The section tab's view is the page's own (errors, the scene, the tour, the played parameter, the body) and each
 layer's (:meth:`app.layers.base.Layer.view`); the page's actions and downloads that no tab answers go to the
 layers (:meth:`app.controller.ExplorerSession.act`, :meth:`~app.controller.ExplorerSession.csv`). The page names
-no layer.
+no layer. The view is rebuilt once per message from the page (:meth:`Page._one_view`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Executor
 from typing import Any
 
@@ -86,6 +87,9 @@ class Page:
         self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
         self.tabs: dict[str, AnalysisTab] = {}
         self.messages: dict[str, str] = {}
+        #: While a message from the page is handled (else None): whether the view is to be rebuilt at its end, and
+        #: whether even while a played frame is computed (``force``).
+        self._view_due: dict[str, bool] | None = None
         self.player = Player(self.session, schedule or _timer(deliver), on_change=lambda: self._refresh_views(),
                              wait_for_browser=wait_for_browser)  # fmt: skip
         #: The tours on offer: the paper's, and a teacher's own (tour_url= or an uploaded file) over them.
@@ -136,7 +140,12 @@ class Page:
     # --- messages from the page -------------------------------------------------------------
 
     def handle(self, msg: dict[str, Any]) -> None:
-        """One checked message (:func:`app.ui.check_message`), on the document's thread."""
+        """One checked message (:func:`app.ui.check_message`), on the document's thread: the view is rebuilt once
+        for it."""
+        with self._one_view():
+            self._handle(msg)
+
+    def _handle(self, msg: dict[str, Any]) -> None:
         if "commit" in msg:
             self.commit(msg["commit"], msg["text"])
             return
@@ -183,7 +192,12 @@ class Page:
             self.session.act(action)  # a layer's button (e.g. "Find orbits in view"), if a layer has it
 
     def commit(self, name: str, text: Any) -> str | None:
-        """A typed value: applied, or refused with a message next to the control and in the main area."""
+        """A typed value: applied, or refused with a message next to the control and in the main area. The view is
+        rebuilt once for it (a slider's move redoes the section and its layers: each says it computes)."""
+        with self._one_view():
+            return self._commit(name, text)
+
+    def _commit(self, name: str, text: Any) -> str | None:
         problem = self.session.commit(name, text)
         if problem:
             self.messages[name] = problem
@@ -263,10 +277,11 @@ class Page:
         if event.x is None or event.y is None:
             return
         mode = self.state.click_mode
-        if mode == "add":
-            self.session.add_initial_condition(event.x, event.y)
-        elif not self.session.act(mode, event.x, event.y):  # a layer's mode (e.g. "finds a periodic orbit")
-            self.session.select_nearest(event.x, event.y)
+        with self._one_view():
+            if mode == "add":
+                self.session.add_initial_condition(event.x, event.y)
+            elif not self.session.act(mode, event.x, event.y):  # a layer's mode (e.g. "finds a periodic orbit")
+                self.session.select_nearest(event.x, event.y)
 
     def _on_ranges(self, event: RangesUpdate) -> None:
         if None not in (event.x0, event.x1, event.y0, event.y1):
@@ -388,7 +403,25 @@ class Page:
         """The URL's errors about the settings of ``tab`` ("section": every one not about an analysis tab)."""
         return [e for e in self.url_errors if _url_tab(e) == tab]
 
+    @contextlib.contextmanager
+    def _one_view(self) -> Iterator[None]:
+        """The view rebuilt once, at the end, for everything done meanwhile (a message from the page: a slider's
+        move restarts the section and its layers, and each says so)."""
+        if self._view_due is not None:  # within another: that one rebuilds
+            yield
+            return
+        self._view_due = {}
+        try:
+            yield
+        finally:
+            due, self._view_due = self._view_due, None
+            if due:
+                self._refresh_views(force=due["force"])
+
     def _refresh_views(self, force: bool = False) -> None:
+        if self._view_due is not None:  # rebuilt once the message is handled
+            self._view_due["force"] = self._view_due.get("force", False) or force
+            return
         if not force and self.player.computing():
             # A played frame on its way: its words go out once, with the frame (Player calls this when it is
             # computed), not a dozen times as its jobs start and end (each a message the page lays out).

@@ -493,6 +493,8 @@ class ExplorerState(param.Parameterized):
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
+        #: The last system built (:meth:`system`) and the values it was built from.
+        self._system: tuple[tuple[Any, ...], Params] | None = None
         if "scene" in params or not params:
             self.apply_scene(self.scene)
 
@@ -533,12 +535,24 @@ class ExplorerState(param.Parameterized):
     # --- requests ---------------------------------------------------------------------
 
     def system(self, **changes: float) -> Params:
-        """The validated system (with ``changes``); raises ParameterError naming the bad value."""
+        """The validated system (with ``changes``); raises ParameterError naming the bad value.
+
+        Built once per set of values: the last one built is given again while the system's controls hold the values
+        it was built from (every layer, the section and the page's checks ask for it after a move), and a new value
+        of a system control builds a new one. A commit checks a value with ``changes`` and then sets it: the system
+        checked is the one used.
+        """
         v = {f: changes.get(f, getattr(self, f)) for f in SYSTEM_FIELDS}
-        return Params(
+        # -0.0 == 0.0, but the sign of a zero reaches the numbers: the key tells them apart
+        key = tuple((x, math.copysign(1.0, x)) if isinstance(x, float) else x for x in v.values())
+        if self._system is not None and self._system[0] == key:
+            return self._system[1]
+        params = Params(
             inertia=tuple(v[n] for n in INERTIA_NAMES), alpha=v["alpha"], g0=v["g0"], g1=v["g1"], g2=v["g2"],
             omega=v["omega"], t0=v["t0"],
         )  # fmt: skip
+        self._system = (key, params)
+        return params
 
     def pixel_size(self) -> float:
         return min(self.q_range[1] - self.q_range[0], self.r_range[1] - self.r_range[0]) / PLOT_PIXELS[0]

@@ -7,10 +7,13 @@ size is one constant; a slider's move builds one system and rebuilds the page's 
 from __future__ import annotations
 
 import inspect
+import math
+import sys
 from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
 import pytest
+from jobs import Jobs
 
 import app.controller
 import app.page
@@ -33,7 +36,7 @@ from app.state import (
     state_from_query,
 )
 from explorer_core import export
-from explorer_core.system.params import ParameterError
+from explorer_core.system.params import ParameterError, Params
 
 ALL = (SectionLayer, *LAYERS)
 
@@ -324,3 +327,38 @@ def test_the_initial_page_has_no_more_bokeh_models_than_before_the_layers() -> N
     page = Page({}, lambda fn: fn(), executor=InlineExecutor())
     doc.add_root(page.ui.get_root(doc))
     assert len(list(doc.models)) <= 73
+
+
+# --- one system and one view per move of a slider ------------------------------------------------------------
+
+
+def test_a_slider_move_builds_one_system_and_rebuilds_the_view_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fails on the old code (c3075ef): a move of α rebuilt the page's view 4 times before its jobs ran (11 times with
+    their results) and the app built ``Params`` 4 times (7 with its jobs; the core builds one more, for the
+    coefficient tables of a new α, which is not the app's)."""
+    jobs = Jobs()
+    page = Page({}, lambda fn: fn(), executor=jobs)
+    page.start()
+    jobs.drain()
+    counts = {"views": 0, "params": 0}
+    section_view, init = Page._section_view, Params.__init__
+
+    def counted_view(self: Page) -> dict[str, Any]:
+        counts["views"] += 1
+        return section_view(self)
+
+    def counted_init(self: Params, *args: Any, **kwargs: Any) -> None:
+        if sys._getframe(1).f_globals.get("__name__", "").startswith("app."):  # built by the app
+            counts["params"] += 1
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(Page, "_section_view", counted_view)
+    monkeypatch.setattr(Params, "__init__", counted_init)
+    assert page.handle({"commit": "alpha", "text": "0.105"}) is None  # a slider released at a new value
+    assert counts == {"views": 1, "params": 1}
+    view = page.ui.view["section"]
+    assert view["running"] and "computing" in view["status"]  # the one view is the move's: its jobs are on their way
+    jobs.drain()  # the section, its reliability check and the layers: each result shown as it comes
+    assert counts["params"] == 1  # every job, check and layer used the system the commit built
+    assert page.state.system() is page.state.system() and page.state.system().alpha == 0.105
+    assert page.commit("alpha", "-0.0") is None and math.copysign(1.0, page.state.system().alpha) == -1.0
