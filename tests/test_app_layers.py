@@ -362,3 +362,21 @@ def test_a_slider_move_builds_one_system_and_rebuilds_the_view_once(monkeypatch:
     assert counts["params"] == 1  # every job, check and layer used the system the commit built
     assert page.state.system() is page.state.system() and page.state.system().alpha == 0.105
     assert page.commit("alpha", "-0.0") is None and math.copysign(1.0, page.state.system().alpha) == -1.0
+
+
+def test_the_tracks_are_a_layer_of_their_own_module_with_todays_url_and_checkbox() -> None:
+    """The equilibrium tracks, split out of app/layers/frozen.py with no edit outside app/layers/: the same checkbox,
+    the same URL key (``tracks=0|1``, written as before), drawn and cleared as before."""
+    from app.layers.tracks import TracksLayer
+
+    assert TracksLayer in LAYERS and TracksLayer.__module__ == "app.layers.tracks"
+    assert BY_NAME["show_tracks"] is TracksLayer.controls[0] and URL_OF["show_tracks"] == "tracks"
+    st, errors = state_from_query({"tracks": "0"})
+    assert not errors and st.show_tracks is False and st.to_query()["tracks"] == "0"
+    st, errors = state_from_query({})
+    assert not errors and st.show_tracks is True and st.to_query()["tracks"] == "1"
+    s = session()
+    s.recompute()
+    assert s.fig.tracks.data["xs"] and list(s.fig.equilibria.data["q"])
+    assert s.commit("show_tracks", "false") is None
+    assert s.fig.tracks.data["xs"] == [] and list(s.fig.equilibria.data["q"]) == []

@@ -388,7 +388,7 @@ def test_a_bad_range_is_refused_naming_the_value() -> None:
 def test_a_frame_draws_the_tracks_with_fewer_samples_and_the_same_equilibria_at_t0() -> None:
     """A frame's tracks take FRAME_TRACK_SAMPLES samples over the period (a still: TRACK_SAMPLES); the
     equilibria at t0 (the diamonds) do not depend on how many: the same points as the still's."""
-    from app.layers.frozen import FRAME_TRACK_SAMPLES, TRACK_SAMPLES
+    from app.layers.tracks import FRAME_TRACK_SAMPLES, TRACK_SAMPLES
 
     page, jobs, clock = page_for({"tracks": "1", "alpha": str(VALUES[0])})
     still = {k: list(v) for k, v in page.fig.equilibria.data.items()}
