@@ -4,7 +4,9 @@
 section plot (:mod:`app.layers`): the section itself, then each phase-plane layer. It decides which run and
 when (a layer's own settings, the section's settings, the view), cancels what a change makes stale, starts
 jobs on a :class:`~app.runner.Runner` and applies their results on the document thread. What a layer computes,
-draws and says is the layer's. Invalid input shows a message and leaves the last valid picture in place.
+draws and says is the layer's, and so are the session's fields it publishes (created from the layers'
+declarations), the page's actions it answers and its CSV download: the session names no layer but the section.
+Invalid input shows a message and leaves the last valid picture in place.
 
 What the page shows as running ("computing", Stop enabled) is derived from the runner's busy
 state (:meth:`~app.runner.Runner.busy`), never set by hand, so it ends with the work however
@@ -15,7 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import io
+import functools
 import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
@@ -24,7 +26,7 @@ import numpy as np
 import param
 
 from app.layers import KEEP, LAYERS, Layer
-from app.layers.base import plain
+from app.layers.base import Action, plain
 from app.layers.section import SectionLayer
 from app.runner import Emit, Runner
 from app.state import _ORDER, BY_NAME, CONTROLS, MAX_CLICKED, SYSTEM_FIELDS, TABS, ExplorerState, SectionRequest, commit
@@ -38,29 +40,45 @@ BODY_FIELDS = tuple(c.name for c in CONTROLS if c.area == "bodyview")
 _UNSET = object()
 
 
-class ExplorerSession(param.Parameterized):
-    """Controller of one session. ``status`` and ``error`` are plain text for the page; the other fields are
-    what the layers publish (:meth:`app.layers.base.Layer.published`)."""
+def _field(default: Any) -> param.Parameter:
+    """The session's field for a value a layer publishes (its type from the value it starts with)."""
+    if isinstance(default, bool):
+        return param.Boolean(default=default)
+    if isinstance(default, int):
+        return param.Integer(default=default)
+    if isinstance(default, str):
+        return param.String(default=default)
+    if isinstance(default, list):
+        return param.List(default=default)
+    return param.Parameter(default=default)
 
-    status = param.String(default="")
+
+@functools.cache
+def _with_fields(base: type, layers: tuple[type[Layer], ...]) -> type:
+    """``base`` with one watched field per value the ``layers`` publish (:attr:`app.layers.base.Layer.publishes`);
+    two layers, or a layer and the session, publishing one name is refused."""
+    owner: dict[str, str] = {}
+    for cls in layers:
+        for name in cls.publishes:
+            if name in owner or name in base.param:
+                raise ValueError(f"layer {cls.name!r} publishes {name!r}, which is {owner.get(name, 'the session')}'s")
+            owner[name] = repr(cls.name)
+    fields = {name: _field(default) for cls in layers for name, default in cls.publishes.items()}
+    return type(base)(base.__name__, (base,), {"__module__": base.__module__, "__doc__": base.__doc__, **fields})
+
+
+class ExplorerSession(param.Parameterized):
+    """Controller of one session. ``error`` is plain text for the page and ``running`` says whether Stop applies;
+    the other fields are what the layers publish (:attr:`app.layers.base.Layer.publishes`): each session is of a
+    subclass with the fields of its layers (the section's ``status``, ``n_points``, ...), made once per set of
+    layers."""
+
     error = param.String(default="")
     #: Something of the section view runs (the section, a clicked trajectory, a layer): Stop applies.
     running = param.Boolean(default=False)
-    escaped = param.List(default=[])
-    failed = param.List(default=[])
-    #: Reliability warnings (explorer_core.reliability) as dicts: level, code, message.
-    reliability = param.List(default=[])
-    #: Section points on screen (the CSV download is offered only then).
-    n_points = param.Integer(default=0)
-    #: Periodic orbits on screen, as table rows (:func:`app.layers.orbits.orbit_row`), and what the last search said.
-    orbits = param.List(default=[])
-    orbit_status = param.String(default="")
-    #: Saddles whose manifolds are on screen, and what the last growth said.
-    n_manifolds = param.Integer(default=0)
-    manifold_status = param.String(default="")
-    #: The basins layer: what it says, and its legend rows (colour, text).
-    basin_status = param.String(default="")
-    basin_legend = param.List(default=[])
+
+    def __new__(cls, *args: Any, layers: Sequence[type[Layer]] = LAYERS, **kwargs: Any) -> ExplorerSession:
+        return super().__new__(_with_fields(cls, (SectionLayer, *layers)))
 
     def __init__(
         self,
@@ -68,6 +86,7 @@ class ExplorerSession(param.Parameterized):
         runner: Runner,
         section_fig: SectionFigure | None = None,
         series: SeriesData | None = None,
+        *,
         on_query: Callable[[dict[str, str]], None] | None = None,
         layers: Sequence[type[Layer]] = LAYERS,
     ) -> None:
@@ -84,11 +103,20 @@ class ExplorerSession(param.Parameterized):
         for cls in layers:
             layer = cls(self)
             self.layers[layer.name] = layer
-        every = (self.section, *self.layers.values())
+        #: The section and the phase-plane layers: everything of the section view.
+        self.every: tuple[Layer, ...] = (self.section, *self.layers.values())
         #: What Stop stops in the section view, and what makes it "running": every layer's channels.
-        self.channels: tuple[str, ...] = tuple(c for layer in every for c in layer.channels)
-        for layer in every:
+        self.channels: tuple[str, ...] = tuple(c for layer in self.every for c in layer.channels)
+        for layer in self.every:
             runner.declare(layer.channels)
+        #: The page's actions the layers answer: buttons and modes of "Click in the plot", by name.
+        self.actions: dict[str, tuple[Layer, Action]] = {}
+        for layer in self.every:
+            for action in layer.actions:
+                if action.name in self.actions:
+                    raise ValueError(f"layers {self.actions[action.name][0].name!r} and {layer.name!r} both answer "
+                                     f"the page's action {action.name!r}")  # fmt: skip
+                self.actions[action.name] = (layer, action)
         #: The inputs of each deduplicating layer's last job (see refresh).
         self._inputs: dict[str, Any] = {}
         #: While a parameter is played (app/play.py): periods per trajectory of a frame (None: the state's),
@@ -131,11 +159,6 @@ class ExplorerSession(param.Parameterized):
             return msg
         return commit(self.state, name, text)
 
-    @property
-    def density_shown(self) -> bool:
-        """The section on screen is a density image (not points)."""
-        return self.section.density.counts is not None
-
     def on_busy(self, channel: str) -> None:
         """A channel started or stopped (document thread): the section view runs while any of its channels do."""
         if channel in self.channels:
@@ -170,13 +193,14 @@ class ExplorerSession(param.Parameterized):
             self.runner.cancel(channel)
         if inputs is None:
             if from_job:  # the section's job starts the layers that follow it: figures change on the document thread
-                self.runner.ui(lambda: self._clear(layer))
+                self.runner.ui(lambda: self.clear(layer))
             else:
-                self._clear(layer)
+                self.clear(layer)
         elif inputs is not KEEP:
             self.run(layer, inputs, from_job=from_job)
 
-    def _clear(self, layer: Layer) -> None:
+    def clear(self, layer: Layer) -> None:
+        """Nothing of ``layer`` on screen, and its fields say so."""
         layer.clear()
         self.publish(layer)
 
@@ -207,10 +231,11 @@ class ExplorerSession(param.Parameterized):
             self.publish(layer)
 
     def publish(self, layer: Layer) -> None:
-        """A layer's text and counts to the session's fields the page shows (only those that changed)."""
-        for name, value in layer.published().items():
-            if getattr(self, name) != value:
-                setattr(self, name, value)
+        """A layer's text and counts to the session's fields the page shows: those that changed, in one update
+        (the page's view is rebuilt once for them)."""
+        changed = {name: value for name, value in layer.published().items() if getattr(self, name) != value}
+        if changed:
+            self.param.update(**changed)
 
     def _watcher(self, layer: Layer) -> Callable[..., None]:
         """A watcher of a layer's own settings: redo the layer and publish the URL (not during a scene)."""
@@ -229,7 +254,8 @@ class ExplorerSession(param.Parameterized):
                 self.refresh(layer, from_job=from_job)
 
     @contextlib.contextmanager
-    def _suspended(self) -> Iterator[None]:
+    def suspended(self) -> Iterator[None]:
+        """State changes made meanwhile redo no layer and publish no URL (the caller does what they need)."""
         self._suspend = True
         try:
             yield
@@ -264,7 +290,7 @@ class ExplorerSession(param.Parameterized):
 
     def apply_scene(self, scene_id: str) -> None:
         """Set every control from a scene and recompute once."""
-        with self._suspended():
+        with self.suspended():
             self.state.apply_scene(scene_id)
         self._set_view()
         self.recompute()
@@ -273,7 +299,7 @@ class ExplorerSession(param.Parameterized):
     def apply_settings(self, scene_id: str, updates: dict[str, Any], **fields: Any) -> None:
         """A scene, then values from a link (checked as a URL's are: a refused one keeps the scene's), then
         ``fields`` (e.g. the tour's step); everything recomputed once."""
-        with self._suspended():
+        with self.suspended():
             self.state.apply_scene(scene_id)
             changed = False
             for name in sorted(updates, key=lambda n: _ORDER.index(n) if n in _ORDER else len(_ORDER)):
@@ -294,7 +320,7 @@ class ExplorerSession(param.Parameterized):
 
     def set_view_from_plot(self, q_range: tuple[float, float], r_range: tuple[float, float]) -> None:
         """The user panned/zoomed: remember the window (URL) and redo what depends on the view."""
-        with self._suspended():
+        with self.suspended():
             self.state.param.update(q_range=tuple(q_range), r_range=tuple(r_range))
         if self.state.density_view():
             self._restart_section()  # the image, its tolerance and its seeds are those of the view
@@ -355,7 +381,7 @@ class ExplorerSession(param.Parameterized):
         for channel in self.channels:
             self.runner.cancel(channel)
         now = self.state.to_query()
-        for layer in (self.section, *self.layers.values()):
+        for layer in self.every:
             layer.stopped(bool(busy & set(layer.channels)), now)
             self.publish(layer)
 
@@ -405,53 +431,32 @@ class ExplorerSession(param.Parameterized):
         if self.state.clicked:
             self.state.param.update(clicked=[], selected=0)
 
-    def find_orbit_at(self, q: float, r: float) -> None:
-        """Newton from a click, for every period up to the setting; drawn as soon as found (one job)."""
-        if self.layers["orbits"].find_at(q, r):  # type: ignore[attr-defined]
-            self._publish_query()
+    # --- the layers' actions and downloads ------------------------------------------------------------
 
-    def find_orbits_in_view(self) -> None:
-        """Also search from a grid of seeds over the plot window (kept in the URL; redone on a new view)."""
-        if self.state.orbit_view and self.state.show_orbits:
-            return
-        with self._suspended():
-            self.state.param.update(orbit_view=True, show_orbits=True)
-        self.refresh(self.layers["orbits"])
-        self._publish_query()
+    def act(self, name: str, *where: float) -> bool:
+        """The page's action ``name`` (:class:`app.layers.base.Action`): a button's, or a click in the plot in the
+        mode ``name`` with its ``q, r``, run by the layer that declares it. False when no layer answers it."""
+        found = self.actions.get(name)
+        if found is None or found[1].click != bool(where):
+            return False
+        layer, action = found
+        getattr(layer, action.method)(*where)
+        self._publish_query()  # seeds, picks or modes the action changed
+        return True
 
-    def clear_orbits(self) -> None:
-        layer = self.layers["orbits"]
-        for channel in layer.channels:
-            self.runner.cancel(channel)
-        self.state.param.update(orbit_seeds=[], orbit_view=False)
-        self._clear(layer)
-        self._publish_query()
-
-    def manifolds_at(self, q: float, r: float) -> None:
-        """A click in "manifolds" mode: the saddle of the orbits layer nearest the click (drawn, or removed)."""
-        self.layers["manifolds"].pick(q, r, self.layers["orbits"].orbits)  # type: ignore[attr-defined]
-
-    def clear_manifolds(self) -> None:
-        layer = self.layers["manifolds"]
-        for channel in layer.channels:
-            self.runner.cancel(channel)
-        self.state.manifold_saddles = []  # the watcher redoes the layer: off
-        self._clear(layer)  # also its message when none was drawn
+    def csv(self, what: str) -> bytes | None:
+        """The CSV download ``what`` of the layer that offers it (:attr:`app.layers.base.Layer.download`), or None
+        when no layer offers it or nothing of it is on screen."""
+        for layer in self.every:
+            if layer.download and layer.download == what:
+                return layer.csv()
+        return None
 
     # --- data out ------------------------------------------------------------------------------
 
     def data(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """All section points on screen as ``(traj, k, q, r)``."""
         return self.section.data()
-
-    def csv_bytes(self) -> io.BytesIO:
-        return self.section.csv()
-
-    def orbits_csv(self) -> io.BytesIO:
-        return self.layers["orbits"].csv()  # type: ignore[attr-defined]
-
-    def manifolds_csv(self) -> io.BytesIO:
-        return self.layers["manifolds"].csv()  # type: ignore[attr-defined]
 
     def _publish_query(self) -> None:
         if self._on_query is not None:

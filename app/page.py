@@ -8,12 +8,18 @@ build one with a call-through ``deliver`` and drive it with the same messages a 
 What is built for a new page is only what its first view shows: the section figure and the
 component (which draws the k-series from data); an analysis tab's figure is built when the tab
 is first opened.
+
+The section tab's view is the page's own (errors, the scene, the tour, the played parameter, the body) and each
+layer's (:meth:`app.layers.base.Layer.view`); the page's actions and downloads that no tab answers go to the
+layers (:meth:`app.controller.ExplorerSession.act`, :meth:`~app.controller.ExplorerSession.csv`). The page names
+no layer. The view is rebuilt once per message from the page (:meth:`Page._one_view`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Executor
 from typing import Any
 
@@ -28,7 +34,7 @@ from app.bodyview import BodyView
 from app.controller import ExplorerSession
 from app.play import Player, Schedule
 from app.runner import FairScheduler, Runner
-from app.state import BY_NAME, BY_URL, CONTROLS, TABS, parse_query, state_from_query
+from app.state import BY_NAME, BY_URL, CONTROLS, LAYER_PICKS, TABS, parse_query, state_from_query
 from app.tours import TOURS, Tour, TourError, parse_tours, read_tour_url
 from app.ui import ExplorerUI
 from app.views import SectionFigure, SeriesData
@@ -45,20 +51,15 @@ TAB_CLASSES: dict[str, type[AnalysisTab]] = {
 #: Scenes whose figure is an analysis tab's picture (scene.extra key -> tab), and the tabs' names as shown.
 SCENE_TABS = {"sweep": "bifurcation", "chart": "chart"}
 TAB_NAMES = {"bifurcation": "Bifurcation diagram", "chart": "Chart of regimes"}
-#: The orbit search's button: an action, then a mode that stays on (redone after every pan or zoom).
-FIND_OFF = ("Find orbits in view", "Newton on P^n(x) - x from a grid of starting points over the plot window")
-FIND_ON = ("Orbits in view: on", "A mode: the search is redone after every pan or zoom; 'Clear orbits' ends it")
 #: What a tour's step starts from besides its scene: the layers' settings and picks, the played parameter and the
 #: tab as on a new page (a step sets what it needs over them).
 STEP_DEFAULTS: dict[str, Any] = {
     **{c.name: c.default for c in CONTROLS if c.area in ("layers", "play", "body")},
-    "orbit_seeds": [], "orbit_view": False, "manifold_saddles": [], "tab": "section",
+    **{name: p.default for name, p in LAYER_PICKS.items()}, "tab": "section",
 }  # fmt: skip
 #: The body view's settings as on a new page, set as a new page has them (unchecked: 'box' there means the box when
 #: one has the moments, the ellipsoid else; a step's own value is checked as a link's).
 BODY_DEFAULTS: dict[str, Any] = {c.name: c.default for c in CONTROLS if c.area == "bodyview"}
-#: Session parameters that change what the section tab shows: all of them (what the layers publish included).
-SESSION_VIEW = [p for p in ExplorerSession.param if p != "name"]
 
 
 class Page:
@@ -86,6 +87,9 @@ class Page:
         self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
         self.tabs: dict[str, AnalysisTab] = {}
         self.messages: dict[str, str] = {}
+        #: While a message from the page is handled (else None): whether the view is to be rebuilt at its end, and
+        #: whether even while a played frame is computed (``force``).
+        self._view_due: dict[str, bool] | None = None
         self.player = Player(self.session, schedule or _timer(deliver), on_change=lambda: self._refresh_views(),
                              wait_for_browser=wait_for_browser)  # fmt: skip
         #: The tours on offer: the paper's, and a teacher's own (tour_url= or an uploaded file) over them.
@@ -107,7 +111,8 @@ class Page:
         if state.presentation:
             self.fig.set_presentation(True)
         state.param.watch(self._on_state, [p for p in state.param if p != "name"])
-        self.session.param.watch(self._on_session, SESSION_VIEW)
+        # Every session field changes what the section tab shows (what the layers publish included).
+        self.session.param.watch(self._on_session, [p for p in self.session.param if p != "name"])
         self.fig.fig.on_event(Tap, self._on_tap)
         self.fig.fig.on_event(RangesUpdate, self._on_ranges)
 
@@ -135,7 +140,12 @@ class Page:
     # --- messages from the page -------------------------------------------------------------
 
     def handle(self, msg: dict[str, Any]) -> None:
-        """One checked message (:func:`app.ui.check_message`), on the document's thread."""
+        """One checked message (:func:`app.ui.check_message`), on the document's thread: the view is rebuilt once
+        for it."""
+        with self._one_view():
+            self._handle(msg)
+
+    def _handle(self, msg: dict[str, Any]) -> None:
         if "commit" in msg:
             self.commit(msg["commit"], msg["text"])
             return
@@ -151,12 +161,6 @@ class Page:
             self._open_tab(tab).run()
         elif action == "clear":
             self.session.clear_clicked()
-        elif action == "find_orbits":
-            self.session.find_orbits_in_view()
-        elif action == "clear_orbits":
-            self.session.clear_orbits()
-        elif action == "clear_manifolds":
-            self.session.clear_manifolds()
         elif action == "tab" and tab in TABS:
             self.state.tab = tab
         elif action == "presentation" and "on" in msg:
@@ -184,9 +188,16 @@ class Page:
             problem = self._open_tab("bench").choose(msg.get("value"))  # type: ignore[attr-defined]
             if problem:
                 self.tabs["bench"].fail(problem)
+        else:
+            self.session.act(action)  # a layer's button (e.g. "Find orbits in view"), if a layer has it
 
     def commit(self, name: str, text: Any) -> str | None:
-        """A typed value: applied, or refused with a message next to the control and in the main area."""
+        """A typed value: applied, or refused with a message next to the control and in the main area. The view is
+        rebuilt once for it (a slider's move redoes the section and its layers: each says it computes)."""
+        with self._one_view():
+            return self._commit(name, text)
+
+    def _commit(self, name: str, text: Any) -> str | None:
         problem = self.session.commit(name, text)
         if problem:
             self.messages[name] = problem
@@ -202,16 +213,14 @@ class Page:
         return problem
 
     def _download(self, what: str) -> None:
-        if what == "section" and self.session.n_points:
-            self.ui.send_download("section.csv", "text/csv", self.session.csv_bytes().getvalue())
-        elif what == "orbits" and self.session.orbits:
-            self.ui.send_download("orbits.csv", "text/csv", self.session.orbits_csv().getvalue())
-        elif what == "manifolds" and self.session.n_manifolds:
-            self.ui.send_download("manifolds.csv", "text/csv", self.session.manifolds_csv().getvalue())
-        elif what == "chart" and "chart" in self.tabs:
+        if what == "chart" and "chart" in self.tabs:
             data = self.tabs["chart"].npz_bytes()  # type: ignore[attr-defined]
             if data is not None:
                 self.ui.send_download("chart.npz", "application/octet-stream", data)
+            return
+        csv = self.session.csv(what)  # a layer's (the section's, the orbits', ...): None when nothing is on screen
+        if csv is not None:
+            self.ui.send_download(f"{what}.csv", "text/csv", csv)
 
     # --- tours ----------------------------------------------------------------------------------------
 
@@ -267,14 +276,12 @@ class Page:
     def _on_tap(self, event: Tap) -> None:
         if event.x is None or event.y is None:
             return
-        if self.state.click_mode == "add":
-            self.session.add_initial_condition(event.x, event.y)
-        elif self.state.click_mode == "orbit":
-            self.session.find_orbit_at(event.x, event.y)
-        elif self.state.click_mode == "manifolds":
-            self.session.manifolds_at(event.x, event.y)
-        else:
-            self.session.select_nearest(event.x, event.y)
+        mode = self.state.click_mode
+        with self._one_view():
+            if mode == "add":
+                self.session.add_initial_condition(event.x, event.y)
+            elif not self.session.act(mode, event.x, event.y):  # a layer's mode (e.g. "finds a periodic orbit")
+                self.session.select_nearest(event.x, event.y)
 
     def _on_ranges(self, event: RangesUpdate) -> None:
         if None not in (event.x0, event.x1, event.y0, event.y1):
@@ -351,12 +358,6 @@ class Page:
         s, st = self.session, self.state
         errors = [m for m in (s.error, *self._url_errors_of("section")) if m]
         errors += [m for n, m in self.messages.items() if BY_NAME[n].area not in TAB_CLASSES]
-        status = s.status
-        if s.escaped:
-            ids = ", ".join(str(i) for i in s.escaped[:12]) + (" …" if len(s.escaped) > 12 else "")
-            status += f"  |  escaped (noncompact drift, left the bound): {ids}"
-        if s.failed:
-            status += f"  |  failed: {', '.join(str(i) for i in s.failed[:12])}"
         if st.scene == "custom":
             info = "Custom parameters."
         else:
@@ -372,27 +373,14 @@ class Page:
             caption += " (escaped: its valid points)"
         elif sel in s.failed:
             caption += " (failed: its points before the failure)"
+        view = {key: value for layer in s.every for key, value in layer.view().items()}
         return {
-            "status": status,
+            **view,
             "errors": errors,
-            "warnings": [{"level": w["level"], "message": w["message"]} for w in s.reliability],
             "running": s.running,
-            "n_points": s.n_points,
             "n_clicked": len(st.clicked),
             "scene_info": info,
             "series_caption": caption,
-            "orbits": s.orbits,
-            "orbit_status": s.orbit_status,
-            "n_orbits": len(s.orbits),
-            "orbit_view": st.orbit_view,
-            "find_label": (FIND_ON if st.orbit_view else FIND_OFF)[0],
-            "find_title": (FIND_ON if st.orbit_view else FIND_OFF)[1],
-            "n_manifolds": s.n_manifolds,
-            "manifold_status": s.manifold_status,
-            "basin_status": s.basin_status,
-            "density": s.density_shown,
-            "basin_legend": s.basin_legend,
-            "colour_note": _colour_note(self.fig.tprime_hidden_by),
             "play": self.player.view(),
             "tour": self._tour_view(),
             "body": {**self.body.view(), "caption": f"Trajectory {sel}{who}: the rigid body turning"},
@@ -415,7 +403,25 @@ class Page:
         """The URL's errors about the settings of ``tab`` ("section": every one not about an analysis tab)."""
         return [e for e in self.url_errors if _url_tab(e) == tab]
 
+    @contextlib.contextmanager
+    def _one_view(self) -> Iterator[None]:
+        """The view rebuilt once, at the end, for everything done meanwhile (a message from the page: a slider's
+        move restarts the section and its layers, and each says so)."""
+        if self._view_due is not None:  # within another: that one rebuilds
+            yield
+            return
+        self._view_due = {}
+        try:
+            yield
+        finally:
+            due, self._view_due = self._view_due, None
+            if due:
+                self._refresh_views(force=due["force"])
+
     def _refresh_views(self, force: bool = False) -> None:
+        if self._view_due is not None:  # rebuilt once the message is handled
+            self._view_due["force"] = self._view_due.get("force", False) or force
+            return
         if not force and self.player.computing():
             # A played frame on its way: its words go out once, with the frame (Player calls this when it is
             # computed), not a dozen times as its jobs start and end (each a message the page lays out).
@@ -444,14 +450,6 @@ def _timer(deliver: Callable[[Callable[[], None]], None]) -> Schedule:
         t.start()
 
     return schedule
-
-
-def _colour_note(hidden_by: str) -> str:
-    """Why the T' map is not drawn although it is on (its colours would tint those of the layer over it)."""
-    if not hidden_by:
-        return ""
-    verb = "are" if hidden_by == "the basins" else "is"
-    return f"The T′ map is hidden while {hidden_by} {verb} shown (its colours would mix with theirs)."
 
 
 def _url_tab(message: str) -> str:

@@ -24,6 +24,15 @@ from typing import Any
 import numpy as np
 import param
 
+from app.controls import MAX_MAGNITUDE, PLOT_PIXELS, SYSTEM_FIELDS, Control, UrlKey
+from app.controls import choice as _choice
+from app.controls import finite as _finite
+from app.controls import fmt as _fmt
+from app.controls import ints as _ints
+from app.controls import numbers as _numbers
+from app.controls import points_text as _points_text
+from app.controls import whole as _whole
+from app.layers import LAYERS
 from explorer_core.analyses.body import box_exists, principal_axes
 from explorer_core.analyses.density import density_numerics
 from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
@@ -38,20 +47,8 @@ MAX_TRANSIENT = 5000
 MAX_POINTS = 400_000
 #: Points of a section drawn as a density image (binned on the server, never sent or kept).
 MAX_DENSITY_POINTS = 10_000_000
-#: The section plot's size in pixels on a large screen, the one place it is set: the density image's pixels,
-#: the manifolds' refinement (segments of at most 3 of them) and the 'plot' tolerance (a quarter pixel) use it.
-PLOT_PIXELS = (800, 600)
 DENSITY_PIXELS = PLOT_PIXELS
 MAX_CLICKED = 200
-#: Points clicked to find periodic orbits from (each a Newton search), per session.
-MAX_ORBIT_SEEDS = 60
-#: Longest period the orbit search tries (P^n of a chaotic region: Newton's basin shrinks like e^(-lambda n T)).
-MAX_ORBIT_PERIOD = 16
-#: Pixels across the basins layer (its work: up to 40,000 initial conditions).
-MAX_BASIN_GRID = 200
-#: Saddles whose stable and unstable manifolds are drawn at once, per session.
-MAX_MANIFOLDS = 4
-TPRIME_GRID = 160
 DEFAULT_SCENE = "fig1C"
 #: Longest text a control accepts (longer is refused, never parsed).
 MAX_TEXT = 200
@@ -65,10 +62,7 @@ MAX_PLAY_FPS = 30
 MAX_TOUR_STEPS = 6
 #: The body view's animation speeds, periods per second (app/body.js).
 BODY_SPEEDS = ("0.05", "0.1", "0.25", "0.5", "1", "2", "4")
-#: Largest magnitude of a swept parameter or a typed initial condition (beyond, nothing is meaningful).
-MAX_MAGNITUDE = 1e6
 
-SYSTEM_FIELDS = (*INERTIA_NAMES, "alpha", "g0", "g1", "g2", "omega", "t0")
 SWEEPABLE = ("alpha", *INERTIA_NAMES, "g0", "g1", "g2", "omega")
 #: Slider ranges; typed values outside them are accepted if the system is valid.
 SLIDER_RANGES: dict[str, tuple[float, float, float]] = {
@@ -104,44 +98,6 @@ class SectionRequest:
     density: bool = False
     view: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 1.0)
     keep: tuple[int, ...] = ()
-
-
-def _fmt(v: float) -> str:
-    return repr(float(v)) if v != int(v) or abs(v) >= 1e15 else str(int(v))
-
-
-def _finite(name: str, text: str) -> float:
-    try:
-        v = float(text)
-    except (TypeError, ValueError, OverflowError):
-        raise ParameterError(f"{name} must be a number, got {str(text)[:40]!r}") from None
-    if not math.isfinite(v):
-        raise ParameterError(f"{name} must be finite, got {str(text)[:40]!r}")
-    return v
-
-
-def _whole(name: str, text: str, lo: int, hi: int) -> int:
-    t = str(text).strip()
-    try:
-        v = int(t)
-    except ValueError:
-        try:  # "12.0" and "1e3" are whole numbers too; "1.5" is not
-            f = float(t)
-        except (ValueError, OverflowError):
-            f = math.nan
-        if not (math.isfinite(f) and f == int(f)):
-            raise ParameterError(f"{name} must be a whole number, got {t[:40]!r}") from None
-        v = int(f)
-    if not lo <= v <= hi:
-        raise ParameterError(f"{name} must be between {lo} and {hi}, got {t if len(t) <= 40 else t[:40] + '…'}")
-    return v
-
-
-def _numbers(name: str, text: str, n: int, what: str) -> tuple[float, ...]:
-    parts = str(text).split(",")
-    if len(parts) != n:
-        raise ParameterError(f"{name} needs {n} comma-separated numbers ({what}), got {str(text)[:60]!r}")
-    return tuple(_finite(name, p.strip()) for p in parts)
 
 
 def _range(name: str, text: str) -> tuple[float, float]:
@@ -184,39 +140,6 @@ def _grid(name: str, text: str) -> tuple[int, int]:
     return nx, ny
 
 
-@dataclass(frozen=True)
-class Control:
-    """One input of the page: how it is drawn, parsed, shown and carried in the URL.
-
-    ``kind``: ``float`` (a slider with a number box), ``int``, ``select``, ``radio``,
-    ``check`` or ``text`` (parsed by ``parse``). ``area`` says where it is drawn: a
-    sidebar group, the section tab's bar, or an analysis tab.
-    """
-
-    name: str
-    label: str
-    kind: str
-    area: str
-    url: str | None = None
-    bounds: tuple[float, float] | None = None  # int: inclusive bounds; float: the slider's range
-    step: float | None = None
-    options: tuple[tuple[str, str], ...] = ()  # (value, label) for select/radio
-    parse: Callable[[str, str], Any] | None = None  # text kinds: (name, text) -> value
-    placeholder: str = ""
-    help: str = ""
-    #: The value of a new session (before a scene sets it) and the state's ``param`` attribute's default.
-    default: Any = None
-    #: When the URL carries the value: "always", or "changed" (only when it differs from ``default``), or a
-    #: predicate of the state.
-    url_when: str | Callable[[Any], bool] = "always"
-    doc: str | None = None
-
-
-def _ints(name: str, label: str, area: str, url: str, lo: int, hi: int, default: int, help: str = "",
-          url_when: str | Callable[[Any], bool] = "always") -> Control:  # fmt: skip
-    return Control(name, label, "int", area, url, (lo, hi), help=help, default=default, url_when=url_when)
-
-
 _SCENES = tuple((s.id, f"{s.figure}: {s.title}") for s in list_scenes())
 _PARAM_OPTIONS = tuple((p, p) for p in SWEEPABLE)
 LABELS = {
@@ -225,6 +148,14 @@ LABELS = {
     "omega": "Ω (forcing frequency)",
     "t0": "t0 (section phase)",
 }
+
+#: What the layers declare (app.layers.base.Layer): their controls, their modes of "Click in the plot", the state
+#: they keep without a control and their URL keys beyond their controls'.
+LAYER_CONTROLS: tuple[Control, ...] = tuple(c for layer in LAYERS for c in layer.controls)
+CLICK_MODES: tuple[tuple[str, str], ...] = tuple((a.name, a.label) for layer in LAYERS for a in layer.actions
+                                                  if a.click)  # fmt: skip
+LAYER_PICKS: dict[str, param.Parameter] = {n: p for layer in LAYERS for n, p in layer.picks.items()}
+LAYER_URLS: tuple[UrlKey, ...] = tuple(u for layer in LAYERS for u in layer.urls)
 
 CONTROLS: tuple[Control, ...] = (
     Control(
@@ -285,50 +216,8 @@ CONTROLS: tuple[Control, ...] = (
     _ints("seed", "Random seed", "numerics", "seed", 0, 2**31 - 1, 1),
     _ints("periods", "Periods (section points each)", "numerics", "periods", 1, MAX_PERIODS, 500),
     _ints("transient", "Transient periods (dropped)", "numerics", "transient", 0, MAX_TRANSIENT, 0),
-    Control(
-        "show_orbits",
-        "Periodic orbits of the map P (fixed points of P^n)",
-        "check",
-        "layers",
-        "orbits",
-        help="● stable, ○ unstable, ✕ saddle (hover: period and multipliers). Click in the plot with "
-        "'finds a periodic orbit', or find every orbit in view.",
-        default=True,
-    ),
-    _ints("orbit_period", "Orbits: longest period searched", "layers", "orb_n", 1, MAX_ORBIT_PERIOD, 4),
-    _ints(
-        "manifold_length",
-        "Manifolds: arc length of each branch",
-        "layers",
-        "man_len",
-        1,
-        200,
-        10,
-        help="Click a saddle ✕ with 'draws a saddle's manifolds': its unstable (orange) and stable (teal) "
-        "manifolds, grown to this arc length and refined for the view; ◆ black: homoclinic points.",
-        url_when=lambda s: bool(s.manifold_saddles) or s.manifold_length != 10,
-    ),
-    Control(
-        "show_basins",
-        "Basins of attraction over the view",
-        "check",
-        "layers",
-        "basins",
-        help="Which attractor each point of the view reaches (a colour per attractor, grey: escape), computed "
-        "coarse to fine by recurrences (as Attractors.jl) and Newton on the cycles; redone when you pan or zoom.",
-        default=False,
-        url_when="changed",
-    ),
-    _ints("basin_grid", "Basins: pixels across", "layers", "bas_n", 10, MAX_BASIN_GRID, 80, url_when="changed"),
-    Control(
-        "show_tracks",
-        "Frozen-field equilibria (tracks over one period)",
-        "check",
-        "layers",
-        "tracks",
-        help="Equilibria of the field with t frozen: a heuristic for slow forcing, not orbits of P.",
-        default=True,
-    ),
+    # The layers' own controls (app/layers: each layer declares its settings), in the order of the layers.
+    *LAYER_CONTROLS,
     Control(
         "render",
         "Section drawn as",
@@ -342,30 +231,16 @@ CONTROLS: tuple[Control, ...] = (
         default="auto",
         url_when="changed",
     ),
-    Control("show_tprime", "T′ map under the points", "check", "layers", default=True),
-    Control(
-        "tprime_kind",
-        "T′ map",
-        "radio",
-        "layers",
-        None,
-        options=(("instantaneous", "at t0"), ("per-period", "over a period")),
-        default="instantaneous",
-    ),
     Control(
         "click_mode",
         "Click in the plot",
         "radio",
         "section",
         "click",
-        options=(
-            ("add", "adds a trajectory"),
-            ("select", "selects a trajectory"),
-            ("orbit", "finds a periodic orbit"),
-            ("manifolds", "draws a saddle's manifolds"),
-        ),
+        # Adding and selecting trajectories are the section's; the other modes are the layers' (their click actions).
+        options=(("add", "adds a trajectory"), ("select", "selects a trajectory"), *CLICK_MODES),
         default="add",
-        url_when=lambda s: s.click_mode in ("orbit", "manifolds"),  # the modes a shared link is about
+        url_when=lambda s: s.click_mode not in ("add", "select"),  # the modes a shared link is about
     ),
     _ints("selected", "Trajectory shown in the k-series", "section", "sel", 0, MAX_RANDOM + MAX_CLICKED, 0),
     Control(
@@ -603,17 +478,15 @@ def _parameter(c: Control) -> param.Parameter:
 class ExplorerState(param.Parameterized):
     """Control values in use of one session (the URL carries all of them).
 
-    Every control's attribute is generated from :data:`CONTROLS` (below the class); the fields declared here are
-    the state that no control edits directly (the view, the clicked points, the open tab).
+    Every control's attribute is generated from :data:`CONTROLS` (below the class), and so are the layers' picks
+    (:data:`LAYER_PICKS`: the state a layer keeps without a control); the fields declared here are the state that no
+    control edits directly (the view, the clicked points, the open tab).
     """
 
     box = param.NumericTuple(default=(-3.0, 3.0, -5.0, 5.0), length=4, doc="random ICs box qmin,qmax,rmin,rmax")
     clicked = param.List(default=[], item_type=tuple, doc="initial conditions added by clicking")
     q_range = param.NumericTuple(default=(-3.5, 3.5), length=2)
     r_range = param.NumericTuple(default=(-5.5, 5.5), length=2)
-    orbit_seeds = param.List(default=[], item_type=tuple, doc="points clicked to find periodic orbits from")
-    orbit_view = param.Boolean(default=False, doc="also every orbit Newton finds from a grid over the view")
-    manifold_saddles = param.List(default=[], item_type=tuple, doc="(q, r, period) of the saddles with manifolds")
     tab = param.Selector(default="section", objects=list(TABS))
     presentation = param.Boolean(default=False, doc="larger fonts, sidebar collapsed (for a projector)")
     tour = param.String(default="", doc="the guided tour shown (app/tours.json or tour_url), '' for none")
@@ -622,6 +495,8 @@ class ExplorerState(param.Parameterized):
 
     def __init__(self, **params: Any) -> None:
         super().__init__(**params)
+        #: The last system built (:meth:`system`) and the values it was built from.
+        self._system: tuple[tuple[Any, ...], Params] | None = None
         if "scene" in params or not params:
             self.apply_scene(self.scene)
 
@@ -662,12 +537,24 @@ class ExplorerState(param.Parameterized):
     # --- requests ---------------------------------------------------------------------
 
     def system(self, **changes: float) -> Params:
-        """The validated system (with ``changes``); raises ParameterError naming the bad value."""
+        """The validated system (with ``changes``); raises ParameterError naming the bad value.
+
+        Built once per set of values: the last one built is given again while the system's controls hold the values
+        it was built from (every layer, the section and the page's checks ask for it after a move), and a new value
+        of a system control builds a new one. A commit checks a value with ``changes`` and then sets it: the system
+        checked is the one used.
+        """
         v = {f: changes.get(f, getattr(self, f)) for f in SYSTEM_FIELDS}
-        return Params(
+        # -0.0 == 0.0, but the sign of a zero reaches the numbers: the key tells them apart
+        key = tuple((x, math.copysign(1.0, x)) if isinstance(x, float) else x for x in v.values())
+        if self._system is not None and self._system[0] == key:
+            return self._system[1]
+        params = Params(
             inertia=tuple(v[n] for n in INERTIA_NAMES), alpha=v["alpha"], g0=v["g0"], g1=v["g1"], g2=v["g2"],
             omega=v["omega"], t0=v["t0"],
         )  # fmt: skip
+        self._system = (key, params)
+        return params
 
     def pixel_size(self) -> float:
         return min(self.q_range[1] - self.q_range[0], self.r_range[1] - self.r_range[0]) / PLOT_PIXELS[0]
@@ -824,6 +711,16 @@ class ExplorerState(param.Parameterized):
                 except ParameterError as exc:
                     raise ParameterError(f"{p} = {end:g} at an end of the range is not a valid system: {exc}") from None
 
+    # The URL table's words for the layers (app/layers cannot import this module: it imports them).
+
+    def keys_of(self, fields: tuple[str, ...] | list[str]) -> tuple[str, ...]:
+        """:func:`url_keys` of state fields."""
+        return url_keys(fields)
+
+    def words_of(self, key: str) -> str:
+        """:func:`key_words` of a URL key."""
+        return key_words(key)
+
     def to_query(self) -> dict[str, str]:
         """The full state as URL query parameters (short, human-readable): :data:`URL_KEYS`, in their order."""
         return {u.key: u.encode(self) for u in URL_KEYS if u.when(self)}
@@ -845,6 +742,8 @@ class ExplorerState(param.Parameterized):
 
 for _c in CONTROLS:
     ExplorerState.param.add_parameter(_c.name, _parameter(_c))
+for _name, _p in LAYER_PICKS.items():
+    ExplorerState.param.add_parameter(_name, _p)
 
 
 # --- parsing --------------------------------------------------------------------------------------
@@ -974,32 +873,6 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
     return updates, errors
 
 
-def _places(key: str, text: str, most: int, what: str, n: int, fields: str) -> list[tuple[float, ...]]:
-    """``;``-separated points of a URL value (``n`` numbers each, the first two ``q, r`` within
-    ±MAX_MAGNITUDE), at most ``most`` of them."""
-    parts = [p for p in text.split(";") if p.strip()]
-    if len(parts) > most:
-        raise ParameterError(f"at most {most} {what}, got {len(parts)}")
-    out = [_numbers(key, p, n, fields) for p in parts]
-    for p, v in zip(parts, out, strict=True):
-        if max(abs(v[0]), abs(v[1])) > MAX_MAGNITUDE:
-            raise ParameterError(f"{what} must lie within ±{MAX_MAGNITUDE:g}, got {p.strip()[:40]!r}")
-    return out
-
-
-@dataclass(frozen=True)
-class UrlKey:
-    """One URL query parameter: the state fields it carries, when it is written, how it is written and read,
-    and its words in messages ("the picture is for q range = …")."""
-
-    key: str
-    fields: tuple[str, ...]
-    encode: Callable[[ExplorerState], str]
-    decode: Callable[[str], dict[str, Any]]  # text -> state updates; ParameterError naming the bad value
-    when: Callable[[ExplorerState], bool] = lambda s: True  # written only when this says so
-    words: str = ""
-
-
 def _ALWAYS(s: ExplorerState) -> bool:
     return True
 
@@ -1019,10 +892,6 @@ def _control_key(c: Control) -> UrlKey:
                   plain_label(c.name))  # type: ignore[arg-type]  # fmt: skip
 
 
-def _points_text(points: list[tuple[float, ...]]) -> str:
-    return ";".join(",".join(_fmt(v) if i < 2 else str(v) for i, v in enumerate(p)) for p in points)
-
-
 def _box(t: str) -> dict[str, Any]:
     if len(t) > MAX_TEXT:
         raise ParameterError(f"at most {MAX_TEXT} characters")
@@ -1034,24 +903,6 @@ def _ics(text: str) -> dict[str, Any]:
     if len(pts) > MAX_CLICKED:
         raise ParameterError(f"at most {MAX_CLICKED} initial conditions, got {len(pts)}")
     return {"clicked": [_numbers("ics", p, 2, "q,r") for p in pts]}
-
-
-def _saddles(text: str) -> dict[str, Any]:
-    out = []
-    for q, r, n in _places("man", text, MAX_MANIFOLDS, "saddles", 3, "q,r,period"):
-        if not (n == int(n) and 1 <= n <= MAX_ORBIT_PERIOD):
-            raise ParameterError(f"the period must be a whole number 1..{MAX_ORBIT_PERIOD}, got {n:g}")
-        out.append((q, r, int(n)))
-    return {"manifold_saddles": out}
-
-
-def _choice(options: Mapping[str, dict[str, Any]]) -> Callable[[str], dict[str, Any]]:
-    def decode(t: str) -> dict[str, Any]:
-        if t not in options:
-            raise ParameterError(f"must be one of {', '.join(options)}, got {t[:40]!r}")
-        return dict(options[t])
-
-    return decode
 
 
 def _tour_id(t: str) -> dict[str, Any]:
@@ -1070,12 +921,8 @@ def _tour_path(t: str) -> dict[str, Any]:
     return {"tour_url": t}
 
 
-_TPRIME = {"inst": {"show_tprime": True, "tprime_kind": "instantaneous"},
-           "period": {"show_tprime": True, "tprime_kind": "per-period"}, "off": {"show_tprime": False}}  # fmt: skip
-_TPRIME_KEY = {"instantaneous": "inst", "per-period": "period"}
-
 #: Every URL query parameter, the one place their keys are written: the controls' (generated from CONTROLS),
-#: then the state that no control edits (the view, the clicked points, the layers' picks, the tab).
+#: then the state that no control edits (the view, the clicked points, the layers' own keys, the tab).
 URL_KEYS: tuple[UrlKey, ...] = (
     *(_control_key(c) for c in CONTROLS if c.url),
     UrlKey("box", ("box",), lambda s: ",".join(_fmt(v) for v in s.box), _box,
@@ -1085,15 +932,7 @@ URL_KEYS: tuple[UrlKey, ...] = (
     UrlKey("rr", ("r_range",), lambda s: ",".join(_fmt(v) for v in s.r_range),
            lambda t: {"r_range": _range("rr", t)}, words="r range"),
     UrlKey("ics", ("clicked",), lambda s: _points_text(s.clicked), _ics, words="clicked initial conditions"),
-    UrlKey("tprime", ("show_tprime", "tprime_kind"),
-           lambda s: _TPRIME_KEY[s.tprime_kind] if s.show_tprime else "off", _choice(_TPRIME), words="T′ map"),
-    UrlKey("orb", ("orbit_seeds",), lambda s: _points_text(s.orbit_seeds),
-           lambda t: {"orbit_seeds": _places("orb", t, MAX_ORBIT_SEEDS, "orbit seeds", 2, "q,r")},
-           lambda s: bool(s.orbit_seeds), "orbit seeds"),
-    UrlKey("orb_all", ("orbit_view",), lambda s: "1", _choice({"1": {"orbit_view": True}, "0": {"orbit_view": False}}),
-           lambda s: s.orbit_view, "orbits in view"),
-    UrlKey("man", ("manifold_saddles",), lambda s: _points_text(s.manifold_saddles), _saddles,
-           lambda s: bool(s.manifold_saddles), "saddles with manifolds"),
+    *LAYER_URLS,
     UrlKey("tab", ("tab",), lambda s: s.tab, _choice({t: {"tab": t} for t in TABS}), lambda s: s.tab != "section",
            "tab"),
     UrlKey("tour", ("tour",), lambda s: s.tour, _tour_id, lambda s: bool(s.tour), "tour"),

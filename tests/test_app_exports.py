@@ -42,8 +42,7 @@ def _warm() -> None:
 
 def _csv(page: Page, what: str) -> tuple[str, list[dict[str, str]], np.ndarray]:
     """A download as the user gets it: its header line, its rows (csv) and its table (numpy)."""
-    data = {"section": page.session.csv_bytes, "orbits": page.session.orbits_csv,
-            "manifolds": page.session.manifolds_csv}[what]().getvalue().decode()  # fmt: skip
+    data = page.session.csv(what).decode()
     header = data.splitlines()[0]
     body = "\n".join(line for line in data.splitlines() if not line.startswith("#"))
     rows = list(csv.DictReader(io.StringIO(body)))

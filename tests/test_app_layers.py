@@ -1,21 +1,31 @@
-"""The app as layers (issue 21, item 1): each layer of the section plot is one module declaring what it watches
-and what it computes; the controller drives them alike, so a new layer is one file. Each control is declared
-once (its state attribute and its URL key generated from its entry); the plot's size is one constant."""
+"""The app as layers (issue 21, item 1; issue 31, item 7): each layer of the section plot is one module declaring
+what it watches and computes, its settings (controls, picks, URL keys), the session's fields it publishes, the
+page's actions it answers and its CSV download; the controller and the page drive them alike, so a new layer is
+one file. Each control is declared once (its state attribute and its URL key generated from its entry); the plot's
+size is one constant; a slider's move builds one system and rebuilds the page's view once."""
 
 from __future__ import annotations
 
 import inspect
+import math
+import sys
 from collections.abc import Callable, Iterator
 from typing import Any, ClassVar
 
 import pytest
+from jobs import Jobs
 
 import app.controller
+import app.page
+import app.state
 from app.controller import ExplorerSession
 from app.layers import LAYERS, Layer
+from app.layers.base import Action, Table
 from app.layers.section import SectionLayer
+from app.page import Page
 from app.runner import HEAVY, LAYER, POINTS, WARM, InlineExecutor, Runner, job_kind
 from app.state import (
+    BY_NAME,
     CONTROLS,
     PLOT_PIXELS,
     URL_KEYS,
@@ -25,7 +35,8 @@ from app.state import (
     parse_query,
     state_from_query,
 )
-from explorer_core.system.params import ParameterError
+from explorer_core import export
+from explorer_core.system.params import ParameterError, Params
 
 ALL = (SectionLayer, *LAYERS)
 
@@ -75,6 +86,29 @@ def test_the_controller_names_no_layer_channel_by_hand() -> None:
         assert f'"{channel}"' not in src, channel
 
 
+def test_the_controller_and_the_page_name_no_layer_and_the_state_lists_no_layers_setting() -> None:
+    """Fails on the old code: the controller and the page named the orbits and manifolds layers (their actions, their
+    CSVs, their fields), the state listed every layer's controls and picks."""
+    sources = {m.__name__: inspect.getsource(m) for m in (app.controller, app.page)}
+    for name, src in sources.items():
+        assert 'layers["' not in src and "layers.get(" not in src, name
+        for cls in LAYERS:
+            assert f'"{cls.name}"' not in src, (name, cls.name)
+            for field in cls.publishes:  # the session's fields of a layer come from the layer
+                assert f"{field} = param." not in src and f".{field}" not in src, (name, field)
+    state_src = inspect.getsource(app.state)
+    for cls in LAYERS:
+        for c in cls.controls:
+            assert BY_NAME[c.name] is c and f'"{c.name}"' not in state_src, c.name  # the layer's entry, used as is
+        for u in cls.urls:
+            assert u in URL_KEYS and f'"{u.key}"' not in state_src, u.key
+        for pick in cls.picks:
+            assert pick in ExplorerState.param and pick not in state_src, pick
+    # the modes of "Click in the plot" beyond adding and selecting are the layers' click actions
+    modes = [v for v, _ in BY_NAME["click_mode"].options]
+    assert modes == ["add", "select", *(a.name for cls in LAYERS for a in cls.actions if a.click)]
+
+
 # --- a new layer is one file: a stand-in plugs in without editing the controller ----------------------------
 
 
@@ -86,6 +120,9 @@ class Doubler(Layer):
     fields = ("basin_grid",)
     depends = ("alpha", "basin_grid")
     dedupe = True
+    publishes: ClassVar[dict[str, Any]] = {"doubler_status": ""}
+    actions = (Action("double_again", "again"), Action("doubler_at", "at", "doubles the click", click=True))
+    download = "doubled"
 
     def __init__(self, host: Any) -> None:
         super().__init__(host)
@@ -128,10 +165,22 @@ class Doubler(Layer):
         return self.text
 
     def published(self) -> dict[str, Any]:
-        return {"basin_status": self.text}  # borrows a field the page already shows
+        return {"doubler_status": self.text}  # its own field: declared nowhere but here
 
     def stopped(self, busy: bool, now: dict[str, str]) -> None:
         self.stop_calls.append(busy)
+
+    def again(self) -> None:
+        self.host.run(self, self.inputs())  # once more, even for the same inputs
+
+    def at(self, q: float, r: float) -> None:
+        self.text = f"clicked at {q:g}, {r:g}"
+        self.host.publish(self)
+
+    def table(self) -> Table | None:
+        rows = [(i, inputs[1], result) for i, (inputs, result) in enumerate(self.shown)]
+        settings = {"bas_n": str(self.host.state.basin_grid)}
+        return Table("doubled", settings, ("i", "n", "doubled"), rows) if rows else None
 
 
 def test_a_new_layer_plugs_in_without_editing_the_controller() -> None:
@@ -140,7 +189,7 @@ def test_a_new_layer_plugs_in_without_editing_the_controller() -> None:
     assert isinstance(d, Doubler) and "doubler" in s.channels and "doubler_click" in s.channels
     assert s.runner.kind("doubler") == LAYER and s.runner.kind("doubler_click") == POINTS
     s.recompute()
-    assert [r for _, r in d.shown] == [80, 160] and s.basin_status == "doubled: 160"
+    assert [r for _, r in d.shown] == [80, 160] and s.doubler_status == "doubled: 160"
     # the section's numerics change: the same inputs, not redone (dedupe)
     assert s.commit("periods", "40") is None
     assert d.jobs == 1
@@ -149,7 +198,7 @@ def test_a_new_layer_plugs_in_without_editing_the_controller() -> None:
     assert d.jobs == 2 and d.shown[-1][1] == 40
     # a refusal of its inputs is its status, not a failed job
     assert s.commit("basin_grid", "13") is None
-    assert d.jobs == 2 and s.basin_status.startswith("doubler: 13 pixels") and s.error == ""
+    assert d.jobs == 2 and s.doubler_status.startswith("doubler: 13 pixels") and s.error == ""
     assert s.commit("basin_grid", "20") is None
     assert d.jobs == 3
     # a new system redoes it; Stop tells it
@@ -160,6 +209,45 @@ def test_a_new_layer_plugs_in_without_editing_the_controller() -> None:
     # a click-like job on its second channel, joined to the current generation (no cancel)
     s.run(d, (0.2, 7), channel="doubler_click", bump=False)
     assert d.shown[-1] == ((0.2, 7), 14)
+    # its own field is on the session only: another session, without the layer, has none
+    assert "doubler_status" in s.param and "doubler_status" not in session().param
+
+
+def test_a_new_layers_actions_and_download_go_through_the_session(tmp_path: Any) -> None:
+    s = session(layers=(*LAYERS, Doubler))
+    d = s.layer("doubler")
+    assert s.csv("doubled") is None  # nothing on screen yet
+    s.recompute()
+    jobs = d.jobs
+    assert s.act("double_again") and d.jobs == jobs + 1  # its button
+    assert s.act("doubler_at", 0.5, -1.0) and s.doubler_status == "clicked at 0.5, -1"  # its click mode
+    assert not s.act("doubler_at") and not s.act("double_again", 1.0, 2.0)  # a button is no click, and back
+    assert not s.act("no_such_action")
+    # its CSV: a comment line with its settings, then exactly what the core's CSV writer writes for its table
+    data = s.csv("doubled")
+    head, body = data.split(b"\r\n", 1)
+    assert head == b"# Bilimovich Explorer doubled; bas_n=80"
+    table = d.table()
+    export.write_csv(str(tmp_path / "t.csv"), table.header, table.rows)
+    assert body == (tmp_path / "t.csv").read_bytes() and body.startswith(b"i,n,doubled\r\n0,80,80\r\n")
+
+
+def test_two_layers_cannot_publish_one_field_nor_answer_one_action() -> None:
+    class Twin(Doubler):
+        name = "twin"
+        channels: ClassVar[dict[str, str]] = {"twin": LAYER}
+        actions = ()
+
+    with pytest.raises(ValueError, match="doubler_status"):
+        session(layers=(Doubler, Twin))
+
+    class Clicker(Doubler):
+        name = "clicker"
+        channels: ClassVar[dict[str, str]] = {"clicker": LAYER}
+        publishes: ClassVar[dict[str, Any]] = {}
+
+    with pytest.raises(ValueError, match="double_again"):
+        session(layers=(Doubler, Clicker))
 
 
 def test_a_result_for_a_system_no_longer_on_screen_is_not_applied() -> None:
@@ -235,9 +323,60 @@ def test_the_initial_page_has_no_more_bokeh_models_than_before_the_layers() -> N
     """The refactor builds the same page: 73 models in one Page's document (a4bc0e5: 73), no layer adds any."""
     from bokeh.document import Document
 
-    from app.page import Page
-
     doc = Document()
     page = Page({}, lambda fn: fn(), executor=InlineExecutor())
     doc.add_root(page.ui.get_root(doc))
     assert len(list(doc.models)) <= 73
+
+
+# --- one system and one view per move of a slider ------------------------------------------------------------
+
+
+def test_a_slider_move_builds_one_system_and_rebuilds_the_view_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fails on the old code (c3075ef): a move of α rebuilt the page's view 4 times before its jobs ran (11 times with
+    their results) and the app built ``Params`` 4 times (7 with its jobs; the core builds one more, for the
+    coefficient tables of a new α, which is not the app's)."""
+    jobs = Jobs()
+    page = Page({}, lambda fn: fn(), executor=jobs)
+    page.start()
+    jobs.drain()
+    counts = {"views": 0, "params": 0}
+    section_view, init = Page._section_view, Params.__init__
+
+    def counted_view(self: Page) -> dict[str, Any]:
+        counts["views"] += 1
+        return section_view(self)
+
+    def counted_init(self: Params, *args: Any, **kwargs: Any) -> None:
+        if sys._getframe(1).f_globals.get("__name__", "").startswith("app."):  # built by the app
+            counts["params"] += 1
+        init(self, *args, **kwargs)
+
+    monkeypatch.setattr(Page, "_section_view", counted_view)
+    monkeypatch.setattr(Params, "__init__", counted_init)
+    assert page.handle({"commit": "alpha", "text": "0.105"}) is None  # a slider released at a new value
+    assert counts == {"views": 1, "params": 1}
+    view = page.ui.view["section"]
+    assert view["running"] and "computing" in view["status"]  # the one view is the move's: its jobs are on their way
+    jobs.drain()  # the section, its reliability check and the layers: each result shown as it comes
+    assert counts["params"] == 1  # every job, check and layer used the system the commit built
+    assert page.state.system() is page.state.system() and page.state.system().alpha == 0.105
+    assert page.commit("alpha", "-0.0") is None and math.copysign(1.0, page.state.system().alpha) == -1.0
+
+
+def test_the_tracks_are_a_layer_of_their_own_module_with_todays_url_and_checkbox() -> None:
+    """The equilibrium tracks, split out of app/layers/frozen.py with no edit outside app/layers/: the same checkbox,
+    the same URL key (``tracks=0|1``, written as before), drawn and cleared as before."""
+    from app.layers.tracks import TracksLayer
+
+    assert TracksLayer in LAYERS and TracksLayer.__module__ == "app.layers.tracks"
+    assert BY_NAME["show_tracks"] is TracksLayer.controls[0] and URL_OF["show_tracks"] == "tracks"
+    st, errors = state_from_query({"tracks": "0"})
+    assert not errors and st.show_tracks is False and st.to_query()["tracks"] == "0"
+    st, errors = state_from_query({})
+    assert not errors and st.show_tracks is True and st.to_query()["tracks"] == "1"
+    s = session()
+    s.recompute()
+    assert s.fig.tracks.data["xs"] and list(s.fig.equilibria.data["q"])
+    assert s.commit("show_tracks", "false") is None
+    assert s.fig.tracks.data["xs"] == [] and list(s.fig.equilibria.data["q"]) == []

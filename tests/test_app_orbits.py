@@ -45,7 +45,7 @@ def test_a_click_in_orbit_mode_finds_the_orbit_and_draws_it() -> None:
     assert view["n_orbits"] == 1 and "flip saddle" in view["orbit_status"]
     q = page.state.to_query()
     assert q["orb"].startswith("-0.0377,") and q["click"] == "orbit"
-    csv = page.session.orbits_csv().getvalue().decode()
+    csv = page.session.csv("orbits").decode()
     assert csv.startswith("# Bilimovich Explorer periodic orbits") and ",flip saddle,0,0," in csv
 
 

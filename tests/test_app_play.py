@@ -88,7 +88,7 @@ def test_a_frame_has_fewer_periods_than_a_still_and_pause_computes_the_still() -
     jobs.drain()
     assert page.session.n_points == 3 * FRAME_PERIODS
     # the export of a frame says how many periods it has (not the still's 300 of the URL)
-    assert f"periods={FRAME_PERIODS}" in page.session.csv_bytes().getvalue().decode().splitlines()[0]
+    assert f"periods={FRAME_PERIODS}" in page.session.csv("section").decode().splitlines()[0]
     page.handle({"action": "pause"})
     jobs.drain()
     assert page.session.n_points == 3 * 300
@@ -388,7 +388,7 @@ def test_a_bad_range_is_refused_naming_the_value() -> None:
 def test_a_frame_draws_the_tracks_with_fewer_samples_and_the_same_equilibria_at_t0() -> None:
     """A frame's tracks take FRAME_TRACK_SAMPLES samples over the period (a still: TRACK_SAMPLES); the
     equilibria at t0 (the diamonds) do not depend on how many: the same points as the still's."""
-    from app.layers.frozen import FRAME_TRACK_SAMPLES, TRACK_SAMPLES
+    from app.layers.tracks import FRAME_TRACK_SAMPLES, TRACK_SAMPLES
 
     page, jobs, clock = page_for({"tracks": "1", "alpha": str(VALUES[0])})
     still = {k: list(v) for k, v in page.fig.equilibria.data.items()}

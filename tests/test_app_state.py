@@ -208,7 +208,7 @@ def test_escaped_trajectories_are_listed() -> None:
 def test_csv_export_has_settings_and_rows() -> None:
     sess = make_session(scene="fig1C")
     sess.state.param.update(n_random=2, periods=3)
-    text = sess.csv_bytes().getvalue().decode()
+    text = sess.csv("section").decode()
     lines = text.strip().splitlines()
     assert lines[0].startswith("# Bilimovich Explorer section; scene=fig1C")
     assert lines[1] == "traj,k,q,r" and len(lines) == 2 + 6

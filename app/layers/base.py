@@ -1,25 +1,45 @@
 """The layers of the section plot: each one small module, a :class:`Layer` the controller drives alike.
 
-A layer declares the state fields whose change redoes it (``fields``), the runner channels it uses (each
-with its kind of job: ``channels``) and whether the section's settings or the view redo it; it says what a
-job needs (:meth:`Layer.inputs`, on the document thread), computes on the runner (:meth:`Layer.job`, a
-generator of results: each is drawn as it comes), draws a result (:meth:`Layer.apply`) and says what it
-shows (:meth:`Layer.status`, :meth:`Layer.legend`, the session's fields it :meth:`Layer.published`).
-:class:`app.controller.ExplorerSession` coordinates them: which are on, cancel on change, the runner, Stop.
-A new layer is one module here with a class that subclasses :class:`Layer`, listed in :data:`LAYERS` (or
-passed to the session): the controller does not change.
+A layer owns its settings, what it says and what the page can ask of it. It declares:
+
+* its **settings**: its controls (``controls``: :class:`app.controls.Control` entries, from which the state
+  generates its attributes, bounds and URL keys as for its own), the state it keeps without a control
+  (``picks``: seeds clicked, saddles picked) and the URL keys beyond its controls' (``urls``). The state's
+  tables (:data:`app.state.CONTROLS`, :data:`app.state.URL_KEYS`) take them from :data:`app.layers.LAYERS`;
+* the state fields whose change redoes it (``fields``), the runner channels it uses (each with its kind of
+  job: ``channels``) and whether the section's settings or the view redo it;
+* its **published fields** (``publishes``: name -> default): the session (:class:`app.controller.ExplorerSession`)
+  creates one watched field for each, which the layer sets through :meth:`Layer.published`;
+* its **page actions** (``actions``: :class:`Action`): the buttons whose message it answers, and the modes of
+  "Click in the plot" it adds;
+* its **CSV download** (``download``: the file's name; :meth:`Layer.table` the rows on screen), written by the
+  core's writer (:func:`csv_bytes`); and its part of the page's view of the section tab (:meth:`Layer.view`).
+
+It says what a job needs (:meth:`Layer.inputs`, on the document thread), computes on the runner
+(:meth:`Layer.job`, a generator of results: each is drawn as it comes) and draws a result (:meth:`Layer.apply`).
+The session coordinates them (which are on, cancel on change, the runner, Stop, the actions); the page draws
+their views and sends them the page's actions. A new layer is one module here with a class that subclasses
+:class:`Layer`, listed in :data:`app.layers.LAYERS` (or passed to the session): neither the controller nor the
+page changes.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+import os
+import tempfile
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import AbstractContextManager
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
+from app.controls import Control, UrlKey
 from app.runner import LAYER
-from app.state import key_words
+from explorer_core import export
 
 if TYPE_CHECKING:
-    from app.state import ExplorerState
+    import param
+
+    from app.runner import Runner
     from app.views import SectionFigure
     from explorer_core.system.params import Params
 
@@ -28,18 +48,65 @@ if TYPE_CHECKING:
 KEEP = object()
 
 
-class Host(Protocol):
-    """What a layer may use of the session: the state, the figure, the system on screen, the runner."""
+@dataclass(frozen=True)
+class Action:
+    """Something the page asks of a layer: the method ``method`` of the layer answers the page's message
+    ``{"action": name}`` (a button), or, ``click=True``, a click in the plot while "Click in the plot" is on the
+    mode ``name`` (offered with the words ``label``; the method gets the click's q and r)."""
 
-    state: ExplorerState
+    name: str
+    method: str
+    label: str = ""
+    click: bool = False
+
+
+@dataclass(frozen=True)
+class Table:
+    """What a layer's CSV download holds: a title and the settings of the data in a comment line (``notes``: more
+    comment lines), then the header and the rows (cells as :func:`explorer_core.export.cell` writes them)."""
+
+    title: str
+    settings: dict[str, str]
+    header: tuple[str, ...]
+    rows: Iterable[Sequence[Any]]
+    notes: tuple[str, ...] = ()
+
+
+def csv_bytes(table: Table) -> bytes:
+    """``table`` as the file the page downloads: its comment lines, then the header and rows as the core's one CSV
+    writer (:func:`explorer_core.export.write_csv`, the CLI's) writes them, through a file of a temporary folder
+    (the writer takes a path)."""
+    words = "&".join(f"{a}={b}" for a, b in table.settings.items())
+    head = "".join(f"# {line}\r\n" for line in (f"Bilimovich Explorer {table.title}; {words}", *table.notes))
+    with tempfile.TemporaryDirectory(prefix="bilimovich-csv-") as folder:
+        path = os.path.join(folder, "download.csv")
+        export.write_csv(path, table.header, table.rows)
+        with open(path, "rb") as fh:
+            return head.encode() + fh.read()
+
+
+class Host(Protocol):
+    """What a layer may use of the session: the state, the figure, the system on screen, the runner, the other
+    layers, and the session's ways to redo, clear and publish a layer."""
+
+    state: Any  # app.state.ExplorerState (the state imports the layers: not imported here)
     fig: SectionFigure
+    runner: Runner
+    layers: dict[str, Layer]
 
     def system(self) -> Params | None: ...
 
+    def data(self) -> tuple[Any, Any, Any, Any]: ...
+
     def publish(self, layer: Layer) -> None: ...
 
-    def run(self, layer: Layer, inputs: Any, *, channel: str | None = None, bump: bool = True,
-            job: Callable[..., Iterator[Any]] | None = None) -> None: ...  # fmt: skip
+    def refresh(self, layer: Layer) -> None: ...
+
+    def clear(self, layer: Layer) -> None: ...
+
+    def suspended(self) -> AbstractContextManager[None]: ...
+
+    def run(self, layer: Layer, inputs: Any, *, channel: str | None = None, bump: bool = True) -> None: ...
 
 
 class Layer:
@@ -61,6 +128,17 @@ class Layer:
     #: The settings its result depends on (state fields: their URL keys name them when the result shown is
     #: not the controls', e.g. after a Stop).
     depends: ClassVar[tuple[str, ...]] = ()
+    #: Its controls (the state's attributes and URL keys are generated from them), the state it keeps without a
+    #: control (name -> its param attribute) and its URL keys beyond its controls'.
+    controls: ClassVar[tuple[Control, ...]] = ()
+    picks: ClassVar[dict[str, param.Parameter]] = {}
+    urls: ClassVar[tuple[UrlKey, ...]] = ()
+    #: The session's fields it publishes (name -> value before it says anything): :meth:`published` sets them.
+    publishes: ClassVar[dict[str, Any]] = {}
+    #: What the page can ask of it (buttons, click modes).
+    actions: ClassVar[tuple[Action, ...]] = ()
+    #: Its CSV download's name (the page's ``{"action": "download", "what": name}``, the file ``name.csv``); "": none.
+    download: ClassVar[str] = ""
 
     def __init__(self, host: Host) -> None:
         self.host = host
@@ -114,8 +192,21 @@ class Layer:
         return []
 
     def published(self) -> dict[str, Any]:
-        """The session's fields (app.controller.ExplorerSession params) this layer's text goes to."""
+        """The values of the session's fields it publishes (``publishes``): its text, its counts."""
         return {}
+
+    def view(self) -> dict[str, Any]:
+        """Its part of the page's view of the section tab (what app/ui.js draws): its published fields by default."""
+        return self.published()
+
+    def table(self) -> Table | None:
+        """What its CSV download holds now; None: nothing on screen to download."""
+        return None
+
+    def csv(self) -> bytes | None:
+        """Its CSV download (:meth:`table` through :func:`csv_bytes`), or None when nothing is on screen."""
+        table = self.table()
+        return None if table is None else csv_bytes(table)
 
     def stopped(self, busy: bool, now: dict[str, str]) -> None:
         """After a Stop (``busy``: a job of it was running): say whether what it shows is of the controls'
@@ -124,14 +215,20 @@ class Layer:
     def system_params(self) -> Params | None:
         return self.host.system()
 
+    def stale(self, then: dict[str, str] | None, now: dict[str, str], fields: Sequence[str]) -> str:
+        """:func:`stale_note` for the settings ``fields`` (state fields, named by their URL keys)."""
+        st = self.host.state
+        return stale_note(then, now, st.keys_of(fields), st.words_of)
 
-def stale_note(then: dict[str, str] | None, now: dict[str, str], keys: tuple[str, ...], most: int = 3) -> str:
+
+def stale_note(then: dict[str, str] | None, now: dict[str, str], keys: tuple[str, ...],
+               words: Callable[[str], str], most: int = 3) -> str:  # fmt: skip
     """ "" when the settings ``keys`` of a result (``then``) are those in use (``now``); else what differs, in
-    the controls' words: "α = 0.1 (the controls: 0.3)"."""
+    the controls' words (``words``: a URL key's): "α = 0.1 (the controls: 0.3)"."""
     if then is None:
         return ""
     diff = [k for k in keys if then.get(k) != now.get(k)]
-    parts = [f"{key_words(k)} = {_short(then.get(k))} (the controls: {_short(now.get(k))})" for k in diff[:most]]
+    parts = [f"{words(k)} = {_short(then.get(k))} (the controls: {_short(now.get(k))})" for k in diff[:most]]
     if len(diff) > most:
         parts.append(f"and {len(diff) - most} more settings")
     return ", ".join(parts)
@@ -148,4 +245,4 @@ def _short(v: str | None, limit: int = 40) -> str:
     return v if len(v) <= limit else v[: limit - 1] + "…"
 
 
-__all__ = ["KEEP", "LAYER", "Host", "Layer", "plain", "stale_note"]
+__all__ = ["KEEP", "LAYER", "Action", "Host", "Layer", "Table", "csv_bytes", "plain", "stale_note"]

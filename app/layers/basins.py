@@ -6,14 +6,16 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from app.layers.base import KEEP, Layer, plain, stale_note
+from app.controls import SYSTEM_FIELDS, Control, ints
+from app.layers.base import KEEP, Layer, plain
 from app.runner import LAYER
-from app.state import SYSTEM_FIELDS, url_keys
 from app.views import as_drawn
 from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, BasinSpec, basin_spec, iter_basins
 from explorer_core.status import Status, describe
 from explorer_core.system.params import Params
 
+#: Pixels across the basins layer (its work: up to 40,000 initial conditions).
+MAX_BASIN_GRID = 200
 #: A colour per attractor id (cycled), and the pixels that reach none.
 BASIN_COLOURS = ("#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#1f78b4")
 #: Escaped pixels mid grey, failed ones dark grey (the old light grey at half opacity looked like the page's white);
@@ -52,6 +54,15 @@ class BasinsLayer(Layer):
     fields = ("show_basins", "basin_grid")
     dedupe = True
     depends = (*SYSTEM_FIELDS, "basin_grid", "q_range", "r_range")
+    controls = (
+        Control("show_basins", "Basins of attraction over the view", "check", "layers", "basins",
+                help="Which attractor each point of the view reaches (a colour per attractor, grey: escape), computed "
+                "coarse to fine by recurrences (as Attractors.jl) and Newton on the cycles; redone when you pan or "
+                "zoom.", default=False, url_when="changed"),
+        ints("basin_grid", "Basins: pixels across", "layers", "bas_n", 10, MAX_BASIN_GRID, 80, url_when="changed"),
+    )  # fmt: skip
+    #: What it says, and its legend rows (colour, text).
+    publishes: ClassVar[dict[str, Any]] = {"basin_status": "", "basin_legend": []}
 
     def __init__(self, host: Any) -> None:
         super().__init__(host)
@@ -135,7 +146,7 @@ class BasinsLayer(Layer):
     def stopped(self, busy: bool, now: dict[str, str]) -> None:
         if not self.host.state.show_basins:
             return
-        note = stale_note(self.shown_query, now, url_keys(self.depends))
+        note = self.stale(self.shown_query, now, self.depends)
         if note:
             self.text = f"stopped: the basins shown are for {note}"
         elif busy:

@@ -1,4 +1,5 @@
-"""The frozen-field layers: equilibrium tracks of the field with t frozen, and the T′ map under the points.
+"""The frozen-field layers' common ground (:class:`FrozenLayer`, :func:`segments_by_type`) and the T′ map under
+the points; the equilibrium tracks of the field with t frozen are :mod:`app.layers.tracks`.
 
 Both start once the section's first points are out (``after_section``): computed alongside, they would take
 CPU from the section's first points, and every update they send makes the browser redraw the whole plot while the
@@ -14,25 +15,22 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from app.controls import Control, UrlKey, choice
 from app.layers.base import KEEP, Layer
 from app.runner import LAYER
-from explorer_core.analyses.equilibria import equilibrium_tracks
 from explorer_core.analyses.tprime import energy_change_map, tprime_map
 from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import Params
 
-TRACK_SAMPLES = 360
-#: Samples of a played parameter's frame (app/play.py), and the bisections allowed where the equilibria's count
-#: changes (a still's default: 4 per sample): a fold in t is drawn to a sixtieth of the period, not to 2^-12 of it.
-#: Since the conic solves are numba kernels a frame's tracks cost ~1.2 ms and a still's ~4 ms (were ~28 and ~90 ms of
-#: Python); the frame's fewer samples still keep its jobs short beside the section's integration.
-FRAME_TRACK_SAMPLES = 60
-FRAME_TRACK_REFINE = 30
 TPRIME_GRID = 160
 PER_PERIOD_GRID = 80
+#: The T′ map's URL key: one value for both its controls.
+_TPRIME = {"inst": {"show_tprime": True, "tprime_kind": "instantaneous"},
+           "period": {"show_tprime": True, "tprime_kind": "per-period"}, "off": {"show_tprime": False}}  # fmt: skip
+_TPRIME_KEY = {"instantaneous": "inst", "per-period": "period"}
 
 
-class _Frozen(Layer):
+class FrozenLayer(Layer):
     """A layer of the system alone, cleared by a Stop that leaves it for another system."""
 
     on_section = False
@@ -47,39 +45,6 @@ class _Frozen(Layer):
             self.clear()  # no text says whose it is: not left under other settings
 
 
-class TracksLayer(_Frozen):
-    name = "tracks"
-    channels: ClassVar[dict[str, str]] = {"tracks": LAYER}
-    fields = ("show_tracks",)
-
-    def inputs(self) -> tuple[Params, int, int | None] | object | None:
-        """``(params, samples, bisections)``: a frame's (fewer) or a still's (the default refinement)."""
-        params = self.system_params()
-        if params is None:
-            return KEEP
-        if not self.host.state.show_tracks:
-            return None
-        frame = getattr(self.host, "frame_periods", None) is not None  # a frame of a played parameter
-        return (params, FRAME_TRACK_SAMPLES, FRAME_TRACK_REFINE) if frame else (params, TRACK_SAMPLES, None)
-
-    def job(self, inputs: tuple[Params, int, int | None], cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
-        params, samples, refine = inputs
-        tr = equilibrium_tracks(params, n_t=samples, max_refine=refine, cancel=cancelled)
-        if tr.completed:  # else a newer setting: its own tracks job is on the way
-            yield segments_by_type(tr.branches()), tr.section()
-
-    def apply(self, inputs: tuple[Params, int, int | None], result: tuple[list, Any]) -> None:
-        segments, at_t0 = result
-        self.params = inputs[0]
-        self.host.fig.set_tracks(segments)
-        self.host.fig.set_equilibria(at_t0.q, at_t0.r, at_t0.types)
-
-    def clear(self) -> None:
-        self.params = None
-        self.host.fig.set_tracks([])
-        self.host.fig.set_equilibria([], [], ())
-
-
 @dataclass(frozen=True)
 class TPrimeInputs:
     params: Params
@@ -89,10 +54,19 @@ class TPrimeInputs:
     numerics: Numerics
 
 
-class TPrimeLayer(_Frozen):
+class TPrimeLayer(FrozenLayer):
     name = "tprime"
     channels: ClassVar[dict[str, str]] = {"tprime": LAYER}
     fields = ("show_tprime", "tprime_kind")
+    controls = (
+        Control("show_tprime", "T′ map under the points", "check", "layers", default=True),
+        Control("tprime_kind", "T′ map", "radio", "layers", None,
+                options=(("instantaneous", "at t0"), ("per-period", "over a period")), default="instantaneous"),
+    )  # fmt: skip
+    urls = (
+        UrlKey("tprime", ("show_tprime", "tprime_kind"),
+               lambda s: _TPRIME_KEY[s.tprime_kind] if s.show_tprime else "off", choice(_TPRIME), words="T′ map"),
+    )  # fmt: skip
 
     def inputs(self) -> TPrimeInputs | object | None:
         params = self.system_params()
@@ -125,6 +99,17 @@ class TPrimeLayer(_Frozen):
     def clear(self) -> None:
         self.params = None
         self.host.fig.set_tprime(None, np.zeros(0), np.zeros(0), "")
+
+    def view(self) -> dict[str, Any]:
+        return {"colour_note": colour_note(self.host.fig.tprime_hidden_by)}
+
+
+def colour_note(hidden_by: str) -> str:
+    """Why the T' map is not drawn although it is on (its colours would tint those of the layer over it)."""
+    if not hidden_by:
+        return ""
+    verb = "are" if hidden_by == "the basins" else "is"
+    return f"The T′ map is hidden while {hidden_by} {verb} shown (its colours would mix with theirs)."
 
 
 def segments_by_type(branches: Any) -> list[tuple[np.ndarray, np.ndarray, str]]:

@@ -2,22 +2,34 @@
 
 from __future__ import annotations
 
-import io
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
+import param
 
-from app.layers.base import KEEP, Layer, plain, stale_note
+from app.controls import PLOT_PIXELS, SYSTEM_FIELDS, UrlKey, ints, places, points_text
+from app.layers.base import KEEP, Action, Layer, Table, plain
+from app.layers.orbits import MAX_ORBIT_PERIOD
 from app.runner import LAYER
-from app.state import MAX_MANIFOLDS, PLOT_PIXELS, SYSTEM_FIELDS, url_keys
 from explorer_core.analyses.manifolds import Manifolds, iter_manifolds, saddle_orbit
-from explorer_core.export import cell
 from explorer_core.system.params import ParameterError, Params
 
 #: A click picks the saddle whose point is nearest, within this fraction of the view's width and height.
 PICK_RADIUS = 0.03
+#: Saddles whose stable and unstable manifolds are drawn at once, per session.
+MAX_MANIFOLDS = 4
+
+
+def _saddles(text: str) -> dict[str, Any]:
+    """The URL's saddles: ``q,r,period;...``."""
+    out = []
+    for q, r, n in places("man", text, MAX_MANIFOLDS, "saddles", 3, "q,r,period"):
+        if not (n == int(n) and 1 <= n <= MAX_ORBIT_PERIOD):
+            raise ParameterError(f"the period must be a whole number 1..{MAX_ORBIT_PERIOD}, got {n:g}")
+        out.append((q, r, int(n)))
+    return {"manifold_saddles": out}
 
 
 @dataclass(frozen=True)
@@ -35,6 +47,26 @@ class ManifoldsLayer(Layer):
     fields = ("manifold_saddles", "manifold_length")
     dedupe = True
     depends = (*SYSTEM_FIELDS, "manifold_length", "q_range", "r_range")
+    controls = (
+        ints("manifold_length", "Manifolds: arc length of each branch", "layers", "man_len", 1, 200, 10,
+             help="Click a saddle ✕ with 'draws a saddle's manifolds': its unstable (orange) and stable (teal) "
+             "manifolds, grown to this arc length and refined for the view; ◆ black: homoclinic points.",
+             url_when=lambda s: bool(s.manifold_saddles) or s.manifold_length != 10),
+    )  # fmt: skip
+    picks: ClassVar[dict[str, param.Parameter]] = {
+        "manifold_saddles": param.List(default=[], item_type=tuple, doc="(q, r, period) of the saddles with manifolds"),
+    }
+    urls = (
+        UrlKey("man", ("manifold_saddles",), lambda s: points_text(s.manifold_saddles), _saddles,
+               lambda s: bool(s.manifold_saddles), "saddles with manifolds"),
+    )  # fmt: skip
+    #: The saddles whose manifolds are on screen (the CSV download offers exactly these), what the last growth said.
+    publishes: ClassVar[dict[str, Any]] = {"n_manifolds": 0, "manifold_status": ""}
+    actions = (
+        Action("clear_manifolds", "clear_all"),
+        Action("manifolds", "pick", "draws a saddle's manifolds", click=True),
+    )
+    download = "manifolds"
 
     def __init__(self, host: Any) -> None:
         super().__init__(host)
@@ -105,7 +137,7 @@ class ManifoldsLayer(Layer):
     def stopped(self, busy: bool, now: dict[str, str]) -> None:
         if not self.host.state.manifold_saddles:
             return
-        note = stale_note(self.shown_query, now, url_keys(self.depends)) if self.manifolds else ""
+        note = self.stale(self.shown_query, now, self.depends) if self.manifolds else ""
         if note:
             self.text = f"stopped: the manifolds shown are for {note}"
         elif busy:
@@ -113,10 +145,18 @@ class ManifoldsLayer(Layer):
 
     # --- what the user does -----------------------------------------------------------------
 
-    def pick(self, q: float, r: float, orbits: list[Any]) -> None:
-        """A click in "manifolds" mode: the saddle of ``orbits`` nearest the click (drawn, or removed)."""
+    def clear_all(self) -> None:
+        """Every saddle's manifolds gone (and the message of a pick that drew none)."""
+        for channel in self.channels:
+            self.host.runner.cancel(channel)
+        self.host.state.manifold_saddles = []  # the watcher redoes the layer: off
+        self.host.clear(self)
+
+    def pick(self, q: float, r: float) -> None:
+        """A click in "manifolds" mode: the saddle of the orbits layer nearest the click (drawn, or removed)."""
         if not (np.isfinite(q) and np.isfinite(r)):
             return
+        orbits = getattr(self.host.layers.get("orbits"), "orbits", [])  # the saddles it found
         st = self.host.state
         sq = st.q_range[1] - st.q_range[0]
         sr = st.r_range[1] - st.r_range[0]
@@ -148,16 +188,13 @@ class ManifoldsLayer(Layer):
             return
         st.manifold_saddles = [*kept, entry]
 
-    def csv(self) -> io.BytesIO:
-        """The manifolds on screen as CSV ``saddle,branch,kind,s,q,r`` with the settings in a comment header."""
-        buf = io.StringIO()
-        settings = self.shown_query or self.host.state.to_query()
-        buf.write("# Bilimovich Explorer manifolds; " + "&".join(f"{a}={b}" for a, b in settings.items()))
-        buf.write("\nsaddle,branch,kind,s,q,r\n")
-        for i, m in enumerate(self.manifolds):
-            for label, kind, s_, q, r in m.rows():
-                buf.write(f"{i},{label},{kind},{cell(s_)},{cell(q)},{cell(r)}\n")
-        return io.BytesIO(buf.getvalue().encode())
+    def table(self) -> Table | None:
+        """The manifolds on screen, ``saddle,branch,kind,s,q,r``, under the settings they were grown with."""
+        if not self.manifolds:
+            return None
+        rows = ((i, *row) for i, m in enumerate(self.manifolds) for row in m.rows())
+        return Table("manifolds", self.shown_query or self.host.state.to_query(),
+                     ("saddle", "branch", "kind", "s", "q", "r"), rows)  # fmt: skip
 
 
 def _same_saddle(a: tuple, b: tuple, sq: float, sr: float) -> bool:

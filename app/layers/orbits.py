@@ -2,20 +2,24 @@
 
 from __future__ import annotations
 
-import io
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
+import param
 
-from app.layers.base import KEEP, Layer, stale_note
+from app.controls import MAX_MAGNITUDE, SYSTEM_FIELDS, Control, UrlKey, choice, ints, places, points_text
+from app.layers.base import KEEP, Action, Layer, Table
 from app.runner import LAYER, POINTS
-from app.state import MAX_MAGNITUDE, MAX_ORBIT_SEEDS, SYSTEM_FIELDS, url_keys
 from explorer_core.analyses.orbits import Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
-from explorer_core.export import cell
 from explorer_core.system.params import Params
+
+#: Points clicked to find periodic orbits from (each a Newton search), per session.
+MAX_ORBIT_SEEDS = 60
+#: Longest period the orbit search tries (P^n of a chaotic region: Newton's basin shrinks like e^(-lambda n T)).
+MAX_ORBIT_PERIOD = 16
 
 #: Seeds of the "every orbit in view" search: a grid over the plot window.
 ORBIT_GRID = (10, 10)
@@ -43,6 +47,11 @@ SETTLED_WORDS = "born since the last frame (a trajectory settled on it)"
 FOLD_NEAR = 0.25
 #: Follow jobs whose work the layer keeps a record of (OrbitsLayer.work).
 WORK_KEPT = 200
+#: The orbit search's button: an action, then a mode that stays on (redone after every pan or zoom).
+FIND_OFF = ("Find orbits in view", "Newton on P^n(x) - x from a grid of starting points over the plot window")
+FIND_ON = ("Orbits in view: on", "A mode: the search is redone after every pan or zoom; 'Clear orbits' ends it")
+CSV_HEADER = ("orbit", "period", "type", "stable", "j", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "det",
+              "liouville", "residual")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -160,6 +169,32 @@ class OrbitsLayer(Layer):
     channels: ClassVar[dict[str, str]] = {"orbits": LAYER, "orbit": POINTS}
     fields = ("show_orbits", "orbit_period")
     depends = (*SYSTEM_FIELDS, "orbit_period")
+    controls = (
+        Control("show_orbits", "Periodic orbits of the map P (fixed points of P^n)", "check", "layers", "orbits",
+                help="● stable, ○ unstable, ✕ saddle (hover: period and multipliers). Click in the plot with "
+                "'finds a periodic orbit', or find every orbit in view.", default=True),
+        ints("orbit_period", "Orbits: longest period searched", "layers", "orb_n", 1, MAX_ORBIT_PERIOD, 4),
+    )  # fmt: skip
+    picks: ClassVar[dict[str, param.Parameter]] = {
+        "orbit_seeds": param.List(default=[], item_type=tuple, doc="points clicked to find periodic orbits from"),
+        "orbit_view": param.Boolean(default=False, doc="also every orbit Newton finds from a grid over the view"),
+    }
+    urls = (
+        UrlKey("orb", ("orbit_seeds",), lambda s: points_text(s.orbit_seeds),
+               lambda t: {"orbit_seeds": places("orb", t, MAX_ORBIT_SEEDS, "orbit seeds", 2, "q,r")},
+               lambda s: bool(s.orbit_seeds), "orbit seeds"),
+        UrlKey("orb_all", ("orbit_view",), lambda s: "1",
+               choice({"1": {"orbit_view": True}, "0": {"orbit_view": False}}), lambda s: s.orbit_view,
+               "orbits in view"),
+    )  # fmt: skip
+    #: The orbits on screen as table rows (:func:`orbit_row`, the first :data:`ORBIT_ROWS`), what the last search said.
+    publishes: ClassVar[dict[str, Any]] = {"orbits": [], "orbit_status": ""}
+    actions = (
+        Action("find_orbits", "find_in_view"),
+        Action("clear_orbits", "clear_all"),
+        Action("orbit", "find_at", "finds a periodic orbit", click=True),
+    )
+    download = "orbits"
 
     def __init__(self, host: Any) -> None:
         super().__init__(host)
@@ -254,7 +289,7 @@ class OrbitsLayer(Layer):
                               "partner_seeds": res.extra.get("partner_seeds", {})})  # fmt: skip
         if not inputs.where:
             self.orbits = []
-        elif stale_note(self.shown_query, inputs.query, url_keys(SYSTEM_FIELDS)):
+        elif self.stale(self.shown_query, inputs.query, SYSTEM_FIELDS):
             self.orbits = []  # those on screen are another system's (a Stop kept them): never mixed
         self.shown_query = inputs.query
         new = [o for o in res.orbits if not any(same_orbit(o, k) for k in self.orbits)]
@@ -300,16 +335,38 @@ class OrbitsLayer(Layer):
     def published(self) -> dict[str, Any]:
         return {"orbits": self.rows, "orbit_status": self.text}
 
+    def view(self) -> dict[str, Any]:
+        on = bool(self.host.state.orbit_view)
+        label, title = FIND_ON if on else FIND_OFF
+        return {**self.published(), "n_orbits": len(self.rows), "orbit_view": on, "find_label": label,
+                "find_title": title}  # fmt: skip
+
     def stopped(self, busy: bool, now: dict[str, str]) -> None:
         if not self.host.state.show_orbits or not (busy or self.orbits):
             return
-        note = stale_note(self.shown_query, now, url_keys(self.depends)) if self.orbits else ""
+        note = self.stale(self.shown_query, now, self.depends) if self.orbits else ""
         if note:
             self.text = f"stopped: the {len(self.orbits)} periodic orbits shown are for {note}"
         elif busy:
             self.text = f"stopped: {len(self.orbits)} periodic orbits shown (the search did not end)"
 
     # --- what the user does -----------------------------------------------------------------
+
+    def find_in_view(self) -> None:
+        """Also search from a grid of seeds over the plot window (kept in the URL; redone on a new view)."""
+        st = self.host.state
+        if st.orbit_view and st.show_orbits:
+            return
+        with self.host.suspended():
+            st.param.update(orbit_view=True, show_orbits=True)
+        self.host.refresh(self)
+
+    def clear_all(self) -> None:
+        """The orbits, their seeds and the search in view, gone."""
+        for channel in self.channels:
+            self.host.runner.cancel(channel)
+        self.host.state.param.update(orbit_seeds=[], orbit_view=False)
+        self.host.clear(self)
 
     def find_at(self, q: float, r: float) -> bool:
         """Newton from a click, for every period up to the setting; drawn as soon as found. Returns whether
@@ -355,18 +412,19 @@ class OrbitsLayer(Layer):
         self.host.run(self, inputs, channel="orbit", bump=False)
         return len(cycles)
 
-    def csv(self) -> io.BytesIO:
-        """The orbits on screen as CSV (one row per orbit point), the settings in a comment header."""
-        buf = io.StringIO()
-        settings = "&".join(f"{a}={b}" for a, b in (self.shown_query or self.host.state.to_query()).items())
-        buf.write("# Bilimovich Explorer periodic orbits; " + settings)
-        buf.write("\norbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im,det,liouville,residual\n")
-        for i, o in enumerate(self.orbits):
-            m = o.multipliers
-            for j, (q, r) in enumerate(o.points):
-                nums = (q, r, m[0].real, m[0].imag, m[1].real, m[1].imag, o.det, o.liouville, o.residual)
-                buf.write(f"{i},{int(o.period)},{o.kind},{int(o.stable)},{j},{','.join(cell(x) for x in nums)}\n")
-        return io.BytesIO(buf.getvalue().encode())
+    def table(self) -> Table | None:
+        """The orbits on screen (one row per orbit point), under the settings they were found with."""
+        if not self.rows:
+            return None
+
+        def rows() -> Iterator[tuple[Any, ...]]:
+            for i, o in enumerate(self.orbits):
+                m = o.multipliers
+                for j, (q, r) in enumerate(o.points):
+                    yield (i, int(o.period), o.kind, int(o.stable), j, q, r, m[0].real, m[0].imag, m[1].real,
+                           m[1].imag, o.det, o.liouville, o.residual)  # fmt: skip
+
+        return Table("periodic orbits", self.shown_query or self.host.state.to_query(), CSV_HEADER, rows())
 
 
 def _mu_text(mu: np.ndarray) -> str:

@@ -9,7 +9,6 @@ second channel.
 
 from __future__ import annotations
 
-import io
 import logging
 import os
 import time
@@ -18,11 +17,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from app.layers.base import Layer, stale_note
+from app.layers.base import Layer, Table, stale_note
 from app.layers.density import DensityImage
 from app.layers.stream import MAX_CHUNK, Cadence
 from app.runner import LAYER, POINTS, Emit
-from app.state import SYSTEM_FIELDS, SectionRequest, url_keys
+from app.state import SYSTEM_FIELDS, SectionRequest, key_words, url_keys
 from explorer_core.analyses.reliability import assess
 from explorer_core.solve.integrators import Status
 from explorer_core.solve.section import iter_section
@@ -70,6 +69,11 @@ class SectionLayer(Layer):
     channels: ClassVar[dict[str, str]] = {"section": POINTS, "reliability": LAYER}
     fields = SECTION_FIELDS
     depends = (*SECTION_FIELDS, "clicked")
+    #: The status line, the trajectories escaped and failed, the points on screen (the CSV download is offered
+    #: only then) and the reliability warnings (explorer_core.reliability) as dicts: level, code, message.
+    publishes: ClassVar[dict[str, Any]] = {"status": "", "escaped": [], "failed": [], "n_points": 0,
+                                           "reliability": []}  # fmt: skip
+    download = "section"
 
     def __init__(self, host: Any) -> None:
         super().__init__(host)
@@ -101,6 +105,16 @@ class SectionLayer(Layer):
     def published(self) -> dict[str, Any]:
         return {"status": self.text, "escaped": self.escaped, "failed": self.failed, "n_points": self.n_points,
                 "reliability": self.warnings}  # fmt: skip
+
+    def view(self) -> dict[str, Any]:
+        status = self.text
+        if self.escaped:
+            ids = ", ".join(str(i) for i in self.escaped[:12]) + (" …" if len(self.escaped) > 12 else "")
+            status += f"  |  escaped (noncompact drift, left the bound): {ids}"
+        if self.failed:
+            status += f"  |  failed: {', '.join(str(i) for i in self.failed[:12])}"
+        return {"status": status, "warnings": [{"level": w["level"], "message": w["message"]} for w in self.warnings],
+                "n_points": self.n_points, "density": self.density.counts is not None}  # fmt: skip
 
     # --- a run --------------------------------------------------------------------------------
 
@@ -278,7 +292,7 @@ class SectionLayer(Layer):
             parts.append(self.outcome)
         if not running and (n_points or counts is not None):
             keys = (*SECTION_KEYS, *VIEW_KEYS) if counts is not None else SECTION_KEYS
-            note = stale_note(self.shown_query, self.host.state.to_query(), keys)
+            note = stale_note(self.shown_query, self.host.state.to_query(), keys, key_words)
             if note:
                 parts.append(f"the picture is for {note}")
         shown = n_points or n_traj or running or self.outcome or counts
@@ -341,16 +355,13 @@ class SectionLayer(Layer):
         else:  # rings over a density image would hide it: the k-series below shows the trajectory
             fig.set_selected(np.zeros(0), np.zeros(0))
 
-    def csv(self) -> io.BytesIO:
-        """The section on screen as CSV ``traj,k,q,r`` with the settings in a comment header."""
+    def table(self) -> Table | None:
+        """The section on screen, ``traj,k,q,r``, under the settings it was computed with."""
+        if not self.n_points:
+            return None
         traj, k, q, r = self.data()
-        buf = io.StringIO()
-        settings = self.shown_query or self.host.state.to_query()
-        buf.write("# Bilimovich Explorer section; " + "&".join(f"{a}={b}" for a, b in settings.items()))
-        if self.density.counts is not None:
-            buf.write(f"\n# a density view: only the trajectories drawn as points (clicked, selected); the image "
-                      f"holds {self.density.counts[0]} points")  # fmt: skip
-        buf.write("\ntraj,k,q,r\n")
-        for row in zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True):
-            buf.write(f"{row[0]},{row[1]},{row[2]!r},{row[3]!r}\n")
-        return io.BytesIO(buf.getvalue().encode())
+        notes = () if self.density.counts is None else (
+            f"a density view: only the trajectories drawn as points (clicked, selected); the image holds "
+            f"{self.density.counts[0]} points",)  # fmt: skip
+        rows = zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True)
+        return Table("section", self.shown_query or self.host.state.to_query(), ("traj", "k", "q", "r"), rows, notes)
