@@ -13,7 +13,9 @@ from app.controls import PLOT_PIXELS, SYSTEM_FIELDS, UrlKey, ints, places, point
 from app.layers.base import KEEP, Action, Layer, Table, plain
 from app.layers.orbits import MAX_ORBIT_PERIOD
 from app.runner import LAYER
-from explorer_core.analyses.manifolds import Manifolds, iter_manifolds, saddle_orbit
+from explorer_core.analyses.manifolds import MANIFOLD_NUMERICS, Manifolds, iter_manifolds, saddle_orbit
+from explorer_core.analyses.orbits import ORBIT_NUMERICS
+from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import ParameterError, Params
 
 #: A click picks the saddle whose point is nearest, within this fraction of the view's width and height.
@@ -39,6 +41,8 @@ class ManifoldInputs:
     saddles: tuple[tuple[float, float, int], ...]
     length: float
     query: dict[str, str] = field(default_factory=dict, compare=False)
+    #: The page's Method and Accuracy by the core's rule, at the manifolds' own tolerance under "plot".
+    numerics: Numerics = field(default_factory=lambda: MANIFOLD_NUMERICS)
 
 
 class ManifoldsLayer(Layer):
@@ -72,6 +76,7 @@ class ManifoldsLayer(Layer):
         super().__init__(host)
         self.manifolds: list[Manifolds] = []
         self.text = ""
+        self.ran_with = ""
 
     def inputs(self) -> ManifoldInputs | object | None:
         st = self.host.state
@@ -81,7 +86,9 @@ class ManifoldsLayer(Layer):
         if params is None:
             return KEEP
         view = (*st.q_range, *st.r_range)
-        return ManifoldInputs(params, view, tuple(st.manifold_saddles), float(st.manifold_length), st.to_query())
+        numerics, self.ran_with = st.numerics_for(MANIFOLD_NUMERICS)
+        return ManifoldInputs(params, view, tuple(st.manifold_saddles), float(st.manifold_length), st.to_query(),
+                              numerics)  # fmt: skip
 
     def on_view(self) -> bool:
         return bool(self.host.state.manifold_saddles)  # refined for the new view's pixels
@@ -95,12 +102,17 @@ class ManifoldsLayer(Layer):
         notes: list[str] = []
         for q, r, n in inputs.saddles:
             try:
-                orbit = saddle_orbit(inputs.params, (q, r), n)
+                orbit = saddle_orbit(
+                    inputs.params,
+                    (q, r),
+                    n,
+                    numerics=inputs.numerics.loosened(min(inputs.numerics.rtol, ORBIT_NUMERICS.rtol)),
+                )  # the saddle at least as accurately as an orbit
             except ParameterError as exc:  # e.g. no longer a saddle for this system
                 notes.append(f"({q:.4g}, {r:.4g}): {plain(exc)}")
                 continue
             for m in iter_manifolds(inputs.params, orbit, length=inputs.length, view=inputs.view, pixels=PLOT_PIXELS,
-                                    others=done, cancel=cancelled):  # fmt: skip
+                                    others=done, numerics=inputs.numerics, cancel=cancelled):  # fmt: skip
                 if cancelled():
                     return
                 shown = [*done, m]
@@ -131,8 +143,11 @@ class ManifoldsLayer(Layer):
         return self.text
 
     def published(self) -> dict[str, Any]:
-        # n_manifolds: on screen (the CSV download offers exactly these)
-        return {"n_manifolds": len(self.manifolds), "manifold_status": self.text}
+        # n_manifolds: on screen (the CSV download offers exactly these); the numerics they were grown with
+        text = (
+            f"{self.text} (grown on {self.ran_with})" if self.text and self.manifolds and self.ran_with else self.text
+        )
+        return {"n_manifolds": len(self.manifolds), "manifold_status": text}
 
     def stopped(self, busy: bool, now: dict[str, str]) -> None:
         if not self.host.state.manifold_saddles:

@@ -13,7 +13,8 @@ import param
 from app.controls import MAX_MAGNITUDE, SYSTEM_FIELDS, Control, UrlKey, choice, ints, places, points_text
 from app.layers.base import KEEP, Action, Layer, Table
 from app.runner import LAYER, POINTS
-from explorer_core.analyses.orbits import Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
+from explorer_core.analyses.orbits import ORBIT_NUMERICS, Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
+from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import Params
 
 #: Points clicked to find periodic orbits from (each a Newton search), per session.
@@ -65,6 +66,9 @@ class OrbitInputs:
     #: While a parameter is played (app/play.py): the last frame's orbits, (q, r, period) each, continued to
     #: this frame by Newton from where they were, each for its own period (not the grid over the view).
     follow: tuple[tuple[float, float, int], ...] = ()
+    #: The map Newton iterates: the page's Method and Accuracy by the core's rule, at the orbits' own tolerance
+    #: under "plot" (an orbit's residual is no picture; :func:`~explorer_core.solve.numerics.chosen_numerics`).
+    numerics: Numerics = field(default_factory=lambda: ORBIT_NUMERICS)
 
 
 def birth_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[float, float]]]:
@@ -201,6 +205,7 @@ class OrbitsLayer(Layer):
         self.orbits: list[Orbit] = []
         self.rows: list[dict[str, Any]] = []
         self.text = ""
+        self.ran_with = ""
         #: While a parameter plays: the last follow jobs' Newton work (searches, seeds by kind and period), in order
         #: (a bounded record: a session may play for hours).
         self.work: deque[dict[str, Any]] = deque(maxlen=WORK_KEPT)
@@ -216,10 +221,16 @@ class OrbitsLayer(Layer):
         params = self.system_params()
         if params is None:
             return KEEP
-        return OrbitInputs(params, tuple(seeds), tuple(range(1, st.orbit_period + 1)), "", st.to_query(), follow)
+        return OrbitInputs(params, tuple(seeds), tuple(range(1, st.orbit_period + 1)), "", st.to_query(), follow,
+                           self.numerics())  # fmt: skip
 
     def on_view(self) -> bool:
         return bool(self.host.state.orbit_view)
+
+    def numerics(self) -> Numerics:
+        """The map the orbits are found on, and the words that say so under the plot (:attr:`ran_with`)."""
+        numerics, self.ran_with = self.host.state.numerics_for(ORBIT_NUMERICS)
+        return numerics
 
     def prepare(self, inputs: OrbitInputs) -> OrbitInputs:
         if not inputs.where and inputs.follow:  # a played parameter's frame: the orbits shown, continued
@@ -232,7 +243,9 @@ class OrbitsLayer(Layer):
 
     def job(self, inputs: OrbitInputs, cancelled: Callable[[], bool]) -> Iterator[OrbitSearch]:
         if not inputs.follow:
-            res = find_orbits(inputs.params, list(inputs.seeds), list(inputs.periods), cancel=cancelled)
+            res = find_orbits(
+                inputs.params, list(inputs.seeds), list(inputs.periods), numerics=inputs.numerics, cancel=cancelled
+            )
             if not cancelled():
                 yield res
             return
@@ -241,9 +254,13 @@ class OrbitsLayer(Layer):
         parts = []
         for n in sorted({p for _, _, p in inputs.follow}):
             pts = [(q, r) for q, r, p in inputs.follow if p == n]
-            parts.append(find_orbits(inputs.params, pts, [n], cancel=cancelled))
+            parts.append(find_orbits(inputs.params, pts, [n], numerics=inputs.numerics, cancel=cancelled))
         if inputs.seeds:
-            parts.append(find_orbits(inputs.params, list(inputs.seeds), list(inputs.periods), cancel=cancelled))
+            parts.append(
+                find_orbits(
+                    inputs.params, list(inputs.seeds), list(inputs.periods), numerics=inputs.numerics, cancel=cancelled
+                )
+            )
         # The orbits born at a doubling since the last frame (a grid would find them; following alone would not).
         have: list[Orbit] = []
         for o in (o for part in parts for o in part.orbits):
@@ -251,11 +268,11 @@ class OrbitsLayer(Layer):
                 have.append(o)  # once each: an orbit found twice is not its own partner
         births = birth_seeds(have, max(inputs.periods))
         for n, seeds in sorted(births.items()):
-            parts.append(find_orbits(inputs.params, seeds, [n], cancel=cancelled))
+            parts.append(find_orbits(inputs.params, seeds, [n], numerics=inputs.numerics, cancel=cancelled))
         # The partners of orbits near a fold (the saddle of a node born there, found settled).
         partners = partner_seeds(have, max(inputs.periods))
         for n, seeds in sorted(partners.items()):
-            parts.append(find_orbits(inputs.params, seeds, [n], cancel=cancelled))
+            parts.append(find_orbits(inputs.params, seeds, [n], numerics=inputs.numerics, cancel=cancelled))
         if cancelled():
             return
         found: list[Orbit] = []
@@ -333,7 +350,9 @@ class OrbitsLayer(Layer):
         return self.text
 
     def published(self) -> dict[str, Any]:
-        return {"orbits": self.rows, "orbit_status": self.text}
+        # The numerics the orbits were found with are said with them (the page's Method and Accuracy, the rule).
+        text = f"{self.text} (Newton on {self.ran_with})" if self.text and self.orbits and self.ran_with else self.text
+        return {"orbits": self.rows, "orbit_status": text}
 
     def view(self) -> dict[str, Any]:
         on = bool(self.host.state.orbit_view)
@@ -387,7 +406,7 @@ class OrbitsLayer(Layer):
             st.show_orbits = True  # recomputes every seed, this one included
             return False
         inputs = OrbitInputs(params, (seed,), tuple(range(1, st.orbit_period + 1)), f"from ({q:.4g}, {r:.4g})",
-                             st.to_query())  # fmt: skip
+                             st.to_query(), numerics=self.numerics())  # fmt: skip
         # One job per click, all kept: a second click does not cancel the first.
         self.host.run(self, inputs, channel="orbit", bump=False)
         return True
@@ -408,7 +427,7 @@ class OrbitsLayer(Layer):
         if not cycles:
             return 0
         inputs = OrbitInputs(params, (), tuple(range(1, st.orbit_period + 1)), SETTLED_WORDS, st.to_query(),
-                             tuple(cycles))  # fmt: skip
+                             tuple(cycles), self.numerics())  # fmt: skip
         self.host.run(self, inputs, channel="orbit", bump=False)
         return len(cycles)
 
