@@ -424,6 +424,8 @@ def _declared_values(args: argparse.Namespace, fn: Callable[..., Any], scene: Sc
             value = _floats(raw, 2, flag)
         elif arg.parse == "list":
             value = [w.strip() for w in str(raw).split(",")]
+            if not all(value):  # '' or 'a,,b' names nothing: never "the default"
+                raise UsageError(f"{flag} must be comma-separated names, got {raw!r}")
         else:
             value = raw
         if arg.positional:
