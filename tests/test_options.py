@@ -202,7 +202,7 @@ def test_the_lyapunov_tab_measures_what_the_command_lines_ensemble_measures(monk
     cli = lyapunov_spec(FIG8B, [(-0.5, -1.0)], 30, transient=20, ensemble=3, numerics=Numerics(steps_per_period=200))
     assert seen == [cli]
     text = "\n".join(tab.view["result"])
-    assert "numerics: vern9 at rtol 1e-10 (Accuracy plot: this computation's own tolerance" in text
+    assert "numerics: vern9 at rtol 1e-10 (plot: its own tolerance, no picture's)" in text
     st.accuracy = "high"
     st.method = "dop853"
     tab.run()

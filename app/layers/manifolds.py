@@ -144,9 +144,7 @@ class ManifoldsLayer(Layer):
 
     def published(self) -> dict[str, Any]:
         # n_manifolds: on screen (the CSV download offers exactly these); the numerics they were grown with
-        text = (
-            f"{self.text} (grown on {self.ran_with})" if self.text and self.manifolds and self.ran_with else self.text
-        )
+        text = f"{self.text}; grown on {self.ran_with}" if self.text and self.manifolds and self.ran_with else self.text
         return {"n_manifolds": len(self.manifolds), "manifold_status": text}
 
     def stopped(self, busy: bool, now: dict[str, str]) -> None:

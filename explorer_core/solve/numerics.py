@@ -143,9 +143,9 @@ def chosen_numerics(
     if accuracy == "high":
         tol, why = HIGH_RTOL, "Accuracy high"
     elif plot_rtol is not None:
-        tol, why = plot_rtol, "Accuracy plot: a picture's tolerance"
+        tol, why = plot_rtol, "plot: the picture's tolerance"
     else:
-        tol, why = own.rtol, "Accuracy plot: this computation's own tolerance (its result is no picture)"
+        tol, why = own.rtol, "plot: its own tolerance, no picture's"
     numerics = Numerics(
         method=method,
         rtol=tol,
