@@ -636,7 +636,7 @@ def cmd_bifurcation(args: argparse.Namespace) -> int:
         raise UsageError("give --out FILE.csv and/or --json")
     values = sweep_values(tuple(_span(args.range, "--range")), args.n_values)
     ics = _ics(args)
-    sweeps = tuple(s.strip() for s in args.sweeps.split(",")) if args.sweeps else ("forward", "backward")
+    sweeps = tuple(s.strip() for s in args.sweeps.split(",")) if args.sweeps is not None else ("forward", "backward")
     spec = _build(args, diagram_spec, params, args.param, values, points=args.points, transient=args.transient,
                   seeding=args.seeding, ics=_scene_point(scene) if ics is None else ics, sweeps=sweeps,
                   numerics=_numerics(args, None, args.transient + args.points))  # fmt: skip
@@ -795,7 +795,7 @@ def cmd_manifolds(args: argparse.Namespace) -> int:
     bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
     numerics = _numerics(args, None, 1, base=Numerics(rtol=1e-10, atol=1e-10, bound=bound))
     point = _floats(args.orbit, 2, "--orbit")
-    kinds = [k.strip() for k in args.kinds.split(",")] if args.kinds else list(KINDS)
+    kinds = [k.strip() for k in args.kinds.split(",")] if args.kinds is not None else list(KINDS)
     if not kinds or any(k not in KINDS for k in kinds):
         raise UsageError(f"--kinds must be unstable, stable or both (comma-separated), got {args.kinds!r}")
     view = _box(args.view, "--view", (*scene.q_range, *scene.r_range) if scene else None)
@@ -1139,7 +1139,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     cfg = bench.quick_config() if args.quick else bench.full_config()
     changes: dict[str, Any] = {}
-    if args.cases:
+    if args.cases is not None:
         changes["cases"] = tuple(c.strip() for c in args.cases.split(",") if c.strip())
     if args.repeat is not None:
         changes["repeat"] = args.repeat

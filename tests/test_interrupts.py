@@ -117,9 +117,17 @@ def test_quiet_never_hides_a_run_where_every_member_failed(tmp_path: Path) -> No
     assert rc == 0 and err == ""
 
 
-def test_an_empty_stage_list_is_refused(tmp_path: Path) -> None:
-    rc, _, err = run_cli("reproduce", "--out", str(tmp_path / "r"), "--size", "tiny", "--stages", "")
-    assert rc == 2 and "--stages" in err and err.count("\n") == 1
+@pytest.mark.parametrize("argv", [
+    ["reproduce", "--out", "{d}/r", "--size", "tiny", "--stages", ""],  # ran every stage
+    ["failures", "--out", "{d}/f", "--size", "tiny", "--stages", "lyapunov,"],
+    ["manifolds", "--scene", "fig8B", "--orbit=-0.04,-2.4", "--kinds", ""],  # grew both kinds
+    ["bifurcation", "--scene", "fig10", "--param", "alpha", "--range=-0.40,-0.39", "--sweeps", "", "--json"],
+    ["bench", "--quick", "--out", "{d}/b", "--cases", ""],  # ran every case
+])  # fmt: skip
+def test_an_empty_list_is_refused(tmp_path: Path, argv: list[str]) -> None:
+    rc, out, err = run_cli(*(a.replace("{d}", str(tmp_path)) for a in argv))
+    assert rc == 2 and err.count("\n") == 1 and "error" in err, err
+    assert out == "" and not list(tmp_path.iterdir())  # refused before any work (no folder made)
 
 
 # --- signals ------------------------------------------------------------------------------------------------

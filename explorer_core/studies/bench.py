@@ -224,6 +224,8 @@ class BenchConfig:
 
     def validate(self) -> None:
         """Raise ParameterError naming the first bad setting."""
+        if not self.cases:
+            raise ParameterError(f"no bench case chosen; choose from {', '.join(CASE_NAMES)}")
         bad = [c for c in self.cases if c not in CASE_NAMES]
         if bad:
             raise ParameterError(f"unknown bench case(s) {', '.join(bad)}; choose from {', '.join(CASE_NAMES)}")
