@@ -32,6 +32,8 @@ import pytest
 from clirun import run_cli
 
 from explorer_core import cli, export
+from explorer_core.scenes import get_scene
+from explorer_core.solve.section import section
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -112,6 +114,10 @@ def test_quiet_never_hides_a_run_where_every_member_failed(tmp_path: Path) -> No
     assert "failed: every member failed (2 " in err and f"exit status {cli.FAILED_STATUS}" in err
     assert "error" not in err  # the words match the status: a failure, with its exit status
     assert out.read_text() == "traj,k,q,r\n"  # the run ended: not a partial file, an empty one
+    sec = section(get_scene("fig1A").params.with_(g1=1e300), [(0.1, 0.2)], 5)  # its JSON says so too
+    sec.write(str(tmp_path / "s.json"))
+    doc = json.loads((tmp_path / "s.json").read_text())
+    assert doc["complete"] is False and doc["lost"][0]["what"] == "trajectories"
     # One member that ran is enough: a partial failure is exit 0 with its lost: line.
     rc, _, err = run_cli("section", "--scene", "fig1A", "--ic", "0.1,0.2", "--periods", "5", "--quiet")
     assert rc == 0 and err == ""

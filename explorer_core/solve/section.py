@@ -195,6 +195,8 @@ class Section(Drawable):
             ],
             "elapsed_s": round(self.elapsed_s, 6),
             "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "periods": self.periods,
             "transient": self.transient,
             "params": self.params.as_dict(),
