@@ -9,8 +9,17 @@ The commands are a table (:data:`COMMANDS`): each adds its arguments, builds the
 them, runs it with one progress line, and writes its outputs through :mod:`explorer_core.export`, at
 exactly the paths given, which are checked before the work starts. Bad input, an unusable output or a
 refused parameter gives one line ``bilimovich CMD: error: ...`` on stderr and exit status 2, never a
-traceback; Ctrl-C stops the work and exits 130 after writing what was computed. What a result lost
-(``result.lost``) is printed on stderr, one line per loss, and ``--json`` carries ``complete`` and ``lost``.
+traceback. What a result lost (``result.lost``) is printed on stderr, one line per loss (``--quiet`` never
+hides one), and ``--json`` carries ``complete`` and ``lost``. Every file is whole or absent (written to a
+temporary name, renamed when complete); one of a run that was stopped says so (``# partial: ...`` after a CSV's
+header, ``complete: false`` in JSON).
+
+Exit statuses: 0 done (a ``lost:`` line may say what is missing); 1 an internal error (a bug); 2 bad input
+or an unusable output; 3 (:data:`FAILED_STATUS`) every member of the run (trajectory, pixel, value, seed)
+failed, said in a ``failed:`` line; 128 + the signal (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP) interrupted:
+the work stops at its next look at the signal, writes what it computed, prints the ``lost:`` lines and an
+``interrupted`` line, then exits (with the warm worker too, :mod:`explorer_core.worker`; a second signal
+leaves at once without waiting).
 """
 
 from __future__ import annotations
@@ -23,6 +32,7 @@ import os
 import re
 import signal
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -34,6 +44,7 @@ import numpy as np
 from explorer_core import __version__, config, export
 from explorer_core.scenes import Scene, get_scene, list_scenes
 from explorer_core.solve.numerics import Numerics, check_box, random_ics
+from explorer_core.status import Status
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
 CSV, NPZ = (".csv",), (".npz",)
@@ -204,28 +215,79 @@ def _periods_transient(args: argparse.Namespace, scene: Scene | None) -> tuple[i
 # --- running and reporting ---------------------------------------------------------------------------------
 
 
-class _Run:
-    """One long computation: Ctrl-C sets a flag that the work polls (call the object: ``cancel=run``), and
-    one throttled ``\\r`` progress line on stderr (only on a terminal, never with ``--quiet``)."""
+#: Signals that stop a command: Ctrl-C, SIGTERM (a process manager, ``kill``) and SIGHUP (a closed terminal). The
+#: exit status is 128 plus the first one's number: 130, 143, 129.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+#: Exit status of a run in which every member (trajectory, pixel, value, seed) failed: nothing usable was computed.
+FAILED_STATUS = 3
 
-    def __init__(self, args: argparse.Namespace) -> None:
-        self.flag = False
-        self.show = not getattr(args, "quiet", False) and sys.stderr.isatty()
-        self._last = 0.0
-        self._shown = False
-        self._old: Any = None
 
-    def __enter__(self) -> _Run:
-        def on_signal(signum: int, frame: Any) -> None:
-            self.flag = True
+class _Signals:
+    """The stop signals one command received. Before its work starts a signal ends the command at once (a
+    ``KeyboardInterrupt``: nothing is computed yet); once a :class:`_Run` has started it is a request the work
+    polls, and the command goes on to write what it computed, then exits ``128 + signal`` (:meth:`status`)."""
 
-        self._old = signal.signal(signal.SIGINT, on_signal)
+    def __init__(self) -> None:
+        self.received: list[int] = []
+        self.defer = False
+        self._old: dict[int, Any] = {}
+
+    def __enter__(self) -> _Signals:
+        if threading.current_thread() is threading.main_thread():  # Python takes signals in the main thread only
+            for s in STOP_SIGNALS:
+                self._old[s] = signal.signal(s, self._on_signal)
         return self
 
     def __exit__(self, *exc: Any) -> None:
-        signal.signal(signal.SIGINT, self._old)
+        for s, handler in self._old.items():
+            signal.signal(s, handler)
+        self._old.clear()
+
+    def _on_signal(self, signum: int, frame: Any) -> None:
+        self.received.append(int(signum))
+        if not self.defer:
+            raise KeyboardInterrupt
+
+    def status(self) -> int:
+        """The exit status of an interrupted command: ``128 +`` the first signal (130 without one: a
+        ``KeyboardInterrupt`` raised by other means)."""
+        return 128 + self.received[0] if self.received else 130
+
+    def name(self) -> str:
+        return signal.Signals(self.received[0]).name if self.received else "SIGINT"
+
+
+#: The signals of the command being run by :func:`main` (None outside it: a :class:`_Run` then takes its own).
+_signals: _Signals | None = None
+
+
+class _Run:
+    """One long computation: a stop signal (Ctrl-C, SIGTERM, SIGHUP) sets a flag that the work polls (call the
+    object: ``cancel=run``), and one throttled ``\\r`` progress line on stderr (only on a terminal, never with
+    ``--quiet``). From here on the command writes what it computed before it exits (see :class:`_Signals`)."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.show = not getattr(args, "quiet", False) and sys.stderr.isatty()
+        self._last = 0.0
+        self._shown = False
+        self._own = _signals is None
+        self.signals = _Signals() if self._own else _signals
+
+    def __enter__(self) -> _Run:
+        if self._own:
+            self.signals.__enter__()
+        self.signals.defer = True
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._own:
+            self.signals.__exit__()
         if self._shown:
             sys.stderr.write("\n")
+
+    @property
+    def flag(self) -> bool:
+        return bool(self.signals.received)
 
     def __call__(self) -> bool:
         return self.flag
@@ -313,7 +375,8 @@ def _print_json(obj: Any) -> None:
 def _finish(args: argparse.Namespace, summary: dict[str, Any], lines: Callable[[], list[str]], *, result: Any = None,
             completed: bool | None = None, what: str = "results", notes: Sequence[str] = ()) -> int:  # fmt: skip
     """The end of every command: the losses into the summary, JSON or ``lines()`` on stdout, the losses and
-    ``notes`` on stderr; exit 130 when the work was interrupted (what was computed has been written)."""
+    ``notes`` on stderr; exit ``128 + signal`` when the work was interrupted (what was computed has been
+    written), :data:`FAILED_STATUS` when every member failed."""
     lost = getattr(result, "lost", None)
     if lost is not None:  # results adopt losses.Loss one by one: report whichever has them
         summary["complete"] = bool(getattr(result, "complete", not lost))
@@ -330,8 +393,42 @@ def _finish(args: argparse.Namespace, summary: dict[str, Any], lines: Callable[[
         completed = bool(getattr(result, "completed", True))
     if not completed:
         sys.stderr.write(f"bilimovich {args.command}: interrupted; the {what} computed so far were written\n")
-        return 130
+        return _signals.status() if _signals is not None else 130
+    failed = _all_failed(result)
+    if failed:
+        sys.stderr.write(f"bilimovich {args.command}: failed: every member failed ({failed}); exit status "
+                         f"{FAILED_STATUS}\n")  # fmt: skip
+        return FAILED_STATUS
     return 0
+
+
+#: What a member ends with when it failed (numerically, or refused): escaping the bound is an outcome, a budget
+#: or an undecided class a verdict, a cancelled or never-run member no attempt.
+_FAILURES = frozenset({Status.STEP_COLLAPSED, Status.TOO_MANY_STEPS, Status.NONFINITE, Status.NOT_CONVERGED,
+                       Status.INVALID})  # fmt: skip
+
+
+def _all_failed(result: Any) -> str | None:
+    """The members' statuses in words if every member of ``result`` that ran failed (its ``status``: one status
+    or an array or list of them), else None."""
+    status = getattr(result, "status", None)
+    if status is None:
+        return None
+    try:
+        if isinstance(status, np.ndarray) and status.dtype.kind in "iu":
+            codes, counts = np.unique(status, return_counts=True)
+            found = {Status.of(int(c)): int(n) for c, n in zip(codes, counts, strict=True)}
+        else:
+            items = [status] if isinstance(status, (str, int, Status)) else list(np.asarray(status).ravel().tolist())
+            found = {}
+            for item in items:
+                found[Status.of(item)] = found.get(Status.of(item), 0) + 1
+    except (ValueError, TypeError):
+        return None
+    ran = {s: n for s, n in found.items() if s not in (Status.CANCELLED, Status.NOT_RUN)}
+    if not ran or not set(ran) <= _FAILURES:
+        return None
+    return ", ".join(f"{n} {s.word}" for s, n in sorted(ran.items()))
 
 
 def _with_scene(summary: dict[str, Any], args: argparse.Namespace) -> dict[str, Any]:
@@ -741,9 +838,11 @@ def _staged_args(p: argparse.ArgumentParser, stages: str, quick: str) -> None:
 
 def _staged_run(args: argparse.Namespace) -> tuple[str, str, tuple[str, ...] | None, Callable[[str, float], None]]:
     """Output folder (created), size, stages and a progress printer of ``reproduce`` / ``failures``."""
+    stages = None if args.stages is None else tuple(s.strip() for s in args.stages.split(","))
+    if stages is not None and not all(stages):  # '' or 'a,,b' named no stage: never "all of them"
+        raise UsageError(f"--stages must name stages, comma-separated, got {args.stages!r}")
     out = _out_dir(args)
     size = args.size or ("quick" if args.quick else "full")
-    stages = tuple(s.strip() for s in args.stages.split(",")) if args.stages else None
 
     def progress(stage: str, elapsed: float) -> None:
         if not args.quiet:
@@ -762,7 +861,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         rep = reproduce(size, stages=stages, progress=lambda u: u.detail and progress(*u.detail), cancel=run)
     from explorer_core.reports.render import render_reproduction  # matplotlib only here
 
-    figures = render_reproduction(rep, out)
+    figures = render_reproduction(rep, out, cancel=run)  # a stop signal: no more figures
     table = [os.path.join(out, "table.md"), os.path.join(out, "table.csv")]
     rep.write_table(*table)
     summary = {**rep.summary(), "figures": figures, "table": table, "elapsed_s": round(time.perf_counter() - start, 2)}
@@ -788,7 +887,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
     cfg = bench.quick_config() if args.quick else bench.full_config()
     changes: dict[str, Any] = {}
-    if args.cases:
+    if args.cases is not None:
         changes["cases"] = tuple(c.strip() for c in args.cases.split(",") if c.strip())
     if args.repeat is not None:
         changes["repeat"] = args.repeat
@@ -1016,15 +1115,29 @@ def _check_outputs(args: argparse.Namespace, c: Command) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; its exit status. A stop signal (:data:`STOP_SIGNALS`) before the work starts ends it at
+    once; once the work runs, the work stops at its next look, writes what it computed, prints what was lost and
+    exits ``128 + signal`` (130 for Ctrl-C, 143 for SIGTERM). A run in which every member failed exits
+    :data:`FAILED_STATUS`."""
+    global _signals
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
     args = parser.parse_args(argv)
     prefix = f"bilimovich {args.command}"
     # Python warnings (numpy's overflow in a hostile input, say) are collected: one line each, in this
     # command's words, after a run that succeeded; a failed run says only why it failed.
-    with warnings.catch_warnings(record=True) as caught:
+    outer = _signals
+    with warnings.catch_warnings(record=True) as caught, _Signals() as signals:
         warnings.simplefilter("always")
-        status = _run(args, prefix)
+        _signals = signals
+        try:
+            status = _run(args, prefix)
+        finally:
+            _signals = outer
+        if signals.received and status == 0:  # the work was done when the signal came: all was written
+            sys.stderr.write(f"{prefix}: interrupted ({signals.name()}) as its work ended; what it wrote is "
+                             "complete unless a lost: line above says otherwise\n")  # fmt: skip
+            status = signals.status()
     if status == 0:
         for text in dict.fromkeys(f"{w.category.__name__}: {' '.join(str(w.message).split())}" for w in caught):
             sys.stderr.write(f"{prefix}: warning: {text}\n")
@@ -1041,12 +1154,14 @@ def _run(args: argparse.Namespace, prefix: str) -> int:
     # ParameterError and export.OutputError are ValueErrors; SchedulerError (an unusable Dask cluster) a
     # ConnectionError; an OSError is an output that failed after all.
     except (UsageError, ValueError, ConnectionError, OSError) as exc:
-        text = f"{exc.strerror}: {exc.filename}" if isinstance(exc, OSError) and exc.strerror else str(exc)
+        text = str(exc)
+        if isinstance(exc, OSError) and exc.strerror:  # an OSError without a file name is not "...: None"
+            text = exc.strerror if exc.filename is None else f"{exc.strerror}: {exc.filename}"
         sys.stderr.write(f"{prefix}: error: {' '.join(text.split())}\n")
         return 2
     except KeyboardInterrupt:
         sys.stderr.write(f"{prefix}: interrupted\n")
-        return 130
+        return _signals.status() if _signals is not None else 130
     except Exception as exc:  # never a traceback for users; BILIMOVICH_DEBUG=1 shows it
         if os.environ.get("BILIMOVICH_DEBUG"):
             raise
@@ -1073,7 +1188,7 @@ def entry() -> None:
         status = worker.run_in_worker(argv)
         if status is not None:
             sys.exit(status)
-    status = worker.run_here(main, argv)  # Ctrl-C ends this process within a second, even inside a kernel
+    status = worker.run_here(main, argv)  # a stop signal is honoured as in the worker, even inside a kernel
     if use and "numba" in sys.modules:  # this run paid for the kernels: the next one need not
         with contextlib.suppress(OSError):
             worker.spawn([sys.executable, "-m", "explorer_core.cli", _WORKER])

@@ -9,18 +9,31 @@ JSON: numpy scalars and arrays become numbers and lists, dataclasses their field
 numbers ``[re, im]``, and a NaN or infinite float ``null`` (JSON has no NaN).
 NPZ/NPY: written through an open file, so numpy never appends a suffix of its own.
 
+Every file is written whole or not at all (:func:`atomic`): to a temporary name in the same folder, synced
+to the disk, then renamed onto the final name (SQLite's and PostgreSQL's rule: a crash, a full disk or an
+interrupt leaves the last complete state). A writer that fails or is interrupted midway removes its
+temporary file and leaves the final name untouched: the previous file, or none; never a cut line. An
+error of the file system names the final path (a full disk said "No space left on device: None").
+A CSV written with ``comments`` has them as ``# `` lines right after its header (``numpy.genfromtxt`` with
+``names=True`` and ``loadtxt`` skip them; before the header ``genfromtxt`` would take one for the names): a
+result whose run was stopped says so there, with what it lost (:func:`partial`).
+
 :func:`check_output` is called before any work starts: a path whose suffix does not match what will be
 written, or that cannot be written, is refused with one line naming it.
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import csv
 import dataclasses
+import errno
 import json
 import math
 import os
-from collections.abc import Callable, Iterable, Sequence
+import secrets
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any, BinaryIO
 
 import numpy as np
@@ -51,11 +64,82 @@ def check_output(path: str, allowed_suffixes: Sequence[str], option: str = "--ou
     try:
         with open(text, "ab"):
             pass
+        # The file is written beside its final name and renamed onto it: the folder must take a new file too.
+        os.remove(_reserve(text))
     except OSError as exc:
         raise OutputError(f"{option} cannot be written: {text} ({exc.strerror or exc})") from None
-    if not existed:
-        os.remove(text)
+    finally:
+        if not existed and os.path.exists(text):
+            os.remove(text)
     return text
+
+
+# --- whole files or none ------------------------------------------------------------------------------------
+
+#: The temporary files being written by :func:`atomic` in this context: a writer inside another's (a result's
+#: ``write`` calling :func:`write_csv`) writes the outer temporary file directly, renamed once.
+_WRITING: contextvars.ContextVar[frozenset[str]] = contextvars.ContextVar("export_writing", default=frozenset())
+
+
+def _reserve(path: str) -> str:
+    """A new empty file beside ``path``, named after it and ending in its suffix (matplotlib and numpy read the
+    format from it), created with the mode a plain ``open(path, "w")`` would give (0666 less the umask)."""
+    folder, base = os.path.split(os.path.abspath(path))
+    suffix = os.path.splitext(base)[1]
+    while True:
+        tmp = os.path.join(folder, f".{base}.{secrets.token_hex(4)}.part{suffix}")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return tmp
+        except FileExistsError:
+            continue
+
+
+def _sync(path: str) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+@contextlib.contextmanager
+def atomic(path: str) -> Iterator[str]:
+    """A temporary path to write ``path``'s content to: on leaving the block it is synced and renamed onto
+    ``path`` (``os.replace``, atomic on one file system); on any exception, ``KeyboardInterrupt`` included, it
+    is removed and ``path`` is left as it was. A symbolic link at ``path`` keeps pointing at the new file.
+    An ``OSError`` without a file name (a write to a full disk) is raised again naming ``path``."""
+    text = os.fspath(path)
+    if text in _WRITING.get():  # inside another atomic write of this very file: it renames once
+        yield text
+        return
+    final = os.path.realpath(text) if os.path.islink(text) else text
+    try:
+        tmp = _reserve(final)
+    except OSError as exc:
+        raise _named(exc, text) from None
+    token = _WRITING.set(_WRITING.get() | {tmp})
+    try:
+        yield tmp
+        _sync(tmp)
+        os.replace(tmp, final)
+    except BaseException as exc:
+        with contextlib.suppress(OSError):
+            os.remove(tmp)
+        if isinstance(exc, OSError) and exc.filename in (None, tmp):
+            raise _named(exc, text) from exc
+        raise
+    finally:
+        _WRITING.reset(token)
+    with contextlib.suppress(OSError):  # the rename itself on the disk (not every file system can sync a folder)
+        _sync(os.path.dirname(os.path.abspath(final)))
+
+
+def _named(exc: OSError, path: str) -> OSError:
+    """``exc`` naming ``path`` (its subclass kept: ``OSError(ENOSPC, ...)`` is an ``OSError``, ``ENOENT`` a
+    ``FileNotFoundError``)."""
+    code = exc.errno if exc.errno is not None else errno.EIO
+    return OSError(code, exc.strerror or os.strerror(code), path)
 
 
 # --- plain values ----------------------------------------------------------------------------------------
@@ -114,12 +198,14 @@ def cell(value: Any) -> Any:
 # --- files -----------------------------------------------------------------------------------------------
 
 
-def write_csv(path: str, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> int:
-    """Write ``header`` and ``rows`` (cells by :func:`cell`) to exactly ``path``; returns the row count."""
+def write_csv(path: str, header: Sequence[str], rows: Iterable[Sequence[Any]], comments: Sequence[str] = ()) -> int:
+    """Write ``header``, ``comments`` (``# `` lines) and ``rows`` (cells by :func:`cell`) to exactly ``path``,
+    whole or not at all (:func:`atomic`); returns the row count."""
     n = 0
-    with open(path, "w", newline="") as fh:
+    with atomic(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(list(header))
+        fh.writelines(comment_lines(comments))
         for row in rows:
             if len(row) != len(header):
                 raise ValueError(f"CSV row {n} has {len(row)} cells for {len(header)} columns")
@@ -128,42 +214,76 @@ def write_csv(path: str, header: Sequence[str], rows: Iterable[Sequence[Any]]) -
     return n
 
 
+def comment_lines(comments: Sequence[str]) -> list[str]:
+    """``# text`` lines for a CSV's head, after its header line (one per line of each comment)."""
+    return [f"# {line}\n" for text in comments for line in str(text).splitlines() or [""]]
+
+
+def partial(result: Any) -> list[str]:
+    """The CSV head comments of a result whose run was stopped before its end (a cancel, a stop signal:
+    ``completed`` false, or a loss ``cancelled``, as the crossings of manifolds grown to their end): that it is
+    partial, and each of its losses. Nothing for a run that ended (members that failed are ``lost:`` lines and
+    ``complete: false`` in JSON, not a partial file)."""
+    losses = list(getattr(result, "lost", None) or ())
+    if bool(getattr(result, "completed", True)) and not any("cancel" in loss.why for loss in losses):
+        return []
+    lost = [loss.line() for loss in losses]
+    return ["partial: the run was stopped before its end; this file holds what it had computed (complete: false)",
+            *lost]  # fmt: skip
+
+
 def write_json(path: str, obj: Any) -> None:
-    """``obj`` as indented strict JSON at exactly ``path``."""
-    with open(path, "w") as fh:
+    """``obj`` as indented strict JSON at exactly ``path``, whole or not at all."""
+    with atomic(path) as tmp, open(tmp, "w") as fh:
         json.dump(plain(obj), fh, indent=1, allow_nan=False)
         fh.write("\n")
 
 
 def write_npz(path: str, **arrays: Any) -> None:
     """A compressed ``.npz`` at exactly ``path`` (numpy appends ``.npz`` to a bare name; a file handle not)."""
-    with open(path, "wb") as fh:
+    with atomic(path) as tmp, open(tmp, "wb") as fh:
         np.savez_compressed(fh, **arrays)
 
 
 def write_npy(path: str, array: Any) -> None:
     """One array as ``.npy`` at exactly ``path``."""
-    with open(path, "wb") as fh:
+    with atomic(path) as tmp, open(tmp, "wb") as fh:
         np.save(fh, np.asarray(array))
 
 
 def write_through(path: str, writer: Callable[[BinaryIO], Any]) -> Any:
     """Let a result's own ``to_npz``-style writer fill exactly ``path`` (it gets an open binary file)."""
-    with open(path, "wb") as fh:
+    with atomic(path) as tmp, open(tmp, "wb") as fh:
         return writer(fh)
+
+
+def write_text(path: str, text: str) -> None:
+    """``text`` at exactly ``path``, whole or not at all."""
+    with atomic(path) as tmp, open(tmp, "w") as fh:
+        fh.write(text)
+
+
+def save_figure(fig: Any, path: str, **kw: Any) -> None:
+    """A matplotlib figure at exactly ``path`` in the format of its suffix, whole or not at all."""
+    fmt = os.path.splitext(os.fspath(path))[1].lstrip(".").lower() or None
+    with atomic(path) as tmp:
+        fig.savefig(tmp, format=fmt, **kw)
 
 
 def write_by_suffix(path: str, writers: dict[str, Callable[[str], Any]], what: str = "result") -> dict[str, Any]:
     """Write ``path`` with the writer of its suffix (``{".csv": fn, ".json": fn, ...}``, each ``fn(path)``).
 
     The one shape of a result's ``write(path)``: a suffix it has no writer for is refused with one line
-    naming the ones it has (the command line refuses it before any work, :func:`check_output`). Returns
-    what the CLI reports: ``{"path": path}``, with ``"rows"`` when the writer returns a row count.
+    naming the ones it has (the command line refuses it before any work, :func:`check_output`). The
+    writer fills a temporary file renamed onto ``path`` when it returns (:func:`atomic`: whatever it
+    opens itself is whole or absent too). Returns what the CLI reports: ``{"path": path}``, with
+    ``"rows"`` when the writer returns a row count.
     """
     text = os.fspath(path)
     for suffix, writer in writers.items():
         if text.lower().endswith(suffix):
-            rows = writer(text)
+            with atomic(text) as tmp:
+                rows = writer(tmp)
             return (
                 {"path": text, "rows": rows} if isinstance(rows, int) and not isinstance(rows, bool) else {"path": text}
             )

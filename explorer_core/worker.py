@@ -10,14 +10,19 @@ user's) and print what it writes; the worker runs them one at a time in its main
 A command that finds the worker busy runs by itself. The worker exits after :data:`IDLE_S` idle
 seconds, or on ``bilimovich worker stop``; ``BILIMOVICH_WORKER=0`` turns it off.
 
-A job never outlives its caller: Ctrl-C, SIGTERM and SIGHUP of the client are forwarded (a second one
-leaves at once), and a client that disappears (its socket closed, or a write to it fails) cancels its
-job the same way. A cancelled job gets :data:`CANCEL_GRACE_S` to return (:data:`CANCEL_HARD_S` while
-it writes what it computed so far), then its caller gets exit status 130 at once; a job still computing
-:data:`CANCEL_STOP_S` after the cancel is abandoned (numba kernels run without the GIL and cannot be
-interrupted; an analysis polls its ``cancel`` only between them): the worker exits, which stops the
-kernels; the next command starts a new worker. :func:`run_here` gives a command run without the worker
-the same bound on Ctrl-C (there the process ends after the grace time).
+A job never outlives its caller: Ctrl-C, SIGTERM and SIGHUP of the client are forwarded, and a client
+that disappears (its socket closed, or a write to it fails) cancels its job the same way. The client
+waits until the job has stopped and written what it computed, prints what the job printed (its ``lost:``
+lines, its summary) and exits with ``128 +`` its first signal (130, 143, 129): nothing computed is lost.
+An analysis polls its ``cancel`` between kernels (numba kernels run without the GIL and cannot be
+interrupted): a job not back within :data:`CANCEL_GRACE_S` says it is finishing its current step; one
+still computing :data:`CANCEL_STOP_S` after the cancel (:data:`CANCEL_HARD_S` while it writes) is
+abandoned: the worker exits, which stops the kernels, and the client says that nothing more was written;
+the next command starts a new worker. A second signal leaves at once (the job then stops in the worker,
+writing what it computed). :func:`run_here` gives a command run without the worker the same rules.
+
+The worker's log records every job: its start (arguments, folder), a cancel and why, its end (exit status,
+time, the ``lost:``, ``failed:`` and ``error:`` lines it printed), a traceback, an abandonment.
 
 The worker holds an exclusive lock on ``worker-KEY.lock`` (beside its socket, holding its pid) from
 before it compiles until it exits; the system drops the lock when the process dies, even by SIGKILL.
@@ -60,13 +65,16 @@ IDLE_S = float(os.environ.get("BILIMOVICH_WORKER_IDLE", "900"))
 LOCAL = frozenset({"serve", "worker", "warmup"})
 #: How long a client waits for a worker to accept and say whether it is free.
 CONNECT_S = 0.5
-#: Seconds a cancelled command has to return before it is abandoned (unless it is writing its results).
+#: Seconds after a cancel when a command not back yet says it is finishing its current step.
 CANCEL_GRACE_S = 0.8
-#: Seconds a cancelled command may go on computing in the worker (its caller answered already) before the
-#: worker abandons it and exits.
-CANCEL_STOP_S = 10.0
+#: Seconds a cancelled command may go on computing (its current kernel) before it is abandoned with what it
+#: computed (``BILIMOVICH_CANCEL_STOP`` overrides it: the tests' bound).
+CANCEL_STOP_S = float(os.environ.get("BILIMOVICH_CANCEL_STOP", "30"))
 #: Seconds a cancelled command has to return whatever it is doing (writing what it computed so far).
-CANCEL_HARD_S = 30.0
+CANCEL_HARD_S = max(120.0, CANCEL_STOP_S)
+#: What a command that is not back within :data:`CANCEL_GRACE_S` of a cancel says (once).
+FINISHING = ("\nbilimovich: stopping: the current step ends first, then what was computed is written "
+             "(a second signal leaves at once without it)\n")  # fmt: skip
 #: Signals of the client that cancel its job in the worker (as Ctrl-C does).
 FORWARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
@@ -259,13 +267,14 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
         if len(received) > 1:
             raise _Leave
         with contextlib.suppress(OSError):
-            _send(sock, b"i", b"")
-        # The worker answers within its grace time, or exits (which closes the socket).
-        sock.settimeout(CANCEL_GRACE_S + 10.0)
+            _send(sock, b"i", str(int(signum)).encode())
+        # The worker answers when the job has written what it computed, or abandons it (and exits, which
+        # closes the socket) after CANCEL_HARD_S at the latest.
+        sock.settimeout(CANCEL_HARD_S + 10.0)
 
     def cancelled(status: int) -> int:
-        last = received[-1] if received else signal.SIGINT
-        return 128 + int(last) if last != signal.SIGINT else status
+        # 128 + the first signal, as a lone process: an interrupted job (130) or one that had ended (0).
+        return 128 + int(received[0]) if status in (0, 130) else status
 
     old = {s: signal.signal(s, forward) for s in FORWARDED}
     try:
@@ -288,6 +297,9 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
                     sys.stderr.write(f"bilimovich: served by the worker at {path}\n")
                 return cancelled(int(payload)) if received else int(payload)
     except _Leave:  # wherever the second signal found us
+        with contextlib.suppress(OSError, ValueError):
+            sys.stderr.write("\nbilimovich: left without waiting: the command stops in the worker, writing what it "
+                             "computed so far\n")  # fmt: skip
         return cancelled(130)
     except BrokenPipeError:  # our reader left (``| head``): closing the socket cancels the job
         return 0
@@ -500,10 +512,13 @@ class _Watchdog:
 
 
 def run_here(run: Callable[[list[str]], int], argv: Sequence[str]) -> int:
-    """``run(argv)`` in this process with Ctrl-C honoured within :data:`CANCEL_GRACE_S`: the command's own
-    handler is told first (it returns what it computed so far); a command still computing after the
-    grace time (:data:`CANCEL_HARD_S` while it writes its results), or a second Ctrl-C, ends the process
-    with status 130. For ``bilimovich``'s ``entry``: ``status = worker.run_here(main, argv)``."""
+    """``run(argv)`` in this process with a stop signal (:data:`FORWARDED`) honoured as in the worker: the
+    command's own handler is told (it stops, writes what it computed so far and returns); one not back
+    within :data:`CANCEL_GRACE_S` says it is finishing its current step; one still computing
+    :data:`CANCEL_STOP_S` after the signal (:data:`CANCEL_HARD_S` while it writes its results), or a second
+    signal, ends the process with status ``128 +`` the first signal. The command must install Python
+    handlers for these signals (the CLI's ``main`` does): only then does the interpreter report them here.
+    For ``bilimovich``'s ``entry``: ``status = worker.run_here(main, argv)``."""
     if threading.current_thread() is not threading.main_thread():
         return run(list(argv))
     # The interpreter writes each signal's number to this socket the moment it arrives, whichever Python
@@ -522,13 +537,20 @@ def run_here(run: Callable[[list[str]], int], argv: Sequence[str]) -> int:
         writer.close()
         return run(list(argv))
 
+    first: list[int] = []
+
     def abandon(why: str) -> None:
         with contextlib.suppress(Exception):
             sys.stderr.flush()
         os.write(2, f"\nbilimovich: interrupted; {why}: stopped, nothing more written\n".encode())
-        os._exit(130)
+        os._exit(128 + (first[0] if first else int(signal.SIGINT)))
 
-    dog = _Watchdog(lambda why: None, abandon, CANCEL_GRACE_S)
+    def late(why: str) -> None:
+        with contextlib.suppress(OSError):
+            os.write(2, FINISHING.encode())
+
+    dog = _Watchdog(late, abandon, CANCEL_STOP_S)
+    stops = {int(s) for s in FORWARDED}
 
     def listen() -> None:
         while True:
@@ -538,8 +560,10 @@ def run_here(run: Callable[[list[str]], int], argv: Sequence[str]) -> int:
                 return
             if not data:
                 return
-            if signal.SIGINT in data and not dog.finished.is_set() and not dog.cancel():
-                abandon("a second Ctrl-C")
+            for signum in (b for b in data if b in stops):
+                first.append(signum)
+                if not dog.finished.is_set() and not dog.cancel():
+                    abandon(f"a second signal ({signal.Signals(signum).name})")
 
     threading.Thread(target=listen, daemon=True, name="bilimovich-signals").start()
     try:
@@ -560,12 +584,27 @@ class _Stream(io.TextIOBase):
     """A text stream that sends what is written to the client as frames of one kind; a failed write
     means the client is gone (``gone`` is called)."""
 
-    def __init__(self, sock: socket.socket, kind: bytes, tty: bool, gone: Callable[[], None]) -> None:
+    #: The lines of a command's stderr the worker's log keeps (what it lost, why it failed, was interrupted).
+    KEEP = (": lost: ", ": failed: ", ": error: ", ": interrupted", "internal error")
+
+    def __init__(self, sock: socket.socket, kind: bytes, tty: bool, gone: Callable[[], None], keep: bool = False):
         self._sock, self._kind, self._tty, self._gone = sock, kind, tty, gone
         self.buffer = self  # type: ignore[assignment]  # for code that writes bytes
+        self._text: list[str] | None = [] if keep else None
+        self._size = 0
+
+    def kept(self, most: int = 50) -> list[str]:
+        """The lines of :data:`KEEP` written so far (at most ``most``: the log stays small)."""
+        if self._text is None:
+            return []
+        lines = [ln.strip() for ln in "".join(self._text).splitlines() if any(k in ln for k in self.KEEP)]
+        return lines[:most] + ([f"... {len(lines) - most} more"] if len(lines) > most else [])
 
     def write(self, text: Any) -> int:
         data = text if isinstance(text, bytes) else str(text).encode()
+        if self._text is not None and self._size < LOG_BYTES:  # what the log may keep of it, bounded
+            self._text.append(data.decode(errors="replace"))
+            self._size += len(data)
         if data:
             try:
                 _send(self._sock, self._kind, data)
@@ -727,45 +766,53 @@ def _run_one(
                     _send(conn, b"e", message.encode())
                 _send(conn, b"x", str(status).encode())
 
+    argv = list(request["argv"])
+    job = f"job {argv} in {request.get('cwd')}"
+
     def late(why: str) -> None:
-        answer(f"\nbilimovich: interrupted; {why}: it stops in the worker, writing what it computed so far\n", 130)
+        with send_lock:
+            if not (answered.is_set() or client_gone.is_set()):
+                with contextlib.suppress(OSError):
+                    _send(conn, b"e", FINISHING.encode())
 
     def abandon(why: str) -> None:
-        _log(f"exits: abandoned the command {list(request['argv'])} ({why}) still computing {CANCEL_STOP_S:g} s "
-             "after its cancel")  # fmt: skip
+        _log(f"{job}: abandoned ({why}, still computing); the worker exits")
         leave()
         answer(f"\nbilimovich: interrupted; {why}: stopped, nothing more written\n", 130)
         os._exit(130)
 
     dog = _Watchdog(late, abandon, CANCEL_STOP_S)
 
-    def cancel() -> None:
-        if not dog.finished.is_set():
-            dog.cancel()
+    def cancel(why: str) -> None:
+        if not dog.finished.is_set() and dog.cancel():
+            _log(f"{job}: cancelled ({why})")
             os.kill(os.getpid(), signal.SIGINT)
 
     def gone() -> None:
         client_gone.set()
         if not dog.cancelled:
-            cancel()
+            cancel("its client is gone")
 
     tty = request.get("tty", [False, False])
-    out, err = _Stream(conn, b"o", bool(tty[0]), gone), _Stream(conn, b"e", bool(tty[1]), gone)
+    out, err = _Stream(conn, b"o", bool(tty[0]), gone), _Stream(conn, b"e", bool(tty[1]), gone, keep=True)
 
     def listen() -> None:
         # A cancel from the client, or its socket closing: the caller is gone, the job with it.
         while not dog.finished.is_set():
             try:
-                kind, _ = _recv(conn)
+                kind, payload = _recv(conn)
             except (OSError, ConnectionError):
                 if not dog.finished.is_set():
                     gone()
                 return
             if kind == b"i":
-                cancel()
+                name = signal.Signals(int(payload)).name if payload.isdigit() else "a signal"
+                cancel(f"the client's {name}")
 
     cwd = os.getcwd()
     status = 1
+    start = time.monotonic()
+    _log(f"{job}: started")
     signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a lone process
     threading.Thread(target=listen, daemon=True, name="worker-listen").start()
     try:
@@ -779,7 +826,7 @@ def _run_one(
                 status = 130
             except Exception:  # a command that raised (the CLI's main reports its own): as a lone process would
                 traceback.print_exc()
-                _log(f"the command {list(request['argv'])} raised:\n{traceback.format_exc()}")
+                _log(f"{job} raised:\n{traceback.format_exc()}")
                 status = 1
     except KeyboardInterrupt:
         status = 130
@@ -789,5 +836,9 @@ def _run_one(
         dog.finish()
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         os.chdir(cwd)
+    said = "".join(f"\n  {line}" for line in err.kept())
+    gone_ = ", its client gone" if client_gone.is_set() else ""
+    _log(f"{job}: ended, exit status {status}, {time.monotonic() - start:.2f} s"
+         f"{', cancelled' if dog.cancelled else ''}{gone_}{said}")  # fmt: skip
     free()
     answer("", int(status or 0))

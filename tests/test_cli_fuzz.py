@@ -1,8 +1,9 @@
 """The command line under random and hostile arguments: every command, each run in its own process.
 
 The contract (explorer_core/cli.py): exit 0 with complete, readable outputs (CSV read back by ``csv`` and
-``numpy``, NPZ by ``numpy``, JSON by ``json`` without NaN; no ``np.float64(...)`` text anywhere), or exit 2
-with exactly one line on stderr; never a traceback, never a hang (each run has a timeout). The arguments come
+``numpy``, NPZ by ``numpy``, JSON by ``json`` without NaN; no ``np.float64(...)`` text anywhere), exit 3
+(every member failed) with its ``lost:`` lines, a last ``failed:`` line and the same readable outputs, or exit
+2 with exactly one line on stderr; never a traceback, never a hang (each run has a timeout). The arguments come
 from a seeded generator, so a failure names a reproducible command line; sizes are small so the whole file
 runs in well under two minutes on two free cores (the runs go two at a time).
 
@@ -276,7 +277,11 @@ def check_contract(run: Run) -> None:
     if run.rc == 2:
         assert len(lines) == 1 and "error" in lines[0], f"`bilimovich {cmd}` stderr:\n{run.stderr}"
         return
-    assert run.rc == 0, f"`bilimovich {cmd}` exit {run.rc}:\n{run.stderr}"
+    if run.rc == cli.FAILED_STATUS:  # every member failed: said, with what was lost, never in silence
+        assert ": failed: every member failed" in lines[-1], f"`bilimovich {cmd}` stderr:\n{run.stderr}"
+        assert any(": lost: " in ln for ln in lines), f"`bilimovich {cmd}` stderr:\n{run.stderr}"
+    else:
+        assert run.rc == 0, f"`bilimovich {cmd}` exit {run.rc}:\n{run.stderr}"
     assert "np." not in run.stdout
     if "--json" in run.argv or run.argv[0] == "critical":
         doc = json.loads(run.stdout, parse_constant=_no_nan)

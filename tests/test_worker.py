@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -184,12 +185,14 @@ def run(argv):
 worker.serve(str(worker._private_dir() / ("worker-" + worker._key() + ".sock")), run, idle_s=120)
 """
 FAKE_CLIENT = "import sys; from explorer_core import worker; sys.exit(worker.run_in_worker(sys.argv[1:]))"
+# A command whose handlers take the stop signals (as the CLI's main does) and never look at them again.
 FAKE_HERE = """
 import signal, sys, time
 from explorer_core import worker
 
 def run(argv):
-    signal.signal(signal.SIGINT, lambda *a: None)  # a command that never looks at its flag again
+    for s in worker.FORWARDED:
+        signal.signal(s, lambda *a: None)
     time.sleep(120)
     return 0
 
@@ -197,8 +200,8 @@ sys.exit(worker.run_here(run, []))
 """
 
 
-@pytest.fixture
-def fake_worker(env: dict[str, str]):
+def serve_fake(env: dict[str, str]):
+    """The fake worker's process, running until the test ends."""
     proc = subprocess.Popen([sys.executable, "-c", FAKE_SERVE], env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
     try:
@@ -207,6 +210,11 @@ def fake_worker(env: dict[str, str]):
     finally:
         proc.kill()
         proc.wait(timeout=30)
+
+
+@pytest.fixture
+def fake_worker(env: dict[str, str]):
+    yield from serve_fake(env)
 
 
 def lines(path: Path) -> int:
@@ -285,39 +293,77 @@ def test_a_job_frees_the_worker_before_its_exit_status_goes_out() -> None:
     client_end.close()
 
 
-def test_ctrl_c_in_the_worker_is_honoured_within_a_second(env: dict[str, str], fake_worker, tmp_path: Path) -> None:
+def read_lines(stream) -> list[str]:
+    """The lines of ``stream`` as they come (a thread appends them)."""
+    got: list[str] = []
+    threading.Thread(target=lambda: got.extend(iter(stream.readline, "")), daemon=True).start()
+    return got
+
+
+def wait_for(got: list[str], text: str, timeout: float) -> float:
+    """Seconds until a line containing ``text`` is in ``got``."""
+    start = time.monotonic()
+    while not any(text in line for line in got):
+        assert time.monotonic() - start < timeout, f"no {text!r} within {timeout} s: {got}"
+        time.sleep(0.02)
+    return time.monotonic() - start
+
+
+@pytest.fixture
+def quick_stop_worker(env: dict[str, str]):
+    """The fake worker, abandoning a cancelled job that does not stop after 3 s (instead of CANCEL_STOP_S)."""
+    env["BILIMOVICH_CANCEL_STOP"] = "3"
+    yield from serve_fake(env)
+
+
+def test_a_job_that_does_not_stop_is_waited_for_then_left(env: dict[str, str], quick_stop_worker, tmp_path) -> None:
+    """The client waits for its job to stop and write what it computed (the job's lines reach it): one that does
+    not stop says so within a second; a second Ctrl-C leaves at once; the worker abandons the job after its
+    bound (BILIMOVICH_CANCEL_STOP) and exits (kernels cannot be stopped otherwise)."""
     side = tmp_path / "side.txt"
     client = subprocess.Popen([sys.executable, "-c", FAKE_CLIENT, "ignores", str(side)], env=env, cwd=ROOT,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    err = read_lines(client.stderr)
     deadline = time.time() + 60
     while lines(side) < 5:
         assert time.time() < deadline and client.poll() is None, "the job did not start in the worker"
         time.sleep(0.05)
+    client.send_signal(signal.SIGINT)  # the job never looks at its flag
+    assert wait_for(err, "stopping: the current step ends first", 1.5) < 1.5
+    assert client.poll() is None  # still waiting for its job
     start = time.monotonic()
-    client.send_signal(signal.SIGINT)  # the job never looks at its flag: it is abandoned
-    _, err = client.communicate(timeout=30)
-    took = time.monotonic() - start
-    assert client.returncode == 130 and "interrupted" in err, err
-    assert took < 1.5, f"Ctrl-C took {took:.2f} s"
-    # The worker lets the job go on a while (to write what it computed), then leaves with it (kernels cannot
-    # be stopped otherwise).
-    fake_worker.wait(timeout=worker.CANCEL_STOP_S + 10)
+    client.send_signal(signal.SIGINT)
+    client.wait(timeout=30)
+    assert time.monotonic() - start < 1.5 and client.returncode == 130
+    wait_for(err, "left without waiting", 5)
+    quick_stop_worker.wait(timeout=3 + 10)
     stopped_at = lines(side)
     time.sleep(0.5)
     assert lines(side) == stopped_at
     assert "listening" not in status_line(env)  # no stale socket left behind
 
 
-def test_ctrl_c_in_a_lone_process_is_honoured_within_a_second() -> None:
-    proc = subprocess.Popen([sys.executable, "-c", FAKE_HERE], cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
-    time.sleep(3.0)  # imported and running
-    start = time.monotonic()
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=30)
-    took = time.monotonic() - start
-    assert proc.returncode == 130 and "interrupted" in err, err
-    assert took < 1.5, f"Ctrl-C took {took:.2f} s"
+@pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_in_a_lone_process_is_honoured(how: int) -> None:
+    """Without the worker the same rules: the command is told, says within a second that it finishes its step,
+    a second signal ends the process at once, and one that never stops is ended after the bound, exit 128 + the
+    first signal."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "BILIMOVICH_CANCEL_STOP": "3"}
+    for second in (True, False):
+        proc = subprocess.Popen([sys.executable, "-c", FAKE_HERE], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)  # fmt: skip
+        err = read_lines(proc.stderr)
+        time.sleep(3.0)  # imported and running
+        proc.send_signal(how)
+        wait_for(err, "stopping: the current step ends first", 1.5)
+        start = time.monotonic()
+        if second:
+            proc.send_signal(how)
+        proc.wait(timeout=30)
+        took = time.monotonic() - start
+        assert proc.returncode == 128 + how, err
+        assert took < (1.5 if second else 3 + 1.5), f"took {took:.2f} s"
+        wait_for(err, "nothing more written", 5)
 
 
 FIND_KERNELS = """

@@ -322,6 +322,7 @@ class OrbitDiagram(Drawable):
         ks = [str(self.transient + 1 + j) for j in range(self.n_points)]
         with open(path, "w", newline="") as fh:
             fh.write("sweep,value_index,value,ic,k,q,r,status" + end)
+            fh.writelines(export.comment_lines(export.partial(self)))  # a stopped diagram says so
             drawn = self.drawn()
             for s in range(self.sweeps.size):
                 for v in range(self.values.size):

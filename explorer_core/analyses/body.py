@@ -197,7 +197,7 @@ class BodySeries(Drawable):
         def csv(p: str) -> int:
             header, table = self.columns()
             rows = ([int(r[0]), int(r[1]), *r[2:].tolist()] for r in table)
-            return export.write_csv(p, header, rows)
+            return export.write_csv(p, header, rows, export.partial(self))
 
         def npz(p: str) -> None:
             export.write_npz(p, t=self.t, omega=self.omega, quaternion=self.quaternion, energy=self.energy,

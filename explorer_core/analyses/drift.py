@@ -183,7 +183,7 @@ class DriftFit:
     def write(self, path: str) -> dict[str, Any]:
         """``.csv``: the members' series ``member,k,q,r``; ``.json``: the summary."""
         rows = lambda: ((i, k, x[k, 0], x[k, 1]) for i, x in enumerate(self.series) for k in range(x.shape[0]))  # noqa: E731
-        csv_ = lambda p: export.write_csv(p, ("member", "k", "q", "r"), rows())  # noqa: E731
+        csv_ = lambda p: export.write_csv(p, ("member", "k", "q", "r"), rows(), export.partial(self))  # noqa: E731
         return export.write_by_suffix(
             path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "drift fit"
         )

@@ -495,8 +495,8 @@ class Tracks(Drawable):
         return np.flatnonzero(self.t == t)
 
     def to_csv(self, path: str | os.PathLike[str]) -> None:
-        """Write ``branch,t,q,r,type,eig1_re,eig1_im,eig2_re,eig2_im`` rows."""
-        with open(path, "w", newline="") as fh:
+        """Write ``branch,t,q,r,type,eig1_re,eig1_im,eig2_re,eig2_im`` rows, whole or not at all."""
+        with export.atomic(os.fspath(path)) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["branch", "t", "q", "r", "type", "eig1_re", "eig1_im", "eig2_re", "eig2_im"])
             for i in range(self.branch.size):

@@ -192,7 +192,8 @@ class LyapunovResult(Drawable):
 
     def write(self, path: str) -> dict[str, Any]:
         """``.csv``: the running estimates (:meth:`history`); ``.json``: the summary."""
-        csv_ = lambda p: export.write_csv(p, ("member", "k", "L1", "L2", "divergence_mean"), self.history())  # noqa: E731
+        csv_ = lambda p: export.write_csv(p, ("member", "k", "L1", "L2", "divergence_mean"), self.history(),  # noqa: E731
+                                          export.partial(self))  # fmt: skip
         return export.write_by_suffix(
             path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "Lyapunov result"
         )

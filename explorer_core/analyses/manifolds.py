@@ -248,11 +248,14 @@ class Manifolds(Drawable):
         )
 
     def to_csv(self, path: str) -> int:
-        """CSV ``branch,kind,s,q,r`` (``kind`` = stable | unstable, ``s`` the arc length); returns the rows."""
+        """CSV ``branch,kind,s,q,r`` (``kind`` = stable | unstable, ``s`` the arc length), whole or not at all; a
+        set whose run was stopped says so after its header (``# `` lines: :func:`explorer_core.export.partial`).
+        Returns the rows."""
         n = 0
-        with open(path, "w", newline="") as fh:
+        with export.atomic(path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["branch", "kind", "s", "q", "r"])
+            fh.writelines(export.comment_lines(export.partial(self)))
             for label, kind, s, q, r in self.rows():
                 w.writerow([label, kind, float(s), float(q), float(r)])
                 n += 1

@@ -158,11 +158,13 @@ class OrbitSearch(Drawable):
         )
 
     def to_csv(self, path: str) -> int:
-        """One row per orbit point: ``orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im``."""
+        """One row per orbit point: ``orbit,period,type,stable,j,q,r,mu1_re,mu1_im,mu2_re,mu2_im``, whole or not at
+        all; a cancelled search says so after its header (``# `` lines)."""
         rows = 0
-        with open(path, "w", newline="") as fh:
+        with export.atomic(path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["orbit", "period", "type", "stable", "j", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im"])
+            fh.writelines(export.comment_lines(export.partial(self)))
             for i, o in enumerate(self.orbits):
                 mu = o.multipliers
                 for j, (q, r) in enumerate(o.points):

@@ -977,6 +977,7 @@ class Chart(Drawable):
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["i", "j", self.spec.x_param, self.spec.y_param, "ic", "regime", "period", "lyap", "status"])
+            fh.writelines(export.comment_lines(export.partial(self)))  # a stopped chart says so
             for j, i in zip(*np.nonzero(self.computed), strict=True):
                 for k in range(self.spec.ics.shape[0]):
                     st = int(self.status[j, i, k])

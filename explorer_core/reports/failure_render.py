@@ -19,6 +19,7 @@ from matplotlib.colors import ListedColormap
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
+from explorer_core import export
 from explorer_core.reports.render import _DPI, period_colours
 
 #: Status colours (ok, escaped, step_collapsed, too_many_steps, nonfinite; refused: a time the doubles cannot resolve).
@@ -73,7 +74,7 @@ def render_rk4_drift(rk4: Any, path: str) -> None:
     ax.set_title("relative error against the reference", fontsize=9)
     ax.legend(fontsize=7, loc="lower right", ncol=2)
     fig.tight_layout()
-    fig.savefig(path)
+    export.save_figure(fig, path)
     plt.close(fig)
 
 
@@ -112,7 +113,7 @@ def render_rk4_local(rk4: Any, path: str) -> None:
     axes[1].set_title("grey band: within 10 %; x: overflow", fontsize=9)
     axes[1].legend(fontsize=7, loc="lower left", ncol=2)
     fig.tight_layout()
-    fig.savefig(path)
+    export.save_figure(fig, path)
     plt.close(fig)
 
 
@@ -168,7 +169,7 @@ def render_adaptive_cost(cost: Any, rk4: Any | None, path: str) -> None:
     ax.set_title(f"fig1C sections, {sc['numerics']}; 2-core speedup {sc['parallel']['speedup']}", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path)
+    export.save_figure(fig, path)
     plt.close(fig)
 
 
@@ -189,7 +190,7 @@ def render_collapse(collapse: dict[str, Any], path: str) -> None:
     ax.legend(handles=[Patch(facecolor=STATUS_COLOURS[names[i]], label=names[i]) for i in present], fontsize=7,
               loc="upper left", bbox_to_anchor=(1.0, 1.0))  # fmt: skip
     fig.tight_layout()
-    fig.savefig(path)
+    export.save_figure(fig, path)
     plt.close(fig)
 
 
@@ -212,7 +213,7 @@ def render_float(floats: Any, path: str) -> None:
         ax.set_title(title, fontsize=9)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path)
+    export.save_figure(fig, path)
     plt.close(fig)
 
 
@@ -238,7 +239,7 @@ def render_lyapunov(lyap: Any, path: str) -> None:
     if failed:
         axes[1].set_title("no exponents: " + "; ".join(failed), fontsize=8)
     fig.tight_layout()
-    fig.savefig(path)
+    export.save_figure(fig, path)
     plt.close(fig)
 
 

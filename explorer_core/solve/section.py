@@ -20,6 +20,7 @@ import numpy as np
 
 from explorer_core import config, export
 from explorer_core.drawing import Drawable
+from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.solve.integrators import Batch, Status, advance
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
@@ -194,6 +195,8 @@ class Section(Drawable):
             ],
             "elapsed_s": round(self.elapsed_s, 6),
             "completed": self.completed,
+            "complete": self.complete,
+            "lost": [loss.as_dict() for loss in self.lost],
             "periods": self.periods,
             "transient": self.transient,
             "params": self.params.as_dict(),
@@ -206,12 +209,30 @@ class Section(Drawable):
             path, {".csv": self.to_csv, ".json": lambda p: export.write_json(p, self.summary())}, "section"
         )
 
+    @property
+    def lost(self) -> list[Loss]:
+        """Trajectories that stopped before their last period (by status), and the periods a cancel left out."""
+        out = [Loss("trajectories", int(np.count_nonzero(self.status == code)),
+                    f"stopped before their last period: {Status(int(code)).word}")
+               for code in np.unique(self.status[self.status != Status.OK])]  # fmt: skip
+        if not self.completed:
+            left = int(np.sum(self.periods - self.npts[self.status == Status.OK]))
+            out.append(Loss("periods not computed", left, "cancelled"))
+        return out
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
+
     def to_csv(self, path: str) -> int:
-        """Write ``traj,k,q,r`` rows (valid points only); returns the row count."""
+        """Write ``traj,k,q,r`` rows (valid points only), whole or not at all; a section whose run was stopped
+        says so after its header (``# `` lines, see :func:`explorer_core.export.partial`). Returns the row
+        count."""
         traj, k, q, r = self.long()
-        with open(path, "w", newline="") as fh:
+        with export.atomic(path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["traj", "k", "q", "r"])
+            fh.writelines(export.comment_lines(export.partial(self)))
             for row in zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True):
                 w.writerow((row[0], row[1], repr(row[2]), repr(row[3])))
         return int(traj.size)

@@ -83,7 +83,7 @@ import numba as nb
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from explorer_core import config
+from explorer_core import config, export
 from explorer_core.scenes import get_scene
 from explorer_core.solve.integrators import Batch, Status, advance
 from explorer_core.solve.numerics import random_ics
@@ -224,6 +224,8 @@ class BenchConfig:
 
     def validate(self) -> None:
         """Raise ParameterError naming the first bad setting."""
+        if not self.cases:
+            raise ParameterError(f"no bench case chosen; choose from {', '.join(CASE_NAMES)}")
         bad = [c for c in self.cases if c not in CASE_NAMES]
         if bad:
             raise ParameterError(f"unknown bench case(s) {', '.join(bad)}; choose from {', '.join(CASE_NAMES)}")
@@ -925,15 +927,11 @@ class BenchResult:
         os.makedirs(outdir, exist_ok=True)
         names = ("bench.json", "bench.csv", "bench.md", "throughput.json")
         paths = {name: os.path.join(outdir, name) for name in names}
-        with open(paths["bench.json"], "w") as fh:
-            json.dump(self.as_dict(), fh, indent=1)
-        with open(paths["bench.csv"], "w", newline="") as fh:
-            fh.write(self.csv_text())
-        with open(paths["bench.md"], "w") as fh:
-            fh.write(self.markdown())
-        with open(paths["throughput.json"], "w") as fh:
-            json.dump({"throughput": _jsonable(self.throughput), "ratios": _jsonable(self.ratios),
-                       "machine": self.machine}, fh, indent=1)  # fmt: skip
+        export.write_text(paths["bench.json"], json.dumps(self.as_dict(), indent=1))
+        export.write_text(paths["bench.csv"], self.csv_text())
+        export.write_text(paths["bench.md"], self.markdown())
+        export.write_text(paths["throughput.json"], json.dumps({"throughput": _jsonable(self.throughput),
+                          "ratios": _jsonable(self.ratios), "machine": self.machine}, indent=1))  # fmt: skip
         return list(paths.values())
 
 

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
+from explorer_core import export
 from explorer_core.analyses.bifurcation import OrbitDiagram, bifurcation_diagram, bilimovich_orbits
 from explorer_core.analyses.continuation import Continuation, continue_orbit
 from explorer_core.analyses.drift import DriftFit, drift_fit, fit_polynomial
@@ -146,11 +147,13 @@ class Reproduction:
         return head + "".join("| " + " | ".join(cells) + " |\n" for cells in esc)
 
     def write_table(self, md_path: str, csv_path: str) -> None:
-        with open(md_path, "w") as fh:
-            fh.write(self.table_markdown())
-        with open(csv_path, "w", newline="") as fh:
+        """The table as Markdown and CSV, each whole or not at all; a reproduction that was stopped says so
+        in the CSV, after its header (``# `` lines)."""
+        export.write_text(md_path, self.table_markdown())
+        with export.atomic(csv_path) as tmp, open(tmp, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["figure", "quantity", "paper", "ours", "uncertainty", "settings", "note"])
+            fh.writelines(export.comment_lines(export.partial(self)))
             for r in self.rows:
                 w.writerow([r.figure, r.quantity, r.paper, r.ours, r.uncertainty, r.settings, r.note])
 
@@ -189,15 +192,23 @@ def _sections(rep: Reproduction, stop: Callable[[], bool]) -> None:
                 ics = ics[: size.section_ics]
             periods = sc.periods if size.section_periods is None else min(sc.periods, size.section_periods)
             numerics = sc.numerics(periods + sc.transient)
-            rep.sections[sid] = section(sc.params, ics, periods, transient=sc.transient, numerics=numerics)
+            sec = section(sc.params, ics, periods, transient=sc.transient, numerics=numerics, cancel=stop)
+            if not sec.completed:  # stopped inside: a cut section is not the figure (the stage's loss says so)
+                return
+            rep.sections[sid] = sec
 
 
-def _find_attractor_ic(scene: Scene, tries: int, periods: int) -> tuple[float, float] | None:
-    """First of the scene's random ICs whose finite-time largest exponent exceeds :data:`CHAOS_THRESHOLD`."""
+def _find_attractor_ic(
+    scene: Scene, tries: int, periods: int, stop: Callable[[], bool] | None = None
+) -> tuple[float, float] | None:
+    """First of the scene's random ICs whose finite-time largest exponent exceeds :data:`CHAOS_THRESHOLD` (None
+    if none does, or when ``stop`` stopped the search)."""
     ics = scene.initial_conditions()[:tries]
     res = lyapunov_spectrum(
-        scene.params, ics, periods, transient=scene.transient, numerics=Numerics(rtol=1e-9, atol=1e-9)
+        scene.params, ics, periods, transient=scene.transient, numerics=Numerics(rtol=1e-9, atol=1e-9), cancel=stop
     )
+    if not res.completed:
+        return None
     for i in range(ics.shape[0]):
         if res.ok[i] and res.exponents[i, 0] > CHAOS_THRESHOLD:
             return float(ics[i, 0]), float(ics[i, 1])
@@ -211,7 +222,9 @@ def _lyapunov(rep: Reproduction, stop: Callable[[], bool]) -> None:
         if stop():
             return
         sc = get_scene(sid)
-        ic = _find_attractor_ic(sc, size.lyap_search, max(200, min(1000, size.lyap_periods)))
+        ic = _find_attractor_ic(sc, size.lyap_search, max(200, min(1000, size.lyap_periods)), stop)
+        if stop():  # a search cut short says nothing (the stage's loss says it was stopped)
+            return
         settings = (
             f"{size.lyap_members} members x {size.lyap_periods} periods after {size.lyap_transient}; "
             f"{numerics.method} 1e-10"
@@ -222,7 +235,10 @@ def _lyapunov(rep: Reproduction, stop: Callable[[], bool]) -> None:
             rep.rows.append(Row(fig, "Lambda_1", _fmt(paper["L1"]), "no chaotic IC found", "", settings))
             continue
         ics = attractor_ensemble(sc.params, ic, size.lyap_members, transient=size.lyap_transient, numerics=numerics)
-        res = lyapunov_spectrum(sc.params, ics, size.lyap_periods, transient=size.lyap_transient, numerics=numerics)
+        res = lyapunov_spectrum(sc.params, ics, size.lyap_periods, transient=size.lyap_transient, numerics=numerics,
+                                cancel=stop)  # fmt: skip
+        if not res.completed:
+            return
         rep.lyapunov[sid] = res
         _lyapunov_rows(rep, fig, sid, res, paper, settings + f"; IC {ic[0]:.4g},{ic[1]:.4g}")
 
@@ -303,7 +319,9 @@ def _drift(rep: Reproduction, stop: Callable[[], bool]) -> None:
     s3 = section(p3, [(0.0, 8.0)], 900, numerics=Numerics())
     rep.series["fig3"] = np.concatenate([[[0.0, 8.0]], s3.points[0, : s3.npts[0]]])
     box1a = get_scene("fig1A").box
-    fit = drift_fit(p3, (200, 900), degree=(0, 2), m=m, box=box1a, seed=1)
+    fit = drift_fit(p3, (200, 900), degree=(0, 2), m=m, box=box1a, seed=1, cancel=stop)
+    if not fit.completed:
+        return
     rep.drift["fig3"] = fit
     cq, cr = fit.mean()
     sq, sr = fit.spread()
@@ -326,7 +344,9 @@ def _drift(rep: Reproduction, stop: Callable[[], bool]) -> None:
         return
     for sid, fig in (("fig6A", "Fig. 6A"), ("fig6B", "Fig. 6B")):
         sc = get_scene(sid)
-        fit = drift_fit(sc.params, (200, 900), degree=(1, 2), m=m, box=sc.box, seed=1)
+        fit = drift_fit(sc.params, (200, 900), degree=(1, 2), m=m, box=sc.box, seed=1, cancel=stop)
+        if not fit.completed:
+            return
         rep.drift[sid] = fit
         cq, cr = fit.mean()
         sq, sr = fit.spread()
@@ -368,7 +388,10 @@ def _drift(rep: Reproduction, stop: Callable[[], bool]) -> None:
         seed=1,
         criterion="leaves",
         numerics=Numerics(bound=1e12),
+        cancel=stop,
     )
+    if not fit.completed:
+        return
     rep.drift["fig9"] = fit
     cq, cr = fit.mean()
     sq, sr = fit.spread()

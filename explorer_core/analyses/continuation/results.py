@@ -184,7 +184,7 @@ class Continuation(Drawable):
 
     def write(self, path: str) -> dict[str, Any]:
         """``.csv``: a row per point (:attr:`CSV_HEADER`); ``.json``: the summary."""
-        csv_ = lambda p: export.write_csv(p, self.CSV_HEADER, self.csv_rows())  # noqa: E731
+        csv_ = lambda p: export.write_csv(p, self.CSV_HEADER, self.csv_rows(), export.partial(self))  # noqa: E731
         return export.write_by_suffix(
             path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "continuation"
         )
@@ -227,7 +227,7 @@ class Boundaries(list):
 
         def csv_(p: str) -> int:
             rows = ((k, *row) for k, c in enumerate(self) for row in c.csv_rows())
-            return export.write_csv(p, ("continuation", *Continuation.CSV_HEADER), rows)
+            return export.write_csv(p, ("continuation", *Continuation.CSV_HEADER), rows, export.partial(self))
 
         return export.write_by_suffix(
             path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "set of boundaries"

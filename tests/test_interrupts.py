@@ -1,0 +1,319 @@
+"""Interrupted or failed, nothing is lost (issue 35): every file whole or absent, honest interrupts, no total
+failure in silence.
+
+* Atomic files: a writer interrupted midway (an exception or Ctrl-C inside its rows) leaves the previous file
+  or none, never a partial one, and no temporary file; what is written reads back with csv/numpy/json; a full
+  disk names the path.
+* Ctrl-C and SIGTERM of a long section, a manifolds run, a chart and ``reproduce``, with and without the warm
+  worker: the client exits 130 / 143 after the job has stopped and written what it computed; the file reads
+  back (complete, or marked ``# partial`` with what was lost), the ``lost:`` and ``interrupted`` lines on
+  stderr. Each run is signalled once its progress line shows the work running (stderr is a terminal).
+* ``--quiet`` never hides a total failure: exit :data:`explorer_core.cli.FAILED_STATUS` with the losses.
+"""
+
+from __future__ import annotations
+
+import csv
+import errno
+import json
+import os
+import pty
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from clirun import run_cli
+
+from explorer_core import cli, export
+from explorer_core.scenes import get_scene
+from explorer_core.solve.section import section
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+# --- whole files or none ----------------------------------------------------------------------------------
+
+
+def rows_then(exc: BaseException, good: int = 1000):
+    for i in range(good):
+        yield (i, 0.5 * i)
+    raise exc
+
+
+@pytest.mark.parametrize("exc", [RuntimeError("a bug in the rows"), KeyboardInterrupt()])
+def test_an_interrupted_writer_leaves_the_previous_file_or_none(tmp_path: Path, exc: BaseException) -> None:
+    path = tmp_path / "out.csv"
+    with pytest.raises(type(exc)):
+        export.write_csv(str(path), ("i", "x"), rows_then(exc))
+    assert os.listdir(tmp_path) == []  # no file, and no temporary one left behind
+    export.write_csv(str(path), ("i", "x"), [(1, 2.0), (3, 4.5)])
+    before = path.read_bytes()
+    for writer in (lambda p: export.write_csv(p, ("i", "x"), rows_then(exc)),
+                   lambda p: export.write_by_suffix(p, {".csv": lambda q: export.write_csv(q, ("i", "x"),
+                                                                                             rows_then(exc))}),
+                   lambda p: export.write_by_suffix(p, {".csv": lambda q: (Path(q).write_text("i,x\n1,"),
+                                                                           rows_then(exc).throw(exc))})):  # fmt: skip
+        with pytest.raises(type(exc)):
+            writer(str(path))
+        assert path.read_bytes() == before
+        assert os.listdir(tmp_path) == ["out.csv"]
+
+
+def test_written_files_read_back_and_keep_their_mode_and_links(tmp_path: Path) -> None:
+    path = tmp_path / "t.csv"
+    n = export.write_csv(str(path), ("k", "q"), [(1, 0.1), (2, float("nan"))], comments=["partial: a test", "x"])
+    assert n == 2
+    assert path.read_text().splitlines()[:3] == ["k,q", "# partial: a test", "# x"]
+    t = np.genfromtxt(path, delimiter=",", names=True)
+    assert t["k"].tolist() == [1, 2] and t["q"][0] == 0.1 and np.isnan(t["q"][1])
+    rows = list(csv.reader(line for line in path.read_text().splitlines() if not line.startswith("#")))
+    assert rows == [["k", "q"], ["1", "0.1"], ["2", "nan"]]
+    export.write_npz(str(tmp_path / "a.npz"), x=np.arange(3))
+    export.write_npy(str(tmp_path / "a.npy"), np.eye(2))
+    export.write_json(str(tmp_path / "a.json"), {"v": float("inf"), "n": np.int64(3)})
+    assert np.load(tmp_path / "a.npz")["x"].tolist() == [0, 1, 2] and np.load(tmp_path / "a.npy")[1, 1] == 1.0
+    assert json.loads((tmp_path / "a.json").read_text()) == {"v": None, "n": 3}
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (path.stat().st_mode & 0o777) == 0o666 & ~umask  # as open(path, "w") would make it
+    target = tmp_path / "target.csv"
+    link = tmp_path / "link.csv"
+    link.symlink_to(target)
+    export.write_csv(str(link), ("a",), [(1,)])
+    assert link.is_symlink() and target.read_text() == "a\n1\n"
+
+
+def test_a_full_disk_names_the_path(tmp_path: Path, monkeypatch) -> None:
+    def full(path: str) -> None:  # a delayed allocation failing at the sync, as on a full disk
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(export, "_sync", full)
+    out = tmp_path / "s.csv"
+    rc, _, err = run_cli("section", "--scene", "fig1A", "--ic", "0.1,0.2", "--periods", "5", "--out", str(out))
+    assert rc == 2 and err == f"bilimovich section: error: No space left on device: {out}\n"
+    assert not out.exists() and os.listdir(tmp_path) == []
+
+
+# --- no total failure in silence ----------------------------------------------------------------------------
+
+
+def test_quiet_never_hides_a_run_where_every_member_failed(tmp_path: Path) -> None:
+    out = tmp_path / "s.csv"
+    rc, stdout, err = run_cli("section", "--scene", "fig1A", "--ic", "0.1,0.2", "--ic", "0.3,0.1", "--periods", "5",
+                              "--g1", "1e300", "--quiet", "--out", str(out))  # fmt: skip
+    assert rc == cli.FAILED_STATUS == 3, err
+    assert stdout == ""
+    assert "lost: 2 trajectories: stopped before their last period" in err
+    assert "failed: every member failed (2 " in err and f"exit status {cli.FAILED_STATUS}" in err
+    assert "error" not in err  # the words match the status: a failure, with its exit status
+    assert out.read_text() == "traj,k,q,r\n"  # the run ended: not a partial file, an empty one
+    sec = section(get_scene("fig1A").params.with_(g1=1e300), [(0.1, 0.2)], 5)  # its JSON says so too
+    sec.write(str(tmp_path / "s.json"))
+    doc = json.loads((tmp_path / "s.json").read_text())
+    assert doc["complete"] is False and doc["lost"][0]["what"] == "trajectories"
+    # One member that ran is enough: a partial failure is exit 0 with its lost: line.
+    rc, _, err = run_cli("section", "--scene", "fig1A", "--ic", "0.1,0.2", "--periods", "5", "--quiet")
+    assert rc == 0 and err == ""
+
+
+@pytest.mark.parametrize("argv", [
+    ["reproduce", "--out", "{d}/r", "--size", "tiny", "--stages", ""],  # ran every stage
+    ["failures", "--out", "{d}/f", "--size", "tiny", "--stages", "lyapunov,"],
+    ["manifolds", "--scene", "fig8B", "--orbit=-0.04,-2.4", "--kinds", ""],  # grew both kinds
+    ["bifurcation", "--scene", "fig10", "--param", "alpha", "--range=-0.40,-0.39", "--sweeps", "", "--json"],
+    ["bench", "--quick", "--out", "{d}/b", "--cases", ""],  # ran every case
+])  # fmt: skip
+def test_an_empty_list_is_refused(tmp_path: Path, argv: list[str]) -> None:
+    rc, out, err = run_cli(*(a.replace("{d}", str(tmp_path)) for a in argv))
+    assert rc == 2 and err.count("\n") == 1 and "error" in err, err
+    assert out == "" and not list(tmp_path.iterdir())  # refused before any work (no folder made)
+
+
+# --- signals ------------------------------------------------------------------------------------------------
+
+#: Long runs (a minute or more uninterrupted) whose progress shows within a second or two of their start.
+RUNS = {
+    "section": ["section", "--scene", "fig1A", "--random", "20", "--periods", "200000", "--out", "{d}/s.csv"],
+    "manifolds": ["manifolds", "--scene", "fig8B", "--orbit=-0.04,-2.4", "--length", "1e6", "--max-points",
+                  "5000000", "--out", "{d}/m.csv"],
+    "chart": ["chart", "--scene", "fig11", "--x-param", "alpha", "--x-range=-0.6,-0.5", "--y-param", "I11",
+              "--y-range", "1,2", "--grid", "60,60", "--ic=-0.09,-2", "--periods", "2000", "--transient", "2000",
+              "--out", "{d}/c.csv", "--out", "{d}/c.npz"],
+    "reproduce": ["reproduce", "--size", "tiny", "--stages", "sections,lyapunov", "--out", "{d}/rep"],
+}  # fmt: skip
+#: Seconds from the signal to the client's exit allowed here (the aim is about one; the machine is shared).
+EXIT_S = 8.0
+
+
+def signalled(argv: list[str], sig: int, env: dict[str, str], cwd: Path) -> tuple[int, str, float]:
+    """Run ``bilimovich argv`` with stderr on a terminal, send ``sig`` once its progress shows, and return the
+    exit status, what it wrote on stderr and the seconds from the signal to its exit."""
+    master, slave = pty.openpty()
+    proc = subprocess.Popen([sys.executable, "-m", "explorer_core.cli", *argv], cwd=cwd, env=env,
+                            stdout=subprocess.PIPE, stderr=slave, text=True)  # fmt: skip
+    os.close(slave)
+    chunks: list[bytes] = []
+
+    def read() -> None:
+        while True:
+            try:
+                data = os.read(master, 4096)
+            except OSError:
+                return
+            if not data:
+                return
+            chunks.append(data)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    deadline = time.monotonic() + 240
+    # The work runs: a progress line (\r) or a stage's time, not only the worker's greeting.
+    while not any(m in b"".join(chunks) for m in (b"\r", b"sections: ")):
+        assert proc.poll() is None, b"".join(chunks).decode(errors="replace")
+        assert time.monotonic() < deadline, "no progress within 240 s"
+        time.sleep(0.05)
+    time.sleep(0.5)
+    start = time.monotonic()
+    proc.send_signal(sig)
+    proc.communicate(timeout=180)
+    took = time.monotonic() - start
+    reader.join(timeout=10)
+    os.close(master)
+    return proc.returncode, b"".join(chunks).decode(errors="replace").replace("\r\n", "\n"), took
+
+
+def check_csv(path: Path, numbers: bool = True) -> bool:
+    """The CSV reads back whole (every row as wide as its header, the last line ended; with ``numbers``, by
+    numpy too); True if it says it is partial (its run was stopped)."""
+    text = path.read_text()
+    assert text.endswith("\n"), f"{path} ends in a cut line"
+    lines = text.splitlines()
+    head = [ln for ln in lines if ln.startswith("#")]
+    rows = list(csv.reader(ln for ln in lines if not ln.startswith("#")))
+    assert rows and all(len(r) == len(rows[0]) for r in rows), f"{path} has a cut row"
+    if numbers and len(rows) > 1:
+        np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")
+    return bool(head) and lines[1].startswith("# partial: the run was stopped")
+
+
+def check_outputs(kind: str, d: Path, err: str) -> None:
+    if kind == "reproduce":
+        summary = json.loads((d / "rep" / "reproduce.json").read_text())
+        assert summary["complete"] is ("lost:" not in err)
+        # (its quoted text fields do not read with numpy yet: issue 35, item 5)
+        assert check_csv(d / "rep" / "table.csv", numbers=False) is (not summary["completed"])
+        return
+    for path in sorted(d.glob("*.csv")):
+        marked = check_csv(path)
+        # The chart's CSV (analyses/regimes.py, Chart.to_csv) has no partial marker yet: its NPZ has, the
+        # pixels computed.
+        assert marked is ("lost:" in err) or kind == "chart", (path.read_text()[:300], err)
+    for path in d.glob("*.npz"):
+        with np.load(path) as z:
+            assert z["computed"].shape == (60, 60) and bool(z["computed"].all()) is ("lost:" not in err)
+    assert sorted(p.name for p in d.iterdir()) == sorted(Path(a).name for a in RUNS[kind] if "{d}" in a)
+
+
+def interrupt(kind: str, sig: int, env: dict[str, str], tmp_path: Path) -> str:
+    d = tmp_path / kind
+    d.mkdir()
+    argv = [a.replace("{d}", str(d)) for a in RUNS[kind]]
+    rc, err, took = signalled(argv, sig, env, tmp_path)
+    assert rc == 128 + sig, err
+    assert "interrupted" in err, err
+    assert "Traceback" not in err and "nothing more written" not in err, err
+    assert took < EXIT_S, f"{kind}: {took:.1f} s from the signal to the exit\n{err}"
+    print(f"{kind} {signal.Signals(sig).name}: exit {rc} {took:.2f} s after the signal")
+    if kind != "reproduce":  # a reproduction may have ended its work before the signal (then it is complete)
+        assert "lost:" in err and "computed so far were written" in err, err
+    check_outputs(kind, d, err)
+    return err
+
+
+@pytest.fixture(scope="module")
+def lone_env():
+    return {**os.environ, "BILIMOVICH_WORKER": "0", "PYTHONPATH": str(ROOT)}
+
+
+@pytest.mark.parametrize(("kind", "sig"), [("section", signal.SIGINT), ("manifolds", signal.SIGTERM),
+                                           ("chart", signal.SIGINT), ("reproduce", signal.SIGTERM)])  # fmt: skip
+def test_an_interrupted_run_writes_what_it_computed(kind: str, sig: int, lone_env, tmp_path: Path) -> None:
+    interrupt(kind, sig, lone_env, tmp_path)
+
+
+@pytest.fixture(scope="module")
+def worker_env():
+    # A short directory: a Unix socket's path must fit in 107 bytes (pytest's tmp_path may not).
+    sock_dir = tempfile.mkdtemp(prefix="bwi-", dir="/tmp")
+    env = {**os.environ, "BILIMOVICH_WORKER": "1", "BILIMOVICH_WORKER_DIR": sock_dir, "BILIMOVICH_WORKER_TRACE": "1",
+           "PYTHONPATH": str(ROOT)}  # fmt: skip
+    small = ["section", "--scene", "fig1A", "--ic", "0.1,0.2", "--periods", "3", "--quiet"]
+    subprocess.run([sys.executable, "-m", "explorer_core.cli", *small], env=env, cwd=ROOT, timeout=300, check=True)
+    deadline = time.monotonic() + 240
+    while not list(Path(sock_dir).glob("*/worker-*.sock")):
+        assert time.monotonic() < deadline, "no worker started"
+        time.sleep(0.2)
+    yield env
+    subprocess.run([sys.executable, "-m", "explorer_core.cli", "worker", "stop"], env=env, cwd=ROOT, timeout=60,
+                   capture_output=True)  # fmt: skip
+    shutil.rmtree(sock_dir, ignore_errors=True)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("kind", "sig"), [("section", signal.SIGTERM), ("manifolds", signal.SIGINT),
+                                           ("chart", signal.SIGTERM), ("reproduce", signal.SIGINT)])  # fmt: skip
+def test_an_interrupted_run_in_the_worker_writes_what_it_computed(kind, sig, worker_env, tmp_path: Path) -> None:
+    err = interrupt(kind, sig, worker_env, tmp_path)
+    assert "served by the worker" in err  # the job ran in the worker, and its lines reached the caller
+    (log,) = Path(worker_env["BILIMOVICH_WORKER_DIR"]).glob("*/worker-*.log")
+    text = log.read_text()
+    job = [ln for ln in text.splitlines() if f"'{kind}'" in ln and str(tmp_path) in ln]
+    assert any(ln.endswith(": started") for ln in job), text[-2000:]
+    assert any(f"cancelled (the client's {signal.Signals(sig).name})" in ln for ln in job), text[-2000:]
+    assert any("ended, exit status 130" in ln and "cancelled" in ln for ln in job), text[-2000:]
+
+
+def test_a_stopped_chart_diagram_and_continuation_say_so_in_their_csv(tmp_path: Path) -> None:
+    """The CSVs of the chart, the orbit diagram and continuation carry '# partial' after their header when the run
+    was stopped (and read back with numpy all the same); a run that ended has no such line."""
+    from explorer_core.analyses.bifurcation import bifurcation_diagram
+    from explorer_core.analyses.continuation import continue_orbit
+    from explorer_core.analyses.regimes import chart_spec, regime_chart
+
+    fig10, fig11 = get_scene("fig10").params, get_scene("fig11").params
+
+    def stop_after(n: int):
+        calls = [0]
+
+        def cancel() -> bool:
+            calls[0] += 1
+            return calls[0] > n
+
+        return cancel
+
+    spec = chart_spec(fig11, "alpha", (-0.42, -0.36), "I11", (0.9, 1.3), (4, 4), transient=20, periods=40)
+    runs = {
+        "chart": lambda cancel: regime_chart(spec, cancel=cancel),
+        "diagram": lambda cancel: bifurcation_diagram(
+            fig10, "alpha", np.linspace(-0.42, -0.40, 6), points=5, transient=20, cancel=cancel
+        ),
+        "continuation": lambda cancel: continue_orbit(
+            fig10, "alpha", (-0.35, -0.42), (-0.0959, -1.962), 1, switch=True, cancel=cancel
+        ),
+    }
+    for name, run in runs.items():
+        stopped, whole = run(stop_after(2)), run(None)
+        assert not stopped.completed and whole.completed, name
+        for res, partial in ((stopped, True), (whole, False)):
+            path = tmp_path / f"{name}-{partial}.csv"
+            res.write(str(path))
+            lines = path.read_text().splitlines()
+            assert lines[1].startswith("# partial: the run was stopped") is partial, (name, lines[:3])
+            np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")  # reads back
