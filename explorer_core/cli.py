@@ -592,6 +592,8 @@ def cmd_analysis(args: argparse.Namespace) -> int:
             written.append({"path": path})
     if written:
         summary["out"] = written
+    if c.json_unless_out and not written:
+        args.json = True
     return _finish(args, summary, result.report, result=result, what=c.what)
 
 
@@ -730,36 +732,6 @@ def cmd_critical(args: argparse.Namespace) -> int:
     if eq.degenerate:  # a whole curve of equilibria: an empty list would say "none"
         out.update(degenerate=True, message=eq.message)
     _print_json(out)
-    return 0
-
-
-def _tprime_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--t", type=_number("t"), help="frozen time (default t0)")
-    p.add_argument("--q-range", metavar="A,B")
-    p.add_argument("--r-range", metavar="C,D")
-    p.add_argument("--grid", type=_count("grid", 2, config.MAX_GRID), default=200)
-    p.add_argument("--per-period", action="store_true", help="energy change over one period from t0 instead")
-
-
-def cmd_tprime(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.tprime import energy_change_map, tprime_map
-
-    params, scene = _params(args)
-    q_range = _span(args.q_range, "--q-range") if args.q_range else (scene.q_range if scene else (-3.0, 3.0))
-    r_range = _span(args.r_range, "--r-range") if args.r_range else (scene.r_range if scene else (-3.0, 3.0))
-    if args.per_period:
-        if args.t is not None:
-            raise UsageError("--per-period integrates over one period from t0; use --t0, not --t")
-        tmap = energy_change_map(params, q_range, r_range, args.grid, numerics=_numerics(args, None, 1))
-    else:
-        tmap = tprime_map(params, args.t if args.t is not None else params.t0, q_range, r_range, args.grid)
-    if args.out:
-        tmap.write(args.out)
-    if args.json or not args.out:
-        ok = tmap.values[tmap.ok]
-        _print_json({"kind": tmap.kind, "t": tmap.t, "grid": [tmap.q.size, tmap.r.size], "fractions": tmap.fractions(),
-                     "min": ok.min() if ok.size else None, "max": ok.max() if ok.size else None,
-                     "elapsed_s": round(tmap.elapsed_s, 6), "out": args.out})  # fmt: skip
     return 0
 
 
@@ -990,6 +962,8 @@ class Command:
     what: str = "results"
     #: Help of the other output options (``files``).
     file_help: dict[str, str] = field(default_factory=dict)
+    #: Prints its JSON without ``--json`` too when it wrote no file (``tprime``, ``critical``).
+    json_unless_out: bool = False
     #: Keywords the command always gives the builder (the range's end checked before the work: ``check_end``).
     fixed: dict[str, Any] = field(default_factory=dict)
 
@@ -1006,8 +980,9 @@ COMMANDS: dict[str, Command] = {
                        cmd_density, NPZ, "counts (H x W, row 0 at R0), q_edges, r_edges, summary"),
     "critical": Command("equilibria ('critical points') of the frozen-time field", _critical_args, cmd_critical, CSV,
                         "CSV branch,t,q,r,type,eig... of --track", numerics=False, flags=("json",)),
-    "tprime": Command("sign and value of T' = dT/dt on a (q, r) grid", _tprime_args, cmd_tprime, NPZ,
-                      "arrays kind,t,q,r,values,sign,ok,status,params", flags=("json",)),
+    "tprime": Command("sign and value of T' = dT/dt on a (q, r) grid", None, cmd_analysis, NPZ,
+                      "arrays kind,t,q,r,values,sign,ok,status,params", flags=("json",), analysis=True,
+                      json_unless_out=True),
     "lyapunov": Command("Lyapunov exponents, Kaplan-Yorke dimension, divergence check", None, cmd_analysis,
                         files={"history": CSV}, analysis=True, what="periods' estimates",
                         file_help={"history": "running estimates per period (member,k,L1,L2,...)"}),

@@ -72,7 +72,7 @@ ANALYSES: dict[str, Analysis] = {
             "iter_equilibrium_tracks",
             command="critical",
         ),
-        Analysis("tprime", _A + "tprime", "tprime_map", "TPrimeMap", command="tprime"),
+        Analysis("tprime", _A + "tprime", "tprime", "TPrimeMap", None, "tprime_spec", "TPrimeSpec", command="tprime"),
         Analysis(
             "lyapunov",
             _A + "lyapunov",

@@ -161,7 +161,7 @@ def test_scenes_listing() -> None:
         (["section", "--ic", "0,0", "--periods", "3", "--method", "euler"], "invalid choice"),
         (["section", "--ic", "0,0", "--periods", "3", "--out", "/no/such/dir/x.csv"], "does not exist"),
         (["tprime", "--grid", "1"], "grid must be between 2"),
-        (["tprime", "--q-range", "3,1"], "q_range must be finite with lo < hi"),
+        (["tprime", "--q-range", "3,1"], "--q-range: q-range must be finite with lo < hi"),
         (["critical", "--t", "inf", "--json"], "t must be finite"),
         (["critical", "--track"], "--track needs --out"),
     ],

@@ -16,15 +16,17 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from explorer_core import config, export
+from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
 from explorer_core.solve import checks
 from explorer_core.solve.numerics import Numerics
+from explorer_core.solve.options import Arg, command_line
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.status import Status, status_names
 from explorer_core.system.model import Model
@@ -63,6 +65,17 @@ class TPrimeMap(Drawable):
             "loss": float(np.count_nonzero(self.ok & (self.values < 0)) / n),
             "failed": float(np.count_nonzero(~self.ok) / self.ok.size),
         }
+
+    def summary(self) -> dict[str, Any]:
+        """What the command line prints: the kind, the grid, the shares of gain and loss, the extremes."""
+        ok = self.values[self.ok]
+        return {"kind": self.kind, "t": self.t, "grid": [self.q.size, self.r.size], "fractions": self.fractions(),
+                "min": float(ok.min()) if ok.size else None, "max": float(ok.max()) if ok.size else None,
+                "elapsed_s": round(self.elapsed_s, 6)}  # fmt: skip
+
+    def report(self) -> list[str]:
+        """No lines: ``tprime`` prints its JSON summary, unless it wrote a file (then only with ``--json``)."""
+        return []
 
     def write(self, path: str) -> dict[str, Any]:
         """``.npz``: :meth:`to_npz`, at exactly ``path``."""
@@ -168,3 +181,71 @@ def energy_change_map(
         params,
         time.perf_counter() - start,
     )
+
+
+# ---------------------------------------------------------------------------
+# As a spec (``bilimovich tprime``): one call for both kinds.
+
+
+@dataclass(frozen=True)
+class TPrimeSpec:
+    """What defines a T' map (made by :func:`tprime_spec`): the instantaneous ``T'`` at the frozen time ``t``, or
+    (``per_period``) the energy change over one period from ``t0`` integrated with ``numerics``."""
+
+    params: Params
+    t: float
+    q_range: tuple[float, float] = (-3.0, 3.0)
+    r_range: tuple[float, float] = (-3.0, 3.0)
+    grid: int | tuple[int, int] = 200
+    per_period: bool = False
+    numerics: Numerics = field(default_factory=lambda: Numerics(rtol=1e-8, atol=1e-8))
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "t": self.t, "q_range": list(self.q_range),
+                "r_range": list(self.r_range), "grid": self.grid, "per_period": self.per_period,
+                "numerics": self.numerics.as_dict()}  # fmt: skip
+
+
+@command_line(
+    t=Arg("frozen time (default t0)"),
+    q_range=Arg("the q axis", "range", metavar="A,B", scene="q_range"),
+    r_range=Arg("the r axis", "range", metavar="C,D", scene="r_range"),
+    grid=Arg("cells per axis", "int"),
+    per_period=Arg("energy change over one period from t0 instead", "switch"),
+)
+def tprime_spec(
+    params: Params,
+    t: float | None = None,
+    q_range: Any = (-3.0, 3.0),
+    r_range: Any = (-3.0, 3.0),
+    grid: Any = 200,
+    *,
+    per_period: bool = False,
+    numerics: Numerics | None = None,
+) -> TPrimeSpec:
+    """A validated :class:`TPrimeSpec` (a bad value raises ParameterError naming it). ``t`` (default ``t0``) is the
+    instantaneous map's; the per-period map starts at ``t0`` and refuses a ``t``. ``numerics`` (the per-period
+    map's; default DOP853 at 1e-8)."""
+    with Checking() as at:
+        at("per_period")
+        if checks.check_bool("per_period", per_period) and t is not None:
+            raise ParameterError("per_period integrates over one period from t0; give t0, not t")
+        at("t")
+        t = params.t0 if t is None else checks.check_number("t", t)
+        at("q_range")
+        q = check_range(q_range, "q_range")
+        at("r_range")
+        r = check_range(r_range, "r_range")
+        at("grid")
+        _grid(q, r, grid)
+        at("numerics")
+        numerics = numerics or Numerics(rtol=1e-8, atol=1e-8)
+    g = int(grid) if isinstance(grid, int | np.integer) else tuple(int(v) for v in grid)
+    return TPrimeSpec(params, t, q, r, g, per_period, numerics)  # type: ignore[arg-type]
+
+
+def tprime(spec: TPrimeSpec, workers: int | None = None) -> TPrimeMap:
+    """The map of ``spec``: :func:`tprime_map` or (``per_period``) :func:`energy_change_map`."""
+    if spec.per_period:
+        return energy_change_map(spec.params, spec.q_range, spec.r_range, spec.grid, spec.numerics, workers)
+    return tprime_map(spec.params, spec.t, spec.q_range, spec.r_range, spec.grid)
