@@ -563,12 +563,13 @@ def cmd_analysis(args: argparse.Namespace) -> int:
     builder, runner = a.get("builder"), a.get("run")
     out = getattr(args, "out", None)
     outs = out if isinstance(out, list) else [out] if out else []
-    if c.needs_output and not outs and not args.json:
-        raise UsageError(f"give --out FILE ({', '.join(c.out)}) and/or --json")
     params, scene = _params(args)
     pos, kw = _declared_values(args, builder, scene)
     kw.update(c.fixed)
     spec = _build(args, builder, params, *pos, **kw)
+    need = c.needs_output(spec) if callable(c.needs_output) else c.needs_output
+    if need and not outs and not args.json:
+        raise UsageError(f"give --out FILE ({', '.join(c.out)}) and/or --json: nothing would be kept")
     if _numerics_given(args):  # the flags change the analysis' own default numerics, whatever it is
         spec = _build(args, builder, params, *pos, **kw, numerics=_numerics(args, None, 1, base=spec.numerics))
     _, run_kw = _declared_values(args, runner, scene)
@@ -704,35 +705,6 @@ def cmd_density(args: argparse.Namespace) -> int:
     return _finish(args, summary, lambda: [f"{img.points:,} points, {img.in_view:,} in view, {img.escaped} escaped, "
                                            f"{img.failed} failed, {img.elapsed_s:.2f} s"],
                    result=img, completed=not run(), what="image's points")  # fmt: skip
-
-
-def _critical_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--t", type=_number("t"), help="frozen time (default t0)")
-    p.add_argument("--track", action="store_true", help="track them over one period")
-    p.add_argument("--n-t", type=_count("n-t", 2, 1_000_000), default=721, help="time samples for --track")
-
-
-def cmd_critical(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.equilibria import equilibria, equilibrium_tracks
-
-    params, _ = _params(args)
-    if args.track:
-        if not args.out and not args.json:
-            raise UsageError("--track needs --out FILE.csv (or --json)")
-        tracks = equilibrium_tracks(params, n_t=args.n_t)
-        if args.out:
-            tracks.write(args.out)
-        if args.json:
-            _print_json(tracks.summary())
-        return 0
-    if args.out:
-        raise UsageError("--out is written by --track only (the equilibria at one time are printed as JSON)")
-    eq = equilibria(params, args.t if args.t is not None else params.t0)
-    out = eq.to_dict()
-    if eq.degenerate:  # a whole curve of equilibria: an empty list would say "none"
-        out.update(degenerate=True, message=eq.message)
-    _print_json(out)
-    return 0
 
 
 def _executor(args: argparse.Namespace) -> Any:
@@ -952,8 +924,9 @@ class Command:
     files: dict[str, tuple[str, ...]] = field(default_factory=dict)  # other output options: dest -> suffixes
     #: An analysis command (run by :func:`cmd_analysis`, its flags from the registry's builder and runner).
     analysis: bool = False
-    #: It refuses to run with neither ``--out`` nor ``--json`` (nothing would be kept).
-    needs_output: bool = False
+    #: It refuses to run with neither ``--out`` nor ``--json`` (nothing would be kept): always, or when this says
+    #: so of the spec (``critical --track``).
+    needs_output: bool | Callable[[Any], bool] = False
     #: ``--scheduler`` (a Dask cluster) is passed to the runner as ``executor``.
     scheduler: bool = False
     #: Output suffixes drawn by a function of reports/ (``module:name``, called with the result and the path).
@@ -978,8 +951,9 @@ COMMANDS: dict[str, Command] = {
                        "CSV with columns traj,k,q,r"),
     "density": Command("a long section (up to 10^7 points) as a density image of a window", _density_args,
                        cmd_density, NPZ, "counts (H x W, row 0 at R0), q_edges, r_edges, summary"),
-    "critical": Command("equilibria ('critical points') of the frozen-time field", _critical_args, cmd_critical, CSV,
-                        "CSV branch,t,q,r,type,eig... of --track", numerics=False, flags=("json",)),
+    "critical": Command("equilibria ('critical points') of the frozen-time field", None, cmd_analysis, CSV,
+                        "CSV branch,t,q,r,type,eig... of --track", numerics=False, flags=("json",), analysis=True,
+                        json_unless_out=True, needs_output=lambda spec: spec.track),
     "tprime": Command("sign and value of T' = dT/dt on a (q, r) grid", None, cmd_analysis, NPZ,
                       "arrays kind,t,q,r,values,sign,ok,status,params", flags=("json",), analysis=True,
                       json_unless_out=True),

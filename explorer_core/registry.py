@@ -67,9 +67,11 @@ ANALYSES: dict[str, Analysis] = {
         Analysis(
             "equilibria",
             _A + "equilibria",
-            "equilibrium_tracks",
+            "critical_points",
             "Tracks",
             "iter_equilibrium_tracks",
+            "critical_spec",
+            "CriticalSpec",
             command="critical",
         ),
         Analysis("tprime", _A + "tprime", "tprime", "TPrimeMap", None, "tprime_spec", "TPrimeSpec", command="tprime"),

@@ -163,7 +163,7 @@ def test_scenes_listing() -> None:
         (["tprime", "--grid", "1"], "grid must be between 2"),
         (["tprime", "--q-range", "3,1"], "--q-range: q-range must be finite with lo < hi"),
         (["critical", "--t", "inf", "--json"], "t must be finite"),
-        (["critical", "--track"], "--track needs --out"),
+        (["critical", "--track"], "give --out FILE (.csv) and/or --json: nothing would be kept"),
     ],
 )
 def test_bad_input_one_line_no_traceback(args, needle) -> None:

@@ -51,9 +51,12 @@ import numpy as np
 
 from explorer_core import export
 from explorer_core.analyses import equilibria_kernels as ek
+from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, run
+from explorer_core.solve.checks import check_bool, check_int, check_number
+from explorer_core.solve.options import Arg, command_line
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -111,6 +114,22 @@ class Equilibria(Drawable):
     def points(self) -> np.ndarray:
         """``(n, 2)`` array of ``(q, r)``."""
         return np.column_stack([self.q, self.r])
+
+    def summary(self) -> dict[str, Any]:
+        """What ``bilimovich critical`` prints: every equilibrium, and whether they form a curve (an empty list
+        would say "none")."""
+        out = self.to_dict()
+        if self.degenerate:
+            out.update(degenerate=True, message=self.message)
+        return out
+
+    def report(self) -> list[str]:
+        """No lines: ``critical`` prints its JSON."""
+        return []
+
+    def write(self, path: str) -> dict[str, Any]:
+        """Not written: the equilibria at one time are printed as JSON (``--track`` writes a CSV)."""
+        raise export.OutputError("--out is written by --track only (the equilibria at one time are printed as JSON)")
 
     def to_dict(self, full: bool = False) -> dict[str, Any]:
         """JSON form ``{"t": t, "equilibria": [{"q", "r", "eigenvalues": [[re, im], [re, im]], "type"}]}``.
@@ -462,6 +481,10 @@ class Tracks(Drawable):
         """
         return equilibria(self.model, self.model.params.t0)
 
+    def report(self) -> list[str]:
+        """No lines: ``critical --track`` writes its CSV and prints its JSON with ``--json``."""
+        return []
+
     def summary(self) -> dict[str, Any]:
         """Plain-JSON overview: the interval, the counts per sample, and each branch's ends."""
 
@@ -797,3 +820,46 @@ def main() -> None:
 
 if __name__ == "__main__":
     main()
+
+
+# ---------------------------------------------------------------------------
+# As a spec (``bilimovich critical``): the equilibria at one frozen time, or tracked over one period.
+
+
+@dataclass(frozen=True)
+class CriticalSpec:
+    """What ``bilimovich critical`` computes (made by :func:`critical_spec`): the equilibria of the frozen field at
+    ``t``, or (``track``) followed over one period at ``n_t`` times."""
+
+    params: Params
+    t: float
+    track: bool = False
+    n_t: int = 400
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "t": self.t, "track": self.track, "n_t": self.n_t}
+
+
+@command_line(
+    t=Arg("frozen time (default t0)"),
+    track=Arg("track them over one period", "switch"),
+    n_t=Arg("time samples for --track", "int", default=721),
+)
+def critical_spec(params: Params, t: float | None = None, *, track: bool = False, n_t: int = 400) -> CriticalSpec:
+    """A validated :class:`CriticalSpec` (a bad value raises ParameterError naming it); ``t`` default ``t0``."""
+    with Checking() as at:
+        at("t")
+        t = params.t0 if t is None else check_number("t", t)
+        at("track")
+        track = check_bool("track", track)
+        at("n_t")
+        n_t = check_int("n_t", n_t, 2, 1_000_000)
+    return CriticalSpec(params, t, track, n_t)
+
+
+def critical_points(spec: CriticalSpec, progress: Callable[[Any], None] | None = None,
+                    cancel: Callable[[], bool] | None = None) -> Equilibria | Tracks:  # fmt: skip
+    """The equilibria of ``spec``: :func:`equilibria` at ``spec.t``, or :func:`equilibrium_tracks` (``track``)."""
+    if spec.track:
+        return equilibrium_tracks(spec.params, n_t=spec.n_t, progress=progress, cancel=cancel)
+    return equilibria(spec.params, spec.t)
