@@ -162,7 +162,7 @@ def test_scenes_listing() -> None:
         (["section", "--ic", "0,0", "--periods", "3", "--out", "/no/such/dir/x.csv"], "does not exist"),
         (["tprime", "--grid", "1"], "grid must be between 2"),
         (["tprime", "--q-range", "3,1"], "--q-range: q-range must be finite with lo < hi"),
-        (["critical", "--t", "inf", "--json"], "t must be finite"),
+        (["critical", "--t", "inf", "--json"], "--t: t must be a finite number, got inf"),
         (["critical", "--track"], "give --out FILE (.csv) and/or --json: nothing would be kept"),
     ],
 )
