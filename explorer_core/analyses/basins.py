@@ -79,7 +79,7 @@ from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
 from explorer_core.solve.poincare import PoincareMap
-from explorer_core.solve.recurrence import BASIN, SWEEP, RecurrenceRule, recurrence
+from explorer_core.solve.recurrence import BASIN, SWEEP, recurrence
 from explorer_core.status import Status, count_names, status_names
 from explorer_core.system.params import ParameterError, Params
 
@@ -646,15 +646,6 @@ def _settle(table: np.ndarray, s: int, att: np.ndarray, bas: np.ndarray, root: n
                 bas[cell] = _MIXED
 
 
-def _returns(ring: np.ndarray, slots: np.ndarray, n: np.ndarray, rule: RecurrenceRule) -> np.ndarray:
-    """The least period of the last ``rule.window`` points of each member ``slots[m]``, which wrote its ``n[m]``
-    points into ``ring[slots[m]]`` (point ``k`` at ``k % w``): :data:`~explorer_core.solve.recurrence.BASIN`
-    (0: none, or fewer points than the window)."""
-    w, m = ring.shape[1], rule.window
-    pts = ring[slots[:, None], (n[:, None] - m + np.arange(m)) % w]  # oldest first (garbage if n < m: not judged)
-    return recurrence(pts, rule, count=np.minimum(n, m)).period
-
-
 def warmup() -> None:
     """Compile (or load from the on-disk cache) the bookkeeping kernels."""
     att = np.zeros(4, np.int64)
@@ -668,7 +659,8 @@ def warmup() -> None:
     _record(pts, np.array([3], np.int64), slots, np.array([0.0, 0.0, 1.0, 1.0, 2.0, 2.0]), att, bas, root, root,
             table, state, ring, np.zeros(2, np.int64), np.zeros((2, 2), np.int64), 2, 1, 2, 2, 5)  # fmt: skip
     _settle(table, 0, att, bas, root, 1)
-    _returns(ring, slots, np.array([3], np.int64), BASIN.with_(tol=1e-6, p_max=1, window=2))  # the recurrence kernel
+    # the recurrence kernel, as the run calls it
+    recurrence(ring, BASIN.with_(tol=1e-6, p_max=1, window=2), count=np.array([3]), rows=slots, ring=True)
 
 
 # ---------------------------------------------------------------------------
@@ -1065,7 +1057,8 @@ class _Run:
         search = live[(self.state[live, 0] == _SEARCH) & (self.pixel[live] >= 0) & self.may_check[live]
                       & (self.status[live] == Status.OK)]  # fmt: skip
         if search.size:
-            per = _returns(self.ring, search, self.state[search, 10], self.returns)
+            # (each slot's ring holds its last points, point k at k % w; state[s, 10] of them written)
+            per = recurrence(self.ring, self.returns, count=self.state[search, 10], rows=search, ring=True).period
             for s, p in zip(search[per > 0], per[per > 0], strict=True):
                 x = self.ring_points(int(s))[-1]
                 known = self.periodic_match(x)

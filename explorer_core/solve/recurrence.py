@@ -175,6 +175,8 @@ def recurrence(
     tol: float | None = None,
     p_max: int | None = None,
     count: np.ndarray | None = None,
+    rows: np.ndarray | None = None,
+    ring: bool = False,
     distances: bool = False,
 ) -> Recurrence:
     """Whether ``points`` repeat with a period ``p <= p_max`` under ``rule``, and the least such period.
@@ -184,7 +186,9 @@ def recurrence(
     points : (n, 2) consecutive section points of one trajectory, oldest first, or (m, n, 2) of ``m``.
     rule : the :class:`RecurrenceRule` (a preset of :data:`PRESETS`, or one of its ``with_`` copies).
     tol, p_max : the tolerance and longest period, if the rule leaves them to the caller (or to override them).
-    count : (m,) valid points of each member (its first ``count[i]``; default every point).
+    count : (m,) the points of each member: its first ``count[i]`` (default every point); with ``ring``, the
+        points written so far into its row of ``n``, point ``k`` at ``k % n`` (the last ``min(count, n)`` valid).
+    rows : judge only the members ``rows`` (``count`` is then theirs); the answers are in that order.
     distances : also return the distance, the pair and the verdict at every period (else the search stops at
         the least period, and at the first pair out of tolerance).
     """
@@ -198,19 +202,23 @@ def recurrence(
         x = x[None]
     if x.ndim != 3 or x.shape[2] != 2:
         raise ParameterError(f"points must be (n, 2) or (m, n, 2), got shape {np.shape(points)}")
-    x = np.ascontiguousarray(x)
-    m, n = x.shape[:2]
-    if count is None:
-        counts = np.full(m, n, dtype=np.int64)
-    else:
-        counts = np.ascontiguousarray(np.broadcast_to(np.asarray(count), (m,)), dtype=np.int64)
-        if counts.size and (counts.min() < 0 or counts.max() > n):
-            raise ParameterError(f"count must be in [0, {n}] (the points given), got {counts.min()}..{counts.max()}")
+    x = np.ascontiguousarray(x)  # (no copy of a C-ordered float array: a basin's rings are judged in place)
+    if not x.flags.writeable:
+        x = x.copy()  # (a readonly array would compile the kernel again)
+    n = x.shape[1]
+    which = np.arange(x.shape[0], dtype=np.int64) if rows is None else np.ascontiguousarray(rows, dtype=np.int64)
+    m = which.size
+    if m and (which.min() < 0 or which.max() >= x.shape[0]):
+        raise ParameterError(f"rows must be in [0, {x.shape[0] - 1}], got {which.min()}..{which.max()}")
+    counts = np.full(m, n, dtype=np.int64) if count is None else np.asarray(count)
+    counts = np.ascontiguousarray(np.broadcast_to(counts, (m,)), dtype=np.int64)
+    if m and (counts.min() < 0 or (counts.max() > n and not ring)):
+        raise ParameterError(f"count must be in [0, {n}] (the points given), got {counts.min()}..{counts.max()}")
     shape = (m, p_max) if distances else (0, 0)
     period = np.zeros(m, dtype=np.int64)
     limit = np.empty(m)
     dist, at, hit = np.empty(shape), np.empty(shape, dtype=np.int64), np.empty(shape, dtype=np.bool_)
-    _judge(x, counts, p_max, tol, *rule.codes(), period, limit, dist, at, hit)
+    _judge(x, which, counts, bool(ring), p_max, tol, *rule.codes(), period, limit, dist, at, hit)
     if not distances:
         return Recurrence(period[0], limit[0]) if one else Recurrence(period, limit)
     if one:
@@ -219,22 +227,27 @@ def recurrence(
 
 
 @njit(nogil=True, cache=True)
-def _judge(x: np.ndarray, count: np.ndarray, p_max: int, tol: float, scale: int, norm: int, window: int,
-           pairs: int, closest: bool, strict: bool, period: np.ndarray, limit: np.ndarray, dist: np.ndarray,
-           at: np.ndarray, hit: np.ndarray) -> None:  # fmt: skip
-    """:func:`recurrence` of every member ``x[i, :count[i]]`` (the rule as :meth:`RecurrenceRule.codes`).
+def _judge(x: np.ndarray, rows: np.ndarray, count: np.ndarray, ring: bool, p_max: int, tol: float, scale: int,
+           norm: int, window: int, pairs: int, closest: bool, strict: bool, period: np.ndarray, limit: np.ndarray,
+           dist: np.ndarray, at: np.ndarray, hit: np.ndarray) -> None:  # fmt: skip
+    """:func:`recurrence` of the members ``x[rows[i]]`` (the rule as :meth:`RecurrenceRule.codes`).
 
     ``dist``, ``at``, ``hit`` are (m, p_max) to fill, or (0, 0): then each member stops at its least period, and a
     period at its first pair out of tolerance (the verdicts are the same).
     """
     full = dist.shape[0] > 0
-    for i in range(x.shape[0]):
+    w = x.shape[1]
+    for i in range(rows.shape[0]):
+        r = rows[i]
         period[i] = 0
         limit[i] = math.nan
         if full:
             for p in range(p_max):
                 dist[i, p], at[i, p], hit[i, p] = math.inf, -1, False
-        c = count[i]
+        c = min(count[i], w)  # valid points; the j-th (oldest first) at x[r, base + j], or + w if negative (a ring)
+        base = (count[i] - c) % w if ring and c > 0 else 0
+        if base + c > w:
+            base -= w
         if window > 0:
             if c < window:
                 continue
@@ -246,12 +259,12 @@ def _judge(x: np.ndarray, count: np.ndarray, p_max: int, tol: float, scale: int,
         if scale == 1:  # the window's largest |x| (NaN propagates: then nothing returns)
             big = 0.0
             for j in range(first, c):
+                jj = base + j
+                jj += w if jj < 0 else 0
                 for k in range(2):
-                    v = abs(x[i, j, k])
+                    v = abs(x[r, jj, k])
                     if v > big or v != v:
                         big = v
-                        if v != v:
-                            break
                 if big != big:
                     break
             lim = tol * (1.0 + big)
@@ -269,8 +282,12 @@ def _judge(x: np.ndarray, count: np.ndarray, p_max: int, tol: float, scale: int,
             where = -1
             ok = True
             for j in range(lo, c):
-                dq = x[i, j, 0] - x[i, j - p, 0]
-                dr = x[i, j, 1] - x[i, j - p, 1]
+                a = base + j
+                a += w if a < 0 else 0
+                b = base + j - p
+                b += w if b < 0 else 0
+                dq = x[r, a, 0] - x[r, b, 0]
+                dr = x[r, a, 1] - x[r, b, 1]
                 if norm == 0:
                     aq, ar = abs(dq), abs(dr)
                     d = aq if (aq >= ar or aq != aq) else ar
@@ -283,12 +300,12 @@ def _judge(x: np.ndarray, count: np.ndarray, p_max: int, tol: float, scale: int,
                 if full and (where < 0 or (red == red and (d != d or d > red))):
                     red, where = d, j - p - first  # the first largest distance (the first NaN, as argmax)
                 if scale == 3:  # per component, relative to the later point
-                    lq = tol * (1.0 + abs(x[i, j, 0]))
-                    lr = tol * (1.0 + abs(x[i, j, 1]))
+                    lq = tol * (1.0 + abs(x[r, a, 0]))
+                    lr = tol * (1.0 + abs(x[r, a, 1]))
                     good = (abs(dq) < lq and abs(dr) < lr) if strict else (abs(dq) <= lq and abs(dr) <= lr)
                 else:
                     if scale == 2:  # relative to the later point's largest component
-                        aq, ar = abs(x[i, j, 0]), abs(x[i, j, 1])
+                        aq, ar = abs(x[r, a, 0]), abs(x[r, a, 1])
                         lim = tol * (1.0 + (aq if (aq >= ar or aq != aq) else ar))
                     good = d < lim if strict else d <= lim
                 if not good:
