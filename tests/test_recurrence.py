@@ -22,7 +22,6 @@ from explorer_core.analyses import basins, bifurcation, orbits, regimes
 from explorer_core.analyses.sweeps import detect_period
 from explorer_core.solve import recurrence as rec
 from explorer_core.solve.recurrence import (
-    BASIN,
     CHART,
     DIAGRAM,
     NEAR,
@@ -296,7 +295,8 @@ def test_diagram_is_repeat_period(seed: int) -> None:
 
 @pytest.mark.parametrize("seed", range(4))
 def test_basin_is_the_basins_kernel(seed: int) -> None:
-    """Over the basins' rings (point ``k`` at ``k % w``, wrapping), as the run calls it. A NaN distance in the
+    """The basins' hand-over (now CHART over the ring of 3 p_max points, in place: point ``k`` at ``k % w``,
+    wrapping; slots asked in any order), as the run calls it. A NaN distance in the
     window is the one deliberate change: the kernel let it pass (``abs(nan) > lim`` is False), the rule never does
     (the run never writes one: the ring holds the points of members whose integration is ok)."""
     rng = np.random.default_rng(400 + seed)
@@ -317,7 +317,7 @@ def test_basin_is_the_basins_kernel(seed: int) -> None:
         for tol in TOLS:
             want = np.zeros(search.size, np.int64)
             old_basin_returns(ring, state, search, window, p_max, tol, want)
-            rule = BASIN.with_(tol=tol, p_max=p_max, window=window)
+            rule = CHART.with_(tol=tol, p_max=p_max, window=window)
             got = recurrence(ring, rule, count=state[search, 10], rows=search, ring=True).period
             assert same(got[~bad], want[~bad])
             old_basin_returns(ring, state, search, window, p_max, tol, want, nan_fails=True)
@@ -397,7 +397,7 @@ def test_the_issue_s_period_two_orbit_under_every_preset() -> None:
         "sweep": recurrence(tail, SWEEP, tol=tol, p_max=16).period,
         "near": recurrence(ring, NEAR, tol=1e-5, p_max=16).period,
         "diagram": recurrence(x, DIAGRAM, tol=1e-5).period,
-        "basin": recurrence(x, BASIN.with_(window=48), tol=1e-5, p_max=16).period,
+        "basin": recurrence(x, CHART.with_(window=48), tol=1e-5, p_max=16).period,
         "play": recurrence(x[-(3 + 16) :], PLAY, tol=1e-5, p_max=16).period,
         "seeds": recurrence(x, SEEDS, tol=tol, p_max=16).period,
     }
@@ -419,7 +419,8 @@ def test_the_issue_s_period_two_orbit_under_every_preset() -> None:
 
 
 def test_presets_are_named_and_json() -> None:
-    assert set(PRESETS) == {"chart", "sweep", "near", "diagram", "basin", "play", "seeds"}
+    # (the basins' own preset, BASIN, was the chart's rule field for field: merged into CHART)
+    assert set(PRESETS) == {"chart", "sweep", "near", "diagram", "play", "seeds"}
     for name, rule in PRESETS.items():
         assert getattr(rec, name.upper()) is rule
         d = rule.as_dict()
@@ -462,7 +463,7 @@ def test_a_nan_never_returns() -> None:
     x = np.tile([[1.0, 2.0]], (20, 1))
     assert recurrence(x, SWEEP, tol=0.0, p_max=3).period == 1
     x[5, 1] = np.nan
-    for rule in (CHART, SWEEP, BASIN.with_(window=20), SEEDS):
+    for rule in (CHART, SWEEP, CHART.with_(window=20), SEEDS):
         assert recurrence(x, rule, tol=0.1, p_max=3).period == 0, rule
     # rules that look at the last points only do not see it
     assert recurrence(x, DIAGRAM).period == 1 and recurrence(x, PLAY, p_max=3).period == 1
@@ -591,3 +592,83 @@ def test_no_second_recurrence_detector_in_the_core_or_the_app() -> None:
     for wrapper in (detect_period, orbits.return_seeds, orbits.settled_seeds, basins._Run.step,
                     bifurcation.bilimovich_orbits, regimes._classify_members, regimes.classify):  # fmt: skip
         assert "recurrence(" in inspect.getsource(wrapper)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The measured merge decision (docs/architecture.md, "Recurrence"): which presets judge realistic inputs alike.
+
+MERGE_TIMES = (100, 200, 400, 700, 1000)
+
+
+def merge_inputs() -> dict[str, list[np.ndarray]]:
+    """1000 periods of Fig. 10's 140 sweep values, Fig. 11's 20x20 chart pixels and a 20x20 grid of ICs of the
+    basins' example (Fig. 11's tensor at alpha = -0.5, I11 = 1.6), at the analyses' default accuracies."""
+    from explorer_core.analyses.sweeps import sweep_values
+    from explorer_core.scenes import get_scene
+    from explorer_core.solve.numerics import Numerics
+    from explorer_core.solve.section import section
+
+    def run(params, ics, rtol: float, bound: float = 1e4) -> list[np.ndarray]:
+        s = section(params, ics, 1000, numerics=Numerics(rtol=rtol, atol=rtol, bound=bound), workers=1)
+        return [s.points[i, : s.npts[i]] for i in range(s.points.shape[0])]
+
+    fig10, fig11 = get_scene("fig10").params, get_scene("fig11").params
+    sweep = [x for a in sweep_values((-0.42, -0.35), 140) for x in run(fig10.with_(alpha=float(a)), [IC10], 1e-9)]
+    chart = [x for a in np.linspace(-0.6, -0.4, 20) for i11 in np.linspace(1.0, 2.0, 20)
+             for x in run(fig11.with_(alpha=float(a), I11=float(i11)), [(0.1, 0.1)], 1e-8, 100.0)]  # fmt: skip
+    q, r = np.meshgrid(np.linspace(-1.7, 1.5, 20), np.linspace(-3.0, 1.0, 20))
+    grid = run(fig11.with_(alpha=-0.5, I11=1.6), np.column_stack([q.ravel(), r.ravel()]), 1e-8)
+    return {"fig10": sweep, "fig11": chart, "basins": grid}
+
+
+IC10 = (-0.0959, -1.962)
+#: The basins' preset before the merge, as it was defined: every pair of the last 3 p_max points.
+OLD_BASIN = RecurrenceRule(scale="window")
+
+
+def merge_verdicts(x: np.ndarray, common: float | None) -> dict[str, int]:
+    """Every preset's least period of the trajectory ``x`` so far, as its analysis applies it (``common``: every
+    tolerance that one, relative; SWEEP's and SEEDS' ``common (1 + max |x|)`` of their window)."""
+
+    def own(t: float) -> float:
+        return t if common is None else common
+
+    p_max, ring = 16, x[-48:]
+    half = x[max(0, x.shape[0] // 2 - 1) :]
+    tail_scale = 1.0 + float(np.abs(ring).max())
+    out = {
+        "CHART": recurrence(half, CHART, tol=own(1e-5), p_max=p_max).period if half.shape[0] > p_max else 0,
+        "CHART ring": recurrence(ring, CHART.with_(window=48), tol=own(1e-5), p_max=p_max).period,
+        "BASIN": recurrence(x, OLD_BASIN.with_(window=48), tol=own(1e-5), p_max=p_max).period,
+        "NEAR": recurrence(ring, NEAR, tol=own(3e-2), p_max=p_max).period,
+        "DIAGRAM": recurrence(x, DIAGRAM, tol=own(1e-9)).period,
+        "PLAY": recurrence(x[-(PLAY.pairs + p_max) :], PLAY, tol=own(1e-3), p_max=p_max).period,
+        # a cell's diagonal (64 cells across the basins' box) for the located check; 2% of the box for seeds
+        "SWEEP": recurrence(ring, SWEEP, tol=0.08 if common is None else common * tail_scale, p_max=p_max).period,
+    }
+    return {k: int(v) for k, v in out.items()}
+
+
+@pytest.mark.slow
+def test_the_merge_decision() -> None:
+    """BASIN was CHART over the ring: they never differ (merged). SWEEP is CHART with an absolute tolerance: alike
+    at one tolerance, apart at their callers' (kept). Every other pair differs on these inputs even at one
+    tolerance (kept apart). ``pytest -s`` prints the table of docs/architecture.md."""
+    sets = merge_inputs()
+    names = list(merge_verdicts(np.zeros((50, 2)), None))
+    pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
+    table: dict[str, dict[str, list[int]]] = {"own": {}, "1e-5": {}}
+    for mode, common in (("own", None), ("1e-5", 1e-5)):
+        for trajs in sets.values():
+            rows = [merge_verdicts(x[:t], common) for x in trajs for t in MERGE_TIMES if x.shape[0] >= t]
+            for a, b in pairs:
+                table[mode].setdefault(f"{a} | {b}", []).append(sum(r[a] != r[b] for r in rows))
+    for mode, counts in table.items():
+        print(f"\nsamples whose least periods differ ({mode} tolerances), fig10 / fig11 / basins:")
+        for k, v in counts.items():
+            print(f"  {k:24s} {' / '.join(map(str, v))}")
+    assert table["own"]["CHART ring | BASIN"] == [0, 0, 0] == table["1e-5"]["CHART ring | BASIN"]
+    assert table["1e-5"]["CHART ring | SWEEP"] == [0, 0, 0] and sum(table["own"]["CHART ring | SWEEP"]) > 0
+    for (a, b), key in zip(pairs, table["1e-5"], strict=True):
+        if {a, b} not in ({"CHART ring", "BASIN"}, {"CHART ring", "SWEEP"}, {"BASIN", "SWEEP"}):
+            assert sum(table["1e-5"][key]) > 0, key

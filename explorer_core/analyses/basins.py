@@ -79,7 +79,7 @@ from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
 from explorer_core.solve.poincare import PoincareMap
-from explorer_core.solve.recurrence import BASIN, SWEEP, recurrence
+from explorer_core.solve.recurrence import CHART, SWEEP, recurrence
 from explorer_core.status import Status, count_names, status_names
 from explorer_core.system.params import ParameterError, Params
 
@@ -660,7 +660,7 @@ def warmup() -> None:
             table, state, ring, np.zeros(2, np.int64), np.zeros((2, 2), np.int64), 2, 1, 2, 2, 5)  # fmt: skip
     _settle(table, 0, att, bas, root, 1)
     # the recurrence kernel, as the run calls it
-    recurrence(ring, BASIN.with_(tol=1e-6, p_max=1, window=2), count=np.array([3]), rows=slots, ring=True)
+    recurrence(ring, CHART.with_(tol=1e-6, p_max=1, window=2), count=np.array([3]), rows=slots, ring=True)
 
 
 # ---------------------------------------------------------------------------
@@ -796,7 +796,8 @@ class _Run:
         self.table = np.zeros((slots, table_size(spec.cells)), np.int32)
         self.state = np.zeros((slots, 11), np.int64)
         self.window = 3 * spec.p_max
-        self.returns = BASIN.with_(tol=spec.tol, p_max=spec.p_max, window=self.window)
+        # a member's last points return as a chart's (its early look): every pair of the ring within tol (1 + |x|)
+        self.returns = CHART.with_(tol=spec.tol, p_max=spec.p_max, window=self.window)
         self.ring = np.zeros((slots, max(256, self.window), 2))
         self.y = np.zeros((slots, 2))
         self.h = np.zeros(slots)

@@ -121,21 +121,20 @@ def _check_p_max(v: Any, none: bool = False) -> int | None:
 
 #: The chart of regimes (and the periods of an orbit diagram's values, and ``bilimovich reproduce``): every pair
 #: of the points given returns within ``tol (1 + max |x|)`` (max-norm). A chart's early look uses it over the
-#: ring of its last ``3 p_max`` points (``window``); its final verdict over the measurement's second half.
+#: ring of its last ``3 p_max`` points (``window``); its final verdict over the measurement's second half. The
+#: basins hand a member to Newton by it, over the same ring (once a preset of its own, ``BASIN``: the same rule,
+#: merged; docs/architecture.md, "Recurrence").
 CHART = RecurrenceRule(scale="window")
 #: ``sweeps.detect_period``: every pair within an absolute ``tol`` (max-norm); a basin's located attractor uses it
 #: with the diagonal of a cell.
 SWEEP = RecurrenceRule(scale="absolute")
 #: A chart's hand-over to Newton: the last 5 points return within ``3e-2 (1 + max |x|)`` of the ring's points
-#: (max-norm; the chart asks for ``max(3e-2, tol)`` and fewer pairs if ``p_max`` is small). Measured in
-#: ``regimes.SETTLE_TOL``.
+#: (max-norm; the chart asks for ``max(3e-2, tol)`` and fewer pairs if ``p_max`` is small; the measurements
+#: behind the numbers are at ``regimes.SETTLE_TOL``).
 NEAR = RecurrenceRule(tol=3e-2, scale="window", pairs=5)
 #: An orbit diagram's settled members: the last 8 points return to ``tol (1 + |x_c|)`` per component, ``p <= 16``
 #: (``bifurcation.SETTLE_TOL``; its jumps ask for ``JUMP_TOL``).
 DIAGRAM = RecurrenceRule(tol=1e-9, scale="component", pairs=8, p_max=16)
-#: Basins' hand-over to Newton: every pair of the last ``3 p_max`` points within ``tol (1 + max |x|)``
-#: (max-norm); the basin's run sets the window from its ``p_max``.
-BASIN = RecurrenceRule(scale="window")
 #: A played frame's trajectories that settled: the last 3 points within ``1e-3 (1 + max(|q|, |r|))`` of the point
 #: ``p`` before (Euclidean, strictly).
 PLAY = RecurrenceRule(tol=1e-3, scale="point", norm="euclidean", pairs=3, strict=True)
@@ -144,7 +143,7 @@ PLAY = RecurrenceRule(tol=1e-3, scale="point", norm="euclidean", pairs=3, strict
 SEEDS = RecurrenceRule(scale="absolute", norm="euclidean", agree="closest")
 #: Every preset by name.
 PRESETS: dict[str, RecurrenceRule] = {
-    "chart": CHART, "sweep": SWEEP, "near": NEAR, "diagram": DIAGRAM, "basin": BASIN, "play": PLAY, "seeds": SEEDS,
+    "chart": CHART, "sweep": SWEEP, "near": NEAR, "diagram": DIAGRAM, "play": PLAY, "seeds": SEEDS,
 }  # fmt: skip
 
 
@@ -189,6 +188,7 @@ def recurrence(
     count : (m,) the points of each member: its first ``count[i]`` (default every point); with ``ring``, the
         points written so far into its row of ``n``, point ``k`` at ``k % n`` (the last ``min(count, n)`` valid).
     rows : judge only the members ``rows`` (``count`` is then theirs); the answers are in that order.
+    ring : the members are rings (see ``count``): a basin's, judged in place.
     distances : also return the distance, the pair and the verdict at every period (else the search stops at
         the least period, and at the first pair out of tolerance).
     """
