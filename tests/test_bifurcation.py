@@ -249,8 +249,11 @@ def test_a_settled_transient_gives_the_same_orbit_and_phase(alpha: float) -> Non
 
 def test_repeat_period_is_the_least_period_a_member_repeats() -> None:
     """Each member settles on its own (an escaped or chaotic member no longer holds the others back): the least
-    period its last SETTLE_WINDOW points repeat after, at the tolerance asked."""
-    from explorer_core.analyses.bifurcation import repeat_period
+    period its last 8 points repeat after (the rule DIAGRAM), at the tolerance asked."""
+    from explorer_core.solve.recurrence import DIAGRAM, recurrence
+
+    def repeat_period(x: np.ndarray, tol: float) -> int:
+        return int(recurrence(x, DIAGRAM, tol=tol).period)
 
     cyc2 = np.tile([[0.1, 0.2], [0.3, 0.4]], (16, 1))  # (32, 2)
     cyc3 = np.tile([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0]], (11, 1))[:32]
@@ -258,7 +261,7 @@ def test_repeat_period_is_the_least_period_a_member_repeats() -> None:
     assert repeat_period(cyc2, 1e-9) == 2 and repeat_period(cyc3, 1e-9) == 3
     assert repeat_period(drift, 1e-9) == 0  # still moving: not settled
     assert repeat_period(drift, 1e-3) == 1  # to a loose tolerance it is (Newton's cycle may then be tried)
-    assert repeat_period(cyc2[:9], 1e-9) == 0  # fewer than p + SETTLE_WINDOW points: not yet looked at
+    assert repeat_period(cyc2[:9], 1e-9) == 0  # fewer than p + 8 points: not yet looked at
     # In a batch, a member that escapes does not keep the other from settling (it did: the batch settled as one).
     p, num = FIG10.with_(alpha=-0.36), Numerics(rtol=1e-10, atol=1e-10)
     alone = bilimovich_orbits(p, np.array([[-0.0959, -1.962]]), 300, 50, num, settle=True)

@@ -13,7 +13,15 @@ import param
 from app.controls import MAX_MAGNITUDE, SYSTEM_FIELDS, Control, UrlKey, choice, ints, places, points_text
 from app.layers.base import KEEP, Action, Layer, Table
 from app.runner import LAYER, POINTS
-from explorer_core.analyses.orbits import ORBIT_NUMERICS, Orbit, OrbitSearch, find_orbits, grid_seeds, same_orbit
+from explorer_core.analyses.orbits import (
+    ORBIT_NUMERICS,
+    Orbit,
+    OrbitSearch,
+    find_orbits,
+    grid_seeds,
+    same_orbit,
+    settled_seeds,
+)
 from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import Params
 
@@ -31,15 +39,12 @@ ORBIT_ROWS = 40
 #: multiplier's eigenvector at these distances (relative to 1 + |x|): the born orbit's distance grows like the
 #: square root of the parameter's distance from the doubling, which a frame's step does not tell.
 BIRTH_STEPS = (1e-2, 3e-2, 1e-1)
-#: While a parameter is played, a frame's trajectory whose last points repeat with period n (each within SETTLED of
-#: the point n before, relative to 1 + |x|) has settled on a cycle; one no orbit on screen is within NEAR of (an
-#: orbit born at a fold since the last frame: a pair out of nothing, away from every followed orbit) is handed to
+#: While a parameter is played, a frame's trajectory whose last points repeat with period n (the core's rule
+#: ``recurrence.PLAY``) has settled on a cycle; one no orbit on screen is within NEAR of (relative to 1 + |x|: an
+#: orbit born at a fold since the last frame, a pair out of nothing, away from every followed orbit) is handed to
 #: Newton for period n, at most MAX_SETTLED cycles a frame (the added work: one Newton search of one period each).
-SETTLED = 1e-3
 NEAR = 5e-2
 MAX_SETTLED = 4
-#: Recurrences checked at the end of a trajectory (its last points against those n before).
-SETTLED_TAIL = 3
 SETTLED_WORDS = "born since the last frame (a trajectory settled on it)"
 #: A fold pair's partner: an orbit of period n whose largest multiplier is real and within FOLD_NEAR of +1, with no
 #: orbit of period n near it (0.3, relative to 1 + |x|), is searched for its partner across the fold (the saddle of a
@@ -119,41 +124,9 @@ def partner_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[
 
 def settled_cycles(traj: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray,
                    max_period: int) -> list[tuple[float, float, int]]:  # fmt: skip
-    """The cycles the section's trajectories end on, ``(q, r, n)`` each (the last point and the least period
-    ``n <= max_period``), one per cycle: a trajectory whose last :data:`SETTLED_TAIL` points are each within
-    :data:`SETTLED` (relative to 1 + |x|) of the point ``n`` periods before. Chaotic, quasi-periodic, escaping or
-    still transient trajectories, those with fewer than ``SETTLED_TAIL + max_period`` points, and cycles longer than
-    ``max_period`` give none. One sort of the points and array operations on every trajectory's tail at once (a
-    frame may have thousands of trajectories)."""
-    need = SETTLED_TAIL + max_period
-    if max_period < 1 or traj.size == 0:
-        return []
-    order = np.lexsort((k, traj))
-    t_sorted = traj[order]
-    ends = np.flatnonzero(np.r_[t_sorted[1:] != t_sorted[:-1], True])  # the last point of each trajectory
-    starts = np.r_[0, ends[:-1] + 1]
-    ends = ends[ends - starts + 1 >= need]
-    if ends.size == 0:
-        return []
-    idx = order[ends[:, None] + np.arange(1 - need, 1)]  # (trajectories, need): each one's last points, in k order
-    x = np.stack([q[idx], r[idx]], axis=-1)
-    last = x[:, -SETTLED_TAIL:]
-    tol = SETTLED * (1.0 + np.abs(last).max(axis=2))
-    period = np.zeros(x.shape[0], dtype=int)  # 0: not settled (yet)
-    for n in range(max_period, 0, -1):  # the least period wins
-        before = x[:, need - SETTLED_TAIL - n : need - n]
-        with np.errstate(invalid="ignore"):
-            ok = np.all(np.linalg.norm(last - before, axis=2) < tol, axis=1)
-        period[ok] = n
-    out: list[tuple[float, float, int]] = []
-    tails: list[np.ndarray] = []  # the points of each cycle found (a second trajectory on it adds nothing)
-    for i in np.flatnonzero(period):
-        n, end = int(period[i]), x[i, -1]
-        scale = NEAR * (1.0 + float(np.abs(end).max()))
-        if not any(np.linalg.norm(c - end, axis=1).min() < scale for c in tails):
-            tails.append(x[i, -n:])
-            out.append((float(end[0]), float(end[1]), n))
-    return out
+    """The cycles the section's trajectories end on, ``(q, r, n)`` each, those within :data:`NEAR` of each other
+    one (:func:`~explorer_core.analyses.orbits.settled_seeds`)."""
+    return settled_seeds(traj, k, q, r, max_period, NEAR)
 
 
 def unfollowed(cycles: list[tuple[float, float, int]], orbits: list[Orbit]) -> list[tuple[float, float, int]]:

@@ -72,7 +72,6 @@ from explorer_core import config, export
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
 from explorer_core.analyses.specs import spec_of
-from explorer_core.analyses.sweeps import detect_period
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
@@ -81,6 +80,7 @@ from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
 from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance
 from explorer_core.solve.poincare import PoincareMap
+from explorer_core.solve.recurrence import CHART, SWEEP, recurrence
 from explorer_core.status import Status, count_names, describe, status_names
 from explorer_core.system.params import ParameterError, Params
 
@@ -684,36 +684,6 @@ def _settle(table: np.ndarray, s: int, att: np.ndarray, bas: np.ndarray, root: n
                 bas[cell] = _MIXED
 
 
-@njit(nogil=True, cache=True)
-def _returns(ring: np.ndarray, state: np.ndarray, slots: np.ndarray, window: int, p_max: int, tol: float,
-             out: np.ndarray) -> None:  # fmt: skip
-    """``out[m]``: least ``p <= p_max`` with the member's last ``window`` points returning within
-    ``tol (1 + max |x|)`` after ``p`` iterations (0: none, or fewer points)."""
-    w = ring.shape[1]
-    for m in range(slots.shape[0]):
-        s = slots[m]
-        out[m] = 0
-        n = state[s, 10]
-        if n < window or state[s, 0] != _SEARCH:
-            continue
-        big = 0.0
-        for j in range(window):
-            pos = (n - 1 - j) % w
-            big = max(big, abs(ring[s, pos, 0]), abs(ring[s, pos, 1]))
-        lim = tol * (1.0 + big)
-        for p in range(1, p_max + 1):
-            ok = True
-            for j in range(window - p):
-                a = (n - 1 - j) % w
-                b = (n - 1 - j - p) % w
-                if abs(ring[s, a, 0] - ring[s, b, 0]) > lim or abs(ring[s, a, 1] - ring[s, b, 1]) > lim:
-                    ok = False
-                    break
-            if ok:
-                out[m] = p
-                break
-
-
 def warmup() -> None:
     """Compile (or load from the on-disk cache) the bookkeeping kernels."""
     att = np.zeros(4, np.int64)
@@ -727,7 +697,8 @@ def warmup() -> None:
     _record(pts, np.array([3], np.int64), slots, np.array([0.0, 0.0, 1.0, 1.0, 2.0, 2.0]), att, bas, root, root,
             table, state, ring, np.zeros(2, np.int64), np.zeros((2, 2), np.int64), 2, 1, 2, 2, 5)  # fmt: skip
     _settle(table, 0, att, bas, root, 1)
-    _returns(ring, state, slots, 2, 1, 1e-6, np.zeros(1, np.int64))
+    # the recurrence kernel, as the run calls it
+    recurrence(ring, CHART.with_(tol=1e-6, p_max=1, window=2), count=np.array([3]), rows=slots, ring=True)
 
 
 # ---------------------------------------------------------------------------
@@ -863,6 +834,8 @@ class _Run:
         self.table = np.zeros((slots, table_size(spec.cells)), np.int32)
         self.state = np.zeros((slots, 11), np.int64)
         self.window = 3 * spec.p_max
+        # a member's last points return as a chart's (its early look): every pair of the ring within tol (1 + |x|)
+        self.returns = CHART.with_(tol=spec.tol, p_max=spec.p_max, window=self.window)
         self.ring = np.zeros((slots, max(256, self.window), 2))
         self.y = np.zeros((slots, 2))
         self.h = np.zeros(slots)
@@ -976,7 +949,7 @@ class _Run:
         if pts.shape[0] > spec.p_max + 1:
             cq, cr = spec.cell_size
             tail = pts[-min(pts.shape[0], self.window) :]
-            p = detect_period(tail, spec.p_max, math.hypot(cq, cr))
+            p = int(recurrence(tail, SWEEP, tol=math.hypot(cq, cr), p_max=spec.p_max).period)
             if p:
                 orbit = self.cycle(pts[-1], p)
                 if orbit is not None:
@@ -1124,8 +1097,8 @@ class _Run:
         search = live[(self.state[live, 0] == _SEARCH) & (self.pixel[live] >= 0) & self.may_check[live]
                       & (self.status[live] == Status.OK)]  # fmt: skip
         if search.size:
-            per = np.zeros(search.size, np.int64)
-            _returns(self.ring, self.state, search, self.window, spec.p_max, spec.tol, per)
+            # (each slot's ring holds its last points, point k at k % w; state[s, 10] of them written)
+            per = recurrence(self.ring, self.returns, count=self.state[search, 10], rows=search, ring=True).period
             for s, p in zip(search[per > 0], per[per > 0], strict=True):
                 x = self.ring_points(int(s))[-1]
                 known = self.periodic_match(x)

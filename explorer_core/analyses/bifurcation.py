@@ -41,7 +41,7 @@ import numpy as np
 
 from explorer_core import config, export
 from explorer_core.analyses.specs import spec_of
-from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
+from explorer_core.analyses.sweeps import check_param, params_at, sweep_values
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor
@@ -51,6 +51,7 @@ from explorer_core.solve.integrators import lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.options import JUMPS, Arg, NewtonOptions, command_line, instance
 from explorer_core.solve.poincare import PoincareMap, newton
+from explorer_core.solve.recurrence import CHART, DIAGRAM, recurrence
 from explorer_core.status import Status, count_names
 from explorer_core.system.params import ParameterError, Params
 
@@ -292,11 +293,11 @@ class OrbitDiagram(Drawable):
         return s, v, self.values[v], i, self.transient + 1 + j, pts[:, 0], pts[:, 1]
 
     def periods(self, p_max: int = 16, tol: float = 1e-6) -> np.ndarray:
-        """Detected period per ``[sweep, value, ic]`` (0: none up to ``p_max``; -1: not drawn)."""
+        """Detected period per ``[sweep, value, ic]`` (0: none up to ``p_max``; -1: not drawn): every drawn point
+        returns within ``tol (1 + max |x|)`` (:data:`~explorer_core.solve.recurrence.CHART`)."""
         out = np.full(self.status.shape, -1, dtype=np.int64)
-        for idx in zip(*np.nonzero(self.drawn()), strict=True):
-            pts = self.points[idx]
-            out[idx] = detect_period(pts, p_max, tol * (1.0 + np.abs(pts).max()))
+        drawn = self.drawn()
+        out[drawn] = recurrence(self.points[drawn], CHART, tol=tol, p_max=p_max).period
         return out
 
     def status_counts(self) -> dict[str, int]:
@@ -372,10 +373,13 @@ class OrbitDiagram(Drawable):
 #: and the final state, is the cycle's point at that phase (copied, not integrated; the diagram's ``settled``
 #: says which trajectories and from where). A member is on its cycle when
 #:
-#: * **repeated**: its last SETTLE_WINDOW points repeat after one period ``p <= SETTLE_P_MAX`` to SETTLE_TOL
-#:   (relative). The numerical map is deterministic, so a member on an attracting cycle repeats it to
-#:   rounding. (A member converging slowly, a multiplier near the unit circle, settles only once its steps are
-#:   below SETTLE_TOL; its remaining motion is below ``SETTLE_TOL |mu| / (1 - |mu|)``.)
+#: * **repeated**: its last 8 points repeat after one period ``p <= 16`` to SETTLE_TOL (relative, per
+#:   component: the rule :data:`~explorer_core.solve.recurrence.DIAGRAM`; not the chart's, whose tolerance is
+#:   relative to the window's largest ``|x|`` and which checks every pair: with it two chaotic-band values of
+#:   the Fig. 10 sweeps settled differently, measured). The numerical map is deterministic, so a member on an
+#:   attracting cycle repeats it to rounding. (A member converging slowly, a multiplier near the unit circle,
+#:   settles only once its steps are below SETTLE_TOL; its remaining motion is below
+#:   ``SETTLE_TOL |mu| / (1 - |mu|)``.)
 #: * **Newton's cycle**: in the transient, its points repeat to JUMP_TOL only; Newton on ``P^p`` from its last
 #:   point finds the cycle ``x*`` and its monodromy ``M``, and the rest of the transient would bring the member
 #:   within SETTLE_TOL / JUMP_SAFETY of it: ``|M^j (x - x*)| <= SETTLE_TOL (1 + |x*|) / JUMP_SAFETY`` with ``j``
@@ -386,9 +390,7 @@ class OrbitDiagram(Drawable):
 SETTLE_CHUNK = 48
 #: The first look comes sooner: a member started on the previous value's cycle is usually ready for Newton.
 SETTLE_FIRST = 24
-SETTLE_WINDOW = 8
-SETTLE_P_MAX = 16
-SETTLE_TOL = 1e-9
+SETTLE_TOL = DIAGRAM.tol
 #: The tolerance a diagram's numerics have by default (``Numerics()``): Newton's ``ftol`` follows the ratio of
 #: the diagram's tolerance to it (:meth:`~explorer_core.solve.options.NewtonOptions.at`).
 DIAGRAM_RTOL = config.DEFAULT_RTOL
@@ -402,21 +404,6 @@ JUMP_SAFETY = 10.0
 JUMP_TRIES = 2
 #: How a trajectory settled (``OrbitDiagram.settled[..., 2]``).
 REPEATED, NEWTON_CYCLE = 1, 2
-
-
-def repeat_period(x: np.ndarray, tol: float) -> int:
-    """The least ``p <= SETTLE_P_MAX`` after which the last SETTLE_WINDOW points of ``x`` (m, 2) repeat to
-    ``tol`` (relative, per component); 0 if none."""
-    # Not sweeps.detect_period: its tolerance is relative to the largest |x| of the window and it checks
-    # every pair; with it two chaotic-band values of the Fig. 10 sweeps settled differently (measured).
-    m = x.shape[0]
-    for p in range(1, SETTLE_P_MAX + 1):
-        if m < p + SETTLE_WINDOW:
-            break
-        a, b = x[m - SETTLE_WINDOW :], x[m - SETTLE_WINDOW - p : m - p]
-        if np.all(np.abs(a - b) <= tol * (1.0 + np.abs(a))):
-            return p
-    return 0
 
 
 def _newton_cycles(pmap: PoincareMap, x: np.ndarray, periods: np.ndarray, turns: np.ndarray,
@@ -501,10 +488,11 @@ def bilimovich_orbits(
             break
         loose = []
         for i in run:
-            p = repeat_period(traj[i, :done], SETTLE_TOL)
+            p = int(recurrence(traj[i, :done], DIAGRAM, tol=SETTLE_TOL).period)
             if p:
                 finish(i, traj[i, done - p : done].copy(), REPEATED)
-            elif done < transient and tries[i] < JUMP_TRIES and (q := repeat_period(traj[i, :done], JUMP_TOL)):
+            elif (done < transient and tries[i] < JUMP_TRIES
+                  and (q := int(recurrence(traj[i, :done], DIAGRAM, tol=JUMP_TOL).period))):  # fmt: skip
                 loose.append((i, q))
         if loose:
             idx = np.array([i for i, _ in loose])

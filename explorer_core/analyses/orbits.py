@@ -38,6 +38,7 @@ from explorer_core.solve.checks import check_bool, check_ints, check_optional_in
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int, random_ics
 from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance
 from explorer_core.solve.poincare import PATIENCE, NewtonResult, PoincareMap, least_period
+from explorer_core.solve.recurrence import PLAY, SEEDS, recurrence
 from explorer_core.solve.tangent import Monodromy
 from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
@@ -385,18 +386,48 @@ def return_seeds(points: np.ndarray, npts: np.ndarray, max_period: int, tol: flo
     """Near-returns of computed section points: candidates ``(x_k, n)`` with ``|x_(k+n) - x_k| <= tol``.
 
     ``points`` (traj, k, 2) with ``npts[traj]`` valid; for each trajectory and each ``n`` the closest
-    return (the orbit is near where the trajectory almost repeats itself after ``n`` iterations).
+    return (the orbit is near where the trajectory almost repeats itself after ``n`` iterations; the rule
+    :data:`~explorer_core.solve.recurrence.SEEDS`).
     """
-    out = []
-    for t in range(points.shape[0]):
-        x = points[t, : int(npts[t])]
-        for n in range(1, max_period + 1):
-            if x.shape[0] <= n:
-                break
-            d = np.linalg.norm(x[n:] - x[:-n], axis=1)
-            k = int(np.argmin(d))
-            if d[k] <= tol:
-                out.append((x[k].copy(), n))
+    pts = np.asarray(points, dtype=float)
+    count = np.minimum(np.asarray(npts, dtype=np.int64), pts.shape[1])
+    found = recurrence(pts, SEEDS, tol=tol, p_max=max_period, count=count, distances=True)
+    return [(pts[t, found.at[t, j]].copy(), int(j) + 1) for t, j in zip(*np.nonzero(found.hit), strict=True)]
+
+
+def settled_seeds(traj: np.ndarray, k: np.ndarray, q: np.ndarray, r: np.ndarray, max_period: int,
+                  near: float) -> list[tuple[float, float, int]]:  # fmt: skip
+    """The cycles trajectories end on, ``(q, r, n)`` each (the last point and the least period ``n <= max_period``),
+    one per cycle: a trajectory whose last points repeat with period ``n`` by the rule
+    :data:`~explorer_core.solve.recurrence.PLAY` (3 points, each within ``1e-3 (1 + |x|)`` of the point ``n``
+    before). A trajectory ending within ``near`` (relative to ``1 + |x|``) of a cycle found before adds nothing.
+
+    The points are given as columns: trajectory ``traj``, index ``k`` along it, ``(q, r)``, in any order.
+    Chaotic, quasi-periodic, escaping or still transient trajectories, those with fewer than ``PLAY.pairs +
+    max_period`` points (every period is judged on the same points), and cycles longer than ``max_period`` give
+    none. One sort of the points and one call on every trajectory's tail (a frame may have thousands of them).
+    """
+    need = PLAY.pairs + max_period
+    if max_period < 1 or traj.size == 0:
+        return []
+    order = np.lexsort((k, traj))
+    t_sorted = traj[order]
+    ends = np.flatnonzero(np.r_[t_sorted[1:] != t_sorted[:-1], True])  # the last point of each trajectory
+    starts = np.r_[0, ends[:-1] + 1]
+    ends = ends[ends - starts + 1 >= need]
+    if ends.size == 0:
+        return []
+    idx = order[ends[:, None] + np.arange(1 - need, 1)]  # (trajectories, need): each one's last points, in k order
+    x = np.stack([q[idx], r[idx]], axis=-1)
+    period = recurrence(x, PLAY, p_max=max_period).period  # 0: not settled (yet)
+    out: list[tuple[float, float, int]] = []
+    tails: list[np.ndarray] = []  # the points of each cycle found (a second trajectory on it adds nothing)
+    for i in np.flatnonzero(period):
+        n, end = int(period[i]), x[i, -1]
+        scale = near * (1.0 + float(np.abs(end).max()))
+        if not any(np.linalg.norm(c - end, axis=1).min() < scale for c in tails):
+            tails.append(x[i, -n:])
+            out.append((float(end[0]), float(end[1]), n))
     return out
 
 

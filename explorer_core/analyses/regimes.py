@@ -47,7 +47,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from explorer_core import config, export
-from explorer_core.analyses.sweeps import check_param, detect_period, params_at, sweep_values
+from explorer_core.analyses.sweeps import check_param, params_at, sweep_values
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor, local_executor
@@ -58,6 +58,7 @@ from explorer_core.solve.integrators import coefficients, lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.options import SETTLING, Arg, NewtonOptions, command_line, instance
 from explorer_core.solve.poincare import PoincareMap, newton
+from explorer_core.solve.recurrence import CHART, NEAR, recurrence
 from explorer_core.solve.rk import Coefficients
 from explorer_core.status import Status, count_names, status_names
 from explorer_core.system.model import Model
@@ -84,7 +85,7 @@ def classify(
     status : integration status (:class:`~explorer_core.solve.integrators.Status`).
     lyap : largest Lyapunov exponent over the measurement (per unit time).
     p_max, tol : cycles up to period ``p_max`` are detected over the second half of the
-        points, with tolerance ``tol * (1 + max |x|)``.
+        points, with tolerance ``tol * (1 + max |x|)`` (:data:`~explorer_core.solve.recurrence.CHART`).
     lyap_threshold : exponents above it are chaos.
 
     Returns
@@ -97,7 +98,7 @@ def classify(
         return FAILED, 0
     tail = points[max(0, points.shape[0] // 2 - 1) :]
     if tail.shape[0] > p_max:
-        p = detect_period(tail, p_max, tol * (1.0 + float(np.abs(tail).max())))
+        p = int(recurrence(tail, CHART, tol=tol, p_max=p_max).period)
         if p:
             return PERIODIC, p
     return (CHAOTIC if lyap > lyap_threshold else QUASI_PERIODIC), 0
@@ -381,7 +382,8 @@ def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
     :data:`SETTLE_CHUNK` periods a member may stop early:
 
     * **on an attracting cycle**: once its section points return within :data:`SETTLE_TOL` after
-      ``p <= p_max`` iterations :data:`SETTLE_POINTS` times in a row (:func:`near_returns`), and its
+      ``p <= p_max`` iterations :data:`SETTLE_POINTS` times in a row (the rule
+      :data:`~explorer_core.solve.recurrence.NEAR`), and its
       ``log R_11`` over the last :data:`CONTRACT_SPAN` periods has a negative mean (it contracts: near a
       saddle, as a chaotic orbit's close returns are, it does not), it is handed to Newton
       (:func:`settled_cycles`: least period at the resolution ``tol``, multipliers) on ``P^d`` for the least
@@ -464,8 +466,8 @@ SETTLE_CHUNK = 10
 #: period-1 members hand over after 46 periods on average when the last ``p_max + 8`` points had to return
 #: within 1e-2 for every ``p``, 24 now; 1e-1 handed over sooner still but changed 7 more members' periods.
 #: 5 returns instead of 8: 2% fewer steps, the same verdicts on the 40x40 and 60x30 charts.)
-SETTLE_TOL = 3e-2
-SETTLE_POINTS = 5
+SETTLE_TOL = NEAR.tol
+SETTLE_POINTS = NEAR.pairs
 #: Newton is asked for the cycle of the least divisor ``d`` of that ``p`` whose returns are within
 #: SETTLE_DIVISOR times SETTLE_TOL: a member spiralling onto a fixed point with a rotation near ``1/p``
 #: returns best after ``p`` iterations, yet the fixed point is Newton's on ``P`` at a ``p``-th of the cost
@@ -569,25 +571,6 @@ def settled_cycle(
                           same)[0]  # fmt: skip
 
 
-def returns(rings: np.ndarray, p_max: int) -> np.ndarray:
-    """``d[m, p - 1] = max_k |x_(k+p) - x_k|`` (max-norm) over the points ``rings[m]`` (n, 2), ``p <= p_max``.
-
-    The least ``p`` with ``d <= tol`` is :func:`~explorer_core.analyses.sweeps.detect_period`'s answer,
-    for every member and any tolerance at once.
-    """
-    n = rings.shape[1]
-    d = np.empty((rings.shape[0], max(0, min(p_max, n - 1))))
-    for p in range(1, d.shape[1] + 1):  # slices, not an index array: ~20x faster at 48 points
-        d[:, p - 1] = np.abs(rings[:, p:] - rings[:, :-p]).max(axis=(1, 2))
-    return d
-
-
-def first_return(d: np.ndarray, tol: np.ndarray) -> np.ndarray:
-    """The least ``p`` with ``d[m, p - 1] <= tol[m]`` (0: none), from :func:`returns`."""
-    hit = d <= np.asarray(tol)[:, None]
-    return np.where(hit.any(axis=1), hit.argmax(axis=1) + 1, 0)
-
-
 def chaos_bound(logs: np.ndarray, block: int = CHAOS_BLOCK) -> tuple[float, float]:
     """Mean per-period ``log R_11`` of ``logs`` (1-D) and the standard error of that mean from block means.
 
@@ -608,16 +591,6 @@ def chaos_bounds(logs: np.ndarray, block: int = CHAOS_BLOCK) -> tuple[np.ndarray
     return b.mean(axis=1), b.std(axis=1, ddof=1) / math.sqrt(nb)
 
 
-def near_returns(rings: np.ndarray, p_max: int, pairs: int) -> np.ndarray:
-    """``d[m, p - 1]``: the largest of the last ``pairs`` returns ``|x_(k+p) - x_k|`` (max-norm) of ``rings[m]``
-    (n, 2), oldest first; ``inf`` where the ring holds fewer than ``p + pairs`` points."""
-    m, n = rings.shape[:2]
-    d = np.full((m, p_max), np.inf)
-    for p in range(1, min(p_max, n - pairs) + 1):
-        d[:, p - 1] = np.abs(rings[:, n - pairs :] - rings[:, n - pairs - p : n - p]).max(axis=(1, 2))
-    return d
-
-
 def _divisors(p: int) -> list[int]:
     return [d for d in range(1, p + 1) if p % d == 0]
 
@@ -628,7 +601,11 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
     bound = min(spec.numerics.bound, ESCAPE_BOUND)
     total = spec.transient + spec.periods
     window = settle_window(spec.p_max)
-    pairs = min(SETTLE_POINTS, window - spec.p_max)  # close returns needed (fewer if p_max < SETTLE_POINTS / 2)
+    # Returns within tol over the whole ring (once it is full): what the classification sees. Close returns
+    # (fewer if p_max < SETTLE_POINTS / 2): the hand-over to Newton.
+    back_rule = CHART.with_(tol=spec.tol, p_max=spec.p_max, window=window)
+    near_rule = NEAR.with_(tol=max(SETTLE_TOL, spec.tol), p_max=spec.p_max,
+                           pairs=min(SETTLE_POINTS, window - spec.p_max))  # fmt: skip
     y0 = tangent.start(spec.ics[at[:, 1]], 0.0, 1.0).y
     for idx, coefs, batch in lockstep_groups(params, y0):
         pmap = PoincareMap.rows(coefs, batch.t0, batch.period, spec.numerics, workers=1, block=1)
@@ -665,16 +642,11 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
                 continue
             # The valid points of the ring, oldest first.
             rings = np.roll(recent[live], -(done % window), axis=1)[:, -min(done, window) :]
-            scale = 1.0 + np.abs(rings).max(axis=(1, 2))
-            # Returns within tol over the whole ring: what the classification sees.
-            back = (
-                first_return(returns(rings, spec.p_max), spec.tol * scale)
-                if done >= window
-                else np.zeros(live.size, dtype=np.int64)
-            )
-            loose = max(SETTLE_TOL, spec.tol) * scale
-            near = near_returns(rings, spec.p_max, pairs)
-            close = np.where(back > 0, back, first_return(near, loose))
+            scale = 1.0 + np.abs(rings).max(axis=(1, 2))  # Newton's resolution of the least period: tol * scale
+            back = recurrence(rings, back_rule).period
+            close_by = recurrence(rings, near_rule, distances=True)
+            near, loose = close_by.dist, close_by.limit
+            close = np.where(back > 0, back, close_by.period)
             # Only members that contract: on (or near) an attracting cycle the tangent vector shrinks, near a
             # saddle (a chaotic orbit's close returns) it grows, and Newton would find a cycle that does not attract.
             contracting = every[live, max(0, done - CONTRACT_SPAN) : done].mean(axis=1) < 0

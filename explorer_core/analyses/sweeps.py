@@ -12,6 +12,7 @@ import numpy as np
 
 from explorer_core import config
 from explorer_core.solve.checks import check_int, check_range
+from explorer_core.solve.recurrence import SWEEP, recurrence
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
 #: Parameters a diagram (or a chart of regimes) can sweep.
@@ -44,13 +45,8 @@ def params_at(base: Params, name: str, value: float) -> Params | str:
 def detect_period(points: np.ndarray, p_max: int, tol: float) -> int:
     """Smallest ``p <= p_max`` with ``|x_{k+p} - x_k| <= tol`` for every ``k`` of ``points``; 0 if none.
 
-    ``points`` are consecutive section points after a transient, shape (m, 2),
-    ``m > p_max``; ``tol`` is absolute (in units of ``q``, ``r``).
+    ``points`` are consecutive section points after a transient, shape (m, 2); ``tol`` is absolute (in units of
+    ``q``, ``r``): the rule :data:`~explorer_core.solve.recurrence.SWEEP` (``CHART`` for a tolerance relative
+    to the points' largest ``|x|``).
     """
-    pts = np.asarray(points, dtype=float)
-    m = pts.shape[0]
-    for p in range(1, min(p_max, m - 1) + 1):
-        d = np.abs(pts[p:] - pts[:-p]).max()
-        if d <= tol:
-            return p
-    return 0
+    return int(recurrence(points, SWEEP, tol=tol, p_max=p_max).period)
