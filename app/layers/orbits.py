@@ -324,7 +324,8 @@ class OrbitsLayer(Layer):
 
     def published(self) -> dict[str, Any]:
         # The numerics the orbits were found with are said with them (the page's Method and Accuracy, the rule).
-        text = f"{self.text}; Newton on {self.ran_with}" if self.text and self.orbits and self.ran_with else self.text
+        # First: the line is cut at the plot's width, and the counts at its end matter least.
+        text = f"Newton on {self.ran_with} · {self.text}" if self.text and self.orbits and self.ran_with else self.text
         return {"orbits": self.rows, "orbit_status": text}
 
     def view(self) -> dict[str, Any]:
