@@ -576,8 +576,10 @@ def cmd_analysis(args: argparse.Namespace) -> int:
     if c.scheduler:
         run_kw["executor"] = _executor(args)
     with _Run(args) as run:
-        accepts = inspect.signature(runner).parameters  # a short check has neither progress nor cancel
-        run_kw.update({k: v for k, v in (("cancel", run), ("progress", run.update)) if k in accepts})
+        # A short check has neither progress nor cancel; a runner that passes keywords on (**kw) takes both.
+        accepts = inspect.signature(runner).parameters
+        anything = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in accepts.values())
+        run_kw.update({k: v for k, v in (("cancel", run), ("progress", run.update)) if anything or k in accepts})
         result = runner(spec, **run_kw)
     summary = _with_scene(result.summary(), args)
     if getattr(args, "scheduler", None):
@@ -595,7 +597,10 @@ def cmd_analysis(args: argparse.Namespace) -> int:
         summary["out"] = written
     if c.json_unless_out and not written:
         args.json = True
-    return _finish(args, summary, result.report, result=result, what=c.what)
+    # A stop signal during the run is an interrupted run, whatever the result says of itself (manifolds cancelled
+    # mid-growth say so in their losses, not in `completed`).
+    completed = bool(getattr(result, "completed", True)) and not run()
+    return _finish(args, summary, result.report, result=result, completed=completed, what=c.what)
 
 
 # --- commands ----------------------------------------------------------------------------------------------

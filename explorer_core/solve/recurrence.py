@@ -25,6 +25,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from explorer_core.solve.checks import check_int
 from explorer_core.system.params import ParameterError
 
 #: What the tolerance is relative to: nothing; ``1 + max |x|`` over the window's points (every component);
@@ -108,9 +109,7 @@ def _check_tol(v: Any, name: str, none: bool = False) -> float | None:
 
 
 def _check_count(v: Any, name: str, lo: int, hi: int = MAX_PERIOD * 100) -> int:
-    if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
-        raise ParameterError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
-    return int(v)
+    return check_int(name, v, lo, hi)
 
 
 def _check_p_max(v: Any, none: bool = False) -> int | None:

@@ -84,8 +84,11 @@ def build_tables(params: Params) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ``alpha`` (:data:`ALPHA_POWER`): a few microseconds, so a continuation in ``alpha`` builds nothing.
     """
     num, gpc, den = _tensor_tables(params.inertia)
-    scale = float(params.alpha) ** ALPHA_POWER
-    return np.ascontiguousarray(num * scale[None, :, None]), gpc.copy(), den.copy()
+    # |alpha| beyond ~1e154 overflows alpha^2: the tables hold inf (and 0 * inf = nan), which every computation
+    # then reports as a status (nonfinite, degenerate), not as numpy's RuntimeWarning once per process.
+    with np.errstate(over="ignore", invalid="ignore"):
+        scale = float(params.alpha) ** ALPHA_POWER
+        return np.ascontiguousarray(num * scale[None, :, None]), gpc.copy(), den.copy()
 
 
 @functools.lru_cache(maxsize=256)
