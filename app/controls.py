@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from explorer_core.solve.checks import parse_finite
 from explorer_core.system.params import INERTIA_NAMES, ParameterError
 
 #: Largest magnitude of a swept parameter or a typed initial condition (beyond, nothing is meaningful).
@@ -31,13 +32,7 @@ def fmt(v: float) -> str:
 
 
 def finite(name: str, text: str) -> float:
-    try:
-        v = float(text)
-    except (TypeError, ValueError, OverflowError):
-        raise ParameterError(f"{name} must be a number, got {str(text)[:40]!r}") from None
-    if not math.isfinite(v):
-        raise ParameterError(f"{name} must be finite, got {str(text)[:40]!r}")
-    return v
+    return parse_finite(name, text)
 
 
 def whole(name: str, text: str, lo: int, hi: int) -> int:

@@ -7,23 +7,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from clirun import run_cli
+from test_app_analyses import session as _session
 
 from app import analyses
-from app.controller import ExplorerSession
-from app.runner import WARM, InlineExecutor, Runner
-from app.state import ExplorerState
+from app.runner import WARM
 from explorer_core.analyses import regimes
 
 
 @pytest.fixture(autouse=True)
 def _warm() -> None:
     WARM.set()
-
-
-def _session(scene: str) -> ExplorerSession:
-    st = ExplorerState(scene=scene)
-    st.param.update(n_random=2, periods=10)
-    return ExplorerSession(st, Runner(lambda fn: fn(), executor=InlineExecutor()))
 
 
 @pytest.mark.parametrize(("method", "accuracy"), [("auto", "plot"), ("dop853", "high")])

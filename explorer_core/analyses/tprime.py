@@ -14,7 +14,6 @@ compact motion. Two maps on a ``(q, r)`` grid:
 from __future__ import annotations
 
 import json
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -128,12 +127,7 @@ def _grid(q_range: Any, r_range: Any, grid: Any) -> tuple[np.ndarray, np.ndarray
 def tprime_map(params: Params, t: float, q_range: Any, r_range: Any, grid: Any = 200) -> TPrimeMap:
     """``T' = alpha * lambda`` on a grid at the frozen time ``t``."""
     start = time.perf_counter()
-    try:
-        t = float(t)
-    except (TypeError, ValueError, OverflowError):
-        raise ParameterError(f"t must be a finite number, got {t!r}") from None
-    if not math.isfinite(t):
-        raise ParameterError(f"t must be finite, got {t!r}")
+    t = checks.parse_finite("t", t)
     q, r = _grid(q_range, r_range, grid)
     values = Model(params).tprime(q[None, :], r[:, None], t)
     ok = np.isfinite(values)

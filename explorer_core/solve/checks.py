@@ -41,6 +41,17 @@ def check_number(name: str, v: Any, lo: float = -math.inf, hi: float = math.inf)
     return float(v)
 
 
+def parse_finite(name: str, v: Any) -> float:
+    """A finite number from a number or a text (a URL value, a time given as text), as a plain ``float``."""
+    try:
+        x = float(v)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"{name} must be a number, got {str(v)[:40]!r}") from None
+    if not math.isfinite(x):
+        raise ParameterError(f"{name} must be finite, got {str(v)[:40]!r}")
+    return x
+
+
 def check_positive(name: str, v: Any) -> float:
     """A positive finite number, as a plain ``float``."""
     if isinstance(v, bool) or not isinstance(v, _REAL) or not math.isfinite(v) or v <= 0:
