@@ -168,7 +168,7 @@ class BodyView:
             params = st.system()
             # The section's escape bound (the body escapes where its points do); the page's Method and Accuracy
             # by the core's rule, at the body's own tolerance under "plot" (the orientation is no picture).
-            numerics = st.numerics_for(None, bound=st.numerics().bound)[0]
+            numerics = st.numerics_for(None, bound=st.page_bound())[0]
         except ParameterError:
             return None, "no body: the system is not valid (see the message above)"
         if self.runner.busy(s.section.name) or s.section.params != params:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import inspect
 import math
 import os
@@ -139,10 +140,6 @@ def _ics(args: argparse.Namespace, name: str = "--ic") -> np.ndarray | None:
     return np.array([_floats(s, 2, name) for s in args.ic]) if args.ic else None
 
 
-def _scene_point(scene: Scene | None) -> np.ndarray:
-    return np.array(scene.points[:1]) if scene is not None and scene.points else np.array([[0.1, 0.1]])
-
-
 # --- the system and the numerics ---------------------------------------------------------------------------
 
 
@@ -187,6 +184,10 @@ def _params(args: argparse.Namespace) -> tuple[Params, Scene | None]:
     return base.with_(**changes), scene
 
 
+#: The numerics flags taken as given (``--rtol``/``--atol`` have a rule of their own, :func:`_numerics`).
+_NUMERICS_AS_GIVEN = ("method", "steps_per_period", "bound", "max_steps")
+
+
 def _numerics(args: argparse.Namespace, scene: Scene | None, periods: int, base: Numerics | None = None) -> Numerics:
     base = base or (scene.numerics(periods) if scene else Numerics())
     kw = base.as_dict()
@@ -197,7 +198,7 @@ def _numerics(args: argparse.Namespace, scene: Scene | None, periods: int, base:
         kw["method"] = config.DEFAULT_METHOD  # the rule chooses again for the tolerance asked (unless --method)
     elif args.atol is not None:
         kw["atol"] = args.atol
-    for name in ("method", "steps_per_period", "bound", "max_steps"):
+    for name in _NUMERICS_AS_GIVEN:
         if getattr(args, name) is not None:
             kw[name] = getattr(args, name)
     return Numerics(**kw)
@@ -304,10 +305,6 @@ class _Run:
             sys.stderr.flush()
 
 
-#: The CLI's option (``args`` dest) of a builder's keyword where the names differ.
-_DESTS = {"value_range": "range", "seed": "from_", "ics": "ic", "m": "members"}
-
-
 def _build(args: argparse.Namespace, builder: Callable[..., Any], *a: Any, **kw: Any) -> Any:
     """An analysis' spec from its builder: a value it refuses is one usage line naming the option's flag
     (``--offset: offset must be in (0, 1] ...``), its keywords written as flags (``ds_min`` as ``ds-min``).
@@ -319,9 +316,10 @@ def _build(args: argparse.Namespace, builder: Callable[..., Any], *a: Any, **kw:
         text, key = str(exc), getattr(exc, "option", None) or ""
         for name in (k for k in vars(args) if "_" in k.strip("_")):
             text = re.sub(rf"\b{name}\b", name.replace("_", "-"), text)
-        declared = _declared(builder).get(key)
-        dest = next((d for d in (_DESTS.get(key), key) if d and hasattr(args, d)), None)  # lyapunov's seed: --seed
-        flag = f"{declared.flag_of(key)}: " if declared else f"--{dest.strip('_').replace('_', '-')}: " if dest else ""
+        declared = _declared(builder).get(key)  # the flag of a declared keyword, else of a flag with its name
+        flag = (
+            f"{declared.flag_of(key)}: " if declared else f"--{key.replace('_', '-')}: " if hasattr(args, key) else ""
+        )
         raise UsageError(flag + text) from None
 
 
@@ -347,8 +345,6 @@ def _add_nested_args(p: argparse.ArgumentParser, command: str) -> None:
 
 def _nested(args: argparse.Namespace, builder: Callable[..., Any]) -> dict[str, Any]:
     """``{"newton": NewtonOptions}`` when any ``--newton-*`` flag was given: the builder's default with them."""
-    import inspect
-
     given = {k: v for k, v in vars(args).items() if _NESTED in k and v is not None}
     if not given:
         return {}
@@ -373,15 +369,16 @@ def _print_json(obj: Any) -> None:
 
 
 def _finish(args: argparse.Namespace, summary: dict[str, Any], lines: Callable[[], list[str]], *, result: Any = None,
-            completed: bool | None = None, what: str = "results", notes: Sequence[str] = ()) -> int:  # fmt: skip
-    """The end of every command: the losses into the summary, JSON or ``lines()`` on stdout, the losses and
-    ``notes`` on stderr; exit ``128 + signal`` when the work was interrupted (what was computed has been
-    written), :data:`FAILED_STATUS` when every member failed."""
+            completed: bool | None = None, what: str = "results", notes: Sequence[str] = (),
+            as_json: bool | None = None) -> int:  # fmt: skip
+    """The end of every command: the losses into the summary, JSON (``--json``, or ``as_json``) or ``lines()`` on
+    stdout, the losses and ``notes`` on stderr; exit ``128 + signal`` when the work was interrupted (what was
+    computed has been written), :data:`FAILED_STATUS` when every member failed."""
     lost = getattr(result, "lost", None)
     if lost is not None:  # results adopt losses.Loss one by one: report whichever has them
         summary["complete"] = bool(getattr(result, "complete", not lost))
         summary["lost"] = [loss.as_dict() for loss in lost]
-    if getattr(args, "json", False):
+    if getattr(args, "json", False) if as_json is None else as_json:
         _print_json(summary)
     elif not getattr(args, "quiet", False):
         text = "\n".join(lines())
@@ -455,8 +452,6 @@ _METAVARS = {"points": "Q,R", "point": "Q,R", "range": "A,B", "box": "Q0,Q1,R0,R
 
 def _add_declared_args(p: argparse.ArgumentParser, fn: Callable[..., Any], title: str) -> None:
     """The flags of ``fn``'s declared keywords (help with the signature's default)."""
-    import inspect
-
     params = inspect.signature(fn).parameters
     g = p.add_argument_group(title)
     for name, arg in _declared(fn).items():
@@ -497,10 +492,10 @@ def _declared_values(args: argparse.Namespace, fn: Callable[..., Any], scene: Sc
             value = _scene_value(scene, arg.scene) if raw is None else None
             value = arg.default if value is None else value
             if value is None and arg.positional:  # a positional keyword left out: its default, or say what is missing
-                if _no_default(fn, name):
+                value = inspect.signature(fn).parameters[name].default
+                if value is inspect.Parameter.empty:
                     where = " (no --scene to take it from)" if arg.scene else ""
                     raise UsageError(f"give {flag} {arg.metavar or _METAVARS.get(arg.parse, name.upper())}{where}")
-                value = inspect.signature(fn).parameters[name].default
         elif arg.parse == "switch":
             value = True
         elif arg.parse in ("int", "float"):
@@ -532,12 +527,6 @@ def _declared_values(args: argparse.Namespace, fn: Callable[..., Any], scene: Sc
     return pos, kw
 
 
-def _no_default(fn: Callable[..., Any], name: str) -> bool:
-    import inspect
-
-    return inspect.signature(fn).parameters[name].default is inspect.Parameter.empty
-
-
 def _scene_value(scene: Scene | None, attr: str | None) -> Any:
     """What a scene gives an option declared with ``scene=attr`` (None: nothing, the builder's default)."""
     if scene is None or attr is None:
@@ -550,8 +539,7 @@ def _scene_value(scene: Scene | None, attr: str | None) -> Any:
 
 
 def _numerics_given(args: argparse.Namespace) -> bool:
-    return any(getattr(args, n, None) is not None for n in ("method", "rtol", "atol", "steps_per_period", "bound",
-                                                               "max_steps"))  # fmt: skip
+    return any(getattr(args, n, None) is not None for n in ("rtol", "atol", *_NUMERICS_AS_GIVEN))
 
 
 def cmd_analysis(args: argparse.Namespace) -> int:
@@ -591,16 +579,15 @@ def cmd_analysis(args: argparse.Namespace) -> int:
             written.append(result.write(path))
         else:  # matplotlib (reports/) only when a picture is asked for
             module, _, name = picture.partition(":")
-            getattr(__import__(module, fromlist=[name]), name)(result, path)
+            getattr(importlib.import_module(module), name)(result, path)
             written.append({"path": path})
     if written:
         summary["out"] = written
-    if c.json_unless_out and not written:
-        args.json = True
     # A stop signal during the run is an interrupted run, whatever the result says of itself (manifolds cancelled
     # mid-growth say so in their losses, not in `completed`).
     completed = bool(getattr(result, "completed", True)) and not run()
-    return _finish(args, summary, result.report, result=result, completed=completed, what=c.what)
+    as_json = bool(getattr(args, "json", False)) or (c.json_unless_out and not written)
+    return _finish(args, summary, result.report, result=result, completed=completed, what=c.what, as_json=as_json)
 
 
 # --- commands ----------------------------------------------------------------------------------------------

@@ -76,6 +76,7 @@ from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
+from explorer_core.solve.checks import check_fraction, check_number
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
 from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance
@@ -508,10 +509,8 @@ def basin_spec(
         hit_basin = check_int("hit_basin", hit_basin, 1, 1_000_000)
     p_max = check_int("p_max", p_max, 1, 64)
     inflight = check_int("inflight", inflight, 1, config.MAX_TRAJECTORIES)
-    if not (isinstance(tol, int | float) and 0 < tol < 1):
-        raise ParameterError(f"tol must be in (0, 1), got {tol!r}")
-    if not (isinstance(lyap_threshold, int | float) and math.isfinite(lyap_threshold)):
-        raise ParameterError(f"lyap_threshold must be a finite number, got {lyap_threshold!r}")
+    tol = check_fraction("tol", tol)
+    lyap_threshold = check_number("lyap_threshold", lyap_threshold)
     return BasinSpec(params, b, nx, ny, numerics, cb, cl, chunk, max_periods, recurrences, locate, hit_attractor,
                      hit_basin, p_max, float(tol), float(lyap_threshold), inflight,
                      cells is None and cell_box is None,

@@ -47,6 +47,7 @@ from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor
 from explorer_core.progress import Progress, stream
 from explorer_core.progress import run as run_updates
+from explorer_core.solve.checks import check_choice
 from explorer_core.solve.integrators import lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.options import JUMPS, Arg, NewtonOptions, command_line, instance
@@ -69,8 +70,7 @@ OrbitFn = Callable[[int, np.ndarray, int], tuple[np.ndarray, np.ndarray, np.ndar
 
 def check_sweeps(seeding: str, sweeps: Sequence[str]) -> tuple[str, ...]:
     """The sweeps a run has: ``("fixed",)`` for fixed seeding, else the validated continuation sweeps."""
-    if seeding not in SEEDINGS:
-        raise ParameterError(f"seeding must be one of {', '.join(SEEDINGS)}, got {seeding!r}")
+    check_choice("seeding", seeding, SEEDINGS)
     sweeps = tuple(sweeps)
     if seeding == "fixed":
         return ("fixed",)

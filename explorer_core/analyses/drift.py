@@ -39,6 +39,7 @@ from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, stream
 from explorer_core.progress import run as run_updates
+from explorer_core.solve.checks import check_choice
 from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
 from explorer_core.solve.options import Arg, command_line
@@ -97,10 +98,8 @@ def on_drift(x: np.ndarray, criterion: str = "on_curve") -> bool:
     """
     x = np.asarray(x, dtype=float)
     norms = np.hypot(x[:, 0], x[:, 1])
-    if criterion == "leaves":
+    if check_choice("criterion", criterion, CRITERIA) == "leaves":
         return bool(norms[-1] >= LEAVE_GROWTH * max(1.0, norms[0]))
-    if criterion != "on_curve":
-        raise ParameterError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
     d1 = np.diff(x, axis=0)
     if d1.shape[0] < 2:
         return False
@@ -413,8 +412,7 @@ def drift_spec(
             if not 0 <= d <= 12 or d >= k1 - k0 + 1:
                 raise ParameterError(f"degree must be in [0, 12] and below the window length, got {degree!r}")
         at("criterion")
-        if criterion not in CRITERIA:
-            raise ParameterError(f"criterion must be one of {', '.join(CRITERIA)}, got {criterion!r}")
+        check_choice("criterion", criterion, CRITERIA)
         at("m")
         m = check_int("m (members)", m, 1, 10_000)
         at("ics")

@@ -34,7 +34,7 @@ from explorer_core.drawing import Drawable
 from explorer_core.progress import Progress, Step
 from explorer_core.progress import run as run_updates
 from explorer_core.solve import poincare
-from explorer_core.solve.checks import check_bool, check_ints, check_optional_int, check_point
+from explorer_core.solve.checks import check_bool, check_fraction, check_ints, check_optional_int, check_point
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int, random_ics
 from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance
 from explorer_core.solve.poincare import PATIENCE, NewtonResult, PoincareMap, least_period
@@ -331,8 +331,7 @@ def find_orbits(
     if not per:
         raise ParameterError("give at least one period")
     per = [check_int("period", p, 1, MAX_PERIOD) for p in per]
-    if not (math.isfinite(ftol) and 0 < ftol < 1):
-        raise ParameterError(f"ftol must be in (0, 1), got {ftol!r}")
+    ftol = check_fraction("ftol", ftol)
     check_int("max_iter", max_iter, 1, 10_000)
     if not (math.isfinite(max_step) and max_step > 0):
         raise ParameterError(f"max_step must be a positive number, got {max_step!r}")

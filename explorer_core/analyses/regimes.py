@@ -54,6 +54,7 @@ from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
+from explorer_core.solve.checks import check_fraction, check_number
 from explorer_core.solve.integrators import coefficients, lockstep_groups
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.options import SETTLING, Arg, NewtonOptions, command_line, instance
@@ -215,10 +216,8 @@ def chart_spec(
     periods = check_int("periods", periods, 4, 10**6)
     if isinstance(p_max, bool) or not isinstance(p_max, int | np.integer) or not 1 <= p_max < periods // 2:
         raise ParameterError(f"p_max must be an integer in [1, periods/2), got {p_max!r}")
-    if not (isinstance(tol, int | float) and 0 < tol < 1):
-        raise ParameterError(f"tol must be in (0, 1), got {tol!r}")
-    if not (isinstance(lyap_threshold, int | float) and np.isfinite(lyap_threshold)):
-        raise ParameterError(f"lyap_threshold must be a finite number, got {lyap_threshold!r}")
+    tol = check_fraction("tol", tol)
+    lyap_threshold = check_number("lyap_threshold", lyap_threshold)
     if nx * ny * ics.shape[0] * periods > 50 * config.MAX_POINTS:
         raise ParameterError(f"chart of {nx}x{ny} pixels x {ics.shape[0]} ICs x {periods} periods is too large")
     return ChartSpec(

@@ -99,13 +99,6 @@ def check_range(name: str, value: Any, *, increasing: bool = True, what: str = "
     return a, b
 
 
-def check_optional_range(
-    name: str, value: Any, *, increasing: bool = True, what: str = "lo,hi"
-) -> tuple[float, float] | None:
-    """None, or :func:`check_range`."""
-    return None if value is None else check_range(name, value, increasing=increasing, what=what)
-
-
 def check_ints(name: str, value: Any, n: int, lo: int, hi: int, what: str = "NX,NY") -> tuple[int, ...]:
     """``n`` whole numbers each in ``[lo, hi]`` (a grid ``NX,NY``, a pixel size ``W,H``)."""
     try:

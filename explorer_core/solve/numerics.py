@@ -17,7 +17,7 @@ import numpy as np
 from explorer_core import config
 
 # The input checks live in solve.checks; these names are imported from here by the analyses and the CLI.
-from explorer_core.solve.checks import check_box, check_ics, check_int  # noqa: F401
+from explorer_core.solve.checks import check_box, check_choice, check_ics, check_int  # noqa: F401
 from explorer_core.solve.tableaus import get_method, resolve_method
 from explorer_core.system.params import ParameterError
 
@@ -93,17 +93,6 @@ class Numerics:
             adaptive=self.adaptive,
         )
 
-    def scaled(self, factor: float, lo: float = 1e-13, hi: float = 1e-6) -> Numerics:
-        """:meth:`loosened` to ``factor`` times these tolerances, clipped to ``[lo, hi]``: inner numerics that
-        follow the user's (a basin cell's cycle Newton 1e4 times tighter than the basin's integration). The
-        product is rounded to 12 significant digits, so a decade times a decade is that decade exactly
-        (``1e-8 * 1e-2`` gives ``1e-10``, not ``1.0000000000000001e-10``)."""
-
-        def tol(v: float) -> float:
-            return min(hi, max(lo, float(f"{v * factor:.12g}")))
-
-        return self.loosened(tol(self.rtol), tol(self.atol))
-
 
 def random_ics(n: int, box: Sequence[float], seed: int | None = 0) -> np.ndarray:
     """``n`` initial conditions uniform in ``box = (qmin, qmax, rmin, rmax)``, reproducible by ``seed``."""
@@ -137,8 +126,7 @@ def chosen_numerics(
     curve, not pixels). ``bound`` and ``steps_per_period``: the page's, else ``own``'s. Returns the numerics and
     one line saying what ran and why.
     """
-    if accuracy not in ACCURACIES:
-        raise ParameterError(f"accuracy must be one of {', '.join(ACCURACIES)}, got {accuracy!r}")
+    check_choice("accuracy", accuracy, ACCURACIES)
     own = own or Numerics()
     if accuracy == "high":
         tol, why = HIGH_RTOL, "Accuracy high"

@@ -67,12 +67,7 @@ def integer(lo: int, hi: int, optional: bool = False) -> Check:
     return Check(lambda n, v: fn(n, v, lo, hi), text, "int", optional)
 
 
-def number(lo: float = -math.inf, hi: float = math.inf) -> Check:
-    return Check(lambda n, v: checks.check_number(n, v, lo, hi), f"a number in [{lo:g}, {hi:g}]")
-
-
 POSITIVE = Check(checks.check_positive, "a positive number")
-FRACTION = Check(checks.check_fraction, "a number in (0, 1)")
 BOOL = Check(checks.check_bool, "true or false", "bool")
 POSITIVE_OR_INF = Check(
     lambda n, v: math.inf if v == math.inf else checks.check_positive(n, v), "a positive number or inf"

@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from explorer_core.solve.checks import check_int
+from explorer_core.solve.checks import check_choice, check_int
 from explorer_core.system.params import ParameterError
 
 #: What the tolerance is relative to: nothing; ``1 + max |x|`` over the window's points (every component);
@@ -72,8 +72,7 @@ class RecurrenceRule:
     def __post_init__(self) -> None:
         object.__setattr__(self, "tol", _check_tol(self.tol, "tol", none=True))
         for name, choices in (("scale", SCALES), ("norm", NORMS), ("agree", AGREE)):
-            if getattr(self, name) not in choices:
-                raise ParameterError(f"{name} must be one of {', '.join(choices)}, got {getattr(self, name)!r}")
+            check_choice(name, getattr(self, name), choices)
         for name in ("window", "pairs"):
             object.__setattr__(self, name, _check_count(getattr(self, name), name, 0))
         if not isinstance(self.strict, bool | np.bool_):
