@@ -44,7 +44,7 @@ import numpy as np
 
 from explorer_core import __version__, config, export
 from explorer_core.scenes import Scene, get_scene, list_scenes
-from explorer_core.solve.numerics import Numerics, check_box, random_ics
+from explorer_core.solve.numerics import Numerics
 from explorer_core.status import Status
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
@@ -129,20 +129,6 @@ def _count(name: str, lo: int, hi: int) -> Callable[[str], int]:
     return parse
 
 
-SEED = _count("seed", 0, 2**63 - 1)
-
-
-def _box(text: str | None, name: str, default: Any) -> Any:
-    return check_box(_floats(text, 4, name), name) if text else default
-
-
-def _ics(args: argparse.Namespace, name: str = "--ic") -> np.ndarray | None:
-    return np.array([_floats(s, 2, name) for s in args.ic]) if args.ic else None
-
-
-# --- the system and the numerics ---------------------------------------------------------------------------
-
-
 def _add_system_args(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("system (explicit flags override --scene)")
     g.add_argument("--scene", help="load a paper scene (see `bilimovich scenes`)")
@@ -188,8 +174,8 @@ def _params(args: argparse.Namespace) -> tuple[Params, Scene | None]:
 _NUMERICS_AS_GIVEN = ("method", "steps_per_period", "bound", "max_steps")
 
 
-def _numerics(args: argparse.Namespace, scene: Scene | None, periods: int, base: Numerics | None = None) -> Numerics:
-    base = base or (scene.numerics(periods) if scene else Numerics())
+def _numerics(args: argparse.Namespace, base: Numerics) -> Numerics:
+    """The analysis' own numerics ``base`` with the numerics flags given (``--rtol`` lets the rule choose again)."""
     kw = base.as_dict()
     kw.pop("adaptive", None)
     if args.rtol is not None:
@@ -202,15 +188,6 @@ def _numerics(args: argparse.Namespace, scene: Scene | None, periods: int, base:
         if getattr(args, name) is not None:
             kw[name] = getattr(args, name)
     return Numerics(**kw)
-
-
-def _periods_transient(args: argparse.Namespace, scene: Scene | None) -> tuple[int, int]:
-    """``--periods`` and ``--transient``, or the scene's."""
-    periods = args.periods if args.periods is not None else (scene.periods if scene else None)
-    if periods is None:
-        raise UsageError("--periods is required (no --scene to take it from)")
-    transient = args.transient if args.transient is not None else (scene.transient if scene else 0)
-    return periods, transient
 
 
 # --- running and reporting ---------------------------------------------------------------------------------
@@ -462,7 +439,7 @@ def _add_declared_args(p: argparse.ArgumentParser, fn: Callable[..., Any], title
         if default not in (inspect.Parameter.empty, None, False) and arg.parse != "switch":
             text += f" (default {_shown(default)})"
         if arg.scene:
-            text += f" (with --scene: the scene's {arg.scene})"
+            text += f" (with --scene: the scene's {arg.scene.replace('_', ' ')})"
         kw: dict[str, Any] = {"dest": name, "help": text.strip() or None}
         if arg.parse == "switch":
             g.add_argument(arg.flag_of(name), action="store_true", **kw)
@@ -489,7 +466,8 @@ def _declared_values(args: argparse.Namespace, fn: Callable[..., Any], scene: Sc
         raw = getattr(args, name, None)
         flag = arg.flag_of(name)
         if raw is None or raw is False:
-            value = _scene_value(scene, arg.scene) if raw is None else None
+            instead = any(getattr(args, other, None) is not None for other in arg.unless)
+            value = _scene_value(scene, arg.scene) if raw is None and not instead else None
             value = arg.default if value is None else value
             if value is None and arg.positional:  # a positional keyword left out: its default, or say what is missing
                 value = inspect.signature(fn).parameters[name].default
@@ -535,7 +513,8 @@ def _scene_value(scene: Scene | None, attr: str | None) -> Any:
         return [list(p) for p in scene.points[:1]] or None
     if attr == "view":
         return [*scene.q_range, *scene.r_range]
-    return getattr(scene, attr)
+    value = getattr(scene, attr)
+    return value() if callable(value) else value  # a scene's initial conditions are drawn when asked
 
 
 def _numerics_given(args: argparse.Namespace) -> bool:
@@ -559,7 +538,7 @@ def cmd_analysis(args: argparse.Namespace) -> int:
     if need and not outs and not args.json:
         raise UsageError(f"give --out FILE ({', '.join(c.out)}) and/or --json: nothing would be kept")
     if _numerics_given(args):  # the flags change the analysis' own default numerics, whatever it is
-        spec = _build(args, builder, params, *pos, **kw, numerics=_numerics(args, None, 1, base=spec.numerics))
+        spec = _build(args, builder, params, *pos, **kw, numerics=_numerics(args, spec.numerics))
     _, run_kw = _declared_values(args, runner, scene)
     if c.scheduler:
         run_kw["executor"] = _executor(args)
@@ -587,7 +566,10 @@ def cmd_analysis(args: argparse.Namespace) -> int:
     # mid-growth say so in their losses, not in `completed`).
     completed = bool(getattr(result, "completed", True)) and not run()
     as_json = bool(getattr(args, "json", False)) or (c.json_unless_out and not written)
-    return _finish(args, summary, result.report, result=result, completed=completed, what=c.what, as_json=as_json)
+    # A result's notes (the section's reliability warnings) go to stderr unless --quiet.
+    notes = [] if getattr(args, "quiet", False) else getattr(result, "notes", list)()
+    return _finish(args, summary, result.report, result=result, completed=completed, what=c.what, as_json=as_json,
+                   notes=notes)  # fmt: skip
 
 
 # --- commands ----------------------------------------------------------------------------------------------
@@ -607,96 +589,6 @@ def cmd_scenes(args: argparse.Namespace) -> int:
         p = s.params
         print(f"{s.id:<{width}}  alpha={p.alpha:<7g} I={','.join(f'{v:g}' for v in p.inertia):<22} {s.title}")
     return 0
-
-
-def _periods_args(p: argparse.ArgumentParser, periods_help: str = "section points per trajectory") -> None:
-    p.add_argument("--periods", type=_count("periods", 1, config.MAX_PERIODS), help=periods_help)
-    p.add_argument("--transient", type=_count("transient", 0, config.MAX_PERIODS), help="periods dropped first")
-
-
-def _section_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--ic", action="append", metavar="Q,R", help="initial condition (repeatable)")
-    p.add_argument("--random", type=_count("random", 1, config.MAX_TRAJECTORIES), metavar="N")
-    p.add_argument("--seed", type=SEED, default=0)
-    p.add_argument("--box", metavar="QMIN,QMAX,RMIN,RMAX", help="box for --random")
-    _periods_args(p)
-    p.add_argument("--backward", action="store_true", help="integrate backward in time (points at t0 - k T)")
-
-
-def cmd_section(args: argparse.Namespace) -> int:
-    from explorer_core.solve.section import section
-
-    params, scene = _params(args)
-    periods, transient = _periods_transient(args, scene)
-    ics = _ics(args)
-    if ics is None and args.random is not None:
-        ics = random_ics(args.random, _box(args.box, "--box", scene.box if scene else (-2, 2, -2, 2)), seed=args.seed)
-    elif ics is None and scene is not None:
-        ics = scene.initial_conditions()
-    elif ics is None:
-        raise UsageError("give initial conditions: --ic Q,R (repeatable) or --random N")
-    numerics = _numerics(args, scene, periods + transient)
-    with _Run(args) as run:
-        sec = section(params, ics, periods, transient=transient, numerics=numerics,
-                      direction=-1 if args.backward else 1, cancel=run,
-                      progress=run.update)  # fmt: skip
-    summary = _with_scene(sec.summary(), args)
-    if args.out:
-        summary["csv"] = sec.write(args.out)
-    warnings = []
-    if args.json or not args.quiet:  # when the method is unreliable for this run, say so (--quiet silences it)
-        from explorer_core.analyses.reliability import assess_section
-
-        window = (*scene.q_range, *scene.r_range) if scene else None
-        warnings = assess_section(sec, pixel=scene.pixel_size() if scene else None, window=window)
-        summary["reliability"] = [w.as_dict() for w in warnings]
-
-    def lines() -> list[str]:
-        from explorer_core.status import describe
-
-        return [f"{sec.n} trajectories, {int(sec.npts.sum())} points, {sec.elapsed_s:.3f} s, {describe(sec.status)}"]
-
-    notes = [] if args.quiet else [w.line() for w in warnings]
-    return _finish(args, summary, lines, result=sec, what="points", notes=notes)
-
-
-def _density_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--random", type=_count("random", 1, config.MAX_TRAJECTORIES), default=1000, metavar="N",
-                   help="random initial conditions in --box (default 1000)")  # fmt: skip
-    p.add_argument("--seed", type=SEED, default=0)
-    p.add_argument("--box", metavar="Q0,Q1,R0,R1", help="box of the initial conditions (default: the scene's)")
-    _periods_args(p)
-    p.add_argument("--view", metavar="Q0,Q1,R0,R1", help="the image's window (default: the scene's)")
-    p.add_argument("--pixels", metavar="W,H", help="the image's size (default 800,600; at most 4096 each)")
-
-
-def cmd_density(args: argparse.Namespace) -> int:
-    from explorer_core.analyses.density import MAX_DENSITY_POINTS, density, density_numerics
-
-    params, scene = _params(args)
-    periods, transient = _periods_transient(args, scene)
-    box = _box(args.box, "--box", scene.box if scene else None)
-    if box is None:
-        raise UsageError("give --box Q0,Q1,R0,R1 for the random initial conditions (no --scene to take it from)")
-    view = _box(args.view, "--view", (*scene.q_range, *scene.r_range) if scene else box)
-    pixels = _ints(args.pixels, "--pixels", "W,H", 1, 4096) if args.pixels else [800, 600]
-    if args.random * periods > MAX_DENSITY_POINTS:
-        raise UsageError(f"--random {args.random} x --periods {periods} = {args.random * periods} points; "
-                         f"at most {MAX_DENSITY_POINTS}")  # fmt: skip
-    bound = scene.bound if scene else config.DEFAULT_ESCAPE_BOUND
-    numerics = _numerics(args, None, 1, base=density_numerics(view, pixels, bound))
-    ics = random_ics(args.random, box, seed=args.seed)
-    with _Run(args) as run:
-        img = density(params, ics, periods, view=view, pixels=pixels, transient=transient, numerics=numerics,
-                      max_chunk=64, cancel=run, progress=run.update)  # fmt: skip
-    summary = {**img.summary(), "params": params.as_dict(), "numerics": numerics.as_dict(),
-               "ics": {"random": args.random, "box": list(box), "seed": args.seed}, "transient": transient}  # fmt: skip
-    _with_scene(summary, args)
-    if args.out:
-        summary["npz"] = img.write(args.out, summary)
-    return _finish(args, summary, lambda: [f"{img.points:,} points, {img.in_view:,} in view, {img.escaped} escaped, "
-                                           f"{img.failed} failed, {img.elapsed_s:.2f} s"],
-                   result=img, completed=not run(), what="image's points")  # fmt: skip
 
 
 def _executor(args: argparse.Namespace) -> Any:
@@ -939,10 +831,11 @@ def _no_args(p: argparse.ArgumentParser) -> None:
 
 COMMANDS: dict[str, Command] = {
     "scenes": Command("list the paper's scenes", _scenes_args, cmd_scenes, system=False, numerics=False, flags=()),
-    "section": Command("stroboscopic (Poincare) section at t0 + k T", _section_args, cmd_section, CSV,
-                       "CSV with columns traj,k,q,r"),
-    "density": Command("a long section (up to 10^7 points) as a density image of a window", _density_args,
-                       cmd_density, NPZ, "counts (H x W, row 0 at R0), q_edges, r_edges, summary"),
+    "section": Command("stroboscopic (Poincare) section at t0 + k T", None, cmd_analysis, CSV,
+                       "CSV with columns traj,k,q,r", analysis=True, what="points"),
+    "density": Command("a long section (up to 10^7 points) as a density image of a window", None, cmd_analysis,
+                       NPZ, "counts (H x W, row 0 at R0), q_edges, r_edges, summary", analysis=True,
+                       what="image's points"),
     "critical": Command("equilibria ('critical points') of the frozen-time field", None, cmd_analysis, CSV,
                         "CSV branch,t,q,r,type,eig... of --track", numerics=False, flags=("json",), analysis=True,
                         json_unless_out=True, needs_output=lambda spec: spec.track),

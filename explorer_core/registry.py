@@ -2,8 +2,9 @@
 nested options its spec carries. The command line and the contract tests read it; modules are imported only when
 an entry is used (``bilimovich --help`` loads no numerics).
 
-An entry names things by module and attribute, not by object, so reading the registry imports nothing. What an
-analysis still lacks (a spec of its own) is said in the entry (``spec=None``), not hidden.
+An entry names things by module and attribute, not by object, so reading the registry imports nothing. Every
+analysis has a frozen spec and the builder that validates it (``tests/test_options.py``); its runner takes the spec
+(or the builder's keywords).
 """
 
 from __future__ import annotations
@@ -21,8 +22,7 @@ class Analysis:
     module : the module that holds it.
     run : the convenience call ``X(spec or keywords, progress=None, cancel=None)``.
     iterate : the generator ``iter_X`` (None: it reports no progress).
-    builder, spec : the validating builder and the frozen spec it returns (None: no spec yet, the keyword call
-        is the analysis' boundary).
+    builder, spec : the validating builder and the frozen spec it returns.
     result : the result type.
     nested : the spec's nested options: field name -> the options class's ``module:Name``.
     reference_rtol : the tolerance its defaults are set for (``module:NAME``), from which its nested Newton
@@ -62,8 +62,26 @@ _A = "explorer_core.analyses."
 ANALYSES: dict[str, Analysis] = {
     a.name: a
     for a in (
-        Analysis("section", "explorer_core.solve.section", "section", "Section", command="section"),
-        Analysis("density", _A + "density", "density", "Density", "iter_density", command="density"),
+        Analysis(
+            "section",
+            _A + "sections",
+            "poincare_section",
+            "AssessedSection",
+            None,
+            "section_spec",
+            "SectionSpec",
+            command="section",
+        ),
+        Analysis(
+            "density",
+            _A + "density",
+            "density",
+            "Density",
+            "iter_density",
+            "density_spec",
+            "DensitySpec",
+            command="density",
+        ),
         Analysis(
             "equilibria",
             _A + "equilibria",
@@ -135,8 +153,19 @@ ANALYSES: dict[str, Analysis] = {
             "continue_from_seeds",
             "Continuation",
             "iter_continue_from_seeds",
+            "seeds_spec",
+            "SeedsSpec",
+            nested={"options": _A + "continuation:ContinuationOptions"},
         ),
-        Analysis("chart_boundaries", _A + "continuation", "chart_boundaries", "Boundaries", "iter_chart_boundaries"),
+        Analysis(
+            "chart_boundaries",
+            _A + "continuation",
+            "chart_boundaries",
+            "Boundaries",
+            "iter_chart_boundaries",
+            "boundaries_spec",
+            "BoundariesSpec",
+        ),
         Analysis(
             "chart",
             _A + "regimes",

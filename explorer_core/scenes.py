@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import cache
 from importlib import resources
@@ -60,7 +61,7 @@ class Scene:
 
     def pixel_size(self, pixels: int = PLOT_PIXELS) -> float:
         """Data units per pixel along the narrower axis of the plot window."""
-        return min(self.q_range[1] - self.q_range[0], self.r_range[1] - self.r_range[0]) / pixels
+        return pixel_size((*self.q_range, *self.r_range), pixels)
 
     def numerics(self, periods: int | None = None, accuracy: str = "plot", pixels: int = PLOT_PIXELS) -> Numerics:
         """Integration settings for this scene: ``"plot"`` (:func:`plot_tolerance`) or ``"high"`` (1e-12).
@@ -69,12 +70,11 @@ class Scene:
         shadowing sense, and ``"high"`` is the explicit choice for quantitative work.
         """
         if accuracy == "high":
-            tol = 1e-12
-        elif accuracy == "plot":
-            tol = plot_tolerance(self.pixel_size(pixels), periods or self.periods + self.transient)
-        else:
-            raise ParameterError(f"accuracy must be 'plot' or 'high', got {accuracy!r}")
-        return Numerics(rtol=tol, atol=tol, bound=self.bound)  # the default rule: dop853 at plot tolerances
+            return Numerics(rtol=1e-12, atol=1e-12, bound=self.bound)
+        if accuracy == "plot":
+            return plot_numerics((*self.q_range, *self.r_range), periods or self.periods + self.transient, self.bound,
+                                 pixels)  # fmt: skip
+        raise ParameterError(f"accuracy must be 'plot' or 'high', got {accuracy!r}")
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -99,6 +99,18 @@ class Scene:
 #: (``benchmarks/plot_accuracy.py``, docs/plot_accuracy.md). The worst orbits measured reach ~40-55
 #: (fig5A, fig2C; 2-5 px off after 500 periods at 1e-6); 100 leaves a factor ~2 to spare.
 PLOT_ERROR_PER_PERIOD = 100.0
+
+
+def pixel_size(view: Sequence[float], pixels: int = PLOT_PIXELS) -> float:
+    """Data units per pixel along the narrower axis of the window ``view = (q0, q1, r0, r1)``."""
+    return min(view[1] - view[0], view[3] - view[2]) / pixels
+
+
+def plot_numerics(view: Sequence[float], periods: int, bound: float, pixels: int = PLOT_PIXELS) -> Numerics:
+    """A picture's numerics for the window ``view`` over ``periods`` periods (:func:`plot_tolerance`), escaping
+    at ``bound``: the default rule's method (dop853 at plot tolerances)."""
+    tol = plot_tolerance(pixel_size(view, pixels), periods)
+    return Numerics(rtol=tol, atol=tol, bound=bound)
 
 
 def plot_tolerance(pixel: float, periods: int) -> float:

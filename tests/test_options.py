@@ -220,10 +220,10 @@ def test_every_analysis_is_in_the_registry_and_its_entry_points_exist() -> None:
         assert callable(a.get("run")) and isinstance(a.get("result"), type)
         if a.iterate:
             assert inspect.isgeneratorfunction(a.get("iterate")) or callable(a.get("iterate"))
-        if a.spec:
-            spec = a.get("spec")
-            assert dataclasses.is_dataclass(spec) and spec.__dataclass_params__.frozen
-            assert callable(a.get("builder"))
+        # every analysis has a frozen spec and the builder that validates it (the runner takes the spec)
+        spec = a.get("spec")
+        assert dataclasses.is_dataclass(spec) and spec.__dataclass_params__.frozen, a.name
+        assert callable(a.get("builder")) and callable(getattr(spec, "as_dict", None)), a.name
         for name, cls in a.nested_options().items():
             # a nested option is a parameter of the builder, its preset the default (None: the class's defaults)
             default = inspect.signature(a.get("builder")).parameters[name].default

@@ -244,6 +244,8 @@ class OrbitDiagram(Drawable):
     settled: np.ndarray
     #: what the diagram lost: trajectories not computed (cancelled), invalid values, trajectories that stopped
     lost: list[Loss] = field(default_factory=list)
+    #: Newton on a settling member's cycle (the spec's; its map follows ``numerics``: :meth:`newton_map`).
+    newton: NewtonOptions = JUMPS
 
     @property
     def complete(self) -> bool:
@@ -365,6 +367,8 @@ class OrbitDiagram(Drawable):
             "elapsed_s": round(self.elapsed_s, 6),
             "params": self.params.as_dict(),
             "numerics": self.numerics.as_dict(),
+            "newton": self.newton.as_dict(),
+            "newton_numerics": self.newton.at(self.numerics, DIAGRAM_RTOL)[0].as_dict(),
         }
 
 
@@ -667,6 +671,12 @@ class DiagramSpec:
     def numerics(self) -> Numerics:
         return self.sweep.numerics
 
+    def as_dict(self) -> dict[str, Any]:
+        sw = self.sweep
+        return {"params": sw.params.as_dict(), "param": sw.param, "values": sw.values.tolist(), "ics": sw.ics.tolist(),
+                "transient": sw.transient, "points": sw.n_points, "numerics": sw.numerics.as_dict(),
+                "newton": sw.newton.as_dict(), "seeding": self.seeding, "sweeps": list(self.sweeps)}  # fmt: skip
+
 
 @command_line(
     param=Arg("alpha, I11..I23, g0, g1, g2 or omega", "str", required=True, positional=True),
@@ -837,6 +847,7 @@ def _diagram(
         numerics=spec.numerics,
         elapsed_s=time.perf_counter() - start,
         completed=not np.any(out["status"] == Status.NOT_RUN),
+        newton=spec.newton,
     )
 
 

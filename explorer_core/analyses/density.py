@@ -18,18 +18,21 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from explorer_core import config, export
+from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.scenes import plot_tolerance
-from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
+from explorer_core.solve.checks import check_ints
+from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int, random_ics
+from explorer_core.solve.options import Arg, command_line, instance
 from explorer_core.solve.section import iter_section
 from explorer_core.status import Status, count_names
 from explorer_core.system.params import ParameterError, Params
@@ -103,6 +106,10 @@ class Density(Drawable):
     @property
     def failed(self) -> int:
         return int(np.count_nonzero((self.status != Status.OK) & (self.status != Status.ESCAPED)))
+
+    def report(self) -> list[str]:
+        return [f"{self.points:,} points, {self.in_view:,} in view, {self.escaped} escaped, {self.failed} failed, "
+                f"{self.elapsed_s:.2f} s"]  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
         return {"view": list(self.view), "pixels": [int(self.counts.shape[1]), int(self.counts.shape[0])],
@@ -221,8 +228,95 @@ def iter_density(
     yield DensityUpdate(Density(counts, box, total, inside, done, periods, status, elapsed, completed, extra), {})
 
 
+@dataclass(frozen=True)
+class DensitySpec:
+    """A density image to compute: ``random`` initial conditions uniform in ``box`` from ``seed``, ``periods``
+    section points each after ``transient``, binned over ``view`` into ``pixels`` ``(W, H)``."""
+
+    params: Params
+    periods: int
+    transient: int
+    random: int
+    seed: int
+    box: tuple[float, float, float, float]
+    view: tuple[float, float, float, float]
+    pixels: tuple[int, int]
+    numerics: Numerics
+
+    @property
+    def ics(self) -> np.ndarray:
+        return random_ics(self.random, self.box, seed=self.seed)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "numerics": self.numerics.as_dict(),
+                "ics": {"random": self.random, "box": list(self.box), "seed": self.seed},
+                "transient": self.transient}  # fmt: skip
+
+
+@command_line(
+    periods=Arg("section points per trajectory", "int", scene="periods", positional=True, metavar="N"),
+    random=Arg("random initial conditions in --box", "int", metavar="N"),
+    seed=Arg("seed of --random", "int"),
+    box=Arg("box of the initial conditions", "box", scene="box", positional=True),
+    transient=Arg("periods dropped first", "int", scene="transient"),
+    view=Arg("the image's window (default: --box)", "box", scene="view"),
+    pixels=Arg("the image's size (at most 4096 each)", "ints", metavar="W,H"),
+    bound=Arg("", scene="bound", flag=""),
+)
+def density_spec(
+    params: Params,
+    periods: int,
+    box: Sequence[float],
+    *,
+    random: int = 1000,
+    seed: int = 0,
+    transient: int = 0,
+    view: Sequence[float] | None = None,
+    pixels: Sequence[int] = (800, 600),
+    bound: float | None = None,
+    numerics: Numerics | None = None,
+) -> DensitySpec:
+    """A validated :class:`DensitySpec` (a bad value raises ParameterError naming it). ``numerics`` default:
+    :func:`density_numerics` for the view, escaping at ``bound`` (default the project's escape bound)."""
+    with Checking() as at:
+        at("periods")
+        periods = check_int("periods", periods, 1, config.MAX_PERIODS)
+        at("transient")
+        transient = check_int("transient", transient, 0, config.MAX_PERIODS)
+        at("random")
+        random = check_int("random", random, 1, config.MAX_TRAJECTORIES)
+        if random * periods > MAX_DENSITY_POINTS:
+            raise ParameterError(f"{random} initial conditions x {periods} periods = {random * periods} points; "
+                                 f"a density image takes at most {MAX_DENSITY_POINTS}")  # fmt: skip
+        at("seed")
+        seed = check_int("seed", seed, 0, 2**63 - 1)
+        at("box")
+        box = check_box(box, "box")
+        at("view")
+        view = box if view is None else check_box(view, "view")
+        at("pixels")
+        px = check_ints("pixels", pixels, 2, 1, MAX_PIXELS, "W,H")
+        at("numerics")
+        bound = config.DEFAULT_ESCAPE_BOUND if bound is None else float(bound)
+        numerics = instance(Numerics)("numerics", numerics or density_numerics(view, px, bound))
+    return DensitySpec(params, periods, transient, random, seed, box, view, px, numerics)  # type: ignore[arg-type]
+
+
 def density(
-    params: Params, ics: Any, periods: int, *, progress: Callable[[DensityUpdate], None] | None = None, **kw: Any
+    first: DensitySpec | Params,
+    *args: Any,
+    progress: Callable[[DensityUpdate], None] | None = None,
+    **kw: Any,
 ) -> Density:
-    """The final image of :func:`iter_density` (same arguments); ``progress`` gets each of its updates."""
-    return run_updates(iter_density(params, ics, periods, **kw), progress)
+    """The final image of :func:`iter_density` (same arguments), or of a :class:`DensitySpec` (its record in
+    the image's summary); ``progress`` gets each of its updates."""
+    if not isinstance(first, DensitySpec):
+        return run_updates(iter_density(first, *args, **kw), progress)
+    spec = first
+    run = {k: kw.pop(k) for k in ("cancel", "workers") if k in kw}
+    if args or kw:
+        raise TypeError(f"a DensitySpec comes alone, not with {', '.join(map(repr, args)) or ', '.join(kw)}")
+    updates = iter_density(spec.params, spec.ics, spec.periods, view=spec.view, pixels=spec.pixels,
+                           transient=spec.transient, numerics=spec.numerics, **run)  # fmt: skip
+    img = run_updates(updates, progress)
+    return replace(img, extra={**img.extra, **spec.as_dict()})

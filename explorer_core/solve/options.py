@@ -256,7 +256,9 @@ class Arg:
         (``Q,R``, repeatable), ``"list"`` (comma-separated words).
     flag : default ``--`` and the keyword with dashes.
     scene : under ``--scene``, the default is this attribute of the scene (``box``, ``points``, ``view``,
-        ``transient``, ``periods``) when the flag is not given.
+        ``transient``, ``periods``, ``initial_conditions``) when the flag is not given.
+    unless : the scene's value is not taken when one of these options is given (``--random`` instead of the
+        scene's initial conditions).
     positional : passed to the builder by position (in the declared order), not by keyword.
     default : the command line's default where it differs from the call's (a command runs a transient that the
         call leaves to its caller); the help shows it.
@@ -271,6 +273,7 @@ class Arg:
     choices: tuple[str, ...] | None = None
     positional: bool = False
     default: Any = None
+    unless: tuple[str, ...] = ()
 
     def flag_of(self, name: str) -> str:
         return self.flag or "--" + name.replace("_", "-")

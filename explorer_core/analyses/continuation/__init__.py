@@ -45,9 +45,13 @@ from explorer_core.analyses.continuation.options import (
     CORRECTOR_TOL,
     DEFAULT_MAX_PERIOD,
     MAX_POINTS,
+    BoundariesSpec,
     ContinuationOptions,
     ContinuationSpec,
+    SeedsSpec,
+    boundaries_spec,
     continuation_spec,
+    seeds_spec,
 )
 from explorer_core.analyses.continuation.problems import _BranchProblem, _CurveProblem
 from explorer_core.analyses.continuation.results import (
@@ -89,11 +93,13 @@ __all__ = [
     "REFINE_NOISE",
     "Bifurcation",
     "Boundaries",
+    "BoundariesSpec",
     "Branch",
     "Continuation",
     "ContinuationOptions",
     "ContinuationSpec",
     "Curve",
+    "SeedsSpec",
     "_BranchProblem",
     "_CurveProblem",
     "_Engine",
@@ -102,6 +108,7 @@ __all__ = [
     "_System",
     "_Walk",
     "_defining",
+    "boundaries_spec",
     "chart_boundaries",
     "classify_branch",
     "continuation_spec",
@@ -110,5 +117,6 @@ __all__ = [
     "iter_chart_boundaries",
     "iter_continue_from_seeds",
     "iter_continue_orbit",
+    "seeds_spec",
     "test_function",
 ]

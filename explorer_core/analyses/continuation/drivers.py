@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -24,22 +24,21 @@ from explorer_core.analyses.continuation.curves import _follow_curve
 from explorer_core.analyses.continuation.engine import _Engine, _Point
 from explorer_core.analyses.continuation.events import _crossed, _located
 from explorer_core.analyses.continuation.options import (
-    DEFAULT_MAX_PERIOD,
-    ContinuationOptions,
+    BoundariesSpec,
     ContinuationSpec,
+    SeedsSpec,
+    boundaries_spec,
     continuation_spec,
+    seeds_spec,
 )
 from explorer_core.analyses.continuation.problems import _BranchProblem
 from explorer_core.analyses.continuation.results import Bifurcation, Boundaries, Branch, Continuation
 from explorer_core.analyses.continuation.switching import _birth, _switch
 from explorer_core.analyses.continuation.system import _Stop, _System
-from explorer_core.analyses.orbits import ORBIT_NUMERICS, find_orbits, minimal_period, newton
+from explorer_core.analyses.orbits import find_orbits, minimal_period, newton
 from explorer_core.analyses.specs import spec_of
-from explorer_core.analyses.sweeps import check_param
 from explorer_core.losses import Loss
 from explorer_core.progress import Cancel, Progress, Step, run, stoppable
-from explorer_core.solve.numerics import Numerics
-from explorer_core.solve.options import ORBITS
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.system.params import ParameterError, Params
 
@@ -249,65 +248,48 @@ def iter_continue_orbit(
 
 
 def continue_from_seeds(
-    params: Params,
-    param: str,
-    value_range: Sequence[float],
-    seeds: Any,
-    *,
+    spec: SeedsSpec | Params,
+    *args: Any,
     progress: Callable[[Step[Continuation]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
     **kw: Any,
 ) -> Continuation:
-    """Every distinct orbit Newton finds from ``seeds``, continued (:func:`_continue_from_seeds`'s
-    arguments); ``progress`` gets every update of :func:`iter_continue_from_seeds`."""
-    return run(iter_continue_from_seeds(params, param, value_range, seeds, cancel=cancel, **kw), progress)
+    """Every distinct orbit Newton finds from the seeds, continued: ``continue_from_seeds(spec)`` with a
+    :class:`SeedsSpec`, or the keyword form ``continue_from_seeds(params, param, value_range, seeds, **options)``
+    (:func:`seeds_spec`); ``progress`` gets every update of :func:`iter_continue_from_seeds`."""
+    return run(iter_continue_from_seeds(spec, *args, cancel=cancel, workers=workers, **kw), progress)
 
 
 def iter_continue_from_seeds(
-    params: Params,
-    param: str,
-    value_range: Sequence[float],
-    seeds: Any,
-    *,
+    spec: SeedsSpec | Params,
+    *args: Any,
     cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
     **kw: Any,
 ) -> Iterator[Step[Continuation]]:
     """:func:`continue_from_seeds` as a stream of :class:`~explorer_core.progress.Step` in ``orbits`` (the
     orbits found and continued, the current one by its own progress); the last one carries the result."""
-    return stoppable(lambda stop: _continue_from_seeds(params, param, value_range, seeds, stop=stop, **kw), cancel)
+    spec = spec_of(SeedsSpec, seeds_spec, spec, args, kw)
+    return stoppable(lambda stop: _continue_from_seeds(spec, stop=stop, workers=workers), cancel)
 
 
-def _continue_from_seeds(
-    params: Params,
-    param: str,
-    value_range: Sequence[float],
-    seeds: Any,
-    *,
-    periods: Sequence[int] = (1, 2, 3, 4),
-    switch: bool = True,
-    max_period: int = DEFAULT_MAX_PERIOD,
-    max_orbits: int = 6,
-    numerics: Numerics | None = None,
-    param2: str | None = None,
-    range2: Sequence[float] | None = None,
-    window1: Sequence[float] | None = None,
-    options: ContinuationOptions | None = None,
-    stop: Cancel,
-    workers: int | None = None,
-) -> Iterator[Step[Continuation]]:
-    """Every distinct orbit of ``periods`` that Newton finds from ``seeds`` at the range's first value, continued.
+def _continue_from_seeds(spec: SeedsSpec, *, stop: Cancel, workers: int | None = None) -> Iterator[Step[Continuation]]:
+    """Every distinct orbit of ``spec.periods`` that Newton finds from the seeds at the range's first value,
+    continued.
 
     For an orbit diagram: its initial conditions (or final states) as seeds; the branches of all the
     orbits found (stable and unstable, up to ``max_orbits``, lowest periods first) in one result, the last
     update's (in ``orbits``: as many as were found).
     """
-    param = check_param(param)
-    a = float(value_range[0])
-    start = params.with_(**{param: a})
-    found = find_orbits(start, seeds, list(periods), numerics=numerics, workers=workers).orbits[:max_orbits]
-    out = Continuation(params, param, (a, float(value_range[1])), numerics or ORBIT_NUMERICS, [], [])
+    param, (a, b) = spec.param, spec.range
+    start = spec.params.with_(**{param: a})
+    found = find_orbits(start, spec.seeds, list(spec.periods), numerics=spec.numerics,
+                        workers=workers).orbits[: spec.max_orbits]  # fmt: skip
+    out = Continuation(spec.params, param, (a, b), spec.numerics, [], [])
     if not found:
-        out.messages.append(f"no orbit of period {', '.join(map(str, periods))} near the seeds at {param} = {a:g}")
+        periods = ", ".join(map(str, spec.periods))
+        out.messages.append(f"no orbit of period {periods} near the seeds at {param} = {a:g}")
     t0 = time.perf_counter()
     meter = _Meter("orbits", out)
     # (by position: an Orbit's == compares arrays, so found.index() raised for any but the first)
@@ -318,10 +300,7 @@ def _continue_from_seeds(
             break
         if _on_a_branch(out, orb, a):
             continue  # already followed: the orbit is a point of a branch computed for an earlier seed
-        one = continuation_spec(params, param, value_range, orb.points[0], orb.period, switch=switch,
-                                max_period=max(max_period, orb.period), numerics=numerics, param2=param2,
-                                range2=range2, window1=window1, options=options)  # fmt: skip
-        orbit = _OrbitRun(one, stop, workers)
+        orbit = _OrbitRun(spec.for_orbit(orb.points[0], orb.period), stop, workers)
         for upd in orbit:
             yield meter.at(i + upd.progress.fraction, len(found), upd.detail)
         res = orbit.result
@@ -357,33 +336,33 @@ def _on_a_branch(cont: Continuation, orbit: Any, value: float) -> bool:
 
 
 def chart_boundaries(
-    chart: Any,
-    *,
+    spec: BoundariesSpec | Any,
+    *args: Any,
     progress: Callable[[Step[Boundaries]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
     **kw: Any,
 ) -> Boundaries:
-    """The fold and period-doubling curves that bound a chart's regions of stable cycles
-    (:func:`_chart_boundaries`); ``progress`` gets every update of :func:`iter_chart_boundaries`."""
-    return run(iter_chart_boundaries(chart, cancel=cancel, **kw), progress)
+    """The fold and period-doubling curves that bound a chart's regions of stable cycles: ``chart_boundaries(spec)``
+    with a :class:`BoundariesSpec`, or ``chart_boundaries(chart, periods=, numerics=)`` (:func:`boundaries_spec`);
+    ``progress`` gets every update of :func:`iter_chart_boundaries`."""
+    return run(iter_chart_boundaries(spec, *args, cancel=cancel, workers=workers, **kw), progress)
 
 
 def iter_chart_boundaries(
-    chart: Any, *, cancel: Callable[[], bool] | None = None, **kw: Any
+    spec: BoundariesSpec | Any,
+    *args: Any,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+    **kw: Any,
 ) -> Iterator[Step[Boundaries]]:
     """:func:`chart_boundaries` as a stream of :class:`~explorer_core.progress.Step` in ``directions`` (each
     period's region continued towards both ends of the chart's ``x``); the last carries the result."""
-    return stoppable(lambda stop: _chart_boundaries(chart, stop=stop, **kw), cancel)
+    spec = spec_of(BoundariesSpec, boundaries_spec, spec, args, kw)
+    return stoppable(lambda stop: _chart_boundaries(spec, stop=stop, workers=workers), cancel)
 
 
-def _chart_boundaries(
-    chart: Any,
-    *,
-    periods: Sequence[int] = (1, 2, 3),
-    numerics: Numerics | None = None,
-    stop: Cancel,
-    workers: int | None = None,
-) -> Iterator[Step[Boundaries]]:
+def _chart_boundaries(bspec: BoundariesSpec, *, stop: Cancel, workers: int | None = None) -> Iterator[Step[Boundaries]]:
     """The fold and period-doubling curves that bound a chart's regions of stable cycles.
 
     For each period ``p`` in ``periods`` present in the chart (:class:`explorer_core.analyses.regimes.Chart`),
@@ -391,15 +370,13 @@ def _chart_boundaries(
     transient, Newton finds the period-``p`` orbit there, and that orbit is continued in the chart's ``x``
     towards both ends with every fold and period doubling followed as a curve in ``(x, y)`` over the
     chart. The last update's result holds one :class:`Continuation` per continued direction (their
-    ``curves`` are the boundaries). ``numerics`` (default: the orbits' map as it follows the chart's tolerance,
-    :meth:`~explorer_core.solve.options.NewtonOptions.at` of :data:`~explorer_core.solve.options.ORBITS`: vern9 at
-    1e-12 for a chart at its default 1e-8, 1e-10 for a chart at 1e-6) integrate the orbits and their continuation.
+    ``curves`` are the boundaries). ``numerics`` integrate the orbits and their continuation
+    (:func:`boundaries_spec`'s default: the orbits' map as it follows the chart's tolerance).
     """
-    from explorer_core.analyses.regimes import DEFAULT_CHART_TOL, PERIODIC
+    from explorer_core.analyses.regimes import PERIODIC
 
+    chart, periods, numerics = bspec.chart, bspec.periods, bspec.numerics
     spec = chart.spec
-    if numerics is None:
-        numerics = ORBITS.at(spec.numerics, DEFAULT_CHART_TOL)[0]
     xs, ys = np.asarray(spec.x_values, float), np.asarray(spec.y_values, float)
     xr, yr = (float(xs.min()), float(xs.max())), (float(ys.min()), float(ys.max()))
     out = Boundaries()

@@ -16,7 +16,7 @@ from explorer_core.analyses.orbits import ORBIT_NUMERICS
 from explorer_core.analyses.specs import Checking
 from explorer_core.analyses.sweeps import check_param
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.options import CORRECTOR, Arg, NewtonOptions, command_line
+from explorer_core.solve.options import CORRECTOR, ORBITS, Arg, NewtonOptions, command_line
 from explorer_core.system.params import ParameterError, Params
 
 #: Newton on a corrected point stops when ``|F| <= CORRECTOR_TOL (1 + |x|)`` (the ``CORRECTOR`` preset's ftol).
@@ -276,3 +276,119 @@ def _positive(name: str, v: Any) -> float:
             or v <= 0:  # fmt: skip
         raise ParameterError(f"{name} must be a positive finite number, got {v!r}")
     return float(v)
+
+
+@dataclass(frozen=True)
+class SeedsSpec:
+    """:func:`~explorer_core.analyses.continuation.continue_from_seeds`: every distinct orbit of ``periods`` that
+    Newton finds from ``seeds`` at ``range[0]`` (up to ``max_orbits``, lowest periods first), each continued as
+    :meth:`for_orbit` says (validated by :func:`seeds_spec`)."""
+
+    params: Params
+    param: str
+    range: tuple[float, float]
+    seeds: np.ndarray = field(repr=False, compare=False)
+    periods: tuple[int, ...] = (1, 2, 3, 4)
+    max_orbits: int = 6
+    switch: bool = True
+    max_period: int = DEFAULT_MAX_PERIOD
+    options: ContinuationOptions = field(default_factory=ContinuationOptions)
+    numerics: Numerics = ORBIT_NUMERICS
+    param2: str | None = None
+    range2: tuple[float, float] | None = None
+    window1: tuple[float, float] | None = None
+
+    def for_orbit(self, point: Sequence[float], period: int) -> ContinuationSpec:
+        """The continuation of one orbit found (through ``point``, of ``period``)."""
+        return continuation_spec(self.params, self.param, self.range, point, period, switch=self.switch,
+                                 max_period=max(self.max_period, period), options=self.options,
+                                 numerics=self.numerics, param2=self.param2, range2=self.range2,
+                                 window1=self.window1)  # fmt: skip
+
+    def as_dict(self) -> dict[str, Any]:
+        return {**self.for_orbit((0.0, 0.0), max(self.periods)).as_dict(), "seed": None, "period": None,
+                "seeds": self.seeds.tolist(), "periods": list(self.periods), "max_orbits": self.max_orbits,
+                "max_period": self.max_period}  # fmt: skip
+
+
+def seeds_spec(
+    params: Params,
+    param: str,
+    value_range: Sequence[float],
+    seeds: Any,
+    *,
+    periods: Sequence[int] = (1, 2, 3, 4),
+    max_orbits: int = 6,
+    switch: bool = True,
+    max_period: int = DEFAULT_MAX_PERIOD,
+    options: ContinuationOptions | None = None,
+    numerics: Numerics | None = None,
+    param2: str | None = None,
+    range2: Sequence[float] | None = None,
+    window1: Sequence[float] | None = None,
+) -> SeedsSpec:
+    """A validated :class:`SeedsSpec`: the seeds (n, 2), the periods Newton looks for (each in ``[1, 1024]``),
+    ``max_orbits`` in ``[1, 1000]``; the rest as :func:`continuation_spec` checks it (the orbit's own seed and
+    period are Newton's, found when it runs)."""
+    with Checking() as at:
+        at("seeds")
+        seeds = check_ics(seeds)
+        at("periods")
+        periods = _periods(periods)
+        at("max_orbits")
+        max_orbits = check_int("max_orbits", max_orbits, 1, 1000)
+        at("max_period")
+        max_period = check_int("max_period", max_period, 1, 1024)
+    one = continuation_spec(params, param, value_range, (0.0, 0.0), max(periods), switch=switch,
+                            max_period=max(max_period, *periods), options=options, numerics=numerics, param2=param2,
+                            range2=range2, window1=window1)  # fmt: skip
+    return SeedsSpec(one.params, one.param, one.range, seeds, periods, max_orbits, one.switch, max_period,
+                     one.options, one.numerics, one.param2, one.range2, one.window1)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class BoundariesSpec:
+    """:func:`~explorer_core.analyses.continuation.chart_boundaries`: the fold and period-doubling curves that
+    bound ``chart``'s regions of stable cycles of ``periods``, continued with ``numerics`` (validated by
+    :func:`boundaries_spec`)."""
+
+    chart: Any = field(repr=False, compare=False)
+    periods: tuple[int, ...] = (1, 2, 3)
+    numerics: Numerics = ORBIT_NUMERICS
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"chart": self.chart.spec.as_dict(), "periods": list(self.periods), "numerics": self.numerics.as_dict()}
+
+
+def boundaries_spec(
+    chart: Any, *, periods: Sequence[int] = (1, 2, 3), numerics: Numerics | None = None
+) -> BoundariesSpec:
+    """A validated :class:`BoundariesSpec`. ``numerics`` default: the orbits' map as it follows the chart's
+    tolerance (:meth:`~explorer_core.solve.options.NewtonOptions.at` of
+    :data:`~explorer_core.solve.options.ORBITS`: vern9 at 1e-12 for a chart at its default 1e-8, 1e-10 for a
+    chart at 1e-6)."""
+    from explorer_core.analyses.regimes import DEFAULT_CHART_TOL
+
+    with Checking() as at:
+        at("chart")
+        if getattr(chart, "spec", None) is None or not hasattr(chart, "regime"):
+            raise ParameterError(f"chart must be a computed chart of regimes, got {type(chart).__name__}")
+        at("periods")
+        periods = _periods(periods)
+        at("numerics")
+        if numerics is None:
+            numerics = ORBITS.at(chart.spec.numerics, DEFAULT_CHART_TOL)[0]
+        if not isinstance(numerics, Numerics):
+            raise ParameterError(f"numerics must be a Numerics, got {numerics!r}")
+    return BoundariesSpec(chart, periods, numerics)
+
+
+def _periods(periods: Any) -> tuple[int, ...]:
+    """Periods to look for: at least one, each a whole number in ``[1, 1024]``."""
+    try:
+        out = tuple(check_int("periods", p, 1, 1024) for p in periods)
+    except TypeError:
+        raise ParameterError(f"periods must be whole numbers in [1, 1024], got {periods!r}") from None
+    if not out:
+        raise ParameterError("periods must name at least one period, got none")
+    return out

@@ -1,0 +1,157 @@
+"""The section as an analysis: its spec (the initial conditions, periods, numerics and the window it is drawn in),
+and the run that says when the method is unreliable for it.
+
+The engine is :mod:`explorer_core.solve.section` (``section(params, ics, periods, ...)``, ``iter_section``): this
+module is its boundary for the command line and the registry, where the options are declared once
+(:func:`section_spec`): the initial conditions given, drawn at random in a box, or the scene's; the numerics a
+picture of the window needs (:func:`~explorer_core.scenes.plot_numerics`) unless given.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from explorer_core import config
+from explorer_core.analyses.specs import Checking, spec_of
+from explorer_core.scenes import pixel_size, plot_numerics
+from explorer_core.solve.checks import check_bool, check_ics, check_int, check_optional_box
+from explorer_core.solve.numerics import Numerics, random_ics
+from explorer_core.solve.options import Arg, command_line, instance
+from explorer_core.solve.section import Section, SectionChunk, section
+from explorer_core.system.params import ParameterError, Params
+
+#: ``--random`` without a box (and no scene to take one from).
+DEFAULT_RANDOM_BOX = (-2.0, 2.0, -2.0, 2.0)
+
+
+@dataclass(frozen=True)
+class SectionSpec:
+    """A section to compute: ``periods`` points per initial condition after ``transient``, forward or backward
+    (``direction``), with ``numerics``; ``view`` the window it is drawn in (the reliability checks' pixel), and
+    ``origin`` how the initial conditions were made (recorded: ``{"random": n, "box": ..., "seed": ...}``)."""
+
+    params: Params
+    ics: np.ndarray = field(repr=False)
+    periods: int
+    transient: int = 0
+    numerics: Numerics = field(default_factory=Numerics)
+    direction: int = 1
+    view: tuple[float, float, float, float] | None = None
+    origin: dict[str, Any] | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"params": self.params.as_dict(), "ics": self.origin or {"given": self.ics.tolist()},
+                "periods": self.periods, "transient": self.transient, "numerics": self.numerics.as_dict(),
+                "direction": self.direction, "view": None if self.view is None else list(self.view)}  # fmt: skip
+
+
+@command_line(
+    periods=Arg("section points per trajectory", "int", scene="periods", positional=True, metavar="N"),
+    ics=Arg("initial condition (repeatable)", "points", flag="--ic", scene="initial_conditions", unless=("random",)),
+    random=Arg("random initial conditions in --box", "int", metavar="N"),
+    seed=Arg("seed of --random", "int"),
+    box=Arg("box for --random (default -2,2,-2,2)", "box", scene="box"),
+    transient=Arg("periods dropped first", "int", scene="transient"),
+    backward=Arg("integrate backward in time (points at t0 - k T)", "switch"),
+    view=Arg("", scene="view", flag=""),
+    bound=Arg("", scene="bound", flag=""),
+)
+def section_spec(
+    params: Params,
+    periods: int,
+    *,
+    ics: Any = None,
+    random: int | None = None,
+    seed: int = 0,
+    box: Sequence[float] | None = None,
+    transient: int = 0,
+    backward: bool = False,
+    view: Sequence[float] | None = None,
+    bound: float | None = None,
+    numerics: Numerics | None = None,
+) -> SectionSpec:
+    """A validated :class:`SectionSpec` (a bad value raises ParameterError naming it).
+
+    The initial conditions: ``ics`` (n, 2), or ``random`` of them uniform in ``box`` (default
+    :data:`DEFAULT_RANDOM_BOX`) from ``seed``. ``numerics`` default: a picture's of ``view`` over the whole run
+    (:func:`~explorer_core.scenes.plot_numerics`) escaping at ``bound``, or :class:`Numerics` (with ``bound``)
+    when there is no view.
+    """
+    with Checking() as at:
+        at("periods")
+        periods = check_int("periods", periods, 1, config.MAX_PERIODS)
+        at("transient")
+        transient = check_int("transient", transient, 0, config.MAX_PERIODS)
+        at("backward")
+        direction = -1 if check_bool("backward", backward) else 1
+        at("seed")
+        seed = check_int("seed", seed, 0, 2**63 - 1)
+        at("box")
+        box = check_optional_box(box, "box")
+        origin = None
+        if random is not None:
+            at("random")
+            if ics is not None:
+                raise ParameterError("give either initial conditions or random ones, not both")
+            random = check_int("random", random, 1, config.MAX_TRAJECTORIES)
+            box = box or DEFAULT_RANDOM_BOX
+            ics, origin = random_ics(random, box, seed=seed), {"random": random, "box": list(box), "seed": seed}
+        at("ics")
+        if ics is None:
+            raise ParameterError("give initial conditions: --ic Q,R (repeatable) or --random N")
+        ics = check_ics(ics)
+        if ics.shape[0] * periods > config.MAX_POINTS:
+            raise ParameterError(f"{ics.shape[0]} trajectories x {periods} periods = {ics.shape[0] * periods} "
+                                 f"points exceeds the limit {config.MAX_POINTS}")  # fmt: skip
+        at("view")
+        view = check_optional_box(view, "view")
+        at("numerics")
+        if numerics is None:
+            bound = config.DEFAULT_ESCAPE_BOUND if bound is None else float(bound)
+            numerics = plot_numerics(view, periods + transient, bound) if view else Numerics(bound=bound)
+        numerics = instance(Numerics)("numerics", numerics)
+    return SectionSpec(params, ics, periods, transient, numerics, direction, view, origin)  # type: ignore[arg-type]
+
+
+@dataclass
+class AssessedSection(Section):
+    """A :class:`~explorer_core.solve.section.Section` with the warnings of
+    :func:`~explorer_core.analyses.reliability.assess_section`: where the method is unreliable for this run."""
+
+    reliability: list = field(default_factory=list)
+
+    def summary(self) -> dict[str, Any]:
+        return {**super().summary(), "reliability": [w.as_dict() for w in self.reliability]}
+
+    def report(self) -> list[str]:
+        from explorer_core.status import describe
+
+        points = int(self.npts.sum())
+        return [f"{self.n} trajectories, {points} points, {self.elapsed_s:.3f} s, {describe(self.status)}"]
+
+    def notes(self) -> list[str]:
+        """The reliability warnings, one line each (stderr; ``--quiet`` silences them)."""
+        return [w.line() for w in self.reliability]
+
+
+def poincare_section(
+    spec: SectionSpec | Params,
+    *args: Any,
+    progress: Callable[[SectionChunk], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+    workers: int | None = None,
+    **kw: Any,
+) -> AssessedSection:
+    """The section of ``spec`` (or of :func:`section_spec`'s keywords), with its reliability warnings."""
+    from explorer_core.analyses.reliability import assess_section
+
+    spec = spec_of(SectionSpec, section_spec, spec, args, kw)
+    sec = section(spec.params, spec.ics, spec.periods, transient=spec.transient, numerics=spec.numerics,
+                  direction=spec.direction, progress=progress, cancel=cancel, workers=workers)  # fmt: skip
+    pixel = None if spec.view is None else pixel_size(spec.view)
+    warnings = assess_section(sec, pixel=pixel, window=spec.view)
+    return AssessedSection(**{f.name: getattr(sec, f.name) for f in fields(sec)}, reliability=warnings)
