@@ -35,7 +35,7 @@ from app.layers.base import plain
 from app.layers.section import SECTION_FIELDS
 from app.runner import LAYER, Emit
 from explorer_core import config
-from explorer_core.analyses.body import BodySeries, body_series
+from explorer_core.analyses.body import BodySeries, BodySpec, body_series, body_spec
 from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import ParameterError, Params
 
@@ -216,12 +216,11 @@ class BodyView:
     def _start(self, inputs: BodyInputs) -> None:
         last = inputs.k_start + inputs.periods
         self._say(f"computing the body's motion over k = {inputs.k_start}..{last} ({SAMPLES} frames a period)…")
-        numerics = inputs.numerics
+        spec = self.spec(inputs)
 
         def job(cancelled: Callable[[], bool], emit: Emit) -> None:
             t = time.perf_counter()
-            series = body_series(inputs.params, np.array([inputs.q, inputs.r]), inputs.periods, samples=SAMPLES,
-                                 numerics=numerics, cancel=cancelled)  # fmt: skip
+            series = body_series(spec, cancel=cancelled)
             if cancelled():
                 return
             payload = encode_series(series, inputs.k_start)
@@ -229,6 +228,13 @@ class BodyView:
             emit(lambda: self._apply(inputs, series, payload, elapsed))
 
         self.runner.start(CHANNEL, job)
+
+    @staticmethod
+    def spec(inputs: BodyInputs) -> BodySpec:
+        """The series as the core's builder makes it (the command line's ``body --ic Q,R --periods N --samples
+        S``, from the selected trajectory's section point, with the page's numerics)."""
+        return body_spec(inputs.params, [(inputs.q, inputs.r)], inputs.periods, samples=SAMPLES,
+                         numerics=inputs.numerics)  # fmt: skip
 
     def _apply(self, inputs: BodyInputs, series: BodySeries, payload: dict[str, Any], elapsed: float) -> None:
         if inputs != self.inputs:

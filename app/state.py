@@ -18,7 +18,7 @@ import difflib
 import math
 import re
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -34,7 +34,8 @@ from app.controls import points_text as _points_text
 from app.controls import whole as _whole
 from app.layers import LAYERS
 from explorer_core.analyses.body import box_exists, principal_axes
-from explorer_core.analyses.density import density_numerics
+from explorer_core.analyses.density import DensitySpec, density_numerics, density_spec
+from explorer_core.analyses.sections import SectionSpec, section_spec
 from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, chosen_numerics, random_ics
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
@@ -98,6 +99,8 @@ class SectionRequest:
     density: bool = False
     view: tuple[float, float, float, float] = (0.0, 1.0, 0.0, 1.0)
     keep: tuple[int, ...] = ()
+    #: The spec the core's builder made of the page (the command line's for the same settings).
+    spec: SectionSpec | DensitySpec | None = field(default=None, compare=False)
 
 
 def _range(name: str, text: str) -> tuple[float, float]:
@@ -614,24 +617,32 @@ class ExplorerState(param.Parameterized):
         return (q0, q1, r0, r1) if (q0 < q1 and r0 < r1) else v  # type: ignore[return-value]
 
     def section_request(self) -> SectionRequest:
+        """The section's computation, its spec built by the core's builder (the command line's:
+        :func:`~explorer_core.analyses.sections.section_spec`, or
+        :func:`~explorer_core.analyses.density.density_spec` for a density view)."""
         params = self.system()
-        ics = self.initial_conditions()
-        if ics.shape[0] == 0:
+        n = self.n_trajectories()
+        if n == 0:
             raise ParameterError("no initial conditions: set 'Random initial conditions' above 0 or click in the plot")
-        self.check_work(ics.shape[0], self.periods)
-        if not self.density_view(ics.shape[0]):
-            return SectionRequest(params, ics, self.periods, self.transient, self.numerics())
-        if self.n_random:
-            ics = np.concatenate([random_ics(self.n_random, self.density_box(), self.seed), ics[self.n_random :]])
+        self.check_work(n, self.periods)
+        clicked = np.array(self.clicked, dtype=float).reshape(-1, 2) if self.clicked else None
+        if not self.density_view(n):
+            spec = section_spec(params, self.periods, random=self.n_random or None, box=self.box, seed=self.seed,
+                                ics=clicked, transient=self.transient, numerics=self.numerics())  # fmt: skip
+            return SectionRequest(spec.params, spec.ics, spec.periods, spec.transient, spec.numerics, spec=spec)
         view = (*self.q_range, *self.r_range)
         numerics = self.numerics()  # "high" as for points; "plot": a quarter pixel over the density's window
         if self.accuracy != "high":
             numerics = density_numerics(view, DENSITY_PIXELS, numerics.bound, self.method)
+        dspec = density_spec(params, self.periods, self.density_box(), random=self.n_random, seed=self.seed,
+                             ics=clicked, transient=self.transient, view=view, pixels=PLOT_PIXELS,
+                             numerics=numerics)  # fmt: skip
+        ics = dspec.ics
         # Kept as points: the clicked trajectories (drawn), the selected one (ringed, its k-series) and the
         # first few, so that a selected trajectory lost in the transient can hand over to one with points.
         keep = (*self.clicked_indices(), self.selected, *range(min(ics.shape[0], 8)))
-        return SectionRequest(params, ics, self.periods, self.transient, numerics, True, view,  # type: ignore[arg-type]
-                              tuple(sorted(set(keep))))  # fmt: skip
+        return SectionRequest(params, ics, dspec.periods, dspec.transient, dspec.numerics, True, dspec.view,
+                              tuple(sorted(set(keep))), spec=dspec)  # type: ignore[arg-type]  # fmt: skip
 
     def box_problem(self, **changes: float) -> str:
         """'' if a uniform box has the principal moments of the system (with ``changes``), else why none has (a

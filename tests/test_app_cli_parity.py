@@ -93,3 +93,136 @@ def test_an_orbit_diagrams_spec_is_the_command_lines(monkeypatch) -> None:
         c.params, c.param, c.transient, c.n_points, c.numerics, c.newton)  # fmt: skip
     assert np.array_equal(a.values, c.values) and np.array_equal(a.ics, c.ics)
     assert (app.seeding, app.sweeps) == (cli.seeding, cli.sweeps)
+
+
+def _system_flags(p) -> list[str]:
+    """The command line's flags for the system ``p`` (every value as the page holds it)."""
+    return ["--inertia", ",".join(repr(v) for v in p.inertia), "--alpha", repr(p.alpha), "--g0", repr(p.g0), "--g1",
+            repr(p.g1), "--g2", repr(p.g2), "--omega", repr(p.omega), "--t0", repr(p.t0)]  # fmt: skip
+
+
+def _numerics_flags(n) -> list[str]:
+    """The command line's flags for the numerics ``n`` the page chose (its Method and Accuracy)."""
+    return ["--method", n.method, "--rtol", repr(n.rtol), "--atol", repr(n.atol), "--steps-per-period",
+            str(n.steps_per_period), "--bound", repr(n.bound), "--max-steps", str(n.max_steps)]  # fmt: skip
+
+
+def _cli_spec(monkeypatch, command: str, *flags: str):
+    """The spec the command line hands its analysis' runner (the registry's) for ``bilimovich COMMAND FLAGS``."""
+    import functools
+    import importlib
+
+    from explorer_core.registry import by_command
+
+    a = by_command(command)
+    module = importlib.import_module(a.module)
+    real = getattr(module, a.run)
+    seen = []
+
+    @functools.wraps(real)
+    def spy(spec, *args, **kw):
+        seen.append(spec)
+        return real(spec, *args, **kw)
+
+    monkeypatch.setattr(module, a.run, spy)
+    code, _, err = run_cli(command, *flags, "--json")
+    monkeypatch.setattr(module, a.run, real)
+    assert code == 0, err
+    return seen[0]
+
+
+@pytest.mark.parametrize(("method", "accuracy", "render"),
+                         [("auto", "plot", "points"), ("dop853", "high", "points"), ("auto", "plot", "density"),
+                          ("vern9", "high", "density")])  # fmt: skip
+def test_a_sections_spec_is_the_command_lines(monkeypatch, method: str, accuracy: str, render: str) -> None:
+    sess = _session("fig8B")
+    st = sess.state
+    st.param.update(n_random=6, seed=3, periods=25, transient=4, method=method, accuracy=accuracy, render=render,
+                    clicked=[(0.25, -0.5)])  # fmt: skip
+    app = st.section_request().spec
+    ics = ["--random", "6", "--seed", "3", "--ic=0.25,-0.5", "--periods", "25", "--transient", "4"]
+    if render == "points":
+        box = ",".join(repr(float(v)) for v in st.box)
+        cli = _cli_spec(monkeypatch, "section", *_system_flags(st.system()), *ics, f"--box={box}",
+                        *_numerics_flags(app.numerics))  # fmt: skip
+    else:
+        box = ",".join(repr(float(v)) for v in st.density_box())
+        view = ",".join(repr(float(v)) for v in app.view)
+        cli = _cli_spec(monkeypatch, "density", *_system_flags(st.system()), *ics, f"--box={box}", f"--view={view}",
+                        "--pixels", ",".join(map(str, app.pixels)), *_numerics_flags(app.numerics))  # fmt: skip
+    assert type(app) is type(cli)
+    assert app.as_dict() == cli.as_dict()
+    assert np.array_equal(app.ics, cli.ics) and app.ics.shape == (7, 2)
+    assert (app.numerics.rtol == 1e-12) == (accuracy == "high")  # the page's Accuracy reached the spec
+    assert method == "auto" or app.numerics.method == method  # and its Method
+
+
+FLIP = (-0.0377, -2.3979)  # Fig. 8B's flip saddle
+
+
+def _page(query: dict):
+    from jobs import Jobs
+
+    from app.page import Page
+
+    jobs = Jobs()
+    page = Page({"scene": "fig8B", "n": "2", "periods": "5", **query}, lambda fn: fn(), executor=jobs)
+    page.start()
+    jobs.drain()
+    return page
+
+
+@pytest.mark.parametrize(("method", "accuracy"), [("auto", "plot"), ("dop853", "high")])
+def test_the_orbit_and_manifold_layers_specs_are_the_command_lines(monkeypatch, method: str, accuracy: str) -> None:
+    page = _page({"orb": f"{FLIP[0]},{FLIP[1]};0.5,-1", "orb_n": "2", "man": f"{FLIP[0]},{FLIP[1]},1",
+                  "man_len": "2", "method": method, "accuracy": accuracy})  # fmt: skip
+    system = _system_flags(page.state.system())
+    orbits = page.session.layer("orbits")
+    app = orbits.spec(orbits.inputs())
+    cli = _cli_spec(monkeypatch, "orbits", *system, f"--seed={FLIP[0]!r},{FLIP[1]!r}", "--seed=0.5,-1",
+                    "--max-period", "2", *_numerics_flags(app.numerics))  # fmt: skip
+    assert app == cli and app.as_dict() == cli.as_dict()
+    man = page.session.layer("manifolds")
+    inputs = man.inputs()
+    app = man.spec(inputs, inputs.saddles[0][:2], inputs.saddles[0][2])
+    view = ",".join(repr(float(v)) for v in inputs.view)
+    cli = _cli_spec(monkeypatch, "manifolds", *system, f"--orbit={FLIP[0]!r},{FLIP[1]!r}", "--period", "1",
+                    "--length", "2", f"--view={view}", "--pixels", ",".join(map(str, app.pixels)),
+                    *_numerics_flags(app.numerics))  # fmt: skip
+    assert app == cli and app.as_dict() == cli.as_dict()
+    assert (app.numerics.rtol == 1e-12) == (accuracy == "high")
+    # Newton finds the saddle on the same map in both (at least as accurate as an orbit's)
+    assert app.saddle_numerics == cli.saddle_numerics and app.saddle_numerics.rtol <= 1e-12
+
+
+@pytest.mark.parametrize(("kind", "accuracy"), [("instantaneous", "plot"), ("per-period", "high")])
+def test_the_tprime_layers_spec_is_the_command_lines(monkeypatch, kind: str, accuracy: str) -> None:
+    page = _page({"tprime": "period" if kind == "per-period" else "inst", "accuracy": accuracy})
+    layer = page.session.layer("tprime")
+    assert page.state.tprime_kind == kind
+    app = layer.spec(layer.inputs())
+    st = page.state
+    flags = [f"--q-range={st.q_range[0]!r},{st.q_range[1]!r}", f"--r-range={st.r_range[0]!r},{st.r_range[1]!r}",
+             "--grid", str(app.grid), *(["--per-period"] if app.per_period else []), *_numerics_flags(app.numerics)]
+    cli = _cli_spec(monkeypatch, "tprime", *_system_flags(st.system()), *flags)
+    assert app == cli and app.as_dict() == cli.as_dict()
+    assert app.per_period == (kind == "per-period")
+
+
+def test_the_tracks_layers_spec_is_the_command_lines(monkeypatch) -> None:
+    page = _page({})
+    layer = page.session.layer("tracks")
+    app = layer.spec(layer.inputs())
+    cli = _cli_spec(monkeypatch, "critical", *_system_flags(page.state.system()), "--track", "--n-t", str(app.n_t))
+    assert app == cli and app.as_dict() == cli.as_dict() and app.track
+
+
+@pytest.mark.parametrize("accuracy", ["plot", "high"])
+def test_the_body_views_spec_is_the_command_lines(monkeypatch, accuracy: str) -> None:
+    page = _page({"scene": "fig1C", "n": "4", "periods": "30", "body": "1", "accuracy": accuracy})
+    inputs = page.body.inputs
+    assert inputs is not None
+    app = page.body.spec(inputs)
+    flags = [f"--ic={inputs.q!r},{inputs.r!r}", "--periods", str(app.periods), "--samples", str(app.samples)]
+    cli = _cli_spec(monkeypatch, "body", *_system_flags(page.state.system()), *flags, *_numerics_flags(app.numerics))
+    assert app == cli and app.as_dict() == cli.as_dict()

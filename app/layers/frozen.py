@@ -18,7 +18,7 @@ import numpy as np
 from app.controls import Control, UrlKey, choice
 from app.layers.base import KEEP, Layer
 from app.runner import LAYER
-from explorer_core.analyses.tprime import energy_change_map, tprime_map
+from explorer_core.analyses.tprime import TPrimeSpec, tprime, tprime_spec
 from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import Params
 
@@ -80,16 +80,20 @@ class TPrimeLayer(FrozenLayer):
     def on_view(self) -> bool:
         return True  # the map is of the view's window
 
+    @staticmethod
+    def spec(inputs: TPrimeInputs) -> TPrimeSpec:
+        """The map as the core's builder makes it (the command line's ``tprime --q-range ... --grid N``, with
+        ``--per-period`` and the page's numerics over a period)."""
+        per = inputs.kind == "per-period"
+        grid = PER_PERIOD_GRID if per else TPRIME_GRID
+        return tprime_spec(inputs.params, None, inputs.q_range, inputs.r_range, grid, per_period=per,
+                           numerics=inputs.numerics)  # fmt: skip
+
     def job(self, inputs: TPrimeInputs, cancelled: Callable[[], bool]) -> Iterator[tuple[Any, str]]:
-        p = inputs.params
-        if inputs.kind == "per-period":
-            m = energy_change_map(p, inputs.q_range, inputs.r_range, PER_PERIOD_GRID, numerics=inputs.numerics)
-            yield m, "ΔT over a period: red gain, blue loss"  # fits the plot's height at 1280x720
-        else:
-            yield (
-                tprime_map(p, p.t0, inputs.q_range, inputs.r_range, TPRIME_GRID),
-                "T′ at t0: red energy gain, blue loss",
-            )
+        spec = self.spec(inputs)
+        # the titles fit the plot's height at 1280x720
+        title = "ΔT over a period: red gain, blue loss" if spec.per_period else "T′ at t0: red energy gain, blue loss"
+        yield tprime(spec), title
 
     def apply(self, inputs: TPrimeInputs, result: tuple[Any, str]) -> None:
         m, title = result

@@ -13,8 +13,7 @@ from app.controls import PLOT_PIXELS, SYSTEM_FIELDS, UrlKey, ints, places, point
 from app.layers.base import KEEP, Action, Layer, Table, plain
 from app.layers.orbits import MAX_ORBIT_PERIOD
 from app.runner import LAYER
-from explorer_core.analyses.manifolds import MANIFOLD_NUMERICS, Manifolds, iter_manifolds, saddle_orbit
-from explorer_core.analyses.orbits import ORBIT_NUMERICS
+from explorer_core.analyses.manifolds import MANIFOLD_NUMERICS, Manifolds, ManifoldSpec, iter_manifolds, manifold_spec
 from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import ParameterError, Params
 
@@ -102,17 +101,12 @@ class ManifoldsLayer(Layer):
         notes: list[str] = []
         for q, r, n in inputs.saddles:
             try:
-                orbit = saddle_orbit(
-                    inputs.params,
-                    (q, r),
-                    n,
-                    numerics=inputs.numerics.loosened(min(inputs.numerics.rtol, ORBIT_NUMERICS.rtol)),
-                )  # the saddle at least as accurately as an orbit
+                spec = self.spec(inputs, (q, r), n)
+                orbit = spec.saddle()
             except ParameterError as exc:  # e.g. no longer a saddle for this system
                 notes.append(f"({q:.4g}, {r:.4g}): {plain(exc)}")
                 continue
-            for m in iter_manifolds(inputs.params, orbit, length=inputs.length, view=inputs.view, pixels=PLOT_PIXELS,
-                                    others=done, numerics=inputs.numerics, cancel=cancelled):  # fmt: skip
+            for m in iter_manifolds(spec.params, orbit, **spec.growth(), others=done, cancel=cancelled):
                 if cancelled():
                     return
                 shown = [*done, m]
@@ -121,6 +115,13 @@ class ManifoldsLayer(Layer):
             done.append(m)
         if not done:
             yield [], "; ".join(notes)
+
+    @staticmethod
+    def spec(inputs: ManifoldInputs, point: tuple[float, float], period: int) -> ManifoldSpec:
+        """One saddle's manifolds as the core's builder makes them (the command line's ``manifolds --orbit Q,R
+        --period N`` with the view, its pixels and the page's numerics)."""
+        return manifold_spec(inputs.params, point, period, length=inputs.length, view=inputs.view,
+                             pixels=PLOT_PIXELS, numerics=inputs.numerics)  # fmt: skip
 
     def current(self, inputs: ManifoldInputs) -> bool:
         return inputs.params == self.host.system()  # else grown for a system no longer on screen

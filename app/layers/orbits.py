@@ -17,8 +17,11 @@ from explorer_core.analyses.orbits import (
     ORBIT_NUMERICS,
     Orbit,
     OrbitSearch,
+    OrbitSpec,
     find_orbits,
     grid_seeds,
+    orbit_search,
+    orbit_spec,
     same_orbit,
     settled_seeds,
 )
@@ -214,11 +217,19 @@ class OrbitsLayer(Layer):
                          "starting points…")  # fmt: skip
         return inputs
 
+    @staticmethod
+    def spec(inputs: OrbitInputs) -> OrbitSpec:
+        """The search from the page's seeds as the core's builder makes it (the command line's ``orbits --seed
+        Q,R ... --max-period N`` with the page's numerics)."""
+        return orbit_spec(inputs.params, max_period=max(inputs.periods), seeds=list(inputs.seeds),
+                          numerics=inputs.numerics)  # fmt: skip
+
     def job(self, inputs: OrbitInputs, cancelled: Callable[[], bool]) -> Iterator[OrbitSearch]:
         if not inputs.follow:
-            res = find_orbits(
-                inputs.params, list(inputs.seeds), list(inputs.periods), numerics=inputs.numerics, cancel=cancelled
-            )
+            if inputs.seeds:  # the command line's search (``orbits --seed Q,R ... --max-period N``)
+                res = orbit_search(self.spec(inputs), cancel=cancelled)
+            else:
+                res = find_orbits(inputs.params, [], list(inputs.periods), numerics=inputs.numerics)
             if not cancelled():
                 yield res
             return

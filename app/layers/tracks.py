@@ -14,7 +14,7 @@ from app.controls import Control
 from app.layers.base import KEEP
 from app.layers.frozen import FrozenLayer, segments_by_type
 from app.runner import LAYER
-from explorer_core.analyses.equilibria import equilibrium_tracks
+from explorer_core.analyses.equilibria import CriticalSpec, critical_points, critical_spec
 from explorer_core.system.params import Params
 
 TRACK_SAMPLES = 360
@@ -46,9 +46,14 @@ class TracksLayer(FrozenLayer):
         frame = getattr(self.host, "frame_periods", None) is not None  # a frame of a played parameter
         return (params, FRAME_TRACK_SAMPLES, FRAME_TRACK_REFINE) if frame else (params, TRACK_SAMPLES, None)
 
-    def job(self, inputs: tuple[Params, int, int | None], cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
+    @staticmethod
+    def spec(inputs: tuple[Params, int, int | None]) -> CriticalSpec:
+        """The tracks as the core's builder makes them (the command line's ``critical --track --n-t N``)."""
         params, samples, refine = inputs
-        tr = equilibrium_tracks(params, n_t=samples, max_refine=refine, cancel=cancelled)
+        return critical_spec(params, track=True, n_t=samples, max_refine=refine)
+
+    def job(self, inputs: tuple[Params, int, int | None], cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
+        tr = critical_points(self.spec(inputs), cancel=cancelled)
         if tr.completed:  # else a newer setting: its own tracks job is on the way
             yield segments_by_type(tr.branches()), tr.section()
 

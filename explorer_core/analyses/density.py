@@ -242,20 +242,25 @@ class DensitySpec:
     view: tuple[float, float, float, float]
     pixels: tuple[int, int]
     numerics: Numerics
+    #: Initial conditions given beside the random ones (after them).
+    points: tuple[tuple[float, float], ...] = ()
 
     @property
     def ics(self) -> np.ndarray:
-        return random_ics(self.random, self.box, seed=self.seed)
+        drawn = random_ics(self.random, self.box, seed=self.seed) if self.random else np.empty((0, 2))
+        return np.concatenate([drawn, np.array(self.points, dtype=float).reshape(-1, 2)])
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "numerics": self.numerics.as_dict(),
-                "ics": {"random": self.random, "box": list(self.box), "seed": self.seed},
-                "transient": self.transient}  # fmt: skip
+                "ics": {"random": self.random, "box": list(self.box), "seed": self.seed,
+                        "points": [list(p) for p in self.points]},
+                "transient": self.transient, "view": list(self.view), "pixels": list(self.pixels)}  # fmt: skip
 
 
 @command_line(
     periods=Arg("section points per trajectory", "int", scene="periods", positional=True, metavar="N"),
     random=Arg("random initial conditions in --box", "int", metavar="N"),
+    ics=Arg("initial condition beside the random ones (repeatable)", "points", flag="--ic"),
     seed=Arg("seed of --random", "int"),
     box=Arg("box of the initial conditions", "box", scene="box", positional=True),
     transient=Arg("periods dropped first", "int", scene="transient"),
@@ -270,6 +275,7 @@ def density_spec(
     *,
     random: int = 1000,
     seed: int = 0,
+    ics: Any = None,
     transient: int = 0,
     view: Sequence[float] | None = None,
     pixels: Sequence[int] = (800, 600),
@@ -283,10 +289,13 @@ def density_spec(
         periods = check_int("periods", periods, 1, config.MAX_PERIODS)
         at("transient")
         transient = check_int("transient", transient, 0, config.MAX_PERIODS)
+        at("ics")
+        points = () if ics is None else tuple((float(q), float(r)) for q, r in check_ics(ics))
         at("random")
-        random = check_int("random", random, 1, config.MAX_TRAJECTORIES)
-        if random * periods > MAX_DENSITY_POINTS:
-            raise ParameterError(f"{random} initial conditions x {periods} periods = {random * periods} points; "
+        random = check_int("random", random, 0 if points else 1, config.MAX_TRAJECTORIES)
+        n = random + len(points)
+        if n * periods > MAX_DENSITY_POINTS:
+            raise ParameterError(f"{n} initial conditions x {periods} periods = {n * periods} points; "
                                  f"a density image takes at most {MAX_DENSITY_POINTS}")  # fmt: skip
         at("seed")
         seed = check_int("seed", seed, 0, 2**63 - 1)
@@ -299,7 +308,7 @@ def density_spec(
         at("numerics")
         bound = config.DEFAULT_ESCAPE_BOUND if bound is None else float(bound)
         numerics = instance(Numerics)("numerics", numerics or density_numerics(view, px, bound))
-    return DensitySpec(params, periods, transient, random, seed, box, view, px, numerics)  # type: ignore[arg-type]
+    return DensitySpec(params, periods, transient, random, seed, box, view, px, numerics, points)  # type: ignore[arg-type]
 
 
 def density(

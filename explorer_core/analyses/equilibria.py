@@ -835,17 +835,23 @@ class CriticalSpec:
     t: float
     track: bool = False
     n_t: int = 400
+    #: Bisections allowed where the equilibria's count changes (None: 4 per sample).
+    max_refine: int | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        return {"params": self.params.as_dict(), "t": self.t, "track": self.track, "n_t": self.n_t}
+        return {"params": self.params.as_dict(), "t": self.t, "track": self.track, "n_t": self.n_t,
+                "max_refine": self.max_refine}  # fmt: skip
 
 
 @command_line(
     t=Arg("frozen time (default t0)"),
     track=Arg("track them over one period", "switch"),
     n_t=Arg("time samples for --track", "int", default=721),
+    max_refine=Arg("bisections for --track where the equilibria's count changes (default 4 per sample)", "int"),
 )
-def critical_spec(params: Params, t: float | None = None, *, track: bool = False, n_t: int = 400) -> CriticalSpec:
+def critical_spec(
+    params: Params, t: float | None = None, *, track: bool = False, n_t: int = 400, max_refine: int | None = None
+) -> CriticalSpec:
     """A validated :class:`CriticalSpec` (a bad value raises ParameterError naming it); ``t`` default ``t0``."""
     with Checking() as at:
         at("t")
@@ -854,12 +860,15 @@ def critical_spec(params: Params, t: float | None = None, *, track: bool = False
         track = check_bool("track", track)
         at("n_t")
         n_t = check_int("n_t", n_t, 2, 1_000_000)
-    return CriticalSpec(params, t, track, n_t)
+        at("max_refine")
+        max_refine = None if max_refine is None else check_int("max_refine", max_refine, 0, 100_000_000)
+    return CriticalSpec(params, t, track, n_t, max_refine)
 
 
 def critical_points(spec: CriticalSpec, progress: Callable[[Any], None] | None = None,
                     cancel: Callable[[], bool] | None = None) -> Equilibria | Tracks:  # fmt: skip
     """The equilibria of ``spec``: :func:`equilibria` at ``spec.t``, or :func:`equilibrium_tracks` (``track``)."""
     if spec.track:
-        return equilibrium_tracks(spec.params, n_t=spec.n_t, progress=progress, cancel=cancel)
+        return equilibrium_tracks(spec.params, n_t=spec.n_t, max_refine=spec.max_refine, progress=progress,
+                                  cancel=cancel)  # fmt: skip
     return equilibria(spec.params, spec.t)

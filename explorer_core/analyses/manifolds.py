@@ -725,9 +725,8 @@ def manifolds(
         if orbit is not None:
             raise TypeError("a ManifoldSpec comes alone, not with an orbit")
         spec = params
-        params, orbit = spec.params, saddle_orbit(spec.params, spec.point, spec.period)
-        kw = {"kinds": spec.kinds, "length": spec.length, "view": spec.view, "pixels": spec.pixels,
-              "delta_px": spec.delta_px, "numerics": spec.numerics, "max_points": spec.max_points, **kw}  # fmt: skip
+        params, orbit = spec.params, spec.saddle()
+        kw = {**spec.growth(), **kw}
     return run_updates(iter_manifolds(params, orbit, **kw), progress)
 
 
@@ -747,6 +746,22 @@ class ManifoldSpec:
     delta_px: float = DELTA_PX
     max_points: int = 200_000
     numerics: Numerics = MANIFOLD_NUMERICS
+
+    @property
+    def saddle_numerics(self) -> Numerics:
+        """The map Newton finds the saddle on: these numerics, at least as accurate as an orbit's
+        (:data:`~explorer_core.analyses.orbits.ORBIT_NUMERICS`: 1e-12), the method chosen again by the rule."""
+        return self.numerics.loosened(min(self.numerics.rtol, ORBIT_NUMERICS.rtol))
+
+    def saddle(self) -> Orbit:
+        """The saddle orbit (:func:`saddle_orbit` from ``point`` on :attr:`saddle_numerics`); ParameterError when
+        Newton finds none or the orbit is not a saddle."""
+        return saddle_orbit(self.params, self.point, self.period, numerics=self.saddle_numerics)
+
+    def growth(self) -> dict[str, Any]:
+        """:func:`iter_manifolds`' keywords for this spec (the branches, window, refinement, numerics)."""
+        return {"kinds": self.kinds, "length": self.length, "view": self.view, "pixels": self.pixels,
+                "delta_px": self.delta_px, "numerics": self.numerics, "max_points": self.max_points}  # fmt: skip
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "point": list(self.point), "period": self.period,

@@ -76,10 +76,10 @@ def section_spec(
 ) -> SectionSpec:
     """A validated :class:`SectionSpec` (a bad value raises ParameterError naming it).
 
-    The initial conditions: ``ics`` (n, 2), or ``random`` of them uniform in ``box`` (default
-    :data:`DEFAULT_RANDOM_BOX`) from ``seed``. ``numerics`` default: a picture's of ``view`` over the whole run
-    (:func:`~explorer_core.scenes.plot_numerics`) escaping at ``bound``, or :class:`Numerics` (with ``bound``)
-    when there is no view.
+    The initial conditions: ``random`` of them uniform in ``box`` (default :data:`DEFAULT_RANDOM_BOX`) from
+    ``seed``, then the given ``ics`` (n, 2) (as a scene's: its random ones, then its points). ``numerics``
+    default: a picture's of ``view`` over the whole run (:func:`~explorer_core.scenes.plot_numerics`) escaping at
+    ``bound``, or :class:`Numerics` (with ``bound``) when there is no view.
     """
     with Checking() as at:
         at("periods")
@@ -92,18 +92,19 @@ def section_spec(
         seed = check_int("seed", seed, 0, 2**63 - 1)
         at("box")
         box = check_optional_box(box, "box")
+        at("ics")
+        given = np.empty((0, 2)) if ics is None else check_ics(ics)
         origin = None
         if random is not None:
             at("random")
-            if ics is not None:
-                raise ParameterError("give either initial conditions or random ones, not both")
             random = check_int("random", random, 1, config.MAX_TRAJECTORIES)
             box = box or DEFAULT_RANDOM_BOX
-            ics, origin = random_ics(random, box, seed=seed), {"random": random, "box": list(box), "seed": seed}
+            origin = {"random": random, "box": list(box), "seed": seed, "points": given.tolist()}
+            given = np.concatenate([random_ics(random, box, seed=seed), given])  # as a scene's: random ones first
         at("ics")
-        if ics is None:
+        if given.shape[0] == 0:
             raise ParameterError("give initial conditions: --ic Q,R (repeatable) or --random N")
-        ics = check_ics(ics)
+        ics = given
         if ics.shape[0] * periods > config.MAX_POINTS:
             raise ParameterError(f"{ics.shape[0]} trajectories x {periods} periods = {ics.shape[0] * periods} "
                                  f"points exceeds the limit {config.MAX_POINTS}")  # fmt: skip
