@@ -28,8 +28,9 @@ from app.controller import ExplorerSession
 from app.layers.base import plain as _plain
 from app.views import BACKEND
 from explorer_core.analyses.bifurcation import DIAGRAM_PLOT_BOUND, DIAGRAM_PLOT_RTOL, bifurcation_diagram
-from explorer_core.analyses.continuation import chart_boundaries, continue_from_seeds
+from explorer_core.analyses.continuation import chart_boundaries, continue_from_seeds, seeds_spec
 from explorer_core.analyses.lyapunov import lyapunov_spec, lyapunov_spectrum
+from explorer_core.analyses.orbits import ORBIT_NUMERICS
 from explorer_core.analyses.regimes import REGIMES, chart_numerics, chart_spec, iter_chart
 from explorer_core.analyses.sweeps import sweep_values
 from explorer_core.parallel.cluster import SchedulerError, executor_for, scheduler_from_env
@@ -233,6 +234,7 @@ class LyapunovTab(AnalysisTab):
 class BifurcationTab(AnalysisTab):
     channel = "bifurcation"
     help = BIFURCATION_HELP
+    cont_with = ""  # the continuation's numerics, in words
 
     def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
         super().__init__(session, publish)
@@ -289,6 +291,8 @@ class BifurcationTab(AnalysisTab):
         n, pts, tr, seeding = st.bif_values, st.bif_points, st.bif_transient, st.bif_seeding
         values = sweep_values((lo, hi), n)
         numerics, self.ran_with = st.numerics_for(None, plot_rtol=DIAGRAM_PLOT_RTOL, bound=DIAGRAM_PLOT_BOUND)
+        # The orbits continued after the sweep: the orbits' own map under the page's Method and Accuracy.
+        cont_numerics, self.cont_with = st.numerics_for(ORBIT_NUMERICS)
         follow = st.bif_orbits
 
         def job(cancelled, emit) -> None:
@@ -313,7 +317,8 @@ class BifurcationTab(AnalysisTab):
             emit(lambda: self.set_view(message=self.view["message"] + "; continuing the orbits…"))
             # Seeds: where the sweep's trajectories settled at the first value, and its initial conditions.
             seeds = np.concatenate([d.final[0, 0][np.asarray(d.status[0, 0]) == Status.OK], ics])
-            cont = continue_from_seeds(params, name, (lo, hi), seeds, max_orbits=4, cancel=cancelled)
+            spec = seeds_spec(params, name, (lo, hi), seeds, max_orbits=4, numerics=cont_numerics)
+            cont = continue_from_seeds(spec, cancel=cancelled)
             if not cancelled():
                 emit(lambda: self._continued(cont))
 
@@ -352,6 +357,7 @@ class BifurcationTab(AnalysisTab):
                   f"(± {b.error:.1g})" for b in bifs[:12]]  # fmt: skip
         lines += cont.messages[:3]
         lines += [loss.line() for loss in cont.lost[:4]]  # a branch that stopped short says so on screen
+        lines.append(f"continuation numerics: {self.cont_with}")
         head = self.view["message"].replace("; continuing the orbits…", "")
         self.set_view(result=lines, message=head)
 

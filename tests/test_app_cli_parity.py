@@ -226,3 +226,26 @@ def test_the_body_views_spec_is_the_command_lines(monkeypatch, accuracy: str) ->
     flags = [f"--ic={inputs.q!r},{inputs.r!r}", "--periods", str(app.periods), "--samples", str(app.samples)]
     cli = _cli_spec(monkeypatch, "body", *_system_flags(page.state.system()), *flags, *_numerics_flags(app.numerics))
     assert app == cli and app.as_dict() == cli.as_dict()
+
+
+@pytest.mark.parametrize(("method", "accuracy"), [("auto", "plot"), ("dop853", "high")])
+def test_the_orbit_diagrams_continuation_is_the_command_lines(monkeypatch, method: str, accuracy: str) -> None:
+    seen = []
+    real = analyses.continue_from_seeds
+    monkeypatch.setattr(analyses, "continue_from_seeds", lambda spec, **kw: seen.append(spec) or real(spec, **kw))
+    sess = _session("fig10")
+    st = sess.state
+    st.param.update(bif_values=4, bif_points=8, bif_transient=200, bif_range=(-0.36, -0.355), bif_orbits=True,
+                    method=method, accuracy=accuracy)  # fmt: skip
+    tab = analyses.BifurcationTab(sess)
+    tab.run()
+    (spec,) = seen
+    assert (spec.numerics.rtol, spec.numerics.method) == (1e-12, "vern9" if method == "auto" else method)
+    assert f"continuation numerics: {spec.numerics.method} at rtol 1e-12" in "\n".join(tab.view["result"])
+    # each orbit found is continued as `bilimovich continue` continues it from the same point
+    q, r = -0.5, -1.0
+    app = spec.for_orbit((q, r), 1)
+    cli = _cli_spec(monkeypatch, "continue", *_system_flags(st.system()), "--param", "alpha", "--range=-0.36,-0.355",
+                    f"--from={q!r},{r!r}", "--period", "1", "--switch", "--max-points", "30",
+                    *_numerics_flags(app.numerics))  # fmt: skip
+    assert app == cli.__class__(**{**cli.__dict__, "options": app.options})  # the CLI's --max-points aside
