@@ -202,8 +202,14 @@ def test_the_tprime_layers_spec_is_the_command_lines(monkeypatch, kind: str, acc
     assert page.state.tprime_kind == kind
     app = layer.spec(layer.inputs())
     st = page.state
-    flags = [f"--q-range={st.q_range[0]!r},{st.q_range[1]!r}", f"--r-range={st.r_range[0]!r},{st.r_range[1]!r}",
-             "--grid", str(app.grid), *(["--per-period"] if app.per_period else []), *_numerics_flags(app.numerics)]
+    flags = [
+        f"--q-range={st.q_range[0]!r},{st.q_range[1]!r}",
+        f"--r-range={st.r_range[0]!r},{st.r_range[1]!r}",
+        "--grid",
+        str(app.grid),
+        *(["--per-period"] if app.per_period else []),
+        *_numerics_flags(app.numerics),
+    ]
     cli = _cli_spec(monkeypatch, "tprime", *_system_flags(st.system()), *flags)
     assert app == cli and app.as_dict() == cli.as_dict()
     assert app.per_period == (kind == "per-period")
