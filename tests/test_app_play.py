@@ -15,7 +15,7 @@ from app.page import Page
 from app.play import ACK_TIMEOUT, FRAME_PERIODS
 from app.runner import WARM
 from app.state import state_from_query
-from explorer_core.analyses.orbits import find_orbits
+from explorer_core.analyses.orbits import SWITCH_LADDER, find_orbits
 
 
 @pytest.fixture(autouse=True)
@@ -312,7 +312,8 @@ def test_an_orbit_born_at_a_fold_between_frames_is_found_from_the_trajectory_tha
 def test_near_the_fold_the_saddle_of_the_pair_is_found_along_the_nodes_weak_direction() -> None:
     """Played closer to the fold (-0.489 -> -0.4905), the node found from the settled trajectory at -0.4905 has its
     largest multiplier 0.804 (real, near +1): its partner, the period-3 saddle 0.04 away (mu 1.130), is searched
-    from 6 seeds along that multiplier's eigenvector and found; both are orbits an independent grid search finds.
+    from seeds along that multiplier's eigenvector (the continuation's ladder, both sides) and found; both are
+    orbits an independent grid search finds.
     (Fails on the old code: no period-3 orbit at all while playing.)"""
     import app.layers.orbits as layer
 
@@ -339,7 +340,8 @@ def test_near_the_fold_the_saddle_of_the_pair_is_found_along_the_nodes_weak_dire
     three = [o for o in page.session.orbits if o["period"] == 3]
     assert sorted(o["type"] for o in three) == ["saddle", "stable node"], three
     # The added work: partner seeds only in the job that found the node (every job's count, in order).
-    assert sum(seeds) == 6 and seeds[-1] == 6, seeds
+    rungs = 2 * len(SWITCH_LADDER)  # the core's one ladder, on both sides of the node
+    assert sum(seeds) == rungs and seeds[-1] == rungs, seeds
     grid = find_orbits(page.state.system(), [(q, r) for q in np.linspace(-2.0, 1.0, 12)
                                              for r in np.linspace(-3.5, 0.5, 12)], [3])  # fmt: skip
     for o in three:

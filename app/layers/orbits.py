@@ -18,8 +18,10 @@ from explorer_core.analyses.orbits import (
     Orbit,
     OrbitSearch,
     OrbitSpec,
+    eigenvector,
     find_orbits,
     grid_seeds,
+    ladder_seeds,
     orbit_search,
     orbit_spec,
     same_orbit,
@@ -39,9 +41,9 @@ ORBIT_GRID = (10, 10)
 ORBIT_ROWS = 40
 #: While a parameter is played, an orbit of period n found with a real multiplier past -1 (a period doubling
 #: happened since the last frame) is searched for the period-2n orbit born there, from seeds along the
-#: multiplier's eigenvector at these distances (relative to 1 + |x|): the born orbit's distance grows like the
-#: square root of the parameter's distance from the doubling, which a frame's step does not tell.
-BIRTH_STEPS = (1e-2, 3e-2, 1e-1)
+#: multiplier's eigenvector at the distances of the continuation's branch switching (the core's one ladder,
+#: :data:`~explorer_core.analyses.orbits.SWITCH_LADDER`): the born orbit's distance grows like the square root of
+#: the parameter's distance from the doubling, which a frame's step does not tell.
 #: While a parameter is played, a frame's trajectory whose last points repeat with period n (the core's rule
 #: ``recurrence.PLAY``) has settled on a cycle; one no orbit on screen is within NEAR of (relative to 1 + |x|: an
 #: orbit born at a fold since the last frame, a pair out of nothing, away from every followed orbit) is handed to
@@ -52,7 +54,7 @@ SETTLED_WORDS = "born since the last frame (a trajectory settled on it)"
 #: A fold pair's partner: an orbit of period n whose largest multiplier is real and within FOLD_NEAR of +1, with no
 #: orbit of period n near it (0.3, relative to 1 + |x|), is searched for its partner across the fold (the saddle of a
 #: node found settled, or the node of a followed saddle) from seeds on both sides along that multiplier's eigenvector
-#: (:data:`BIRTH_STEPS`): the pair's distance grows like the square root of the parameter's distance from the fold.
+#: (the same ladder): the pair's distance grows like the square root of the parameter's distance from the fold.
 FOLD_NEAR = 0.25
 #: Follow jobs whose work the layer keeps a record of (OrbitsLayer.work).
 WORK_KEPT = 200
@@ -82,8 +84,8 @@ class OrbitInputs:
 def birth_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[float, float]]]:
     """Seeds, by period, of the orbits born at the period doublings of ``orbits``: for each orbit of period n with
     a real multiplier below -1 and no orbit of period 2n near it (2n up to ``max_period``), points along that
-    multiplier's eigenvector (:data:`BIRTH_STEPS`). A seed Newton takes back to the orbit itself gives that
-    orbit again (least period), drawn once."""
+    multiplier's eigenvector (the continuation's ladder: ``ladder_seeds``). A seed Newton takes back to the orbit
+    itself gives that orbit again (least period), drawn once."""
     out: dict[int, list[tuple[float, float]]] = {}
     for o in orbits:
         n2 = 2 * int(o.period)
@@ -94,18 +96,15 @@ def birth_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[fl
         scale = 1.0 + float(np.abs(x).max())
         if any(p.period == n2 and np.linalg.norm(p.points - x, axis=1).min() < 0.3 * scale for p in orbits):
             continue  # its doubled orbit is followed already
-        w, vecs = np.linalg.eig(o.matrix)
-        v = np.real(vecs[:, int(np.argmin(np.abs(w + 1.0)))])
-        v /= np.linalg.norm(v)
-        out.setdefault(n2, []).extend((float(x[0] + h * scale * v[0]), float(x[1] + h * scale * v[1]))
-                                      for h in BIRTH_STEPS)  # fmt: skip
+        seeds = ladder_seeds(x, eigenvector(o.matrix, -1.0))  # the continuation's ladder (branch switching)
+        out.setdefault(n2, []).extend((float(p[0]), float(p[1])) for p in seeds)
     return out
 
 
 def partner_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[float, float]]]:
     """Seeds, by period, of the partners of the orbits near a fold (their largest multiplier real and within
     :data:`FOLD_NEAR` of +1, no other orbit of their period near): both sides along that multiplier's eigenvector,
-    :data:`BIRTH_STEPS` away. A seed Newton takes back to the orbit itself gives that orbit again, drawn once."""
+    the same ladder away. A seed Newton takes back to the orbit itself gives that orbit again, drawn once."""
     out: dict[int, list[tuple[float, float]]] = {}
     for o in orbits:
         n = int(o.period)
@@ -119,9 +118,8 @@ def partner_seeds(orbits: list[Orbit], max_period: int) -> dict[int, list[tuple[
                for p in orbits):  # fmt: skip
             continue  # its partner is shown already
         v = np.real(vecs[:, i])
-        v /= np.linalg.norm(v)
-        out.setdefault(n, []).extend((float(x[0] + s * h * scale * v[0]), float(x[1] + s * h * scale * v[1]))
-                                     for h in BIRTH_STEPS for s in (1.0, -1.0))  # fmt: skip
+        seeds = ladder_seeds(x, v / np.linalg.norm(v), both=True)  # the same ladder, on both sides
+        out.setdefault(n, []).extend((float(p[0]), float(p[1])) for p in seeds)
     return out
 
 

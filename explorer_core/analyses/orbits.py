@@ -370,6 +370,31 @@ def find_orbits(
 # Seeds.
 
 
+#: The one ladder of distances (relative to ``1 + |x|``) at which a new orbit is sought along a multiplier's
+#: eigenvector from an orbit's point: the doubled orbit at a period doubling (the continuation's branch switching,
+#: tried nearest first until Newton lands on it) and, while a parameter is played, the orbit born at a doubling or
+#: the partner born at a fold since the last frame (the app's following). The born orbit's distance grows like
+#: the square root of the parameter's distance from the bifurcation: the continuation switches at the doubling
+#: itself (the short rungs), a played frame may be well past it (the long ones).
+SWITCH_LADDER = (1e-3, 3e-3, 1e-2, 3e-2, 1e-1)
+
+
+def eigenvector(matrix: np.ndarray, mu: float) -> np.ndarray:
+    """The unit (real part of the) eigenvector of ``matrix`` whose multiplier is nearest ``mu`` (-1: a doubling's,
+    +1: a fold's)."""
+    w, vecs = np.linalg.eig(matrix)
+    v = np.real(vecs[:, int(np.argmin(np.abs(w - mu)))])
+    return v / np.linalg.norm(v)
+
+
+def ladder_seeds(x: np.ndarray, v: np.ndarray, *, both: bool = False,
+                 ladder: Sequence[float] = SWITCH_LADDER) -> list[np.ndarray]:  # fmt: skip
+    """Points from the orbit's point ``x`` along the unit direction ``v`` at the distances of ``ladder`` (relative
+    to ``1 + |x|``), nearest first; ``both``: on both sides."""
+    scale = 1.0 + float(np.abs(x).max())
+    return [x + s * h * scale * v for h in ladder for s in ((1.0, -1.0) if both else (1.0,))]
+
+
 def grid_seeds(box: Sequence[float], nx: int, ny: int) -> np.ndarray:
     """Pixel centres of an ``nx`` x ``ny`` grid over ``box = (q0, q1, r0, r1)``."""
     q0, q1, r0, r1 = check_box(box)

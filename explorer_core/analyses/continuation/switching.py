@@ -16,7 +16,7 @@ from explorer_core.analyses.continuation.engine import _Engine, _Point
 from explorer_core.analyses.continuation.events import _locate, _refine
 from explorer_core.analyses.continuation.problems import _BranchProblem
 from explorer_core.analyses.continuation.system import _Stop
-from explorer_core.analyses.orbits import minimal_period
+from explorer_core.analyses.orbits import eigenvector, ladder_seeds, minimal_period
 
 #: A branch's birth point: at the turn of the parameter, ``|P^d(x) - x|`` is below this fraction of its value
 #: at the neighbouring points (it vanishes like the square root of the distance to the birth).
@@ -68,14 +68,11 @@ def _birth_point(prob: _BranchProblem, at: _Point, d: int) -> _Point:
 
 def _switch(eng: _Engine, prob2: _BranchProblem, at: _Point) -> tuple[np.ndarray, float]:
     """A point of the period-``2n`` branch born at the period doubling ``at`` (a point of the period-``n`` branch)."""
-    mu, vecs = np.linalg.eig(at.A)
-    v = np.real(vecs[:, int(np.argmin(np.abs(mu + 1.0)))])
-    v /= np.linalg.norm(v)
+    v = eigenvector(at.A, -1.0)
     x_star, s_star = at.X[:2], at.X[2]
-    for h in (1e-3, 3e-3, 1e-2, 3e-2):
-        hh = h * (1.0 + float(np.abs(x_star).max()))
-        X_pred = np.array([*(x_star + hh * v), s_star])
-        c = np.array([v[0], v[1], 0.0])
+    c = np.array([v[0], v[1], 0.0])
+    for x in ladder_seeds(x_star, v):  # the one ladder (the app's following climbs it too)
+        X_pred = np.array([*x, s_star])
         try:
             # Full Newton: at the pitchfork of P^2n the bordered Jacobian is singular, so F_s must be
             # taken at each iterate (off the doubling point), not frozen at it.
