@@ -42,7 +42,7 @@ import numpy as np
 from numba import njit
 
 from explorer_core import config, export
-from explorer_core.analyses.orbits import ORBIT_NUMERICS, Orbit, find_orbits
+from explorer_core.analyses.orbits import ORBIT_NUMERICS, Orbit, at_least_orbit_accuracy, find_orbits
 from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -671,7 +671,8 @@ def iter_manifolds(
     numerics = numerics or MANIFOLD_NUMERICS
     n = orbit.period
     pts = orbit.points
-    mono = PoincareMap.of(params, ORBIT_NUMERICS, workers=workers).derivative(pts, n)
+    # the saddle's eigenvectors on the map it is found on (ManifoldSpec.saddle_numerics: the same rule)
+    mono = PoincareMap.of(params, at_least_orbit_accuracy(numerics), workers=workers).derivative(pts, n)
     if not np.all(mono.ok):
         raise ParameterError("the monodromy matrix at a point of the orbit could not be computed")
     eig = [saddle_eigenvectors(mono.matrix[j]) for j in range(pts.shape[0])]
@@ -751,7 +752,7 @@ class ManifoldSpec:
     def saddle_numerics(self) -> Numerics:
         """The map Newton finds the saddle on: these numerics, at least as accurate as an orbit's
         (:data:`~explorer_core.analyses.orbits.ORBIT_NUMERICS`: 1e-12), the method chosen again by the rule."""
-        return self.numerics.loosened(min(self.numerics.rtol, ORBIT_NUMERICS.rtol))
+        return at_least_orbit_accuracy(self.numerics)
 
     def saddle(self) -> Orbit:
         """The saddle orbit (:func:`saddle_orbit` from ``point`` on :attr:`saddle_numerics`); ParameterError when

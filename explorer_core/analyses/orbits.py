@@ -246,17 +246,31 @@ def _failures(res: NewtonResult, seeds: np.ndarray) -> list[OrbitFailure]:
             for f in res.failures]  # fmt: skip
 
 
+def at_least_orbit_accuracy(numerics: Numerics) -> Numerics:
+    """``numerics`` at least as accurate as an orbit's (:data:`ORBIT_NUMERICS`: 1e-12), the method chosen again
+    by the rule if it chose: the map a saddle and its eigenvectors are computed on before its manifolds grow."""
+    return numerics.loosened(min(numerics.rtol, ORBIT_NUMERICS.rtol))
+
+
 def orbit_from(
-    params: Params, x: np.ndarray, period: int, mono: Monodromy, iterations: int, seed: Any, unit_tol: float = UNIT_TOL
+    params: Params,
+    x: np.ndarray,
+    period: int,
+    mono: Monodromy,
+    iterations: int,
+    seed: Any,
+    unit_tol: float = UNIT_TOL,
+    numerics: Numerics = ORBIT_NUMERICS,
 ) -> Orbit:
-    """An :class:`Orbit` from a converged point ``x`` and the monodromy of ``period`` periods there."""
+    """An :class:`Orbit` from a converged point ``x`` and the monodromy of ``period`` periods there (computed on
+    ``numerics``, the map Newton ran on: the matrix at another point of the orbit is computed on it too)."""
     pts = np.vstack([x[None, :], mono.points[0, : period - 1]])
     shift = int(np.lexsort((pts[:, 1], pts[:, 0]))[0])
     a = mono.matrix[0]
     if shift:
         # DP^n at another point of the orbit is conjugate (same multipliers); recompute it there exactly.
         x0 = pts[shift]
-        mono = PoincareMap.of(params, ORBIT_NUMERICS).derivative(x0, period)
+        mono = PoincareMap.of(params, numerics).derivative(x0, period)
         a = mono.matrix[0]
         pts = np.roll(pts, -shift, axis=0)
         res = float(np.linalg.norm(mono.end[0] - x0))
@@ -349,7 +363,7 @@ def find_orbits(
         mono, n = c.mono, int(all_periods[c.i])
         if c.least < n:
             mono, n = PoincareMap.of(params, numerics).derivative(c.x, c.least), c.least  # the orbit's own period
-        orb = orbit_from(params, c.x, n, mono, c.iterations, all_seeds[c.i], unit_tol)
+        orb = orbit_from(params, c.x, n, mono, c.iterations, all_seeds[c.i], unit_tol, numerics)
         if box is not None and not np.all(
             (orb.points[:, 0] >= box[0])
             & (orb.points[:, 0] <= box[1])
