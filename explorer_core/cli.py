@@ -956,8 +956,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     global _signals
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
     prefix = f"bilimovich {args.command}"
+    if unknown:  # named with its command (argparse's top-level message says only "bilimovich")
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
+        sub.error(f"unrecognized arguments: {' '.join(unknown)}")
     # Python warnings (numpy's overflow in a hostile input, say) are collected: one line each, in this
     # command's words, after a run that succeeded; a failed run says only why it failed.
     outer = _signals

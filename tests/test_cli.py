@@ -164,6 +164,11 @@ def test_scenes_listing() -> None:
         (["tprime", "--q-range", "3,1"], "--q-range: q-range must be finite with lo < hi"),
         (["critical", "--t", "inf", "--json"], "--t: t must be a finite number, got inf"),
         (["critical", "--track"], "give --out FILE (.csv) and/or --json: nothing would be kept"),
+        (
+            ["section", "--ic", "0,0", "--periods", "3", "--bogus", "1"],
+            "bilimovich section: error: unrecognized arguments: --bogus 1",
+        ),
+        (["scenes", "--x"], "bilimovich scenes: error: unrecognized arguments: --x"),
     ],
 )
 def test_bad_input_one_line_no_traceback(args, needle) -> None:
