@@ -61,6 +61,16 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see --help)\n")
 
+    def parse_args(self, args: Any = None, namespace: Any = None) -> argparse.Namespace:  # type: ignore[override]
+        # An unknown option is named with its command (argparse's top-level message says only "bilimovich").
+        ns, unknown = self.parse_known_args(args, namespace)
+        if unknown:
+            subs = [a for a in self._actions if isinstance(a, argparse._SubParsersAction)]
+            command = getattr(ns, "command", None)
+            where = subs[0].choices[command] if subs and command in subs[0].choices else self
+            where.error(f"unrecognized arguments: {' '.join(unknown)}")
+        return ns
+
     def _parse_optional(self, arg_string: str) -> Any:
         # A word with one leading '-' that is no option of this parser is a value (-0.1,-2, -inf, -x): the
         # commands have no short options but -h, so nothing else could be meant. One rule, no list of names.
@@ -352,9 +362,12 @@ def _finish(args: argparse.Namespace, summary: dict[str, Any], lines: Callable[[
     stdout, the losses and ``notes`` on stderr; exit ``128 + signal`` when the work was interrupted (what was
     computed has been written), :data:`FAILED_STATUS` when every member failed."""
     lost = getattr(result, "lost", None)
-    if lost is not None:  # results adopt losses.Loss one by one: report whichever has them
-        summary["complete"] = bool(getattr(result, "complete", not lost))
-        summary["lost"] = [loss.as_dict() for loss in lost]
+    if completed is None:
+        completed = bool(getattr(result, "completed", True))
+    if result is not None:  # one completeness vocabulary in every JSON: `completed` (reached its end), `complete`
+        summary["completed"] = completed  # (completed, nothing lost), `lost` (what, how many, why)
+        summary["complete"] = completed and bool(getattr(result, "complete", not lost))
+        summary["lost"] = [loss.as_dict() for loss in lost or ()]
     if getattr(args, "json", False) if as_json is None else as_json:
         _print_json(summary)
     elif not getattr(args, "quiet", False):
@@ -363,8 +376,6 @@ def _finish(args: argparse.Namespace, summary: dict[str, Any], lines: Callable[[
             print(text)
     for note in [*(loss.line() for loss in lost or ()), *notes]:
         sys.stderr.write(f"bilimovich {args.command}: {note}\n")
-    if completed is None:
-        completed = bool(getattr(result, "completed", True))
     if not completed:
         sys.stderr.write(f"bilimovich {args.command}: interrupted; the {what} computed so far were written\n")
         return _signals.status() if _signals is not None else 130
@@ -956,11 +967,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     global _signals
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
-    args, unknown = parser.parse_known_args(argv)
+    args = parser.parse_args(argv)
     prefix = f"bilimovich {args.command}"
-    if unknown:  # named with its command (argparse's top-level message says only "bilimovich")
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[args.command]
-        sub.error(f"unrecognized arguments: {' '.join(unknown)}")
     # Python warnings (numpy's overflow in a hostile input, say) are collected: one line each, in this
     # command's words, after a run that succeeded; a failed run says only why it failed.
     outer = _signals

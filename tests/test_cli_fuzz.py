@@ -353,7 +353,7 @@ def _parse(argv: list[str], monkeypatch: pytest.MonkeyPatch) -> tuple[str, objec
 
     err = io.StringIO()
     with monkeypatch.context() as m, contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        m.setattr(argparse.ArgumentParser, "parse_args", stop_after_parsing)
+        m.setattr(cli._Parser, "parse_args", stop_after_parsing)
         m.setattr(cli, "build_parser", lambda *a: PARSER)  # built once: a parser is reusable
         try:
             cli.main(argv)

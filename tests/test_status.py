@@ -255,7 +255,13 @@ def test_cli_outputs_carry_names_and_read_back(name: str, tmp_path) -> None:
     argv = [a.replace("{d}", str(tmp_path)) for a in CLI_RUNS[name]]
     rc, out, err = run_cli(*argv)
     assert rc == 0, err
-    _check_names(json.loads(out), name)
+    summary = json.loads(out)
+    _check_names(summary, name)
+    # One completeness vocabulary (README, "What a result lost"): `completed` (the run reached its end) and
+    # `complete` (completed and nothing lost), both booleans, in every command's JSON.
+    assert isinstance(summary["completed"], bool) and isinstance(summary["complete"], bool), name
+    assert summary["completed"] or not summary["complete"]
+    assert summary["complete"] == (summary["completed"] and not summary["lost"])
     for path in sorted(tmp_path.iterdir()):
         if path.suffix == ".csv":
             with path.open() as fh:
