@@ -513,7 +513,8 @@ def draw_chart(chart: Chart, *, ic: int = 0, **opts: Any) -> hv.Image:
     spec = chart.spec
     x, y = np.asarray(spec.x_values, float), np.asarray(spec.y_values, float)
     regime = np.array(REGIMES, dtype=object)[chart.regime[..., ic]]
-    img = hv.Image((x, y, chart_index(chart, ic), regime, chart.period[..., ic], chart.lyap[..., ic]),
+    period, lyap = chart.measured()  # NaN (shown as such) where nothing was measured, never 0
+    img = hv.Image((x, y, chart_index(chart, ic), regime, period[..., ic], lyap[..., ic]),
                    kdims=[spec.x_param, spec.y_param], vdims=["colour", "regime", "period", "Λ1"])  # fmt: skip
     title = f"Chart of regimes in ({spec.x_param}, {spec.y_param})"
     if chart.lost:

@@ -181,7 +181,7 @@ def test_invalid_pixels_and_several_initial_conditions(tmp_path) -> None:
     path = tmp_path / "c.csv"
     assert chart.to_csv(str(path)) == 12
     rows = list(csv.reader(path.open()))
-    assert rows[0] == ["i", "j", "alpha", "I11", "ic", "regime", "period", "lyap", "status"]
+    assert rows[0] == ["i", "j", "alpha", "I11", "ic", "regime", "period", "lyap", "status", "inferred"]
     assert {r[5] for r in rows[1:3]} == {"invalid"}
 
 

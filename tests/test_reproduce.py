@@ -50,7 +50,11 @@ def test_cli_reproduce_tiny_writes_every_figure_and_the_table(tmp_path, capsys) 
         with open(p, "rb") as fh:
             assert fh.read(8) == b"\x89PNG\r\n\x1a\n"
     rows = list(csv.reader((out / "table.csv").open()))
-    assert rows[0] == ["figure", "quantity", "paper", "ours", "uncertainty", "settings", "note"]
+    assert rows[0] == ["figure", "quantity", "paper", "ours", "uncertainty", "paper_text", "ours_text", "settings",
+                       "note"]  # fmt: skip
+    # Every stage's rows read back as numbers (issue 35: "+-" text and commas in quoted fields did not).
+    t = np.genfromtxt(out / "table.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    assert t.shape == (len(rows) - 1,) and all(t[n].dtype.kind == "f" for n in ("paper", "ours", "uncertainty"))
     figs = {r[0] for r in rows[1:]}
     assert {"Fig. 3", "Fig. 4A", "Fig. 4B", "Fig. 6A", "Fig. 6B", "Fig. 8B", "Fig. 9", "Fig. 10", "Fig. 11"} <= figs
     md = (out / "table.md").read_text()

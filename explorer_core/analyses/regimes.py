@@ -30,6 +30,11 @@ is decided (:func:`compute_tile`); :func:`compute_tile_each` is the reference th
 every member the whole way. With ``refine=True`` the finer levels are computed only
 where the coarser one is not uniform (:func:`refine_level`) and the other pixels are
 filled (``Chart.inferred``).
+
+Files (NPZ and CSV) hold what was not measured as missing, never as a number that averages: ``period`` is
+NaN (``nan`` in CSV) unless the regime is periodic, ``lyap`` NaN for a pixel that escaped, failed, is
+invalid, was not computed or was filled from its neighbours (:meth:`Chart.measured`). Until issue 35 they
+held ``period = 0`` and ``lyap = 0.0`` there.
 """
 
 from __future__ import annotations
@@ -856,6 +861,19 @@ class Chart(Drawable):
             s *= 2
         return out
 
+    def measured(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(period, lyap)`` as the files hold them: floats, NaN where nothing was measured.
+
+        ``period`` only where the regime is periodic (a chaotic or quasi-periodic pixel has none, an escaped
+        one was never judged); ``lyap`` only where a computed pixel settled on a regime (periodic,
+        quasi-periodic, chaotic): an escape or a failure ends the measurement early, and a pixel filled from
+        its neighbours (``inferred``) copied its neighbour's exponent.
+        """
+        done = (self.computed & ~self.inferred)[..., None]
+        period = np.where(self.computed[..., None] & (self.regime == PERIODIC), self.period, np.nan)
+        settled = np.isin(self.regime, (PERIODIC, QUASI_PERIODIC, CHAOTIC))
+        return period, np.where(done & settled, self.lyap, np.nan)
+
     def multistable(self) -> np.ndarray:
         """``[j, i]``: True where the initial conditions found different regimes or periods."""
         c = self.code()
@@ -926,14 +944,16 @@ class Chart(Drawable):
         )
 
     def to_npz(self, path: str) -> None:
-        """Arrays plus the spec as JSON, so the file says what it holds."""
+        """Arrays plus the spec as JSON, so the file says what it holds; ``period`` and ``lyap`` are floats with
+        NaN where nothing was measured (:meth:`measured`)."""
+        period, lyap = self.measured()
         np.savez_compressed(
             path,
             x=self.spec.x_values,
             y=self.spec.y_values,
             regime=self.regime,
-            period=self.period,
-            lyap=self.lyap,
+            period=period,
+            lyap=lyap,
             status=self.status,
             computed=self.computed,
             inferred=self.inferred,
@@ -943,19 +963,25 @@ class Chart(Drawable):
         )
 
     def to_csv(self, path: str) -> int:
-        """Rows ``i,j,x,y,ic,regime,period,lyap,status`` for the computed pixels."""
+        """Rows ``i,j,x,y,ic,regime,period,lyap,status,inferred`` for the computed pixels; ``period`` and ``lyap``
+        are ``nan`` where nothing was measured (:meth:`measured`; not an empty field: ``numpy.genfromtxt``
+        with ``dtype=None`` fills an empty field of an integer column with -1), ``inferred`` is 1 for a pixel
+        filled from its neighbours."""
+        period, lyap = self.measured()
         rows = 0
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["i", "j", self.spec.x_param, self.spec.y_param, "ic", "regime", "period", "lyap", "status"])
+            w.writerow(["i", "j", self.spec.x_param, self.spec.y_param, "ic", "regime", "period", "lyap", "status",
+                        "inferred"])  # fmt: skip
             fh.writelines(export.comment_lines(export.partial(self)))  # a stopped chart says so
             for j, i in zip(*np.nonzero(self.computed), strict=True):
                 for k in range(self.spec.ics.shape[0]):
                     st = int(self.status[j, i, k])
+                    per = float(period[j, i, k])
                     w.writerow(
                         (int(i), int(j), repr(float(self.spec.x_values[i])), repr(float(self.spec.y_values[j])), k,
-                         REGIMES[self.regime[j, i, k]], int(self.period[j, i, k]), repr(float(self.lyap[j, i, k])),
-                         Status(st).label)
+                         REGIMES[self.regime[j, i, k]], int(per) if math.isfinite(per) else "nan",
+                         repr(float(lyap[j, i, k])), Status(st).label, int(self.inferred[j, i]))
                     )  # fmt: skip
                     rows += 1
         return rows

@@ -81,15 +81,16 @@ class TPrimeMap(Drawable):
         return export.write_by_suffix(path, {".npz": lambda p: export.write_through(p, self.to_npz)}, "T' map")
 
     def to_npz(self, path: Any) -> None:
-        """Arrays plus the parameters as JSON, so the file says what it holds."""
+        """Arrays plus the parameters as JSON, so the file says what it holds. ``values`` and ``sign`` are NaN
+        where nothing was computed (``ok`` false; until issue 35 the file held 0 there, which averages)."""
         np.savez_compressed(
             path,
             kind=self.kind,
             t=self.t,
             q=self.q,
             r=self.r,
-            values=self.values,
-            sign=self.sign,
+            values=np.where(self.ok, self.values, np.nan),
+            sign=np.where(self.ok, self.sign, np.nan),
             ok=self.ok,
             status=self.status,
             status_names=status_names(),

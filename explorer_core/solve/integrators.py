@@ -38,7 +38,7 @@ from explorer_core.solve import rk, taylor
 from explorer_core.solve.rk import FIELD, Status
 from explorer_core.solve.tableaus import METHODS, Method, get_method, resolve_method
 from explorer_core.system.model import Model
-from explorer_core.system.params import Params, check_time
+from explorer_core.system.params import Params, check_time, reduce_time
 
 if TYPE_CHECKING:
     from explorer_core.solve.numerics import Numerics
@@ -262,7 +262,9 @@ def run(
         )
     tab = None if is_taylor else kernel_tableau(meth.name)
     ctl = rk.Control(float(rtol), float(atol), int(max_steps), float(bound), fixed)
-    clock = rk.Clock(batch.t0, batch.period, int(batch.k), n_periods, bool(store), samples)
+    # The clock starts at t0 less whole forcing periods (exactly): a large t0 would round every stage time.
+    t_base = reduce_time(batch.t0, float(coefs.forcing[0, 3]))
+    clock = rk.Clock(t_base, batch.period, int(batch.k), n_periods, bool(store), samples)
     arr = rk.Arrays(batch.y, batch.h, batch.status, batch.nsteps, rec, npts)
     parts = max(1, min(workers or config.N_WORKERS, n))
 

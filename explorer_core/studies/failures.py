@@ -18,7 +18,7 @@ pictures are drawn elsewhere (``app/failure_render.py``) and
   section's wall time scales with periods and initial conditions.
 * :func:`status_scenarios` -- each :class:`~explorer_core.solve.integrators.Status` produced
   by a realistic setting and reported by :func:`~explorer_core.solve.section.section`,
-  plus where the step collapses against the size of ``t``.
+  plus where the step collapsed against the size of ``t`` (nowhere since ``t0`` is reduced exactly).
 * :func:`float_precision` -- the kernels are float64 only; an RK4 in numpy run in
   float32 against float64 shows what single precision would cost.
 * :func:`lyapunov_sensitivity` -- the exponents of Fig. 8B against method and tolerance.
@@ -711,8 +711,10 @@ SCENARIOS = (
      "steps per period grow with |r| until the per-period budget runs out"),
     ("step budget too small", "too_many_steps", "fig8B", {}, ((-0.3181, -2.178),), 10, {"max_steps": 10},
      "max_steps below what one period needs"),
-    ("huge t (t0 = 1e12)", "step_collapsed", "fig1C", {"t0": 1e12}, ((0.5, 0.5),), 10, {},
-     "doubles near 1e12 are 1.2e-4 apart: the step the tolerance needs is below the round-off floor"),
+    ("huge state, no bound", "step_collapsed", "fig1C", {}, ((1e13, 1e13),), 10,
+     {"bound": math.inf, "method": "dop853"},
+     "a state of 1e13 turns so fast that the step it needs is below the round-off floor of the time (a huge "
+     "t0 no longer does: the clock starts at t0's phase, reduced exactly)"),
     ("rk4 too coarse on the drift", "nonfinite", "fig1A", {}, ((-0.3, -100.0),), 10,
      {"method": "rk4", "steps_per_period": 16, "bound": 1e300}, "|r| h = 39 >> 8.4: RK4 is unstable and overflows"),
     ("rk4 too coarse, finite bound", "escaped", "fig1A", {}, ((-0.3, -100.0),), 10,
@@ -759,7 +761,10 @@ def status_scenarios(cancel: Cancel | None = None) -> list[Scenario]:
 def collapse_onset(
     tols: Sequence[float] = (1e-6, 1e-10, 1e-13), exponents: Sequence[int] = tuple(range(4, 17))
 ) -> dict[str, Any]:
-    """Smallest ``t0 = 10^e`` at which one period of DOP853 on Fig. 1C reports ``step_collapsed``.
+    """Smallest ``t0 = 10^e`` at which one period of DOP853 on Fig. 1C reports ``step_collapsed`` (None: none).
+
+    The engine's clock starts at ``t0`` reduced exactly to its phase (:func:`~explorer_core.system.params.
+    reduce_time`), so no resolvable ``t0`` collapses any more (before: from 1e10 at tol 1e-13, 1e13 at 1e-6).
 
     From the ``t0`` whose doubles no longer resolve the forcing phase (:data:`TIME_RESOLUTION` of a period)
     the system is refused before any work: those exponents are labelled ``refused``.
