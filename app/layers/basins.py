@@ -37,7 +37,9 @@ def attractor_words(a: Any) -> str:
         what = f"period-{a.period} cycle"
     else:
         what = a.kind.replace("_", "-") + " attractor"
-    return what + (f" ({a.orbit_type})" if a.orbit_type else "")
+    what += f" ({a.orbit_type})" if a.orbit_type else ""
+    # a chaotic or quasi-periodic set recurred; its seed stayed on it a horizon: no proof it is no long transient
+    return what + (", may be a long transient" if getattr(a, "may_be_transient", False) else "")
 
 
 @dataclass(frozen=True)
@@ -124,6 +126,11 @@ class BasinsLayer(Layer):
             head = f"basins on {b.label.shape[1]} x {b.label.shape[0]} initial conditions: {n_att} attractor(s)"
             if not n_att:
                 head += " (none found: every pixel escaped, failed or was undecided)"
+            unsure = sum(a.may_be_transient for a in b.attractors)
+            if unsure:
+                followed = b.spec.confirm
+                checked = f"beyond the {followed} periods their seeds were followed" if followed else "unchecked"
+                head += f" ({unsure} chaotic or quasi-periodic: may be long transients, {checked})"
             said = [*b.warnings, *(loss.line() for loss in b.lost)]
             self.text = f"{head}, {b.elapsed_s:.2f} s" + "".join(f"; {w}" for w in said[:3])
         else:

@@ -79,7 +79,7 @@ from explorer_core.progress import run as run_updates
 from explorer_core.solve.checks import check_fraction, check_number
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
-from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance
+from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance, integer, option
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.recurrence import CHART, SWEEP, recurrence
 from explorer_core.status import Status, count_names, describe, status_names
@@ -137,6 +137,20 @@ def table_size(cells: tuple[int, int]) -> int:
 
 #: Most attractors (provisional ones included) one computation may register.
 MAX_ATTRACTORS = 4096
+#: Periods a chaotic or quasi-periodic set's seed is continued past where it was located before the set is
+#: listed as an attractor (``BasinSpec.confirm``): Fig. 1C's chaotic set (at the basins' 1e-8) falls onto the
+#: crescent-moon curve after 2,000-9,000 periods at 1e-9..1e-12; Fig. 5A's slow drift escapes at once.
+CONFIRM_PERIODS = 20_000
+#: The continuation runs at the basins' tolerances divided by this, not below CONFIRM_MIN_TOL: at DOP853 1e-8
+#: Fig. 1C's weakly attracting crescent does not hold its trajectories (they wander chaotically for 60,000
+#: periods), at 1e-9 and tighter every seed tried settles on it.
+CONFIRM_TIGHTEN, CONFIRM_MIN_TOL = 100.0, 1e-12
+#: Periods per engine call of the continuation (it stops early when it escapes or falls onto an attractor).
+CONFIRM_CHUNK = 1000
+#: Periods of the Lyapunov run that tells whether a chaotic set's continuation ended on a regular set: on Fig.
+#: 1C's crescent the finite-time exponent decays as 1/n (4.9e-3 over 300 periods, at the threshold; 1.6e-3
+#: over 1000, 5e-4 over 3000), on Fig. 8B's strange attractor it stays near 0.08.
+CONFIRM_LYAP_PERIODS = 5 * LYAP_PERIODS
 
 
 # ---------------------------------------------------------------------------
@@ -162,6 +176,12 @@ class Attractor:
     ``LYAP_PERIODS`` periods not below ``-CONSERVATIVE_LOG_DET`` on a conservative set, below it on an
     attractor (a chaotic set is measured over ``CHAOTIC_BLOCKS`` such blocks: its trend over one wanders);
     ``attracting``: True for attractors, False for a conservative set, None for escape.
+
+    ``confirmed``: a chaotic or quasi-periodic attractor's seed, continued past where it was located at
+    tighter tolerances (:meth:`_Run.confirm`), stayed on it (fell onto no other attractor, did not escape)
+    for this many periods (``BasinSpec.confirm``); None when not checked (a cycle needs no check: Newton and
+    its multipliers make it an attractor). Beyond that horizon such a set may still be a long transient
+    (:attr:`may_be_transient`): a recurrence cannot tell a long transient from an attractor.
     """
 
     id: int
@@ -176,6 +196,12 @@ class Attractor:
     attracting: bool | None = None
     log_det: float | None = None
     measured: int = 0
+    confirmed: int | None = None
+
+    @property
+    def may_be_transient(self) -> bool:
+        """True for a chaotic or quasi-periodic attractor: no finite continuation proves it is no transient."""
+        return bool(self.attracting) and self.kind in ("chaotic", "quasi_periodic")
 
     def as_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -196,7 +222,44 @@ class Attractor:
             out["measured_periods"] = int(self.measured)
         if self.kind != "escape":
             out["seed"] = [float(self.seed[0]), float(self.seed[1])]
+        if self.may_be_transient:
+            out["may_be_transient"] = True
+            out["confirmed_periods"] = self.confirmed
         return out
+
+    def caveat(self) -> str:
+        """What a listing of this attractor adds about its check (empty for a cycle, an island, escape)."""
+        if not self.may_be_transient:
+            return ""
+        if self.confirmed is None:
+            return "not checked: may be a long transient"
+        return f"its seed stayed on it {self.confirmed} more periods; may be a longer transient"
+
+
+@dataclass(frozen=True)
+class Transient:
+    """A recurrent set that is no attractor: its seed, continued (:meth:`_Run.confirm`), fell onto attractor
+    ``onto`` (its id, at the end of a chain of transients; :data:`ESCAPE`: it escaped) within ``after`` periods
+    past where it was located (to its first fall, or the horizon if it ended on a set found there). ``pixels``: the
+    pixels the recurrences had given it, now ``onto``'s; ``points``: a sample of the set."""
+
+    kind: str
+    points: np.ndarray
+    seed: tuple[float, float]
+    onto: int
+    after: int
+    pixels: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "points": [[float(q), float(r)] for q, r in self.points[:16]],
+                "seed": [float(v) for v in self.seed], "onto": self.onto, "after_periods": self.after,
+                "pixels": self.pixels}  # fmt: skip
+
+    def line(self) -> str:
+        at = f" at ({self.points[-1, 0]:.6g}, {self.points[-1, 1]:.6g})" if self.points.shape[0] else ""
+        where = "escaped" if self.onto == ESCAPE else f"fell onto attractor {self.onto}"
+        return (f"a {self.kind.replace('_', '-')} set{at} is a transient, no attractor: its seed, continued, "
+                f"{where} within {self.after} periods; its {self.pixels} pixels go with it")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -226,6 +289,13 @@ class BasinSpec:
     #: Newton on a cell's cycle (:meth:`_Run.cycle`); its map follows ``numerics``' tolerance
     #: (:meth:`~explorer_core.solve.options.NewtonOptions.at`, reference DEFAULT_BASIN_TOL).
     newton: NewtonOptions = field(default_factory=lambda: BASIN_NEWTON)
+    #: The continuation that confirms a chaotic or quasi-periodic set (:meth:`_Run.confirm`).
+    confirm: int = option(
+        CONFIRM_PERIODS,
+        integer(0, config.MAX_PERIODS),
+        "periods a chaotic or quasi-periodic set's seed is continued (at the tolerances / "
+        f"{CONFIRM_TIGHTEN:g}) to confirm it falls onto no other attractor and does not escape (0: no check)",
+    )
 
     @property
     def q(self) -> np.ndarray:
@@ -262,11 +332,19 @@ class BasinSpec:
             "adapt_cells": self.adapt_cells,
             "newton": self.newton.as_dict(),
             "newton_numerics": self.newton_map()[0].as_dict(),
+            "confirm": self.confirm,
+            "confirm_numerics": self.confirm_numerics().as_dict(),
         }
 
     def newton_map(self) -> tuple[Numerics, float]:
         """The map Newton iterates on a cell's cycle and its ``ftol`` (the rule of ``NewtonOptions.at``)."""
         return self.newton.at(self.numerics, DEFAULT_BASIN_TOL)
+
+    def confirm_numerics(self) -> Numerics:
+        """The continuation's numerics: the tolerances divided by CONFIRM_TIGHTEN, not below CONFIRM_MIN_TOL."""
+        n = self.numerics
+        tight = lambda v: min(v, max(CONFIRM_MIN_TOL, v / CONFIRM_TIGHTEN))  # noqa: E731
+        return n.loosened(tight(n.rtol), tight(n.atol))
 
 
 @dataclass
@@ -288,7 +366,12 @@ class Basins(Drawable):
     ``complete``: ``completed`` and nothing lost; ``lost``: the :class:`~explorer_core.losses.Loss` es
     (pixels undecided, failed, not computed or cancelled, still locating; attractors the recurrence
     cells may not resolve), with counts and reasons; ``warnings``: what the labels mean beyond the
-    attractors (pixels on conservative invariant curves, which are in no basin).
+    attractors (pixels on conservative invariant curves, which are in no basin; transients).
+
+    ``not_reached``: recurrent sets no pixel ends on (the seed that located one escaped, failed or was
+    undecided): no basin, so no attractor; their ids are not in ``label``. ``transients``: sets whose seed,
+    continued ``spec.confirm`` periods (``Attractor.confirmed``), fell onto another attractor or escaped; the
+    pixels the recurrences had given them are labelled with where they fell (:class:`Transient`).
     """
 
     spec: BasinSpec
@@ -309,6 +392,8 @@ class Basins(Drawable):
     lost: list[Loss] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     status: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), np.int8))
+    not_reached: list[Attractor] = field(default_factory=list)
+    transients: list[Transient] = field(default_factory=list)
 
     def attractor(self, ident: int) -> Attractor:
         for a in self.attractors:
@@ -340,6 +425,8 @@ class Basins(Drawable):
             note = "; ".join(self.warnings) or None
         out: dict[str, Any] = {
             "attractors": [a.as_dict() for a in self.attractors],
+            "not_reached": [a.as_dict() for a in self.not_reached],
+            "transients": [t.as_dict() for t in self.transients],
             "failed_fraction": float(self.fraction.get(FAILED, 0.0)),
             "undecided_fraction": float(self.fraction.get(UNDECIDED, 0.0)),
             "statuses": dict(self.statuses),
@@ -367,7 +454,11 @@ class Basins(Drawable):
             per = f" period {a.period}" if a.period else ""
             at = f" at ({a.points[0, 0]:.6g}, {a.points[0, 1]:.6g})" if a.points.shape[0] else ""
             what = "attractor" if a.attracting else "not an attractor"  # a conservative island's curves
-            out.append(f"{what} {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%")
+            note = f" ({a.caveat()})" if a.caveat() else ""
+            out.append(f"{what} {a.id}: {a.kind}{per}{at}, basin {100 * a.fraction:.2f}%{note}")
+        for a in self.not_reached:
+            at = f" at ({a.points[0, 0]:.6g}, {a.points[0, 1]:.6g})" if a.points.shape[0] else ""
+            out.append(f"not reached {a.id}: a {a.kind} set{at} that no pixel ends on (no basin, no attractor)")
         out.append(f"{s['computed']}/{s['pixels']} pixels ({describe(self.status[self.computed])}), "
                    f"{self.elapsed_s:.2f} s")  # fmt: skip
         return out + ([s["note"]] if "note" in s else [])
@@ -416,6 +507,10 @@ class BasinsUpdate:
 # Validation.
 
 
+#: The confirmation horizon's declaration (default, check, help): the builder's keyword and flag read it.
+_CONFIRM = BasinSpec.__dataclass_fields__["confirm"]
+
+
 @command_line(
     box=Arg("the initial conditions' window", "box", metavar="Q0,Q1,R0,R1", scene="box", positional=True),
     grid=Arg("pixels", "ints", metavar="NX,NY", positional=True),
@@ -424,6 +519,7 @@ class BasinsUpdate:
         "box of the recurrence cells (default: --box widened by its size on every side)", "box", metavar="Q0,Q1,R0,R1"
     ),
     cells=Arg("recurrence cells per axis (default 64 across --box)", "ints", metavar="NQ,NR"),
+    confirm=Arg(_CONFIRM.metadata["help"], "int", metavar="PERIODS"),
 )
 def basin_spec(
     params: Params,
@@ -444,6 +540,7 @@ def basin_spec(
     lyap_threshold: float = 5e-3,
     inflight: int = 512,
     newton: NewtonOptions = BASIN_NEWTON,
+    confirm: int = _CONFIRM.default,
 ) -> BasinSpec:
     """A validated :class:`BasinSpec`; every bad value raises :class:`ParameterError` naming it.
 
@@ -471,6 +568,8 @@ def basin_spec(
         total; Fig. 8B 2.5 s against 8.8 s in all).
     newton : Newton on a cycle (default :data:`BASIN_NEWTON`: the orbits' preset without patience; its map
         follows ``numerics``' tolerance, 1e-12 at the default 1e-8).
+    confirm : periods a chaotic or quasi-periodic set's seed is continued before the set is listed as an
+        attractor (default :data:`CONFIRM_PERIODS`; 0: no check), see :meth:`_Run.confirm`.
     """
     b = check_box(box)
     try:
@@ -511,10 +610,11 @@ def basin_spec(
     inflight = check_int("inflight", inflight, 1, config.MAX_TRAJECTORIES)
     tol = check_fraction("tol", tol)
     lyap_threshold = check_number("lyap_threshold", lyap_threshold)
+    confirm = _CONFIRM.metadata["check"]("confirm", confirm)
     return BasinSpec(params, b, nx, ny, numerics, cb, cl, chunk, max_periods, recurrences, locate, hit_attractor,
                      hit_basin, p_max, float(tol), float(lyap_threshold), inflight,
                      cells is None and cell_box is None,
-                     instance(NewtonOptions)("newton", newton))  # fmt: skip
+                     instance(NewtonOptions)("newton", newton), confirm)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------
@@ -718,6 +818,11 @@ class _Found:
     orbit: Orbit | None = None
     log_det: float | None = None
     measured: int = 0
+    #: where the member that located it was when it was classified (the seed's trajectory, to continue)
+    tip: np.ndarray | None = None
+    #: periods the continuation stayed on it (:meth:`_Run.confirm`); why it could not be confirmed
+    confirmed: int | None = None
+    unconfirmed: str | None = None
 
 
 def _area_trend(divs: np.ndarray) -> float:
@@ -854,6 +959,7 @@ class _Run:
         self.scale: float | None = None  # the attractors' length scale (attractor_scale), when last checked
         self.refinements = 0  # runs restarted on cells sized from the attractors before this one
         self.earlier = (0, 0)  # periods and steps of those runs
+        self.transients: list[tuple[_Found, int, int, int]] = []  # (set, onto: internal id or ESCAPE, after, pixels)
 
     def roots(self) -> list[_Found]:
         """The classified attractors (roots of the merges)."""
@@ -990,7 +1096,8 @@ class _Run:
             # area not contracted: invariant curves (or a chaotic layer, whose finite-time trend wanders either
             # way: +5.9 over 300 periods in Fig. 2C's merged island) of an island, no attractor
             kind = "conservative"
-        found = _Found(ident, kind, None, pts, None, lyap, seed, None, log_det, measured)  # type: ignore[arg-type]
+        found = _Found(ident, kind, None, pts, None, lyap, seed, None, log_det, measured,  # type: ignore[arg-type]
+                       pts[-1].copy() if pts.shape[0] else None)  # fmt: skip
         self.found[ident] = found
         self.ready[ident] = 1
         self.version += 1
@@ -1030,6 +1137,156 @@ class _Run:
                 f.kind = "chaotic" if "chaotic" in (f.kind, g.kind) else f.kind
                 f.points = np.vstack([f.points, g.points])[-256:]
                 f.log_det = max((v for v in (f.log_det, g.log_det) if v is not None), default=None, key=abs)
+
+    # -- confirmation --------------------------------------------------------------
+
+    def pixels_of(self) -> dict[int, int]:
+        """Pixels labelled with each attractor (root id -> count)."""
+        lab = self.label[self.label >= 0]
+        roots, counts = np.unique(self.root[lab], return_counts=True)  # (the roots are path-compressed)
+        return {int(r): int(c) for r, c in zip(roots, counts, strict=True)}
+
+    def falls_onto(self, pts: np.ndarray, own: int, carry: tuple[int, int]) -> tuple[int, int, tuple[int, int]]:
+        """Scan section points ``pts`` (n, 2) for ``hit_attractor`` in a row in the cells of one classified
+        attractor other than ``own`` (conservative sets aside: nothing falls onto an island), as a pixel is
+        labelled. ``carry``: (attractor, points in a row) from the previous points. Returns ``(that attractor's
+        root or -1, points scanned up to the hit, carry)``."""
+        eligible = [i for i, f in self.found.items()
+                    if self.find(i) == i and i != own and f.kind != "conservative" and self.ready[i]]  # fmt: skip
+        nq, nr = self.spec.cells
+        fq = (pts[:, 0] - self.geom[0]) * self.geom[2]
+        fr = (pts[:, 1] - self.geom[1]) * self.geom[3]
+        ok = (fq >= 0) & (fq < nq) & (fr >= 0) & (fr < nr)
+        owner = np.full(pts.shape[0], -1, np.int64)
+        a = self.att[fr[ok].astype(np.int64) * nq + fq[ok].astype(np.int64)]
+        owner[ok] = np.where(a > 0, self.root[np.maximum(a, 1) - 1], -1)
+        owner[~np.isin(owner, eligible)] = -1
+        prev, count = carry
+        for j, o in enumerate(owner.tolist()):
+            prev, count = (o, count + 1 if o == prev else 1) if o >= 0 else (-1, 0)
+            if count >= self.spec.hit_attractor:
+                return o, j + 1, (prev, count)
+        return -1, -1, (prev, count)
+
+    def confirm(self, cancel: Callable[[], bool] | None = None) -> bool:
+        """Continue the seed of every chaotic or quasi-periodic attractor with pixels ``spec.confirm`` periods past
+        where it was located, at ``spec.confirm_numerics()`` (Attractors.jl's rule: an attractor is what recurs
+        after a transient long enough; 100 recurrences can be a long transient). A set whose continuation
+        escapes, lands ``hit_attractor`` times in a row in another attractor's cells, or ends (its last
+        CONFIRM_CHUNK points) on a stable cycle (Newton) or, for a chaotic set, with a Lyapunov exponent below
+        ``lyap_threshold`` (a regular set: registered as a quasi-periodic attractor), is a transient: its pixels
+        go to where it fell (:meth:`reassign`). One that stays is ``confirmed`` for the horizon. False if
+        ``cancel`` stopped it (the sets not done are ``unconfirmed``, a loss of the result)."""
+        spec = self.spec
+        pixels = self.pixels_of()
+        todo = [f for f in self.roots() if f.kind in ("chaotic", "quasi_periodic") and f.tip is not None
+                and f.confirmed is None and f.unconfirmed is None and pixels.get(f.internal, 0)]  # fmt: skip
+        if not todo or spec.confirm == 0:
+            return True
+        cmap = PoincareMap.of(spec.params, spec.confirm_numerics())
+        state = Batch.start(np.array([f.tip for f in todo]), spec.params.t0, spec.params.period)
+        carry = [(-1, 0)] * len(todo)
+        tails = [np.zeros((0, 2))] * len(todo)
+        live = np.ones(len(todo), bool)
+        onto: dict[int, tuple[int, int]] = {}  # internal id -> (where it fell: internal id or ESCAPE, after periods)
+        done = 0
+        while done < spec.confirm and live.any():
+            if cancel is not None and cancel():
+                for i in np.flatnonzero(live):
+                    todo[i].unconfirmed = f"cancelled after {done} of {spec.confirm} periods of its seed's continuation"
+                return False
+            idx = np.flatnonzero(live)
+            n = min(CONFIRM_CHUNK, spec.confirm - done)
+            # (every chunk starts at the section phase t0: the forcing is periodic, and no large time is summed)
+            sub = Batch(state.y[idx], state.h[idx], state.status[idx], state.nsteps[idx], 0, spec.params.t0,
+                        spec.params.period)  # fmt: skip
+            steps0 = int(sub.nsteps.sum())
+            pts, npts = cmap.advance(sub, n)
+            state.y[idx], state.h[idx], state.status[idx], state.nsteps[idx] = sub.y, sub.h, sub.status, sub.nsteps
+            self.steps += int(sub.nsteps.sum()) - steps0
+            self.periods += int(npts.sum())
+            for c, i in enumerate(idx):
+                f, p = todo[i], pts[c, : npts[c]]
+                hit, j, carry[i] = self.falls_onto(p, f.internal, carry[i])
+                st = Status.of(int(sub.status[c]))
+                if hit >= 0:
+                    onto[f.internal] = (hit, done + j)
+                elif st == Status.ESCAPED:
+                    onto[f.internal] = (ESCAPE, done + int(npts[c]) + 1)  # (it escaped during the next period)
+                elif st != Status.OK:
+                    f.unconfirmed = f"its seed's continuation failed after {done + int(npts[c])} periods: {st.word}"
+                else:
+                    tails[i] = np.vstack([tails[i], p])[-CONFIRM_CHUNK:]
+                    continue
+                live[i] = False
+            done += n
+        for i in np.flatnonzero(live):
+            f = todo[i]
+            hit = self.ends_on(f, tails[i])
+            if hit is None:
+                f.confirmed = spec.confirm
+            else:
+                onto[f.internal] = (hit, spec.confirm)
+        self.reassign(onto)
+        return True
+
+    def ends_on(self, f: _Found, tail: np.ndarray) -> int | None:
+        """The attractor (internal id) the last points ``tail`` of ``f``'s continuation lie on if it is not ``f``:
+        another's cells (one registered since), a stable cycle (registered), or for a chaotic ``f`` a regular
+        set (Lyapunov exponent below the threshold over CONFIRM_LYAP_PERIODS: registered as quasi-periodic); else
+        None."""
+        spec = self.spec
+        hit, _, _ = self.falls_onto(tail, f.internal, (-1, 0))
+        if hit >= 0:
+            return hit
+        cq, cr = spec.cell_size
+        if tail.shape[0] > spec.p_max + 1:
+            p = int(recurrence(tail[-self.window :], SWEEP, tol=math.hypot(cq, cr), p_max=spec.p_max).period)
+            orbit = self.cycle(tail[-1], p) if p else None
+            if orbit is not None:
+                return self.add_periodic(self.new_id(), orbit, f.seed)
+        if f.kind != "chaotic" or tail.shape[0] == 0:
+            return None
+        res = lyapunov_spectrum(spec.params, tail[-1:], CONFIRM_LYAP_PERIODS, transient=20,
+                                numerics=spec.confirm_numerics(), workers=1)  # fmt: skip
+        measured = int(res.npts[0])
+        if measured < LYAP_MIN_PERIODS or float(res.exponents[0, 0]) > spec.lyap_threshold:
+            return None
+        ident = self.new_id()
+        self.found[ident] = _Found(ident, "quasi_periodic", None, tail[-256:].copy(), None, float(res.exponents[0, 0]),
+                                   f.seed, None, _area_trend(res.divs[0, :measured]), measured, tail[-1].copy(),
+                                   tail.shape[0])  # fmt: skip
+        self.ready[ident] = 1
+        self.mark_cells(ident, tail)
+        self.version += 1
+        return ident
+
+    def reassign(self, onto: dict[int, tuple[int, int]]) -> None:
+        """The sets of ``onto`` (internal id -> (where it fell, after periods)) are transients: their pixels go to
+        where they fall in the end (a chain followed; sets that fall onto each other stay, one recurrent set),
+        escape for those that escape; they label nothing more and are listed as :class:`Transient`."""
+        pixels = self.pixels_of()
+        for ident, (target, after) in onto.items():
+            seen = {ident}
+            while target in onto and target not in seen:
+                seen.add(target)
+                target = onto[target][0]
+            f = self.found[ident]
+            if target in seen:
+                f.confirmed = self.spec.confirm  # (a loop: they recur among themselves)
+                continue
+            mine = self.label >= 0
+            mine[mine] = self.root[self.label[mine]] == ident
+            self.label[mine] = target
+            if target == ESCAPE:
+                self.fate[mine] = Status.ESCAPED
+            self.transients.append((f, target, after, pixels.get(ident, 0)))
+        for f, _, _, _ in self.transients:
+            if f.internal in self.found:
+                ids = np.flatnonzero(self.root[: int(self.counts[0])] == f.internal)
+                self.att[np.isin(self.att, ids + 1)] = 0
+                self.ready[f.internal] = 0
+                del self.found[f.internal]
 
     # -- members ---------------------------------------------------------------
 
@@ -1146,26 +1403,31 @@ class _Run:
         n = max(1, int(computed.sum()))
         values, counts = np.unique(lab[computed], return_counts=True)
         fraction = {int(v): float(c) / n for v, c in zip(values, counts, strict=True)}
-        attractors = []
+        attractors, not_reached = [], []
         for ident in sorted(self.found):
             f = self.found[ident]
             if self.find(ident) != ident:
                 continue
-            attractors.append(Attractor(self.public[ident], f.kind, f.period, f.points, f.multipliers, f.lyapunov,
-                                        fraction.get(self.public[ident], 0.0), f.seed,
-                                        f.orbit.kind if f.orbit is not None else None, f.kind != "conservative",
-                                        f.log_det, f.measured))  # fmt: skip
+            a = Attractor(self.public[ident], f.kind, f.period, f.points, f.multipliers, f.lyapunov,
+                          fraction.get(self.public[ident], 0.0), f.seed, f.orbit.kind if f.orbit is not None else None,
+                          f.kind != "conservative", f.log_det, f.measured, f.confirmed)  # fmt: skip
+            # a set no pixel reaches (its own seed escaped, failed or was undecided) has no basin: no attractor
+            (attractors if self.public[ident] in fraction else not_reached).append(a)
         attractors.sort(key=lambda a: a.id)
+        transients = [Transient(f.kind, f.points, f.seed, self.public.get(onto, onto), after, n)
+                      for f, onto, after, n in self.transients]  # fmt: skip
         if fraction.get(ESCAPE):
             attractors.append(Attractor(ESCAPE, "escape", None, np.zeros((0, 2)), fraction=fraction[ESCAPE]))
         statuses = count_names(self.fate[computed])
         lost, warnings = self.losses(lab, completed, cancelled)
+        warnings = [t.line() for t in transients] + warnings
         extra = {"escape_bound": spec.numerics.bound, "cell_refinements": self.refinements,
                  "attractor_scale": self.scale}  # fmt: skip
         return Basins(spec, spec.q, spec.r, lab.reshape(spec.ny, spec.nx), computed.reshape(spec.ny, spec.nx),
                       attractors, fraction, statuses, time.perf_counter() - start, completed, stride,
                       self.periods + self.earlier[0], self.steps + self.earlier[1], extra, completed and not lost,
-                      lost, warnings, self.fate.reshape(spec.ny, spec.nx).copy())  # fmt: skip
+                      lost, warnings, self.fate.reshape(spec.ny, spec.nx).copy(), not_reached,
+                      transients)  # fmt: skip
 
     def losses(self, lab: np.ndarray, completed: bool, cancelled: bool) -> tuple[list[Loss], list[str]]:
         """What the labels ``lab`` (public) lost, and what they mean beyond attractors."""
@@ -1192,6 +1454,10 @@ class _Run:
                                  f"the recurrence cells ({cq:.3g} x {cr:.3g}) are wider than 1/{RESOLVE} of the "
                                  f"attractors' length scale {self.scale:.3g} (the smallest distance between them): "
                                  "attractors closer than a cell may be taken as one; give finer cells"))  # fmt: skip
+        pending = [f for i, f in self.found.items() if self.find(i) == i and f.unconfirmed]
+        if pending:
+            why = "; ".join(sorted({str(f.unconfirmed) for f in pending}))
+            lost.append(Loss("attractors not confirmed", len(pending), f"{why}: may be long transients"))
         warnings = []
         cons = [f for i, f in self.found.items() if f.kind == "conservative" and self.find(i) == i]
         if cons:
@@ -1268,10 +1534,15 @@ def iter_basins(
             done = total - len(queue) - int(np.count_nonzero(run.pixel >= 0))
             # a level is done when all its pixels are (the queue is level-ordered; slots may hold later ones)
             while level < len(levels) and np.all(run.label[levels[level][1]] != NOT_COMPUTED):
+                if level == len(levels) - 1 and not run.confirm(cancel):  # every pixel done: check the sets
+                    cancelled = True
+                    break
                 level += 1
                 last = time.perf_counter()
                 yield BasinsUpdate(levels[level - 1][0], True, done, total,
                                    run.snapshot(start, level == len(levels), levels[level - 1][0]), passed)  # fmt: skip
+            if cancelled:
+                break
             if level < len(levels) and time.perf_counter() - last > update_s:
                 last = time.perf_counter()
                 stride = levels[level - 1][0] if level else LEVELS[0]
