@@ -102,13 +102,19 @@ def _system_flags(p) -> list[str]:
 
 
 def _numerics_flags(n) -> list[str]:
-    """The command line's flags for the numerics ``n`` the page chose (its Method and Accuracy)."""
-    return ["--method", n.method, "--rtol", repr(n.rtol), "--atol", repr(n.atol), "--steps-per-period",
+    """The command line's flags for the numerics ``n`` the page chose (its Method and Accuracy: "auto" where the
+    rule chose ``n.method``, as the page's Method said: the inner maps derived from it choose again then)."""
+    return ["--method", "auto" if n.by_rule else n.method, "--rtol", repr(n.rtol), "--atol", repr(n.atol), "--steps-per-period",
             str(n.steps_per_period), "--bound", repr(n.bound), "--max-steps", str(n.max_steps)]  # fmt: skip
 
 
-def _cli_spec(monkeypatch, command: str, *flags: str):
-    """The spec the command line hands its analysis' runner (the registry's) for ``bilimovich COMMAND FLAGS``."""
+class _Captured(BaseException):  # not an Exception: the command line's error path lets it through
+    pass
+
+
+def _cli_spec(monkeypatch, command: str, *flags: str, run: bool = True):
+    """The spec the command line hands its analysis' runner (the registry's) for ``bilimovich COMMAND FLAGS``
+    (``run=False``: taken, and the run stopped there)."""
     import functools
     import importlib
 
@@ -122,12 +128,18 @@ def _cli_spec(monkeypatch, command: str, *flags: str):
     @functools.wraps(real)
     def spy(spec, *args, **kw):
         seen.append(spec)
+        if not run:
+            raise _Captured
         return real(spec, *args, **kw)
 
     monkeypatch.setattr(module, a.run, spy)
-    code, _, err = run_cli(command, *flags, "--json")
-    monkeypatch.setattr(module, a.run, real)
-    assert code == 0, err
+    try:
+        code, _, err = run_cli(command, *flags, "--json")
+        assert code == 0, err
+    except _Captured:
+        pass
+    finally:
+        monkeypatch.setattr(module, a.run, real)
     return seen[0]
 
 
@@ -255,3 +267,16 @@ def test_the_orbit_diagrams_continuation_is_the_command_lines(monkeypatch, metho
                     f"--from={q!r},{r!r}", "--period", "1", "--switch", "--max-points", "30",
                     *_numerics_flags(app.numerics))  # fmt: skip
     assert app == cli.__class__(**{**cli.__dict__, "options": app.options})  # the CLI's --max-points aside
+
+
+@pytest.mark.parametrize(("method", "accuracy"), [("auto", "plot"), ("dop853", "high")])
+def test_the_basins_layers_spec_is_the_command_lines(monkeypatch, method: str, accuracy: str) -> None:
+    page = _page({"basins": "1", "bas_n": "12", "method": method, "accuracy": accuracy})
+    layer = page.session.layer("basins")
+    app = layer.spec(layer.inputs())
+    box = ",".join(repr(float(v)) for v in app.box)
+    cli = _cli_spec(monkeypatch, "basins", *_system_flags(page.state.system()), f"--box={box}", "--grid", "12,12",
+                    *_numerics_flags(app.numerics), run=False)  # fmt: skip
+    assert app.as_dict() == cli.as_dict()
+    assert (app.numerics.rtol == 1e-12) == (accuracy == "high") and (method == "auto" or app.numerics.method == method)
+    assert f"numerics: {app.numerics.method}" in layer.status() or not layer.status().startswith("basins on")

@@ -11,8 +11,9 @@ from app.layers.base import KEEP, Layer, plain
 from app.runner import LAYER
 from app.views import as_drawn
 from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, BasinSpec, basin_spec, iter_basins
+from explorer_core.solve.numerics import Numerics
 from explorer_core.status import Status, describe
-from explorer_core.system.params import Params
+from explorer_core.system.params import ParameterError, Params
 
 #: Pixels across the basins layer (its work: up to 40,000 initial conditions).
 MAX_BASIN_GRID = 200
@@ -48,6 +49,8 @@ class BasinInputs:
     box: tuple[float, float, float, float]
     n: int
     query: dict[str, str] = field(default_factory=dict, compare=False)
+    #: The page's Method and Accuracy by the core's rule, at the basins' own tolerance under "plot".
+    numerics: Numerics | None = None
 
 
 class BasinsLayer(Layer):
@@ -70,6 +73,7 @@ class BasinsLayer(Layer):
         super().__init__(host)
         self.text = ""
         self.rows: list[list[str]] = []
+        self.ran_with = ""
 
     def inputs(self) -> BasinInputs | object | None:
         st = self.host.state
@@ -78,15 +82,27 @@ class BasinsLayer(Layer):
         params = self.system_params()
         if params is None:
             return KEEP
-        return BasinInputs(params, (*st.q_range, *st.r_range), st.basin_grid, st.to_query())
+        box = (*st.q_range, *st.r_range)
+        try:  # the basins' own numerics for this box (its escape bound), under the page's Method and Accuracy
+            own = basin_spec(params, box, (st.basin_grid, st.basin_grid)).numerics
+        except ParameterError:
+            own = None  # refused again, in words, when the spec is built (prepare)
+        numerics, self.ran_with = st.numerics_for(own) if own is not None else (None, "")
+        return BasinInputs(params, box, st.basin_grid, st.to_query(), numerics)
 
     def on_view(self) -> bool:
         return bool(self.host.state.show_basins)  # the initial conditions are the new view's pixels
 
     def prepare(self, inputs: BasinInputs) -> BasinSpec:
-        spec = basin_spec(inputs.params, inputs.box, (inputs.n, inputs.n))
+        spec = self.spec(inputs)
         self.text = f"basins of attraction on {inputs.n} x {inputs.n} initial conditions in view…"
         return spec
+
+    @staticmethod
+    def spec(inputs: BasinInputs) -> BasinSpec:
+        """The basins as the core's builder makes them (the command line's ``basins --box Q0,Q1,R0,R1 --grid N,N``
+        with the page's numerics)."""
+        return basin_spec(inputs.params, inputs.box, (inputs.n, inputs.n), numerics=inputs.numerics)
 
     def refused(self, exc: BaseException) -> None:
         self.text = f"basins: {plain(exc)}"
@@ -133,6 +149,8 @@ class BasinsLayer(Layer):
                 head += f" ({unsure} chaotic or quasi-periodic: may be long transients, {checked})"
             said = [*b.warnings, *(loss.line() for loss in b.lost)]
             self.text = f"{head}, {b.elapsed_s:.2f} s" + "".join(f"; {w}" for w in said[:3])
+            if self.ran_with:  # the numerics come last: the attractors are what the class looks at first
+                self.text += f" · numerics: {self.ran_with}"
         else:
             self.text = f"basins: {done} pixels, {n_att} attractor(s) so far…"
 
