@@ -104,8 +104,9 @@ def _system_flags(p) -> list[str]:
 def _numerics_flags(n) -> list[str]:
     """The command line's flags for the numerics ``n`` the page chose (its Method and Accuracy: "auto" where the
     rule chose ``n.method``, as the page's Method said: the inner maps derived from it choose again then)."""
-    return ["--method", "auto" if n.by_rule else n.method, "--rtol", repr(n.rtol), "--atol", repr(n.atol), "--steps-per-period",
-            str(n.steps_per_period), "--bound", repr(n.bound), "--max-steps", str(n.max_steps)]  # fmt: skip
+    return ["--method", "auto" if n.by_rule else n.method, "--rtol", repr(n.rtol), "--atol", repr(n.atol),
+            "--steps-per-period", str(n.steps_per_period), "--bound", repr(n.bound), "--max-steps",
+            str(n.max_steps)]  # fmt: skip
 
 
 class _Captured(BaseException):  # not an Exception: the command line's error path lets it through
