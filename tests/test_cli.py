@@ -419,3 +419,13 @@ def test_method_vern9_is_selectable_and_agrees_with_solve_ivp(tmp_path) -> None:
     params = get_scene("fig1C").params
     ref = np.array([ivp_map(params, (0.1, 0.2), k) for k in range(1, 21)])
     assert np.max(np.abs(pts - ref)) < 1e-8
+
+
+def test_the_words_on_stderr_match_the_exit_status() -> None:
+    """A run that went on (exit 0) prints no line that says "error": an unreliable method is "unreliable [code]"
+    (its JSON level stays "error"); every member failing is exit 3 with "failed:"."""
+    rc, out, err = run_cli("section", "--scene", "fig8B", "--periods", "5", "--method", "rk4", "--steps-per-period",
+                           "3", "--json")  # fmt: skip
+    assert rc == 0
+    assert "unreliable [rk4_unstable]" in err and "error" not in err.lower()
+    assert [w["level"] for w in json.loads(out)["reliability"] if w["code"] == "rk4_unstable"] == ["error"]

@@ -93,8 +93,9 @@ class ReliabilityWarning:
         return {"level": self.level, "code": self.code, "message": self.message}
 
     def line(self) -> str:
-        """One line for a terminal: ``warning [code]: message``."""
-        return f"{self.level} [{self.code}]: {self.message}"
+        """One line for a terminal: ``warning [code]: message``, or ``unreliable [code]: ...`` for an ``"error"``
+        (the run itself went on: its exit status is not an error's, and the words on stderr say no more)."""
+        return f"{'unreliable' if self.level == 'error' else self.level} [{self.code}]: {self.message}"
 
 
 def known_lyapunov(params: Params) -> float | None:
