@@ -428,3 +428,34 @@ def test_a_frame_is_drawn_whole_not_streamed() -> None:
     page.handle({"action": "play"})
     jobs.drain()
     assert len(sizes) == 1 and sizes[0] == page.session.n_points > 0.9 * 60 * FRAME_PERIODS
+
+
+def test_pause_and_step_keep_the_orbits_found_while_playing() -> None:
+    """The teacher who pauses to explain a frame keeps what was being explained: the period-3 orbit found while
+    playing across the fold (from the trajectory that settled on it: no seed of the page is near it) stays on
+    Pause, and on Step it is followed to the next frame; cleared orbits stay cleared. (Issue 36 reports orbits lost
+    on Pause; in this scene it holds on main ae2c393 too: a guard, not a fix.)"""
+    page, jobs, clock = page_for({**FOLD, "alpha": "-0.485", "orb_all": "0", "orb": "-0.5,-1"})
+    assert not any(o["period"] == 3 for o in page.session.orbits)
+    page.handle({"action": "play"})
+    for _ in range(3):  # -0.485, -0.49, -0.495
+        jobs.drain()
+        if page.state.alpha < -0.494:
+            break
+        clock.advance(0.2)
+    jobs.drain()
+    played = sorted(o["period"] for o in page.session.orbits)
+    assert 3 in played, page.session.orbits
+    page.handle({"action": "pause"})
+    jobs.drain()
+    assert sorted(o["period"] for o in page.session.orbits) == played
+    page.handle({"action": "step"})
+    jobs.drain()
+    assert page.state.alpha == pytest.approx(-0.5)
+    assert 3 in [o["period"] for o in page.session.orbits]
+    page.handle({"action": "clear_orbits"})  # cleared is cleared: nothing followed brings them back
+    jobs.drain()
+    assert page.session.orbits == []
+    page.handle({"action": "step"})
+    jobs.drain()
+    assert page.session.orbits == []

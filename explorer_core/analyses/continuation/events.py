@@ -28,7 +28,6 @@ from explorer_core.analyses.continuation.system import (
     test_function,
 )
 from explorer_core.analyses.orbits import multipliers
-from explorer_core.solve.numerics import Numerics
 
 #: A located bifurcation's bracket in the parameter.
 LOCATE_TOL = 1e-12
@@ -142,8 +141,7 @@ def _located(eng: _Engine, prob: _BranchProblem, kind: str, p0: _Point, p1: _Poi
     at, bracket = _locate(eng, prob, test, p0, p1, sigma_tol=math.inf, ptol=REFINE_FROM)
     n, sys = prob.n, prob.sys
     Y0 = np.array([at.X[0], at.X[1], prob.p(at.X)])
-    loose = Numerics(**{**sys.numerics.as_dict(), "rtol": sys.numerics.rtol * 10,
-                        "atol": sys.numerics.atol * 10})  # fmt: skip
+    loose = sys.numerics.loosened(sys.numerics.rtol * 10, sys.numerics.atol * 10)
     try:
         Y, a, pts, jac = _refine(sys, kind, n, Y0)
         # The error estimate: the same zero of the less accurate map, from Y with the same Jacobian.

@@ -75,7 +75,7 @@ class _System:
                for k, v in (("rtol", self.numerics.rtol), ("atol", self.numerics.atol))}  # fmt: skip
         key = (tol["rtol"], tol["atol"])
         if key not in self._fd:
-            self._fd[key] = Numerics(**{**self.numerics.as_dict(), **tol})
+            self._fd[key] = self.numerics.loosened(tol["rtol"], tol["atol"])  # the method chosen again if auto chose
         return self._fd[key]
 
     def params(self, p: Sequence[float]) -> Params:
