@@ -169,6 +169,7 @@ def test_scenes_listing() -> None:
             "bilimovich section: error: unrecognized arguments: --bogus 1",
         ),
         (["scenes", "--x"], "bilimovich scenes: error: unrecognized arguments: --x"),
+        (["critical", "--alpha", "1e300", "--json"], "coefficients overflow in double precision (alpha = 1e+300"),
     ],
 )
 def test_bad_input_one_line_no_traceback(args, needle) -> None:

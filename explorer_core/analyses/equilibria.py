@@ -313,6 +313,13 @@ class _Samples:
     """
 
     def __init__(self, model: Model, capacity: int, inf_norm: float, rtol: float) -> None:
+        if not all(np.isfinite(a).all() for a in (model.num, model.gpc, model.den)):
+            # (alpha = 1e300: alpha^2 overflows, and the resultant of overflowed conics "vanishes identically":
+            # a whole curve of equilibria would be claimed that is no property of the system)
+            p = model.params
+            raise ParameterError(f"the frozen field's coefficients overflow in double precision (alpha = {p.alpha:g}, "
+                                 f"inertia {', '.join(f'{v:g}' for v in p.inertia)}): its equilibria cannot be "
+                                 "computed; scale the system down")  # fmt: skip
         self.model = model
         self.forcing = model.forcing
         self.inf_norm = float(inf_norm)
