@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from explorer_core import config, export
-from explorer_core.analyses.specs import Checking
+from explorer_core.analyses.specs import Checking, check_periods
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
@@ -285,10 +285,7 @@ def density_spec(
     """A validated :class:`DensitySpec` (a bad value raises ParameterError naming it). ``numerics`` default:
     :func:`density_numerics` for the view, escaping at ``bound`` (default the project's escape bound)."""
     with Checking() as at:
-        at("periods")
-        periods = check_int("periods", periods, 1, config.MAX_PERIODS)
-        at("transient")
-        transient = check_int("transient", transient, 0, config.MAX_PERIODS)
+        periods, transient = check_periods(at, periods, transient)
         at("ics")
         points = () if ics is None else tuple((float(q), float(r)) for q, r in check_ics(ics))
         at("random")

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config
-from explorer_core.analyses.specs import Checking, spec_of
+from explorer_core.analyses.specs import Checking, check_periods, spec_of
 from explorer_core.scenes import pixel_size, plot_numerics
 from explorer_core.solve.checks import check_bool, check_ics, check_int, check_optional_box
 from explorer_core.solve.numerics import Numerics, random_ics
@@ -82,10 +82,7 @@ def section_spec(
     ``bound``, or :class:`Numerics` (with ``bound``) when there is no view.
     """
     with Checking() as at:
-        at("periods")
-        periods = check_int("periods", periods, 1, config.MAX_PERIODS)
-        at("transient")
-        transient = check_int("transient", transient, 0, config.MAX_PERIODS)
+        periods, transient = check_periods(at, periods, transient)
         at("backward")
         direction = -1 if check_bool("backward", backward) else 1
         at("seed")

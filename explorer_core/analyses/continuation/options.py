@@ -281,34 +281,44 @@ def _positive(name: str, v: Any) -> float:
 @dataclass(frozen=True)
 class SeedsSpec:
     """:func:`~explorer_core.analyses.continuation.continue_from_seeds`: every distinct orbit of ``periods`` that
-    Newton finds from ``seeds`` at ``range[0]`` (up to ``max_orbits``, lowest periods first), each continued as
-    :meth:`for_orbit` says (validated by :func:`seeds_spec`)."""
+    Newton finds from ``seeds`` at the range's first value (up to ``max_orbits``, lowest periods first), each
+    continued as ``branch`` says (its own point and period set by :meth:`for_orbit`). Made by :func:`seeds_spec`."""
 
-    params: Params
-    param: str
-    range: tuple[float, float]
     seeds: np.ndarray = field(repr=False, compare=False)
-    periods: tuple[int, ...] = (1, 2, 3, 4)
-    max_orbits: int = 6
-    switch: bool = True
-    max_period: int = DEFAULT_MAX_PERIOD
-    options: ContinuationOptions = field(default_factory=ContinuationOptions)
-    numerics: Numerics = ORBIT_NUMERICS
-    param2: str | None = None
-    range2: tuple[float, float] | None = None
-    window1: tuple[float, float] | None = None
+    periods: tuple[int, ...]
+    max_orbits: int
+    #: The continuation every orbit found gets (``switch``, ``options``, ``numerics``, curves), at a placeholder
+    #: point and the largest period; ``max_period``: the cascade's cap asked (at least the orbit's own).
+    branch: ContinuationSpec
+    max_period: int
+
+    @property
+    def params(self) -> Params:
+        return self.branch.params
+
+    @property
+    def param(self) -> str:
+        return self.branch.param
+
+    @property
+    def range(self) -> tuple[float, float]:
+        return self.branch.range
+
+    @property
+    def numerics(self) -> Numerics:
+        return self.branch.numerics
 
     def for_orbit(self, point: Sequence[float], period: int) -> ContinuationSpec:
-        """The continuation of one orbit found (through ``point``, of ``period``)."""
-        return continuation_spec(self.params, self.param, self.range, point, period, switch=self.switch,
-                                 max_period=max(self.max_period, period), options=self.options,
-                                 numerics=self.numerics, param2=self.param2, range2=self.range2,
-                                 window1=self.window1)  # fmt: skip
+        """The continuation of one orbit found (through ``point``, of ``period``), checked as every spec is."""
+        b = self.branch
+        return continuation_spec(b.params, b.param, b.range, point, period, switch=b.switch,
+                                 max_period=max(self.max_period, period), options=b.options, numerics=b.numerics,
+                                 param2=b.param2, range2=b.range2, window1=b.window1)  # fmt: skip
 
     def as_dict(self) -> dict[str, Any]:
-        return {**self.for_orbit((0.0, 0.0), max(self.periods)).as_dict(), "seed": None, "period": None,
-                "seeds": self.seeds.tolist(), "periods": list(self.periods), "max_orbits": self.max_orbits,
-                "max_period": self.max_period}  # fmt: skip
+        own = {"seeds": self.seeds.tolist(), "periods": list(self.periods), "max_orbits": self.max_orbits,
+               "max_period": self.max_period}  # fmt: skip
+        return {**self.branch.as_dict(), "seed": None, "period": None, **own}
 
 
 def seeds_spec(
@@ -339,11 +349,10 @@ def seeds_spec(
         max_orbits = check_int("max_orbits", max_orbits, 1, 1000)
         at("max_period")
         max_period = check_int("max_period", max_period, 1, 1024)
-    one = continuation_spec(params, param, value_range, (0.0, 0.0), max(periods), switch=switch,
-                            max_period=max(max_period, *periods), options=options, numerics=numerics, param2=param2,
-                            range2=range2, window1=window1)  # fmt: skip
-    return SeedsSpec(one.params, one.param, one.range, seeds, periods, max_orbits, one.switch, max_period,
-                     one.options, one.numerics, one.param2, one.range2, one.window1)  # fmt: skip
+    branch = continuation_spec(params, param, value_range, (0.0, 0.0), max(periods), switch=switch,
+                               max_period=max(max_period, *periods), options=options, numerics=numerics,
+                               param2=param2, range2=range2, window1=window1)  # fmt: skip
+    return SeedsSpec(seeds, periods, max_orbits, branch, max_period)
 
 
 @dataclass(frozen=True)
