@@ -31,6 +31,7 @@ import numpy as np
 from explorer_core import config, export
 from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
+from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step
 from explorer_core.progress import run as run_updates
 from explorer_core.solve import poincare
@@ -143,6 +144,20 @@ class OrbitSearch(Drawable):
             "numerics": self.numerics.as_dict(),
             **self.extra,
         }
+
+    @property
+    def lost(self) -> list[Loss]:
+        """Searches a cancel stopped (Newton's from a seed for a period, unfinished or never run): the orbits they
+        would have found are not here. A seed that found none is an outcome (``failures``), not a loss."""
+        if self.completed:
+            return []
+        stopped = sum(f.status in (Status.CANCELLED, Status.NOT_RUN) for f in self.failures)
+        stopped += int(self.extra.get("unsearched", 0))  # the seed groups a cancel left (orbit_search)
+        return [Loss("searches", stopped, "cancelled before they ended")] if stopped else []
+
+    @property
+    def complete(self) -> bool:
+        return self.completed and not self.lost
 
     def report(self) -> list[str]:
         """What the command line prints: one line per orbit (period, type, first point, multipliers)."""
@@ -602,8 +617,9 @@ def iter_orbit_search(spec: OrbitSpec, cancel: Callable[[], bool] | None = None)
             break
         done += 1
     found.sort(key=lambda o: (o.period, float(o.points[0, 0]), float(o.points[0, 1])))
+    left = sum(len(g) * len(p) for p, g in list(by_periods.items())[done + 1 :]) if not completed else 0
     result = OrbitSearch(spec.params, spec.numerics, found, failures, len(pairs), work, completed,
-                         {"periods": list(spec.periods), "spec": spec.as_dict()})  # fmt: skip
+                         {"periods": list(spec.periods), "spec": spec.as_dict(), "unsearched": left})  # fmt: skip
     yield Step(Progress(done, max(1, len(by_periods)), "seed groups", time.perf_counter() - start), None, result)
 
 

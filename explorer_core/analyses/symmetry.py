@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core.analyses.specs import Checking
+from explorer_core.losses import Loss
 from explorer_core.solve.checks import check_number, check_positive
 from explorer_core.solve.numerics import Numerics, check_ics, check_int, random_ics
 from explorer_core.solve.options import Arg, command_line, instance
@@ -101,6 +102,18 @@ class SymmetryCheck:
     tol: float
     numerics: Numerics
     elapsed_s: float
+
+    @property
+    def lost(self) -> list[Loss]:
+        """Initial conditions whose forward or backward run stopped before its last period (by status): their
+        later points are not compared."""
+        short = [i for i in range(self.ics.shape[0]) if self.npts[i] < self.periods]
+        return [Loss("initial conditions", len(short), "a run stopped early: its later points are not compared")] \
+            if short else []  # fmt: skip
+
+    @property
+    def complete(self) -> bool:
+        return not self.lost
 
     @property
     def max_distance(self) -> float:

@@ -23,6 +23,7 @@ import numpy as np
 from explorer_core import config, export
 from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
+from explorer_core.losses import Loss
 from explorer_core.solve import checks
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.options import Arg, command_line
@@ -50,6 +51,16 @@ class TPrimeMap(Drawable):
     status: np.ndarray
     params: Params
     elapsed_s: float
+
+    @property
+    def lost(self) -> list[Loss]:
+        """Cells whose value could not be computed (``ok`` False: the one-period run failed there)."""
+        bad = int(np.count_nonzero(~self.ok))
+        return [Loss("cells", bad, "not computed: the one-period integration failed there")] if bad else []
+
+    @property
+    def complete(self) -> bool:
+        return not self.lost
 
     @property
     def sign(self) -> np.ndarray:
