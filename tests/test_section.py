@@ -157,3 +157,29 @@ def test_random_ics_reproducible_and_inside_box() -> None:
 def test_bad_input_named(call, needle: str) -> None:
     with pytest.raises(ParameterError, match=needle):
         call(CASES["fig1C"][0])
+
+
+def test_a_section_does_not_depend_on_its_chunks() -> None:
+    """The chunk schedule follows the machine's pace (no chunk much longer than CHUNK_SECONDS, so a stop waits
+    little): the points must not depend on it. Metamorphic: fixed chunks of 7 periods, and the growing schedule,
+    give the same points and step counts bit for bit, for the adaptive methods and RK4."""
+    from explorer_core.scenes import get_scene
+    from explorer_core.solve.numerics import Numerics
+
+    s = get_scene("fig8B")
+    ics = s.initial_conditions()[:12]
+    for num in (Numerics(), Numerics(method="dop853", rtol=1e-8, atol=1e-8), Numerics(method="rk4")):
+        a = section(s.params, ics, 120, transient=30, numerics=num)
+        b = section(s.params, ics, 120, transient=30, numerics=num, chunk_periods=7)
+        assert all(np.array_equal(x, y) for x, y in zip(a.long(), b.long(), strict=True)), num.method
+        assert np.array_equal(a.nsteps, b.nsteps) and np.array_equal(a.status, b.status)
+
+
+def test_a_growing_chunk_is_kept_to_a_fraction_of_a_second_at_the_last_ones_pace() -> None:
+    from explorer_core.solve.section import CHUNK_SECONDS, _chunk_schedule
+
+    sizes = _chunk_schedule(10_000, None, 1, 512)
+    got = [next(sizes)]
+    for took in (0.001, 0.002, 0.004, 0.5):  # the fourth chunk (8 periods) took 0.5 s: slow ICs, or many
+        got.append(sizes.send(took))
+    assert got == [1, 2, 4, 8, max(1, int(8 * CHUNK_SECONDS / 0.5))]

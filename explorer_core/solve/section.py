@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import csv
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -66,16 +66,24 @@ def _long(points: np.ndarray, npts: np.ndarray, k_first: int, k_step: int = 1):
     return traj, k, points[..., 0][mask], points[..., 1][mask]
 
 
-def _chunk_schedule(total: int, chunk: int | None, first: int, max_chunk: int = 512) -> Iterator[int]:
-    """Chunk sizes: fixed, or growing 1, 2, 4, ... up to ``max_chunk`` so the first points come at once."""
+#: A growing chunk is kept to about this many seconds at the pace of the last one: a stop request (Ctrl-C, a
+#: closed tab, a new slider value) waits at most about this long for the engine, whatever the number of ICs.
+CHUNK_SECONDS = 0.25
+
+
+def _chunk_schedule(total: int, chunk: int | None, first: int, max_chunk: int = 512) -> Generator[int, float, None]:
+    """Chunk sizes: fixed, or growing 1, 2, 4, ... up to ``max_chunk`` so the first points come at once, and no
+    longer than :data:`CHUNK_SECONDS` at the last chunk's pace (``send`` each chunk's seconds)."""
     done = 0
     size = first
     while done < total:
         step = min(chunk if chunk else size, total - done)
-        yield step
+        took = yield step
         done += step
         if not chunk:
             size = min(size * 2, max_chunk)
+            if took:  # the pace measured: a chunk of this size would take about CHUNK_SECONDS
+                size = max(1, min(size, int(step * CHUNK_SECONDS / took)))
 
 
 def iter_section(
@@ -118,16 +126,24 @@ def iter_section(
     batch = Batch.start(ics, params.t0, direction * params.period)
     kw = numerics.kernel_kwargs()
     start = time.perf_counter()
-    for size in _chunk_schedule(transient, None, max(1, first_chunk), max_chunk) if transient else ():
+    sizes = _chunk_schedule(transient, None, max(1, first_chunk), max_chunk)
+    size = next(sizes, 0) if transient else 0
+    while size:
         if cancel is not None and cancel():
             return
+        t = time.perf_counter()
         advance(model, batch, size, store=False, workers=workers, **kw)
+        size = _send(sizes, time.perf_counter() - t)
     done = 0
-    for size in _chunk_schedule(periods, chunk_periods, max(1, first_chunk), max_chunk):
+    sizes = _chunk_schedule(periods, chunk_periods, max(1, first_chunk), max_chunk)
+    size = next(sizes)
+    while size:
         if cancel is not None and cancel():
             return
         k_first = batch.k + 1
+        t = time.perf_counter()
         pts, npts = advance(model, batch, size, workers=workers, **kw)
+        took = time.perf_counter() - t
         done += size
         yield SectionChunk(
             k_first=direction * k_first,
@@ -141,6 +157,15 @@ def iter_section(
         )
         if not np.any(batch.status == Status.OK):
             return
+        size = _send(sizes, took)
+
+
+def _send(sizes: Generator[int, float, None], took: float) -> int:
+    """The schedule's next size given the last chunk's seconds (0 when the run is done)."""
+    try:
+        return sizes.send(took)
+    except StopIteration:
+        return 0
 
 
 @dataclass
