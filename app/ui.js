@@ -277,7 +277,9 @@ export function render({model, el}) {
   manCsvBtn.addEventListener("click", () => send({action: "download", what: "manifolds"}))
   const secBar = h("div", {class: "bar"})
   for (const s of byArea.section || []) secBar.append(control(s))
-  secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn)
+  const basNpzBtn = h("button", {class: "act light btn-basins-npz", text: "Download basins NPZ", hidden: true})
+  basNpzBtn.addEventListener("click", () => send({action: "download", what: "basins"}))
+  secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn, basNpzBtn)
   // Play a parameter: its settings are controls (area "play"); Play/Pause and Step are actions.
   const playBtn = h("button", {class: "act btn-play", text: "▶ Play"})
   playBtn.addEventListener("click", () => send({action: playBtn.dataset.playing === "1" ? "pause" : "play"}))
@@ -561,6 +563,7 @@ export function render({model, el}) {
     manCsvBtn.hidden = !s.n_manifolds
     manStatus.textContent = s.manifold_status || ""
     basStatus.textContent = s.basin_status || ""
+    basNpzBtn.hidden = !s.basins_file
     densLegend.hidden = !s.density
     colourNote.textContent = s.colour_note || ""
     colourNote.hidden = !s.colour_note

@@ -178,6 +178,9 @@ class BasinsLayer(Layer):
     def published(self) -> dict[str, Any]:
         return {"basin_status": self.text, "basin_legend": self.rows}
 
+    def view(self) -> dict[str, Any]:
+        return {**self.published(), "basins_file": self.result is not None}  # its download button is offered
+
     def stopped(self, busy: bool, now: dict[str, str]) -> None:
         if not self.host.state.show_basins:
             return
