@@ -13,11 +13,10 @@ is empty, or whose members all failed, says so and reports no numbers.
 
 from __future__ import annotations
 
-import os
-import tempfile
+import dataclasses
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from bokeh.models import ColumnDataSource, HoverTool, LinearColorMapper, Plot
@@ -25,6 +24,7 @@ from bokeh.palettes import Category10, Category20
 from bokeh.plotting import figure
 
 from app.controller import ExplorerSession
+from app.layers.base import Download, result_file
 from app.layers.base import plain as _plain
 from app.views import BACKEND
 from explorer_core.analyses.bifurcation import DIAGRAM_PLOT_BOUND, DIAGRAM_PLOT_RTOL, bifurcation_diagram
@@ -84,6 +84,8 @@ class AnalysisTab:
 
     channel = "analysis"
     help = ""
+    #: Its downloads: the page's ``{"action": "download", "what": ...}`` -> (the button's words, its class).
+    downloads: ClassVar[dict[str, tuple[str, str]]] = {}
     #: The numerics the last run used and why (the core's rule for the page's Method and Accuracy), said on screen.
     ran_with = ""
 
@@ -93,16 +95,30 @@ class AnalysisTab:
         self.view: dict[str, Any] = {"message": "", "error": "", "progress": None, "result": [], "download": False,
                                      "help": self.help}  # fmt: skip
         self._fig: Plot | None = None
+        self.view["downloads"] = [[what, words, cls, False] for what, (words, cls) in self.downloads.items()]
 
     # --- what the page shows ---------------------------------------------------------------
 
     def set_view(self, **kw: Any) -> None:
-        self.view.update(kw)
+        self.view.update(kw, downloads=self._offered())
         if self._publish is not None:
             self._publish(self.channel, dict(self.view))
 
     def fail(self, msg: str) -> None:
         self.set_view(error=msg, progress=None)
+
+    # --- downloads ---------------------------------------------------------------------------
+
+    def _offered(self) -> list[list[Any]]:
+        """The page's download buttons of this tab: ``[what, words, class, whether there is a file]``."""
+        return [[what, words, cls, self.file(what, probe=True) is not None]
+                for what, (words, cls) in self.downloads.items()]  # fmt: skip
+
+    def file(self, what: str, probe: bool = False) -> Download | None:
+        """The download ``what`` of the result on screen, written by the core's writer as the command line writes it
+        (named ``-partial`` when its run was stopped); None before there is one. ``probe``: only whether there is
+        one (any non-None value; nothing written)."""
+        return None
 
     def failed(self, exc: BaseException) -> None:
         """The job raised (document thread): a one-line message; nothing stays "computing"."""
@@ -136,9 +152,14 @@ class AnalysisTab:
 class LyapunovTab(AnalysisTab):
     channel = "lyapunov"
     help = LYAPUNOV_HELP
+    downloads: ClassVar[dict[str, tuple[str, str]]] = {
+        "lyapunov": ("Download running estimates CSV", "btn-lyapunov-csv"),
+        "lyapunov_summary": ("Download exponents JSON", "btn-lyapunov-json"),
+    }
 
     def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
         super().__init__(session, publish)
+        self.result = None  # the last run's LyapunovResult (a stopped run's never comes: the runner drops it)
         self.source = ColumnDataSource({"k": [], "l1": [], "l2": []}, name="lyapunov_source")
 
     def _build(self) -> Plot:
@@ -208,6 +229,7 @@ class LyapunovTab(AnalysisTab):
         self.set_progress(done, total, f"{phase}: {done}/{total} periods")
 
     def _done(self, res, rows) -> None:
+        self.result = res
         self._partial(rows, "measure", res.periods, res.periods)
         labels = res.status_labels()
         status = describe(res.status)
@@ -230,11 +252,28 @@ class LyapunovTab(AnalysisTab):
         ]
         self.set_view(result=lines, progress=None, message="done" if res.completed else "stopped")
 
+    def _start(self, job: Callable, text: str = "computing…") -> None:
+        self.result = None  # the plot starts again from nothing: so does the download
+        super()._start(job, text)
+
+    def file(self, what: str, probe: bool = False) -> Download | None:
+        """``lyapunov``: every member's running estimates, as ``bilimovich lyapunov --history x.csv`` writes them;
+        ``lyapunov_summary``: the summary, as ``--json`` prints it."""
+        if self.result is None or what not in self.downloads:
+            return None
+        suffix = ".csv" if what == "lyapunov" else ".json"
+        return self.result if probe else result_file(self.result, what, suffix)
+
 
 class BifurcationTab(AnalysisTab):
     channel = "bifurcation"
     help = BIFURCATION_HELP
     cont_with = ""  # the continuation's numerics, in words
+    downloads: ClassVar[dict[str, tuple[str, str]]] = {
+        "bifurcation": ("Download diagram CSV", "btn-bifurcation-csv"),
+        "branches": ("Download branches CSV", "btn-branches-csv"),
+        "bifurcations": ("Download branches and bifurcations JSON", "btn-branches-json"),
+    }
 
     def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
         super().__init__(session, publish)
@@ -361,6 +400,15 @@ class BifurcationTab(AnalysisTab):
         head = self.view["message"].replace("; continuing the orbits…", "")
         self.set_view(result=lines, message=head)
 
+    def file(self, what: str, probe: bool = False) -> Download | None:
+        """``bifurcation``: the diagram on screen as ``bilimovich bifurcation --out x.csv`` writes it; ``branches``:
+        the continued branches as ``bilimovich continue --out x.csv`` writes them; ``bifurcations``: the
+        continuation's summary (branches, bifurcations with their error estimates) as JSON."""
+        result = self._data if what == "bifurcation" else self._cont if what in self.downloads else None
+        if result is None or probe:
+            return result
+        return result_file(result, what, ".json" if what == "bifurcations" else ".csv")
+
     def _draw(self) -> None:
         d = self._data
         if d is None:
@@ -399,6 +447,7 @@ _CLASSIFIED = ("periodic", "quasi_periodic", "chaotic", "escaped")
 class ChartTab(AnalysisTab):
     channel = "chart"
     help = CHART_HELP
+    downloads: ClassVar[dict[str, tuple[str, str]]] = {"chart": ("Download chart NPZ", "btn-npz")}
 
     def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
         super().__init__(session, publish)
@@ -406,7 +455,7 @@ class ChartTab(AnalysisTab):
         self.source = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []}, name="chart_source")
         self.current = ColumnDataSource({"x": [], "y": []}, name="chart_current")
         self.curves = ColumnDataSource({"xs": [], "ys": [], "color": [], "kind": []}, name="chart_curves")
-        self.chart = None
+        self.chart = None  # the chart on screen: the pixels computed so far (those not computed: ``computed`` False)
         session.state.param.watch(lambda *e: session.runner.ui(self._mark), list(_SWEPT))
 
     def _build(self) -> Plot:
@@ -459,7 +508,7 @@ class ChartTab(AnalysisTab):
                     now = time.perf_counter()
                     if now - last[0] > REFRESH:
                         last[0] = now
-                        snap = upd.chart.filled()
+                        snap = _copy(upd.chart)  # the pixels computed: the picture fills the rest (_show)
                         emit(lambda c=snap, u=upd: self._show(c, u.done_tiles, u.total_tiles))
             except SchedulerError as exc:  # unreachable or unusable cluster: say so in the tab
                 emit(lambda msg=str(exc): self.set_view(message="not computed", progress=None, error=msg))
@@ -482,13 +531,15 @@ class ChartTab(AnalysisTab):
 
     def _show(self, chart, done: int, total: int, final: bool = False) -> None:
         self.chart = chart
-        code = chart.code()[..., 0]
+        # While it runs, a pixel not computed yet shows its nearest computed coarser one (never in the download).
+        drawn = chart if final else chart.filled()
+        code = drawn.code()[..., 0]
         idx = np.zeros(code.shape)
         per = code > 0
         idx[per] = np.minimum(code[per], len(_PERIOD_COLORS))
         for n, name in enumerate(_OTHER):
             idx[code == -REGIMES.index(name)] = len(_PERIOD_COLORS) + 1 + n
-        idx[~chart.computed] = 0
+        idx[~drawn.computed] = 0
         spec = chart.spec
         xs, ys = np.asarray(spec.x_values), np.asarray(spec.y_values)
         dx = (xs[-1] - xs[0]) / max(1, xs.size - 1)
@@ -579,13 +630,22 @@ class ChartTab(AnalysisTab):
 
     def npz_bytes(self) -> bytes | None:
         """The chart on screen as NPZ; None before there is one (the download is disabled then)."""
-        if self.chart is None:
+        file = self.file("chart")
+        return None if file is None else file.data
+
+    def file(self, what: str, probe: bool = False) -> Download | None:
+        """``chart``: the chart on screen as ``bilimovich chart --out x.npz`` writes it (``chart-partial.npz`` and
+        ``complete`` False, ``computed`` False where no pixel was computed, after a Stop)."""
+        if self.chart is None or what != "chart":
             return None
-        with tempfile.TemporaryDirectory() as d:
-            path = os.path.join(d, "chart.npz")
-            self.chart.to_npz(path)
-            with open(path, "rb") as fh:
-                return fh.read()
+        return self.chart if probe else result_file(self.chart, "chart", ".npz")
+
+
+def _copy(chart):
+    """A copy of a chart still being computed (the job goes on adding to its arrays)."""
+    return dataclasses.replace(chart, regime=chart.regime.copy(), period=chart.period.copy(), lyap=chart.lyap.copy(),
+                               status=chart.status.copy(), computed=chart.computed.copy(), errors=dict(chart.errors),
+                               inferred=chart.inferred.copy())  # fmt: skip
 
 
 _SWEPT = ("alpha", "I11", "I22", "I33", "I12", "I13", "I23", "g0", "g1", "g2", "omega")

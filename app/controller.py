@@ -26,7 +26,7 @@ import numpy as np
 import param
 
 from app.layers import KEEP, LAYERS, Layer
-from app.layers.base import Action, plain
+from app.layers.base import Action, Download, plain
 from app.layers.section import SectionLayer
 from app.runner import Emit, Runner
 from app.state import _ORDER, BY_NAME, CONTROLS, MAX_CLICKED, SYSTEM_FIELDS, TABS, ExplorerState, SectionRequest, commit
@@ -450,6 +450,14 @@ class ExplorerSession(param.Parameterized):
         for layer in self.every:
             if layer.download and layer.download == what:
                 return layer.csv()
+        return None
+
+    def download(self, what: str) -> Download | None:
+        """The download ``what`` of the layer that offers it (:meth:`app.layers.base.Layer.file`: its name says
+        whether its run was stopped), or None when no layer offers it or nothing of it is on screen."""
+        for layer in self.every:
+            if layer.download and layer.download == what:
+                return layer.file()
         return None
 
     # --- data out ------------------------------------------------------------------------------

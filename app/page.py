@@ -213,14 +213,13 @@ class Page:
         return problem
 
     def _download(self, what: str) -> None:
-        if what == "chart" and "chart" in self.tabs:
-            data = self.tabs["chart"].npz_bytes()  # type: ignore[attr-defined]
-            if data is not None:
-                self.ui.send_download("chart.npz", "application/octet-stream", data)
-            return
-        csv = self.session.csv(what)  # a layer's (the section's, the orbits', ...): None when nothing is on screen
-        if csv is not None:
-            self.ui.send_download(f"{what}.csv", "text/csv", csv)
+        """The file ``what`` of the analysis tab that offers it (:meth:`app.analyses.AnalysisTab.file`), else of the
+        layer that does (:meth:`app.controller.ExplorerSession.download`); nothing when none is on screen. Its name
+        ends in ``-partial`` when its run was stopped (the file says what was lost)."""
+        tab = next((t for t in self.tabs.values() if what in t.downloads), None)
+        file = tab.file(what) if tab is not None else self.session.download(what)
+        if file is not None:
+            self.ui.send_download(file.name, file.mime, file.data)
 
     # --- tours ----------------------------------------------------------------------------------------
 

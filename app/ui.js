@@ -277,7 +277,9 @@ export function render({model, el}) {
   manCsvBtn.addEventListener("click", () => send({action: "download", what: "manifolds"}))
   const secBar = h("div", {class: "bar"})
   for (const s of byArea.section || []) secBar.append(control(s))
-  secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn)
+  const basNpzBtn = h("button", {class: "act light btn-basins-npz", text: "Download basins NPZ", hidden: true})
+  basNpzBtn.addEventListener("click", () => send({action: "download", what: "basins"}))
+  secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn, basNpzBtn)
   // Play a parameter: its settings are controls (area "play"); Play/Pause and Step are actions.
   const playBtn = h("button", {class: "act btn-play", text: "▶ Play"})
   playBtn.addEventListener("click", () => send({action: playBtn.dataset.playing === "1" ? "pause" : "play"}))
@@ -381,13 +383,13 @@ export function render({model, el}) {
   runBtn.addEventListener("click", () => send({action: "run", tab: currentTab}))
   const aStop = h("button", {class: "act warn btn-stop-analysis", text: "Stop"})
   aStop.addEventListener("click", () => send({action: "stop", tab: currentTab}))
-  const npzBtn = h("button", {class: "act light btn-npz", text: "Download chart NPZ"})
-  npzBtn.addEventListener("click", () => send({action: "download", what: "chart"}))
+  // The open tab's downloads (view.downloads: [what, words, class, ready]), buttons like the section's.
+  const aDownloads = h("span", {class: "downloads"})
   const loadBtn = h("button", {class: "act light btn-load-bench", text: "Load latest bench run"})
   loadBtn.addEventListener("click", () => send({action: "load_bench"}))
   const choice = h("select", {class: "bench-choice", "aria-label": "Diagram"})
   choice.addEventListener("change", () => send({action: "bench_choice", value: choice.value}))
-  const aBar = h("div", {class: "bar"}, runBtn, aStop, npzBtn, loadBtn, choice)
+  const aBar = h("div", {class: "bar"}, runBtn, aStop, aDownloads, loadBtn, choice)
   const aError = h("div", {class: "error-box analysis-error", role: "alert"})
   const progress = h("progress", {max: 100, hidden: true})
   const aMsg = h("div", {class: "status-line analysis-status", "aria-live": "polite"})
@@ -490,7 +492,6 @@ export function render({model, el}) {
     paneAnalysis.hidden = t === "section"
     if (t !== "section") {
       aForm.replaceChildren(...(byArea[t] || []).map((s) => controls[s.name] ? controls[s.name].wrap : control(s)))
-      npzBtn.hidden = t !== "chart"
       loadBtn.hidden = choice.hidden = t !== "bench"
       runBtn.textContent = t === "bench" ? "Measure" : "Run"
       runBtn.className = `act btn-run ${t}-run`
@@ -562,6 +563,7 @@ export function render({model, el}) {
     manCsvBtn.hidden = !s.n_manifolds
     manStatus.textContent = s.manifold_status || ""
     basStatus.textContent = s.basin_status || ""
+    basNpzBtn.hidden = !s.basins_file
     densLegend.hidden = !s.density
     colourNote.textContent = s.colour_note || ""
     colourNote.hidden = !s.colour_note
@@ -627,7 +629,16 @@ export function render({model, el}) {
       aMsg.textContent = a.running && !a.message ? "computing…" : (a.message || "")
       lines(aResult, a.result || [])
       aStop.disabled = !a.running
-      npzBtn.disabled = !a.download
+      const offered = a.downloads || []
+      if (aDownloads.dataset.tab !== currentTab || aDownloads.children.length !== offered.length) {
+        aDownloads.dataset.tab = currentTab
+        aDownloads.replaceChildren(...offered.map(([what, words, cls]) => {
+          const b = h("button", {class: `act light ${cls}`, text: words})
+          b.addEventListener("click", () => send({action: "download", what}))
+          return b
+        }))
+      }
+      offered.forEach(([, , , ready], i) => { aDownloads.children[i].disabled = !ready })
       aFoot.textContent = a.footnote || ""
       aLegend.replaceChildren()
       if (a.legend) {

@@ -37,7 +37,7 @@ def test_a_density_view_bins_every_point_and_keeps_only_the_selected_trajectory(
     assert set(page.session.data()[0].tolist()) <= set(page.session.section.density.req.keep)
     assert page.state.to_query()["render"] == "density"
     csv = page.session.csv("section").decode().splitlines()
-    assert csv[1].startswith("# a density view")
+    assert csv[2].startswith("# a density view")  # the header, the settings, then the notes
 
 
 def test_auto_draws_points_up_to_the_bound_and_a_density_beyond() -> None:

@@ -1,15 +1,24 @@
 """Exports are what the screen shows: after a Stop the picture, its status and every CSV name the settings
-the data were computed with; every CSV the app offers reads back with csv and numpy as numbers."""
+the data were computed with, and say that the run was stopped (in the file and its name); every CSV the app
+offers reads back with csv and numpy (``genfromtxt(..., names=True)`` as it comes) as numbers; the orbit
+diagram, the Lyapunov spectrum and the basins download as the command line writes them."""
 
 from __future__ import annotations
 
 import csv
 import io
+import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from clirun import run_cli
+from test_app_analyses import session
+from test_app_cli_parity import _numerics_flags, _system_flags
 from test_app_orbits import FLIP, page_for, tap
 
+from app import analyses
+from app.layers.section import SectionLayer
 from app.page import Page
 from app.runner import WARM
 
@@ -41,13 +50,20 @@ def _warm() -> None:
 
 
 def _csv(page: Page, what: str) -> tuple[str, list[dict[str, str]], np.ndarray]:
-    """A download as the user gets it: its header line, its rows (csv) and its table (numpy)."""
+    """A download as the user gets it: its settings line, its rows (csv, comment lines skipped) and its table
+    (numpy reading the file as it comes)."""
     data = page.session.csv(what).decode()
-    header = data.splitlines()[0]
+    header = next(line for line in data.splitlines() if line.startswith("# Bilimovich Explorer "))
     body = "\n".join(line for line in data.splitlines() if not line.startswith("#"))
     rows = list(csv.DictReader(io.StringIO(body)))
-    table = np.genfromtxt(io.StringIO(body), delimiter=",", names=True, dtype=None, encoding="utf-8")
+    table = _table(data)
     return header, rows, table
+
+
+def _table(data: str) -> np.ndarray:
+    """A downloaded CSV read by numpy as it comes (the old files' settings line before the header became the
+    column names)."""
+    return np.genfromtxt(io.StringIO(data), delimiter=",", names=True, dtype=None, encoding="utf-8")
 
 
 def _header_settings(header: str) -> dict[str, str]:
@@ -63,6 +79,7 @@ def test_every_csv_reads_back_as_numbers() -> None:
         header, rows, table = _csv(page, what)
         assert header.startswith(f"# Bilimovich Explorer {'periodic orbits' if what == 'orbits' else what}")
         assert rows and table.size == len(rows), what
+        assert table.dtype.names == tuple(rows[0]), what  # the header line is the first, the comments follow
         for name in columns:
             values = [float(row[name]) for row in rows]  # plain numbers: float() reads every cell
             assert np.all(np.isfinite(values)), (what, name)
@@ -128,3 +145,182 @@ def test_a_stop_clears_the_frozen_field_layers_of_another_system() -> None:
     page.handle({"action": "stop"})
     jobs.drain()
     assert list(page.fig.equilibria.data["q"]) == [] and len(page.fig.tprime.data["image"]) == 0
+
+
+# --- stopped runs say so ---------------------------------------------------------------------------------------
+
+
+def test_a_stopped_section_downloads_as_partial(monkeypatch) -> None:
+    """Stop after the first points of 2,000 periods: the file is ``section-partial.csv`` and says after how many
+    periods it was stopped (the old code wrote ``section.csv`` with the settings' periods=2000 and nothing else)."""
+    page, jobs = page_for({})
+    real = SectionLayer.apply_chunk
+
+    def then_stop(self, *args, **kw):
+        real(self, *args, **kw)
+        page.handle({"action": "stop"})  # the Stop button, while the run is in flight
+
+    monkeypatch.setattr(SectionLayer, "apply_chunk", then_stop)
+    assert page.commit("periods", "2000") is None
+    jobs.drain()
+    monkeypatch.setattr(SectionLayer, "apply_chunk", real)
+    done, total = page.session.section.shown_periods
+    assert 0 < done < total == 2000
+    sent = []
+    monkeypatch.setattr(page.ui, "send_download", lambda *a: sent.append(a))
+    page.handle({"action": "download", "what": "section"})
+    ((name, mime, data),) = sent
+    text = data.decode()
+    assert name == "section-partial.csv" and mime == "text/csv"
+    assert "\n# partial: the run was stopped before its end" in text
+    assert f"not computed: the section was stopped after {done} of its 2000 periods" in text
+    table = _table(text)
+    assert table.dtype.names == ("traj", "k", "q", "r") and np.count_nonzero(table["traj"] == 0) == done
+    # A run that ends is complete again: its file says nothing of a stop.
+    page.session.recompute()
+    jobs.drain()
+    sent.clear()
+    page.handle({"action": "download", "what": "section"})
+    assert sent[0][0] == "section.csv" and b"partial" not in sent[0][2]
+
+
+def test_a_stopped_chart_downloads_as_partial(monkeypatch) -> None:
+    """Stop after two tiles: ``chart-partial.npz`` with ``complete`` False, the lost pixels named and ``computed``
+    False where no pixel was computed, while the picture still fills them from coarser pixels (the old code
+    downloaded ``chart.npz`` with every pixel ``computed``)."""
+    monkeypatch.setattr(analyses, "REFRESH", 0.0)  # a picture after every tile
+    sess = session("fig11")
+    sess.state.param.update(chart_grid=(8, 6), chart_periods=30, chart_transient=20, chart_curves=False)
+    tab = analyses.ChartTab(sess)
+    tab.figure()
+    real, shown = tab._show, []
+
+    def then_stop(chart, done, total, final=False):
+        real(chart, done, total, final)
+        shown.append(done)
+        if len(shown) == 2:
+            tab.stop()
+
+    monkeypatch.setattr(tab, "_show", then_stop)
+    tab.run()
+    assert shown == [1, 2] and "stopped" in tab.view["message"]
+    file = tab.file("chart")
+    assert file.name == "chart-partial.npz"
+    assert np.all(tab.source.data["image"][0] > 0)  # the picture: every pixel coloured from a coarser one
+    with np.load(io.BytesIO(file.data)) as z:
+        assert not bool(z["complete"]) and 0 < z["computed"].sum() < z["computed"].size
+        lost = json.loads(str(z["lost"]))
+        assert {"what": "pixels", "count": int((~z["computed"]).sum()),
+                "why": "not computed: the chart was stopped before them"} in lost  # fmt: skip
+        assert np.all(np.isnan(z["period"][~z["computed"]]))
+    # The page sends it under that name.
+    sent: list = []
+    ui = SimpleNamespace(send_download=lambda *a: sent.append(a))
+    page = SimpleNamespace(tabs={"chart": tab}, session=sess, ui=ui)
+    Page._download(page, "chart")  # type: ignore[arg-type]
+    assert sent[0][0] == "chart-partial.npz"
+
+
+# --- the analyses' downloads are the command line's files --------------------------------------------------------
+
+
+def _same_csv(app: bytes, cli_path: str) -> np.ndarray:
+    """The app's CSV and the command line's, read by numpy as they come: the same columns and values."""
+    a = _table(app.decode())
+    with open(cli_path) as fh:
+        c = _table(fh.read())
+    assert a.dtype.names == c.dtype.names and a.shape == c.shape
+    for name in a.dtype.names:
+        if np.issubdtype(a[name].dtype, np.number):
+            np.testing.assert_array_equal(a[name], c[name], err_msg=name)
+        else:
+            assert a[name].tolist() == c[name].tolist(), name
+    return a
+
+
+def test_the_orbit_diagram_downloads_as_the_command_line_writes_it(tmp_path) -> None:
+    sess = session("fig10")
+    st = sess.state
+    st.param.update(bif_values=4, bif_points=8, bif_transient=30, bif_range=(-0.42, -0.40), bif_orbits=False)
+    tab = analyses.BifurcationTab(sess)
+    assert [d[3] for d in tab.view["downloads"]] == [False, False, False]  # nothing yet
+    tab.run()
+    assert [d[0] for d in tab.view["downloads"] if d[3]] == ["bifurcation"]  # not continued: no branches
+    assert tab.file("branches") is None
+    file = tab.file("bifurcation")
+    assert file.name == "bifurcation.csv"
+    ics = [f"--ic={float(q)!r},{float(r)!r}" for q, r in np.asarray(tab._data.ics)]
+    out = str(tmp_path / "d.csv")
+    code, _, err = run_cli("bifurcation", *_system_flags(st.system()), "--param", st.bif_param, "--range=-0.42,-0.4",
+                           "--n-values", "4", "--points", "8", "--transient", "30", "--seeding", st.bif_seeding, *ics,
+                           *_numerics_flags(tab._data.numerics), "--out", out)  # fmt: skip
+    assert code == 0, err
+    table = _same_csv(file.data, out)
+    assert table.dtype.names == ("sweep", "value_index", "value", "ic", "k", "q", "r", "status") and table.size
+
+
+def test_the_continued_branches_download_with_their_bifurcations() -> None:
+    sess = session("fig10")
+    sess.state.param.update(bif_values=4, bif_points=8, bif_transient=200, bif_range=(-0.36, -0.355),
+                            bif_orbits=True)  # fmt: skip
+    tab = analyses.BifurcationTab(sess)
+    tab.run()
+    cont = tab._cont
+    assert cont is not None and cont.branches
+    branches = tab.file("branches")
+    assert branches.name == "branches.csv"
+    table = _table(branches.data.decode())
+    assert table.dtype.names == cont.CSV_HEADER and table.size == cont.n_points
+    np.testing.assert_array_equal(table["value"], [v for b in cont.branches for v in b.values])
+    summary = json.loads(tab.file("bifurcations").data)
+    assert summary["complete"] == cont.complete and len(summary["branches"]) == len(cont.branches)
+    assert [(b["type"], b["value"], b["error"]) for b in summary["bifurcations"]] == [
+        (b.kind, b.value, b.error) for b in cont.bifurcations]  # fmt: skip
+
+
+def test_the_lyapunov_spectrum_downloads_as_the_command_line_writes_it(tmp_path) -> None:
+    sess = session("fig8B")
+    st = sess.state
+    st.param.update(lyap_ic=(-0.5, -1.0), lyap_transient=20, lyap_periods=30, lyap_ensemble=2)
+    tab = analyses.LyapunovTab(sess)
+    tab.figure()
+    assert tab.file("lyapunov") is None
+    tab.run()
+    history, summary = tab.file("lyapunov"), tab.file("lyapunov_summary")
+    assert (history.name, summary.name) == ("lyapunov.csv", "lyapunov_summary.json")
+    out = str(tmp_path / "h.csv")
+    code, stdout, err = run_cli("lyapunov", *_system_flags(st.system()), "--ic=-0.5,-1.0", "--periods", "30",
+                                "--transient", "20", "--ensemble", "2", *_numerics_flags(tab.result.numerics),
+                                "--history", out, "--json")  # fmt: skip
+    assert code == 0, err
+    table = _same_csv(history.data, out)
+    assert table.dtype.names == ("member", "k", "L1", "L2", "divergence_mean") and set(table["member"]) == {0, 1}
+    cli = json.loads(stdout)
+    app = json.loads(summary.data)
+    assert app["exponents"] == cli["exponents"] and app["complete"] is True
+    # A new run starts from nothing: the old run's files are not offered for it.
+    tab._start(lambda cancelled, emit: None)
+    assert tab.file("lyapunov") is None
+
+
+def test_the_basins_download_as_the_command_line_writes_them(tmp_path) -> None:
+    page, jobs = page_for({"basins": "1", "bas_n": "10"})
+    layer = page.session.layer("basins")
+    assert layer.result is not None and layer.result.completed and page.ui.view["section"]["basins_file"]
+    file = page.session.download("basins")
+    assert (file.name, file.mime) == ("basins.npz", "application/octet-stream")
+    spec = layer.result.spec
+    box = ",".join(repr(float(v)) for v in spec.box)
+    out = str(tmp_path / "b.npz")
+    code, _, err = run_cli("basins", *_system_flags(page.state.system()), f"--box={box}", "--grid", "10,10",
+                           *_numerics_flags(spec.numerics), "--out", out)  # fmt: skip
+    assert code == 0, err
+    with np.load(io.BytesIO(file.data)) as a, np.load(out) as c:
+        assert sorted(a.files) == sorted(c.files)
+        for name in ("q", "r", "label", "status", "computed"):
+            np.testing.assert_array_equal(a[name], c[name], err_msg=name)
+        assert json.loads(str(a["summary"]))["complete"] is True
+    # Turned off: nothing to download.
+    assert page.commit("show_basins", False) is None
+    jobs.drain()
+    assert page.session.download("basins") is None and not page.ui.view["section"]["basins_file"]

@@ -33,7 +33,7 @@ def test_a_click_on_a_saddle_draws_its_manifolds_and_the_homoclinic_points() -> 
     assert q["man"].startswith("-0.0376") and q["man"].endswith(",1") and q["man_len"] == "4"
     assert q["click"] == "manifolds"
     csv = page.session.csv("manifolds").decode().splitlines()
-    assert csv[0].startswith("# Bilimovich Explorer manifolds") and csv[1] == "saddle,branch,kind,s,q,r"
+    assert csv[1].startswith("# Bilimovich Explorer manifolds") and csv[0] == "saddle,branch,kind,s,q,r"
     assert {row.split(",")[2] for row in csv[2:]} == {"stable", "unstable"}
 
 

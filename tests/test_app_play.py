@@ -88,7 +88,7 @@ def test_a_frame_has_fewer_periods_than_a_still_and_pause_computes_the_still() -
     jobs.drain()
     assert page.session.n_points == 3 * FRAME_PERIODS
     # the export of a frame says how many periods it has (not the still's 300 of the URL)
-    assert f"periods={FRAME_PERIODS}" in page.session.csv("section").decode().splitlines()[0]
+    assert f"periods={FRAME_PERIODS}" in page.session.csv("section").decode().splitlines()[1]
     page.handle({"action": "pause"})
     jobs.drain()
     assert page.session.n_points == 3 * 300

@@ -210,8 +210,8 @@ def test_csv_export_has_settings_and_rows() -> None:
     sess.state.param.update(n_random=2, periods=3)
     text = sess.csv("section").decode()
     lines = text.strip().splitlines()
-    assert lines[0].startswith("# Bilimovich Explorer section; scene=fig1C")
-    assert lines[1] == "traj,k,q,r" and len(lines) == 2 + 6
+    assert lines[1].startswith("# Bilimovich Explorer section; scene=fig1C")
+    assert lines[0] == "traj,k,q,r" and len(lines) == 2 + 6
 
 
 def test_scene_selection_sets_every_control() -> None:

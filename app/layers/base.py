@@ -12,8 +12,10 @@ A layer owns its settings, what it says and what the page can ask of it. It decl
   creates one watched field for each, which the layer sets through :meth:`Layer.published`;
 * its **page actions** (``actions``: :class:`Action`): the buttons whose message it answers, and the modes of
   "Click in the plot" it adds;
-* its **CSV download** (``download``: the file's name; :meth:`Layer.table` the rows on screen), written by the
-  core's writer (:func:`csv_bytes`); and its part of the page's view of the section tab (:meth:`Layer.view`).
+* its **download** (``download``: the file's name; :meth:`Layer.table` the rows on screen, written by the core's
+  writer, :func:`csv_bytes`; or :meth:`Layer.file`, a core result as the command line writes it), named
+  ``name-partial.csv`` when its run was stopped (:func:`named`); and its part of the page's view of the section
+  tab (:meth:`Layer.view`).
 
 It says what a job needs (:meth:`Layer.inputs`, on the document thread), computes on the runner
 (:meth:`Layer.job`, a generator of results: each is drawn as it comes) and draws a result (:meth:`Layer.apply`).
@@ -35,6 +37,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 from app.controls import Control, UrlKey
 from app.runner import LAYER
 from explorer_core import export
+from explorer_core.losses import Loss
 
 if TYPE_CHECKING:
     import param
@@ -63,26 +66,75 @@ class Action:
 @dataclass(frozen=True)
 class Table:
     """What a layer's CSV download holds: a title and the settings of the data in a comment line (``notes``: more
-    comment lines), then the header and the rows (cells as :func:`explorer_core.export.cell` writes them)."""
+    comment lines; ``partial``: what a stopped run lost, :func:`stopped_lines`), then the rows (cells as
+    :func:`explorer_core.export.cell` writes them) under the header."""
 
     title: str
     settings: dict[str, str]
     header: tuple[str, ...]
     rows: Iterable[Sequence[Any]]
     notes: tuple[str, ...] = ()
+    partial: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Download:
+    """A file the page hands to the browser: its name, MIME type and bytes."""
+
+    name: str
+    mime: str
+    data: bytes
+
+
+@dataclass(frozen=True)
+class _Stopped:
+    """A run stopped before its end, as :func:`explorer_core.export.partial` reads a result."""
+
+    lost: list[Loss]
+    completed: bool = False
+
+
+def stopped_lines(lost: Sequence[Loss]) -> tuple[str, ...]:
+    """The core's head comments of a run stopped before its end (:func:`explorer_core.export.partial`), with
+    what it lost: the words the command line writes."""
+    return tuple(export.partial(_Stopped(list(lost))))
+
+
+def written(name: str, writer: Callable[[str], Any]) -> bytes:
+    """The bytes a core writer (it takes a path, e.g. a result's ``write``) writes to the file ``name`` of a
+    temporary folder."""
+    with tempfile.TemporaryDirectory(prefix="bilimovich-download-") as folder:
+        path = os.path.join(folder, name)
+        writer(path)
+        with open(path, "rb") as fh:
+            return fh.read()
+
+
+def named(stem: str, suffix: str, partial: bool) -> str:
+    """A download's file name: ``stem-partial.suffix`` for what a stopped run computed (the file says so too)."""
+    return f"{stem}{'-partial' if partial else ''}{suffix}"
+
+
+#: The MIME type of each kind of download.
+MIME = {".csv": "text/csv", ".json": "application/json", ".npz": "application/octet-stream"}
+
+
+def result_file(result: Any, stem: str, suffix: str) -> Download:
+    """A core result as the command line writes it (its ``write(path)``, the columns and entries of ``--out``),
+    named ``stem-partial.suffix`` when its run was stopped (:func:`explorer_core.export.partial`: its CSV head
+    says so, its JSON and NPZ summary hold ``completed``/``complete``/``lost``)."""
+    return Download(named(stem, suffix, bool(export.partial(result))), MIME[suffix],
+                    written(f"{stem}{suffix}", result.write))  # fmt: skip
 
 
 def csv_bytes(table: Table) -> bytes:
-    """``table`` as the file the page downloads: its comment lines, then the header and rows as the core's one CSV
-    writer (:func:`explorer_core.export.write_csv`, the CLI's) writes them, through a file of a temporary folder
-    (the writer takes a path)."""
+    """``table`` as the file the page downloads, written by the core's one CSV writer
+    (:func:`explorer_core.export.write_csv`, the CLI's): the header, then its comment lines (the title and
+    settings, the notes, what a stopped run lost: ``numpy.genfromtxt(..., names=True)`` reads it as it comes),
+    then the rows."""
     words = "&".join(f"{a}={b}" for a, b in table.settings.items())
-    head = "".join(f"# {line}\r\n" for line in (f"Bilimovich Explorer {table.title}; {words}", *table.notes))
-    with tempfile.TemporaryDirectory(prefix="bilimovich-csv-") as folder:
-        path = os.path.join(folder, "download.csv")
-        export.write_csv(path, table.header, table.rows)
-        with open(path, "rb") as fh:
-            return head.encode() + fh.read()
+    comments = (f"Bilimovich Explorer {table.title}; {words}", *table.notes, *table.partial)
+    return written("download.csv", lambda path: export.write_csv(path, table.header, table.rows, comments))
 
 
 class Host(Protocol):
@@ -137,7 +189,8 @@ class Layer:
     publishes: ClassVar[dict[str, Any]] = {}
     #: What the page can ask of it (buttons, click modes).
     actions: ClassVar[tuple[Action, ...]] = ()
-    #: Its CSV download's name (the page's ``{"action": "download", "what": name}``, the file ``name.csv``); "": none.
+    #: Its download's name (the page's ``{"action": "download", "what": name}``, the file ``name.csv`` or what
+    #: :meth:`file` names); "": none.
     download: ClassVar[str] = ""
 
     def __init__(self, host: Host) -> None:
@@ -208,6 +261,14 @@ class Layer:
         table = self.table()
         return None if table is None else csv_bytes(table)
 
+    def file(self) -> Download | None:
+        """Its download as the page sends it: by default :meth:`table` as ``name.csv`` (``name-partial.csv`` when
+        its run was stopped); None when nothing is on screen."""
+        table = self.table()
+        if table is None:
+            return None
+        return Download(named(self.download, ".csv", bool(table.partial)), MIME[".csv"], csv_bytes(table))
+
     def stopped(self, busy: bool, now: dict[str, str]) -> None:
         """After a Stop (``busy``: a job of it was running): say whether what it shows is of the controls'
         settings (``now``), or clear what would otherwise stay under other settings without saying so."""
@@ -245,4 +306,5 @@ def _short(v: str | None, limit: int = 40) -> str:
     return v if len(v) <= limit else v[: limit - 1] + "…"
 
 
-__all__ = ["KEEP", "LAYER", "Action", "Host", "Layer", "Table", "csv_bytes", "plain", "stale_note"]
+__all__ = ["KEEP", "LAYER", "MIME", "Action", "Download", "Host", "Layer", "Table", "csv_bytes", "named", "plain",
+           "result_file", "stale_note", "stopped_lines", "written"]  # fmt: skip

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from app.controls import SYSTEM_FIELDS, Control, ints
-from app.layers.base import KEEP, Layer, plain
+from app.layers.base import KEEP, Download, Layer, plain, result_file
 from app.runner import LAYER
 from app.views import as_drawn
 from explorer_core.analyses.basins import ESCAPE, FAILED, UNDECIDED, Basins, BasinSpec, basin_spec, iter_basins
@@ -68,12 +68,15 @@ class BasinsLayer(Layer):
     )  # fmt: skip
     #: What it says, and its legend rows (colour, text).
     publishes: ClassVar[dict[str, Any]] = {"basin_status": "", "basin_legend": []}
+    #: Its download: the basins on screen as ``bilimovich basins --out basins.npz`` writes them.
+    download = "basins"
 
     def __init__(self, host: Any) -> None:
         super().__init__(host)
         self.text = ""
         self.rows: list[list[str]] = []
         self.ran_with = ""
+        self.result: Basins | None = None  # the basins on screen (a snapshot of the core's: never changes)
 
     def inputs(self) -> BasinInputs | object | None:
         st = self.host.state
@@ -120,6 +123,7 @@ class BasinsLayer(Layer):
     def apply(self, inputs: BasinInputs, result: tuple[Basins, str]) -> None:
         b, done = result
         self.shown_query = inputs.query
+        self.result = b
         colours = {a.id: BASIN_COLOURS[i % len(BASIN_COLOURS)] for i, a in enumerate(b.attractors)}
         colours.update(OUTCOME_COLOURS)
         self.host.fig.set_basins(b.filled(), inputs.box, colours)
@@ -158,6 +162,12 @@ class BasinsLayer(Layer):
         self.host.fig.set_basins(None)
         self.text, self.rows = "", []
         self.shown_query = None
+        self.result = None
+
+    def file(self) -> Download | None:
+        """The basins on screen as the command line's NPZ (``basins.npz``; ``basins-partial.npz`` and its summary's
+        ``completed``/``complete``/``lost`` when the run did not end)."""
+        return None if self.result is None else result_file(self.result, "basins", ".npz")
 
     def status(self) -> str:
         return self.text
@@ -167,6 +177,9 @@ class BasinsLayer(Layer):
 
     def published(self) -> dict[str, Any]:
         return {"basin_status": self.text, "basin_legend": self.rows}
+
+    def view(self) -> dict[str, Any]:
+        return {**self.published(), "basins_file": self.result is not None}  # its download button is offered
 
     def stopped(self, busy: bool, now: dict[str, str]) -> None:
         if not self.host.state.show_basins:

@@ -17,12 +17,13 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from app.layers.base import Layer, Table, stale_note
+from app.layers.base import Layer, Table, stale_note, stopped_lines
 from app.layers.density import DensityImage
 from app.layers.stream import MAX_CHUNK, Cadence
 from app.runner import LAYER, POINTS, Emit
 from app.state import SYSTEM_FIELDS, SectionRequest, key_words, url_keys
 from explorer_core.analyses.reliability import assess
+from explorer_core.losses import Loss
 from explorer_core.solve.integrators import Status
 from explorer_core.solve.section import iter_section
 from explorer_core.system.model import Model
@@ -83,6 +84,9 @@ class SectionLayer(Layer):
         self.t_start = 0.0
         self.elapsed = 0.0
         self.progress: tuple[int | None, int | None] | None = None
+        #: ``(done, total)`` periods of the run whose points are on screen, as its last points came (its export
+        #: says what a Stop lost: a Stop before the next run's points leaves this run's).
+        self.shown_periods: tuple[int, int] | None = None
         self.outcome = ""  # "", "stopped" or "failed": how the last run ended short
         self.status_arr = np.zeros(0, dtype=np.int8)  # status of each trajectory on screen
         self.run_n = 0  # trajectories of the run in flight (or the last one)
@@ -254,6 +258,8 @@ class SectionLayer(Layer):
         """Statuses of the main run's trajectories (a chunk or the end of the run)."""
         self.status_arr[: status.size] = status
         self.progress = (done, total) if running and done is not None else None
+        if running and done is not None and total is not None:
+            self.shown_periods = (done, total)
         self.elapsed = time.perf_counter() - self.t_start
         self.refresh_status()
 
@@ -364,4 +370,15 @@ class SectionLayer(Layer):
             f"a density view: only the trajectories drawn as points (clicked, selected); the image holds "
             f"{self.density.counts[0]} points",)  # fmt: skip
         rows = zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True)
-        return Table("section", self.shown_query or self.host.state.to_query(), ("traj", "k", "q", "r"), rows, notes)
+        return Table("section", self.shown_query or self.host.state.to_query(), ("traj", "k", "q", "r"), rows, notes,
+                     self.partial())  # fmt: skip
+
+    def partial(self) -> tuple[str, ...]:
+        """What the run on screen did not compute, in the core's words (:func:`stopped_lines`); () when it ended."""
+        done, total = self.shown_periods or (0, 0)
+        if done >= total:
+            return ()
+        how = "still running" if self.host.runner.busy(self.name) else "stopped"
+        lost = Loss(f"periods of each of the {self.n_traj} trajectories", total - done,
+                    f"not computed: the section was {how} after {done} of its {total} periods")  # fmt: skip
+        return stopped_lines([lost])

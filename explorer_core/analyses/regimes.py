@@ -945,7 +945,8 @@ class Chart(Drawable):
 
     def to_npz(self, path: str) -> None:
         """Arrays plus the spec as JSON, so the file says what it holds; ``period`` and ``lyap`` are floats with
-        NaN where nothing was measured (:meth:`measured`)."""
+        NaN where nothing was measured (:meth:`measured`); ``complete`` and ``lost`` (JSON, as the summary's): a
+        stopped chart says so, its pixels not computed are ``computed`` False."""
         period, lyap = self.measured()
         np.savez_compressed(
             path,
@@ -960,6 +961,8 @@ class Chart(Drawable):
             regimes=np.array(REGIMES),
             status_names=status_names(),
             spec=json.dumps(self.spec.as_dict()),
+            complete=self.complete,
+            lost=json.dumps([loss.as_dict() for loss in self.lost]),
         )
 
     def to_csv(self, path: str) -> int:
