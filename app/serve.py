@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import json
 import logging
 import math
@@ -225,6 +226,7 @@ def _unread(handler: Any) -> int:
         return 0
 
 
+@functools.cache
 def _server_owned() -> tuple[type, ...]:
     """Models whose properties only the server sets: the data it draws and the page component's state."""
     from bokeh.model import DataModel
