@@ -34,11 +34,22 @@ from app.bodyview import BodyView
 from app.controller import ExplorerSession
 from app.play import Player, Schedule
 from app.runner import FairScheduler, Runner
-from app.state import BY_NAME, BY_URL, CONTROLS, LAYER_PICKS, TABS, parse_query, state_from_query
+from app.state import (
+    BY_NAME,
+    BY_URL,
+    CONTROLS,
+    LAYER_PICKS,
+    TABS,
+    parse_query,
+    plot_point,
+    plot_view,
+    state_from_query,
+)
 from app.tours import TOURS, Tour, TourError, parse_tours, read_tour_url
 from app.ui import ExplorerUI
 from app.views import SectionFigure, SeriesData
 from explorer_core.scenes import get_scene
+from explorer_core.system.params import ParameterError
 
 log = logging.getLogger(__name__)
 
@@ -275,16 +286,27 @@ class Page:
     def _on_tap(self, event: Tap) -> None:
         if event.x is None or event.y is None:
             return
+        try:
+            x, y = plot_point(event.x, event.y)  # a client may send any JSON here; no pointer gives more
+        except ParameterError as exc:
+            log.debug("refused a click: %s", exc)
+            return
         mode = self.state.click_mode
         with self._one_view():
             if mode == "add":
-                self.session.add_initial_condition(event.x, event.y)
-            elif not self.session.act(mode, event.x, event.y):  # a layer's mode (e.g. "finds a periodic orbit")
-                self.session.select_nearest(event.x, event.y)
+                self.session.add_initial_condition(x, y)
+            elif not self.session.act(mode, x, y):  # a layer's mode (e.g. "finds a periodic orbit")
+                self.session.select_nearest(x, y)
 
     def _on_ranges(self, event: RangesUpdate) -> None:
-        if None not in (event.x0, event.x1, event.y0, event.y1):
-            self.session.set_view_from_plot((event.x0, event.x1), (event.y0, event.y1))
+        if None in (event.x0, event.x1, event.y0, event.y1):
+            return
+        try:
+            q_range, r_range = plot_view(event.x0, event.x1, event.y0, event.y1)  # the URL's checks of qr, rr
+        except ParameterError as exc:
+            log.debug("refused a view: %s", exc)  # the last valid view stays in use
+            return
+        self.session.set_view_from_plot(q_range, r_range)
 
     # --- tabs -----------------------------------------------------------------------------------
 

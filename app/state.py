@@ -105,11 +105,49 @@ class SectionRequest:
 
 def _range(name: str, text: str) -> tuple[float, float]:
     lo, hi = _numbers(name, text, 2, "lo,hi")
+    return _check_range(name, lo, hi, str(text))
+
+
+def _check_range(name: str, lo: float, hi: float, shown: str) -> tuple[float, float]:
     if not lo < hi:
-        raise ParameterError(f"{name} needs lo < hi, got {str(text)[:40]!r}")
+        raise ParameterError(f"{name} needs lo < hi, got {shown[:40]!r}")
     if max(abs(lo), abs(hi)) > MAX_MAGNITUDE:
-        raise ParameterError(f"{name} must lie within ±{MAX_MAGNITUDE:g}, got {str(text)[:40]!r}")
+        raise ParameterError(f"{name} must lie within ±{MAX_MAGNITUDE:g}, got {shown[:40]!r}")
     return lo, hi
+
+
+def _plot_number(name: str, v: Any) -> float:
+    # An event's value comes from the client as any JSON: text, lists, booleans and NaN are no coordinate.
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise ParameterError(f"{name} must be a finite number, got {str(v)[:40]!r}")
+    return float(v)
+
+
+def plot_point(x: Any, y: Any) -> tuple[float, float]:
+    """A point clicked in the (q, r) plot as a page sends it: finite numbers within the view's bounds.
+
+    Raises
+    ------
+    ParameterError
+        Naming the bad value (what no pointer gives: text, NaN, a coordinate beyond ±MAX_MAGNITUDE).
+    """
+    q, r = _plot_number("q", x), _plot_number("r", y)
+    if max(abs(q), abs(r)) > MAX_MAGNITUDE:
+        raise ParameterError(f"a clicked point must lie within ±{MAX_MAGNITUDE:g}, got ({q:g}, {r:g})")
+    return q, r
+
+
+def plot_view(x0: Any, x1: Any, y0: Any, y1: Any) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The plot's window after a pan or zoom, checked as the URL's ``qr`` and ``rr`` are.
+
+    Raises
+    ------
+    ParameterError
+        Naming the bad range (not numbers, lo >= hi, beyond ±MAX_MAGNITUDE).
+    """
+    q = [_plot_number("qr", v) for v in (x0, x1)]
+    r = [_plot_number("rr", v) for v in (y0, y1)]
+    return _check_range("qr", *q, f"{q[0]:g},{q[1]:g}"), _check_range("rr", *r, f"{r[0]:g},{r[1]:g}")
 
 
 def _optional_point(name: str, text: str) -> tuple[float, ...]:

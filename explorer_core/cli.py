@@ -628,6 +628,11 @@ def _serve_args(p: argparse.ArgumentParser) -> None:
                    metavar="MS", help="discard a closed tab's session after this many ms (default 15000)")  # fmt: skip
     p.add_argument("--procs", default=env.get("BILIMOVICH_PROCS", "1"), metavar="N|auto",
                    help="server processes on one port ('auto': one per usable CPU); env BILIMOVICH_PROCS")  # fmt: skip
+    p.add_argument("--max-sessions-per-address", type=_count("max-sessions-per-address", 1, 100_000), metavar="N",
+                   default=env.get("BILIMOVICH_MAX_SESSIONS_PER_ADDRESS", "50"),
+                   help="sessions one client address may hold per server process; more get a page saying so "
+                        "(default 50; raise it for a classroom behind one NAT address); "
+                        "env BILIMOVICH_MAX_SESSIONS_PER_ADDRESS")  # fmt: skip
     p.add_argument("--show", action="store_true", help="open a browser")
 
 
@@ -648,7 +653,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
             raise UsageError(f"--allow-websocket-origin must be HOST[:PORT] (never '*'), got {origin!r}")
     procs = config.resolve_procs(args.procs)  # a ValueError is a usage error
     spec = {"port": args.port, "address": args.address, "threads": args.threads, "origins": origins,
-            "session_lifetime": args.session_lifetime, "procs": procs, "show": bool(args.show)}  # fmt: skip
+            "session_lifetime": args.session_lifetime, "procs": procs, "show": bool(args.show),
+            "max_sessions_per_address": args.max_sessions_per_address}  # fmt: skip
     sys.stderr.write(f"Bilimovich Explorer on http://{args.address}:{args.port}/main ({procs} process(es))\n")
     sys.stderr.flush()
     os.execv(sys.executable, [sys.executable, "-m", "app.serve", "--launch", export.dumps(spec)])

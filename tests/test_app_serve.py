@@ -46,6 +46,55 @@ def test_the_server_command() -> None:
     assert env["MALLOC_ARENA_MAX"] == "2"  # no RSS growth over open/close cycles (docs/load.md)
     one, _ = command(port=5006, address="127.0.0.1", threads=4, origins=[], session_lifetime=15000, procs=1)
     assert "--num-procs" not in one
+    # Hostile clients (tests/test_hostile_client.py): one frame at most 2 MB, sessions per address for guard().
+    assert cmd[cmd.index("--websocket-max-message-size") + 1] == str(2 * 2**20)
+    assert env["BILIMOVICH_MAX_SESSIONS_PER_ADDRESS"] == "50"
+    _, capped = command(port=5006, address="127.0.0.1", threads=4, origins=[], session_lifetime=15000, procs=1,
+                        max_sessions_per_address=7)  # fmt: skip
+    assert capped["BILIMOVICH_MAX_SESSIONS_PER_ADDRESS"] == "7"
+
+
+def test_serve_refuses_a_bad_session_cap_in_one_line() -> None:
+    rc, _, err = run_cli("serve", "--max-sessions-per-address", "0")
+    assert rc == 2 and "max-sessions-per-address must be between 1 and 100000, got 0" in err
+
+
+def test_what_a_page_never_sends_is_refused() -> None:
+    """app.serve.refusal: what a page sends passes (events, its plot's and tools' properties as numbers, flags,
+    short texts, references); documents pushed, structure changes, server-owned models and odd values do not."""
+    from bokeh.document import Document
+    from bokeh.models import ColumnDataSource, Range1d
+
+    from app.serve import MAX_EVENTS, refusal
+
+    doc = Document()
+    rng, src = Range1d(0, 1), ColumnDataSource({"q": [1.0]})
+    doc.add_root(rng)
+    doc.add_root(src)
+
+    def change(model, attr: str, new) -> dict:
+        return {"events": [{"kind": "ModelChanged", "model": {"id": model.id}, "attr": attr, "new": new}]}
+
+    event = {"kind": "MessageSent", "msg_type": "bokeh_event", "msg_data": {"type": "event", "name": "tap"}}
+    for ok in (change(rng, "start", -3.5), change(rng, "end", 2), change(rng, "name", "x"), change(rng, "tags", [1]),
+               change(rng, "js_property_callbacks", None), {"events": [event]}, {"events": []}):  # fmt: skip
+        assert refusal("PATCH-DOC", ok, doc) is None, ok
+    assert refusal("PULL-DOC-REQ", {}, doc) is None
+    nan = {"type": "number", "value": "nan"}
+    bad = [
+        (change(rng, "start", nan), "no widget sends"), (change(rng, "start", 1e400), "no widget sends"),
+        (change(rng, "name", "x" * 1001), "no widget sends"), (change(rng, "tags", [[1]]), "no widget sends"),
+        (change(rng, "tags", {"type": "object", "id": "n"}), "no widget sends"),
+        (change(src, "data", {"q": [2.0]}), "ColumnDataSource.data (set by the server only)"),
+        ({"events": [{"kind": "ModelChanged", "model": {"id": "p0"}, "attr": "x", "new": 1}]}, "unknown model"),
+        ({"events": [{"kind": "RootRemoved", "model": {"id": rng.id}}]}, "'RootRemoved' event"),
+        ({"events": [event] * (MAX_EVENTS + 1)}, f"{MAX_EVENTS + 1} events in one message"),
+        ({"events": "all"}, "without a list"),
+    ]  # fmt: skip
+    for content, needle in bad:
+        why = refusal("PATCH-DOC", content, doc)
+        assert why is not None and needle in why, (content, why)
+    assert "PUSH-DOC" in refusal("PUSH-DOC", {"doc": {}}, doc)
 
 
 def test_pages_pass_bokehs_checks() -> None:

@@ -295,3 +295,25 @@ def test_a_url_key_that_is_not_a_setting_is_reported_with_the_nearest_one() -> N
         "URL parameter 'zzz' is not a setting of this page: ignored",
     ]
     assert state.periods == 50 and state.accuracy == "plot"
+
+
+def test_a_plots_events_are_checked_like_the_urls_values() -> None:
+    """A click and a pan's view as a client sends them (any JSON): finite numbers within ±MAX_MAGNITUDE, lo < hi
+    (the URL's qr/rr checks); what no pointer gives names the bad value."""
+    import re
+
+    from app.state import plot_point, plot_view
+    from explorer_core.system.params import ParameterError
+
+    assert plot_point(0.5, -2) == (0.5, -2.0)
+    assert plot_view(-3.5, 3.5, -5, 5.5) == ((-3.5, 3.5), (-5.0, 5.5))
+    for args, needle in (((float("nan"), 0.0), "q must be a finite number, got 'nan'"),
+                         (("abc", 0.0), "'abc'"), (([1, 2], 0.0), "[1, 2]"), ((True, 0.0), "True"),
+                         ((0.0, 1e308), "within ±1e+06, got (0, 1e+308)")):  # fmt: skip
+        with pytest.raises(ParameterError, match=re.escape(needle)):
+            plot_point(*args)
+    for args, needle in (((1e300, -5.0, 0.0, 1.0), "qr needs lo < hi"), ((1.0, 1.0, 0.0, 1.0), "qr needs lo < hi"),
+                         ((0.0, 1.0, 0.0, float("inf")), "rr must be a finite number"),
+                         ((-1e12, 1e12, 0.0, 1.0), "qr must lie within ±1e+06"), (("a", 1, 0, 1), "'a'")):  # fmt: skip
+        with pytest.raises(ParameterError, match=re.escape(needle)):
+            plot_view(*args)
