@@ -26,6 +26,7 @@ from bokeh.plotting import figure
 from app.controller import ExplorerSession
 from app.layers.base import Download, result_file
 from app.layers.base import plain as _plain
+from app.state import plot_point
 from app.views import BACKEND
 from explorer_core.analyses.bifurcation import DIAGRAM_PLOT_BOUND, DIAGRAM_PLOT_RTOL, bifurcation_diagram
 from explorer_core.analyses.continuation import chart_boundaries, continue_from_seeds, seeds_spec
@@ -613,9 +614,11 @@ class ChartTab(AnalysisTab):
 
     def _on_tap(self, event) -> None:
         """A click on a pixel sets those two parameters to the pixel's centre; the section recomputes."""
-        if event.x is None or event.y is None:
+        try:  # what no pointer sends (text, NaN, 1e300) is refused as the section plot's clicks are
+            x, y = plot_point(event.x, event.y)
+        except ParameterError:
             return
-        centre = self.pixel_centre(float(event.x), float(event.y))
+        centre = self.pixel_centre(x, y)
         if centre is None:
             return
         spec, st = self.chart.spec, self.session.state
