@@ -652,6 +652,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         if not re.fullmatch(r"[A-Za-z0-9.\-\[\]:]+", origin) or origin == "*":
             raise UsageError(f"--allow-websocket-origin must be HOST[:PORT] (never '*'), got {origin!r}")
     procs = config.resolve_procs(args.procs)  # a ValueError is a usage error
+    _check_listen(args.address, args.port)
     spec = {"port": args.port, "address": args.address, "threads": args.threads, "origins": origins,
             "session_lifetime": args.session_lifetime, "procs": procs, "show": bool(args.show),
             "max_sessions_per_address": args.max_sessions_per_address}  # fmt: skip
@@ -659,6 +660,24 @@ def cmd_serve(args: argparse.Namespace) -> int:
     sys.stderr.flush()
     os.execv(sys.executable, [sys.executable, "-m", "app.serve", "--launch", export.dumps(spec)])
     return 0  # not reached
+
+
+def _check_listen(address: str, port: int) -> None:
+    """The server can listen on ``address:port`` (a name that resolves to an address of this machine, a port
+    free): one usage line naming the value, before the server starts (it printed "ERROR: -2" and exited 1)."""
+    import socket
+
+    try:
+        infos = socket.getaddrinfo(address, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    except (socket.gaierror, UnicodeError) as exc:
+        raise UsageError(f"--address {address!r} is no address or host name ({exc})") from None
+    family, kind, proto, _, where = infos[0]
+    with socket.socket(family, kind, proto) as probe:
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind(where)
+        except OSError as exc:
+            raise UsageError(f"cannot listen on --address {address} --port {port}: {exc.strerror or exc}") from None
 
 
 def _out_dir(args: argparse.Namespace) -> str:

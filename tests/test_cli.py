@@ -170,6 +170,8 @@ def test_scenes_listing() -> None:
         ),
         (["scenes", "--x"], "bilimovich scenes: error: unrecognized arguments: --x"),
         (["critical", "--alpha", "1e300", "--json"], "coefficients overflow in double precision (alpha = 1e+300"),
+        (["serve", "--address", "999.1.1.1", "--port", "5999"], "--address '999.1.1.1' is no address or host name"),
+        (["serve", "--address", "192.0.2.1", "--port", "5999"], "cannot listen on --address 192.0.2.1 --port 5999"),
     ],
 )
 def test_bad_input_one_line_no_traceback(args, needle) -> None:
