@@ -227,7 +227,11 @@ def test_section_rejects_bad_requests_by_name(ics, periods, transient, direction
 @NUMERIC
 @given(params=systems(), t=finite)
 def test_equilibria_are_finite_and_typed(params, t) -> None:
-    eq = equilibria(params, t)
+    try:
+        eq = equilibria(params, t)
+    except ParameterError as exc:  # a system whose coefficient tables overflow is refused, in words
+        assert "overflow in double precision" in str(exc), exc
+        return
     assert np.all(np.isfinite(eq.points)), eq.points
     assert len(eq.types) == len(eq) and set(eq.types) <= set(TYPES)
     assert not (eq.degenerate and len(eq))

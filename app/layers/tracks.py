@@ -52,8 +52,11 @@ class TracksLayer(FrozenLayer):
         params, samples, refine = inputs
         return critical_spec(params, track=True, n_t=samples, max_refine=refine)
 
-    def job(self, inputs: tuple[Params, int, int | None], cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
-        tr = critical_points(self.spec(inputs), cancel=cancelled)
+    def prepare(self, inputs: tuple[Params, int, int | None]) -> CriticalSpec:
+        return self.spec(inputs)  # a system whose tables overflow is refused here, in words (not in the job)
+
+    def job(self, spec: CriticalSpec, cancelled: Callable[[], bool]) -> Iterator[tuple[list, Any]]:
+        tr = critical_points(spec, cancel=cancelled)
         if tr.completed:  # else a newer setting: its own tracks job is on the way
             yield segments_by_type(tr.branches()), tr.section()
 

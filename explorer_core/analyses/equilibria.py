@@ -304,6 +304,17 @@ def classify(jacobian: Any, rtol: float = 1e-12) -> tuple[np.ndarray, tuple[str,
 # Public entry points.
 
 
+def check_tables(model: Model) -> None:
+    """ParameterError when the frozen field's coefficient tables overflow in double precision (alpha = 1e300:
+    alpha^2 is inf, and the resultant of overflowed conics "vanishes identically": a whole curve of equilibria
+    would be claimed that is no property of the system)."""
+    if not all(np.isfinite(a).all() for a in (model.num, model.gpc, model.den)):
+        p = model.params
+        raise ParameterError(f"the frozen field's coefficients overflow in double precision (alpha = {p.alpha:g}, "
+                             f"inertia {', '.join(f'{v:g}' for v in p.inertia)}): its equilibria cannot be "
+                             "computed; scale the system down")  # fmt: skip
+
+
 class _Samples:
     """The equilibria of one model at many frozen times, row by row in arrays that grow (a row per time).
 
@@ -313,13 +324,7 @@ class _Samples:
     """
 
     def __init__(self, model: Model, capacity: int, inf_norm: float, rtol: float) -> None:
-        if not all(np.isfinite(a).all() for a in (model.num, model.gpc, model.den)):
-            # (alpha = 1e300: alpha^2 overflows, and the resultant of overflowed conics "vanishes identically":
-            # a whole curve of equilibria would be claimed that is no property of the system)
-            p = model.params
-            raise ParameterError(f"the frozen field's coefficients overflow in double precision (alpha = {p.alpha:g}, "
-                                 f"inertia {', '.join(f'{v:g}' for v in p.inertia)}): its equilibria cannot be "
-                                 "computed; scale the system down")  # fmt: skip
+        check_tables(model)
         self.model = model
         self.forcing = model.forcing
         self.inf_norm = float(inf_norm)
@@ -869,6 +874,8 @@ def critical_spec(
         n_t = check_int("n_t", n_t, 2, 1_000_000)
         at("max_refine")
         max_refine = None if max_refine is None else check_int("max_refine", max_refine, 0, 100_000_000)
+        at("params")
+        check_tables(_as_model(params))
     return CriticalSpec(params, t, track, n_t, max_refine)
 
 
