@@ -273,22 +273,22 @@ class BasinSpec:
     numerics: Numerics
     cell_box: tuple[float, float, float, float]
     cells: tuple[int, int]
-    chunk: int = 5
-    max_periods: int = 3000
-    recurrences: int = 100
-    locate: int = 1000
-    hit_attractor: int = 3
-    hit_basin: int | None = None
-    p_max: int = 16
-    tol: float = 1e-5
-    lyap_threshold: float = 5e-3
-    inflight: int = 512
+    chunk: int
+    max_periods: int
+    recurrences: int
+    locate: int
+    hit_attractor: int
+    hit_basin: int | None
+    p_max: int
+    tol: float
+    lyap_threshold: float
+    inflight: int
     #: True: ``cells``/``cell_box`` are the defaults, refined from the attractors when they do not resolve
     #: them (:func:`iter_basins`); False: the caller's, kept (an unresolved grid is reported as a loss).
-    adapt_cells: bool = True
+    adapt_cells: bool
     #: Newton on a cell's cycle (:meth:`_Run.cycle`); its map follows ``numerics``' tolerance
     #: (:meth:`~explorer_core.solve.options.NewtonOptions.at`, reference DEFAULT_BASIN_TOL).
-    newton: NewtonOptions = field(default_factory=lambda: BASIN_NEWTON)
+    newton: NewtonOptions
     #: The continuation that confirms a chaotic or quasi-periodic set (:meth:`_Run.confirm`).
     confirm: int = option(
         CONFIRM_PERIODS,

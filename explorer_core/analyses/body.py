@@ -257,10 +257,10 @@ class BodySpec:
 
     params: Params
     ic: tuple[float, float]
-    periods: int = 20
-    samples: int = 48
-    k0: int = 0
-    numerics: Numerics = field(default_factory=Numerics)
+    periods: int
+    samples: int
+    k0: int
+    numerics: Numerics
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "ic": list(self.ic), "periods": self.periods, "samples": self.samples,

@@ -243,7 +243,7 @@ class DensitySpec:
     pixels: tuple[int, int]
     numerics: Numerics
     #: Initial conditions given beside the random ones (after them).
-    points: tuple[tuple[float, float], ...] = ()
+    points: tuple[tuple[float, float], ...]
 
     @property
     def ics(self) -> np.ndarray:

@@ -334,14 +334,14 @@ class DriftSpec:
 
     params: Params | None
     window: tuple[int, int]
-    degree: tuple[int, int] = (1, 2)
-    m: int = 10
-    ics: tuple[tuple[float, float], ...] | None = None
-    box: tuple[float, float, float, float] | None = None
-    seed: int | None = 0
-    max_draws: int = 500
-    criterion: str = "on_curve"
-    numerics: Numerics = field(default_factory=Numerics)
+    degree: tuple[int, int]
+    m: int
+    ics: tuple[tuple[float, float], ...] | None
+    box: tuple[float, float, float, float] | None
+    seed: int | None
+    max_draws: int
+    criterion: str
+    numerics: Numerics
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": None if self.params is None else self.params.as_dict(), "window": list(self.window),

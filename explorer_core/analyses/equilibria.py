@@ -845,10 +845,10 @@ class CriticalSpec:
 
     params: Params
     t: float
-    track: bool = False
-    n_t: int = 400
+    track: bool
+    n_t: int
     #: Bisections allowed where the equilibria's count changes (None: 4 per sample).
-    max_refine: int | None = None
+    max_refine: int | None
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "t": self.t, "track": self.track, "n_t": self.n_t,

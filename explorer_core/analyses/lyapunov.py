@@ -470,11 +470,11 @@ class LyapunovSpec:
     params: Params
     ics: tuple[tuple[float, float], ...]
     periods: int
-    transient: int = 0
-    numerics: Numerics = field(default_factory=Numerics)
-    ensemble: int = 1
-    offset: float = 1e-6
-    seed: int | None = 0
+    transient: int
+    numerics: Numerics
+    ensemble: int
+    offset: float
+    seed: int | None
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "ics": [list(x) for x in self.ics], "periods": self.periods,

@@ -739,14 +739,14 @@ class ManifoldSpec:
 
     params: Params
     point: tuple[float, float]
-    period: int = 1
-    kinds: tuple[str, ...] = KINDS
-    length: float = 10.0
-    view: tuple[float, float, float, float] | None = None
-    pixels: tuple[int, int] = PIXELS
-    delta_px: float = DELTA_PX
-    max_points: int = 200_000
-    numerics: Numerics = MANIFOLD_NUMERICS
+    period: int
+    kinds: tuple[str, ...]
+    length: float
+    view: tuple[float, float, float, float] | None
+    pixels: tuple[int, int]
+    delta_px: float
+    max_points: int
+    numerics: Numerics
 
     @property
     def saddle_numerics(self) -> Numerics:

@@ -500,13 +500,13 @@ class OrbitSpec:
 
     params: Params
     periods: tuple[int, ...]
-    seeds: tuple[tuple[float, float], ...] = ()
-    box: tuple[float, float, float, float] = (-2.0, 2.0, -2.0, 2.0)
-    grid: tuple[int, int] | None = None
-    returns: int | None = None
-    in_box: bool = False
-    numerics: Numerics = ORBIT_NUMERICS
-    newton: NewtonOptions = ORBITS
+    seeds: tuple[tuple[float, float], ...]
+    box: tuple[float, float, float, float]
+    grid: tuple[int, int] | None
+    returns: int | None
+    in_box: bool
+    numerics: Numerics
+    newton: NewtonOptions
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "periods": list(self.periods), "seeds": [list(s) for s in self.seeds],

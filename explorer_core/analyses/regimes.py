@@ -120,14 +120,14 @@ class ChartSpec:
     y_param: str
     y_values: np.ndarray
     ics: np.ndarray
-    transient: int = 500
-    periods: int = 500
-    p_max: int = 16
-    tol: float = 1e-5
-    lyap_threshold: float = 5e-3
-    numerics: Numerics = field(default_factory=lambda: chart_numerics())
+    transient: int
+    periods: int
+    p_max: int
+    tol: float
+    lyap_threshold: float
+    numerics: Numerics
     #: Newton on a member's settled cycle (:func:`settled_cycles`).
-    newton: NewtonOptions = SETTLING
+    newton: NewtonOptions
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -37,11 +37,11 @@ class SectionSpec:
     params: Params
     ics: np.ndarray = field(repr=False)
     periods: int
-    transient: int = 0
-    numerics: Numerics = field(default_factory=Numerics)
-    direction: int = 1
-    view: tuple[float, float, float, float] | None = None
-    origin: dict[str, Any] | None = None
+    transient: int
+    numerics: Numerics
+    direction: int
+    view: tuple[float, float, float, float] | None
+    origin: dict[str, Any] | None
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "ics": self.origin or {"given": self.ics.tolist()},

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -182,10 +182,10 @@ class SymmetrySpec:
 
     params: Params
     ics: tuple[tuple[float, float], ...]
-    periods: int = 10
-    centre: float | None = None
-    tol: float = 1e-6
-    numerics: Numerics = field(default_factory=lambda: Numerics(rtol=1e-12, atol=1e-12))
+    periods: int
+    centre: float | None
+    tol: float
+    numerics: Numerics
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "ics": [list(x) for x in self.ics], "periods": self.periods,

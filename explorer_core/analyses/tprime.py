@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -200,11 +200,11 @@ class TPrimeSpec:
 
     params: Params
     t: float
-    q_range: tuple[float, float] = (-3.0, 3.0)
-    r_range: tuple[float, float] = (-3.0, 3.0)
-    grid: int | tuple[int, int] = 200
-    per_period: bool = False
-    numerics: Numerics = field(default_factory=lambda: Numerics(rtol=1e-8, atol=1e-8))
+    q_range: tuple[float, float]
+    r_range: tuple[float, float]
+    grid: int | tuple[int, int]
+    per_period: bool
+    numerics: Numerics
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "t": self.t, "q_range": list(self.q_range),

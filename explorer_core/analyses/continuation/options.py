@@ -121,13 +121,13 @@ class ContinuationSpec:
     range: tuple[float, float]
     seed: tuple[float, float]
     period: int
-    switch: bool = False
-    max_period: int = DEFAULT_MAX_PERIOD
-    options: ContinuationOptions = field(default_factory=ContinuationOptions)
-    numerics: Numerics = ORBIT_NUMERICS
-    param2: str | None = None
-    range2: tuple[float, float] | None = None
-    window1: tuple[float, float] | None = None
+    switch: bool
+    max_period: int
+    options: ContinuationOptions
+    numerics: Numerics
+    param2: str | None
+    range2: tuple[float, float] | None
+    window1: tuple[float, float] | None
 
     def as_dict(self) -> dict[str, Any]:
         return {"params": self.params.as_dict(), "param": self.param, "range": list(self.range),
@@ -362,8 +362,8 @@ class BoundariesSpec:
     :func:`boundaries_spec`)."""
 
     chart: Any = field(repr=False, compare=False)
-    periods: tuple[int, ...] = (1, 2, 3)
-    numerics: Numerics = ORBIT_NUMERICS
+    periods: tuple[int, ...]
+    numerics: Numerics
 
     def as_dict(self) -> dict[str, Any]:
         return {"chart": self.chart.spec.as_dict(), "periods": list(self.periods), "numerics": self.numerics.as_dict()}
