@@ -951,7 +951,7 @@ def _ics(text: str) -> dict[str, Any]:
     pts = [p for p in text.split(";") if p.strip()]
     if len(pts) > MAX_CLICKED:
         raise ParameterError(f"at most {MAX_CLICKED} initial conditions, got {len(pts)}")
-    return {"clicked": [_numbers("ics", p, 2, "q,r") for p in pts]}
+    return {"clicked": [_optional_point("ics", p) for p in pts]}  # within ±MAX_MAGNITUDE, as a click is
 
 
 def _tour_id(t: str) -> dict[str, Any]:

@@ -317,3 +317,13 @@ def test_a_plots_events_are_checked_like_the_urls_values() -> None:
                          ((-1e12, 1e12, 0.0, 1.0), "qr must lie within ±1e+06"), (("a", 1, 0, 1), "'a'")):  # fmt: skip
         with pytest.raises(ParameterError, match=re.escape(needle)):
             plot_view(*args)
+
+
+def test_url_initial_conditions_lie_within_the_pages_bounds() -> None:
+    """A URL's ``ics`` is refused beyond ±MAX_MAGNITUDE as a click is (1e308 gave numpy overflow warnings)."""
+    from app.controls import MAX_MAGNITUDE
+
+    st, errors = state_from_query({"ics": "1e308,0"})
+    assert errors and "ics must lie within" in " ".join(map(str, errors)) and st.clicked == []
+    st, errors = state_from_query({"ics": f"{MAX_MAGNITUDE:g},-1;0.5,0.25"})
+    assert not errors and st.clicked == [(MAX_MAGNITUDE, -1.0), (0.5, 0.25)]
