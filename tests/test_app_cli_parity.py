@@ -19,6 +19,12 @@ def _warm() -> None:
     WARM.set()
 
 
+def _system_flags(p) -> list[str]:
+    """The command line's flags for the system ``p`` (every value as the page holds it)."""
+    return ["--inertia", ",".join(repr(v) for v in p.inertia), "--alpha", repr(p.alpha), "--g0", repr(p.g0), "--g1",
+            repr(p.g1), "--g2", repr(p.g2), "--omega", repr(p.omega), "--t0", repr(p.t0)]  # fmt: skip
+
+
 @pytest.mark.parametrize(("method", "accuracy"), [("auto", "plot"), ("dop853", "high")])
 def test_a_charts_spec_is_the_command_lines(monkeypatch, method: str, accuracy: str) -> None:
     seen: dict[str, object] = {}
@@ -41,10 +47,8 @@ def test_a_charts_spec_is_the_command_lines(monkeypatch, method: str, accuracy: 
     q, r = (float(v) for v in st.analysis_ics()[0])
     numerics = ["--method", method, "--steps-per-period", str(st.steps_per_period)]
     numerics += ["--rtol", "1e-12"] if accuracy == "high" else []
-    p = st.system()
     code, _, err = run_cli(
-        "chart", "--inertia", ",".join(repr(v) for v in p.inertia), "--alpha", repr(p.alpha), "--g0", repr(p.g0),
-        "--g1", repr(p.g1), "--g2", repr(p.g2), "--omega", repr(p.omega), "--t0", repr(p.t0),
+        "chart", *_system_flags(st.system()),
         "--x-param", st.chart_x, f"--x-range={st.chart_xrange[0]!r},{st.chart_xrange[1]!r}",
         "--y-param", st.chart_y, f"--y-range={st.chart_yrange[0]!r},{st.chart_yrange[1]!r}", "--grid", "3,2",
         f"--ic={q!r},{r!r}", "--transient", "20", "--periods", "30", "--p-max", str(app.p_max), *numerics, "--json",
@@ -77,11 +81,9 @@ def test_an_orbit_diagrams_spec_is_the_command_lines(monkeypatch) -> None:
     st.param.update(bif_values=5, bif_points=10, bif_transient=30, bif_range=(-0.42, -0.40), bif_orbits=False)
     analyses.BifurcationTab(sess).run()
     app = seen["app"]
-    p = st.system()
     ics = [f"--ic={float(q)!r},{float(r)!r}" for q, r in np.asarray(app.sweep.ics)]
     code, _, err = run_cli(
-        "bifurcation", "--inertia", ",".join(repr(v) for v in p.inertia), "--alpha", repr(p.alpha), "--g0",
-        repr(p.g0), "--g1", repr(p.g1), "--g2", repr(p.g2), "--omega", repr(p.omega), "--t0", repr(p.t0),
+        "bifurcation", *_system_flags(st.system()),
         "--param", st.bif_param, "--range=-0.42,-0.4", "--n-values", "5", "--points", "10", "--transient", "30",
         "--seeding", st.bif_seeding, *ics, "--method", st.method, "--steps-per-period", str(st.steps_per_period),
         "--rtol", repr(DIAGRAM_PLOT_RTOL), "--bound", repr(DIAGRAM_PLOT_BOUND), "--json",
@@ -93,12 +95,6 @@ def test_an_orbit_diagrams_spec_is_the_command_lines(monkeypatch) -> None:
         c.params, c.param, c.transient, c.n_points, c.numerics, c.newton)  # fmt: skip
     assert np.array_equal(a.values, c.values) and np.array_equal(a.ics, c.ics)
     assert (app.seeding, app.sweeps) == (cli.seeding, cli.sweeps)
-
-
-def _system_flags(p) -> list[str]:
-    """The command line's flags for the system ``p`` (every value as the page holds it)."""
-    return ["--inertia", ",".join(repr(v) for v in p.inertia), "--alpha", repr(p.alpha), "--g0", repr(p.g0), "--g1",
-            repr(p.g1), "--g2", repr(p.g2), "--omega", repr(p.omega), "--t0", repr(p.t0)]  # fmt: skip
 
 
 def _numerics_flags(n) -> list[str]:

@@ -30,7 +30,7 @@ from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.scenes import plot_tolerance
-from explorer_core.solve.checks import check_ints
+from explorer_core.solve.checks import check_ints, check_seed
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int, random_ics
 from explorer_core.solve.options import Arg, command_line, instance
 from explorer_core.solve.section import iter_section
@@ -295,7 +295,7 @@ def density_spec(
             raise ParameterError(f"{n} initial conditions x {periods} periods = {n * periods} points; "
                                  f"a density image takes at most {MAX_DENSITY_POINTS}")  # fmt: skip
         at("seed")
-        seed = check_int("seed", seed, 0, 2**63 - 1)
+        seed = check_seed(seed)
         at("box")
         box = check_box(box, "box")
         at("view")

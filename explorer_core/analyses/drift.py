@@ -39,7 +39,7 @@ from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, stream
 from explorer_core.progress import run as run_updates
-from explorer_core.solve.checks import check_choice
+from explorer_core.solve.checks import check_choice, check_seed
 from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
 from explorer_core.solve.options import Arg, command_line
@@ -423,7 +423,7 @@ def drift_spec(
         box = None if box is None else check_box(box)
         at("seed")
         if seed is not None:
-            seed = check_int("seed", seed, 0, 2**63 - 1)
+            seed = check_seed(seed)
         at("max_draws")
         max_draws = 50 * m if max_draws is None else check_int("max_draws", max_draws, 1, 10**7)
         at("numerics")

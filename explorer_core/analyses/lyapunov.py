@@ -48,6 +48,7 @@ from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, run, stream
 from explorer_core.solve import rk, tangent
+from explorer_core.solve.checks import check_seed
 from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
 from explorer_core.solve.options import Arg, command_line
@@ -538,7 +539,7 @@ def lyapunov_spec(
             raise ParameterError(f"offset must be in (0, 1] (relative to 1 + |x|), got {offset!r}")
         at("seed")
         if seed is not None:
-            seed = check_int("seed", seed, 0, 2**63 - 1)
+            seed = check_seed(seed)
         at("periods")
         members = max(ensemble, arr.shape[0])
         if members * periods > config.MAX_POINTS:

@@ -18,7 +18,7 @@ import numpy as np
 from explorer_core import config
 from explorer_core.analyses.specs import Checking, check_periods, spec_of
 from explorer_core.scenes import pixel_size, plot_numerics
-from explorer_core.solve.checks import check_bool, check_ics, check_int, check_optional_box
+from explorer_core.solve.checks import check_bool, check_ics, check_int, check_optional_box, check_seed
 from explorer_core.solve.numerics import Numerics, random_ics
 from explorer_core.solve.options import Arg, command_line, instance
 from explorer_core.solve.section import Section, SectionChunk, section
@@ -86,7 +86,7 @@ def section_spec(
         at("backward")
         direction = -1 if check_bool("backward", backward) else 1
         at("seed")
-        seed = check_int("seed", seed, 0, 2**63 - 1)
+        seed = check_seed(seed)
         at("box")
         box = check_optional_box(box, "box")
         at("ics")

@@ -99,6 +99,15 @@ def check_range(name: str, value: Any, *, increasing: bool = True, what: str = "
     return a, b
 
 
+#: The largest seed a random draw takes (numpy's generators accept any non-negative integer; the command line's).
+MAX_SEED = 2**63 - 1
+
+
+def check_seed(v: Any, name: str = "seed") -> int:
+    """A random draw's seed: a whole number in ``[0, MAX_SEED]``."""
+    return check_int(name, v, 0, MAX_SEED)
+
+
 def check_ints(name: str, value: Any, n: int, lo: int, hi: int, what: str = "NX,NY") -> tuple[int, ...]:
     """``n`` whole numbers each in ``[lo, hi]`` (a grid ``NX,NY``, a pixel size ``W,H``)."""
     try:
