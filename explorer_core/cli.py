@@ -445,9 +445,11 @@ def _add_declared_args(p: argparse.ArgumentParser, fn: Callable[..., Any], title
     for name, arg in _declared(fn).items():
         if arg.flag == "":  # taken from the scene only (a scene's escape bound): no flag of its own
             continue
-        default = params[name].default if arg.default is None else arg.default
+        default = params[name].default if arg.cli_default is None else arg.cli_default
         text = arg.help
-        if default not in (inspect.Parameter.empty, None, False) and arg.parse != "switch":
+        if arg.check is not None and arg.parse not in ("switch", "points") and not arg.choices:
+            text += f" ({arg.check.text.removesuffix(' or none')})"  # the declared check's range
+        if default not in (inspect.Parameter.empty, None, False, ()) and arg.parse != "switch":
             text += f" (default {_shown(default)})"
         if arg.scene:
             text += f" (with --scene: the scene's {arg.scene.replace('_', ' ')})"
@@ -479,7 +481,7 @@ def _declared_values(args: argparse.Namespace, fn: Callable[..., Any], scene: Sc
         if raw is None or raw is False:
             instead = any(getattr(args, other, None) is not None for other in arg.unless)
             value = _scene_value(scene, arg.scene) if raw is None and not instead else None
-            value = arg.default if value is None else value
+            value = arg.cli_default if value is None else value
             if value is None and arg.positional:  # a positional keyword left out: its default, or say what is missing
                 value = inspect.signature(fn).parameters[name].default
                 if value is inspect.Parameter.empty:

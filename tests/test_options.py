@@ -3,6 +3,7 @@ the user's tolerance, and the app's Method and Accuracy reaching the computation
 
 from __future__ import annotations
 
+import inspect
 import json
 import math
 import pathlib
@@ -411,3 +412,26 @@ def test_an_options_default_is_declared_once_by_its_builder() -> None:
         for f in dataclasses.fields(a.get("spec")):
             has_default = f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
             assert not has_default or "check" in f.metadata, (a.name, f.name)
+
+
+#: A builder's parameters that are no option: the system (or the spec a runner takes) and the run's plumbing.
+_NOT_OPTIONS = {"params", "spec", "progress", "cancel", "executor", "workers"}
+
+
+@pytest.mark.parametrize("name", sorted(__import__("explorer_core.registry").registry.ANALYSES))
+def test_every_option_of_a_builder_is_declared_once_with_its_check(name: str) -> None:
+    """Every keyword a builder takes is one declaration (``declare``: default, check, help, flag); the function's
+    own signature has no default of its own, and the generic validation refuses a bad value before the body runs,
+    naming the option."""
+    from explorer_core.registry import ANALYSES
+
+    builder = ANALYSES[name].get("builder")
+    declared = getattr(builder, "__options__", None)
+    assert declared is not None, f"{name}: its builder is not made by declare()"
+    taken = [p for p in inspect.signature(builder).parameters if p not in _NOT_OPTIONS]
+    assert sorted(taken) == sorted(declared), name
+    body = inspect.signature(inspect.unwrap(builder)).parameters
+    assert all(body[p].default is inspect.Parameter.empty for p in declared), name
+    for option, arg in declared.items():
+        assert arg.check is not None or arg.checked_with, (name, option)
+        assert set(arg.checked_with) <= set(declared) | {"params"}, (name, option)

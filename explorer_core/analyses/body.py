@@ -274,7 +274,7 @@ class BodySpec:
         flag="--ic",
         scene="points",
         positional=True,
-        default=[(0.1, 0.1)],
+        cli_default=[(0.1, 0.1)],
     ),
     periods=Arg("periods of the series", "int", positional=True),
     samples=Arg("frames per period", "int"),

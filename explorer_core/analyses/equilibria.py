@@ -858,7 +858,7 @@ class CriticalSpec:
 @command_line(
     t=Arg("frozen time (default t0)"),
     track=Arg("track them over one period", "switch"),
-    n_t=Arg("time samples for --track", "int", default=721),
+    n_t=Arg("time samples for --track", "int", cli_default=721),
     max_refine=Arg("bisections for --track where the equilibria's count changes (default 4 per sample)", "int"),
 )
 def critical_spec(

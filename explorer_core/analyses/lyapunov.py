@@ -485,8 +485,8 @@ class LyapunovSpec:
 
 @command_line(
     ics=Arg("initial condition (repeatable: one member each)", "points", flag="--ic", scene="points", positional=True),
-    periods=Arg("measured periods", "int", positional=True, default=2000),
-    transient=Arg("periods dropped first", "int", scene="transient", default=100),
+    periods=Arg("measured periods", "int", positional=True, cli_default=2000),
+    transient=Arg("periods dropped first", "int", scene="transient", cli_default=100),
     ensemble=Arg("members placed on the attractor of the one initial condition", "int", metavar="M"),
     offset=Arg("relative offset of the ensemble's members"),
     seed=Arg("the offsets' random seed", "int"),

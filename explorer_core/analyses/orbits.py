@@ -35,9 +35,20 @@ from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step
 from explorer_core.progress import run as run_updates
 from explorer_core.solve import poincare
-from explorer_core.solve.checks import check_bool, check_fraction, check_ints, check_optional_int, check_point
+from explorer_core.solve.checks import check_fraction, check_point
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int, random_ics
-from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance
+from explorer_core.solve.options import (
+    BOOL,
+    ORBITS,
+    Arg,
+    NewtonOptions,
+    declare,
+    instance,
+    integer,
+    ints,
+    optional_of,
+)
+from explorer_core.solve.options import box as box_check
 from explorer_core.solve.poincare import PATIENCE, NewtonResult, PoincareMap, least_period
 from explorer_core.solve.recurrence import PLAY, SEEDS, recurrence
 from explorer_core.solve.tangent import Monodromy
@@ -515,38 +526,60 @@ class OrbitSpec:
                 "newton": self.newton.as_dict()}  # fmt: skip
 
 
-@command_line(
-    period=Arg("this period only", "int"),
-    max_period=Arg("periods 1..N (default 1)", "int"),
-    seeds=Arg("a starting point (repeatable)", "points", flag="--seed"),
-    box=Arg("the box of the grid of seeds and of --returns", "box", metavar="Q0,Q1,R0,R1", scene="box"),
-    grid=Arg(
-        "a grid of NX x NY seeds over --box (default 10,10 without --seed)", "ints", flag="--seeds", metavar="NX,NY"
+@declare(
+    period=Arg("this period only", "int", default=None, check=integer(1, MAX_PERIOD, optional=True)),
+    max_period=Arg("periods 1..N (default 1)", "int", default=None, check=integer(1, MAX_PERIOD, optional=True)),
+    seeds=Arg("a starting point (repeatable)", "points", flag="--seed", default=(), checked_with=("numerics",)),
+    box=Arg(
+        "the box of the grid of seeds and of --returns",
+        "box",
+        metavar="Q0,Q1,R0,R1",
+        scene="box",
+        default=(-2.0, 2.0, -2.0, 2.0),
+        check=box_check(),
     ),
-    returns=Arg("also seed from near-returns of a section of N random trajectories in the box", "int", metavar="N"),
-    in_box=Arg("keep only orbits whose points are all in the box", "switch"),
-    thorough=Arg("no early stop of slow seeds (slower, finds more)", "switch"),
+    grid=Arg(
+        "a grid of NX x NY seeds over --box (default 10,10 without --seed)",
+        "ints",
+        flag="--seeds",
+        metavar="NX,NY",
+        default=None,
+        check=ints(2, 1, config.MAX_GRID, optional=True),
+    ),
+    returns=Arg(
+        "also seed from near-returns of a section of N random trajectories in the box",
+        "int",
+        metavar="N",
+        default=None,
+        check=integer(1, 10_000, optional=True),
+    ),
+    in_box=Arg("keep only orbits whose points are all in the box", "switch", default=False, check=BOOL),
+    thorough=Arg("no early stop of slow seeds (slower, finds more)", "switch", default=False, check=BOOL),
+    numerics=Arg(
+        "the map Newton iterates", cli=False, default=ORBIT_NUMERICS, check=optional_of(Numerics, ORBIT_NUMERICS)
+    ),
+    newton=Arg("Newton's options", cli=False, default=ORBITS, check=instance(NewtonOptions)),
 )
 def orbit_spec(
     params: Params,
     *,
-    period: int | None = None,
-    max_period: int | None = None,
-    seeds: Any = (),
-    box: Sequence[float] = (-2.0, 2.0, -2.0, 2.0),
-    grid: Sequence[int] | None = None,
-    returns: int | None = None,
-    in_box: bool = False,
-    thorough: bool = False,
-    numerics: Numerics | None = None,
-    newton: NewtonOptions = ORBITS,
+    period: int | None,
+    max_period: int | None,
+    seeds: Any,
+    box: tuple[float, float, float, float],
+    grid: tuple[int, int] | None,
+    returns: int | None,
+    in_box: bool,
+    thorough: bool,
+    numerics: Numerics,
+    newton: NewtonOptions,
 ) -> OrbitSpec:
     """A validated :class:`OrbitSpec`; a bad value raises ParameterError naming it (``exc.option``: its keyword).
 
     ``period`` (that period only) or ``max_period`` (periods 1..N; default 1), not both, in [1, MAX_PERIOD].
     Without ``seeds`` nor ``returns`` the seeds are a 10 x 10 ``grid``. ``thorough``: no early stop of slow seeds
-    and 80 iterations (``newton`` with ``patience=None, max_iter=80``). ``numerics``: the map (default
-    :data:`ORBIT_NUMERICS`).
+    and 80 iterations (``newton`` with ``patience=None, max_iter=80``). The options are declared above: defaults,
+    checks (run before this body), flags.
     """
     with Checking() as at:
         at("period")
@@ -554,28 +587,17 @@ def orbit_spec(
             raise ParameterError(
                 f"give period (that period only) or max_period (1..N), not both: {period}, {max_period}"
             )
-        cap = check_int("period" if period is not None else "max_period", period or max_period or 1, 1, MAX_PERIOD)
+        cap = period or max_period or 1
         periods = (cap,) if period is not None else tuple(range(1, cap + 1))
-        at("numerics")
-        numerics = instance(Numerics)("numerics", ORBIT_NUMERICS if numerics is None else numerics)
         at("seeds")
         points = () if seeds is None or len(seeds) == 0 else tuple(
             check_point("seed", s, numerics.bound) for s in np.asarray(seeds, dtype=float).reshape(-1, 2))  # fmt: skip
-        at("box")
-        box_ = check_box(box)
-        at("grid")
-        grid_ = None if grid is None else check_ints("grid", grid, 2, 1, config.MAX_GRID)
-        at("returns")
-        returns = check_optional_int("returns", returns, 1, 10_000)
+        grid_ = grid
         if grid_ is None and not (points or returns):
             grid_ = (10, 10)
-        at("in_box")
-        in_box = check_bool("in_box", in_box)
-        at("newton")
-        newton = instance(NewtonOptions)("newton", newton)
-        if check_bool("thorough", thorough):
+        if thorough:
             newton = newton.replace(patience=None, max_iter=80)
-    return OrbitSpec(params, periods, points, box_, grid_, returns, in_box, numerics, newton)  # type: ignore[arg-type]
+    return OrbitSpec(params, periods, points, box, grid_, returns, in_box, numerics, newton)  # type: ignore[arg-type]
 
 
 def iter_orbit_search(spec: OrbitSpec, cancel: Callable[[], bool] | None = None) -> Iterator[Step[OrbitSearch]]:

@@ -16,6 +16,8 @@ from the user's numerics (:meth:`NewtonOptions.at`), as BifurcationKit's ``Conti
 from __future__ import annotations
 
 import dataclasses
+import functools
+import inspect
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
@@ -86,6 +88,65 @@ def instance(kind: type) -> Check:
         return v
 
     return Check(fn, f"a {kind.__name__}")
+
+
+def number(lo: float = -math.inf, hi: float = math.inf, optional: bool = False) -> Check:
+    """A finite number in ``[lo, hi]`` (``optional``: or None)."""
+    within = "" if (lo, hi) == (-math.inf, math.inf) else f" in [{lo:g}, {hi:g}]"
+
+    def fn(n: str, v: Any) -> Any:
+        return None if optional and v is None else checks.check_number(n, v, lo, hi)
+
+    return Check(fn, f"a finite number{within}" + (" or none" if optional else ""), optional=optional)
+
+
+def fraction() -> Check:
+    return Check(checks.check_fraction, "a number in (0, 1)")
+
+
+def choice(choices: tuple[str, ...]) -> Check:
+    return Check(lambda n, v: checks.check_choice(n, v, choices), "one of " + ", ".join(choices), "str")
+
+
+def seed(optional: bool = False) -> Check:
+    """A random draw's seed (``optional``: or None, a fresh draw)."""
+    text = f"an integer in [0, {checks.MAX_SEED}]" + (" or none" if optional else "")
+    return Check(lambda n, v: None if optional and v is None else checks.check_seed(v, n), text, "int", optional)
+
+
+def span(increasing: bool = True, optional: bool = False, what: str = "lo,hi") -> Check:
+    """Two finite numbers ``lo < hi`` (``increasing``) or two different ones (``optional``: or None)."""
+
+    def fn(n: str, v: Any) -> Any:
+        return None if optional and v is None else checks.check_range(n, v, increasing=increasing, what=what)
+
+    text = "two numbers " + ("lo < hi" if increasing else "A != B") + (" or none" if optional else "")
+    return Check(fn, text, "str", optional)
+
+
+def box(optional: bool = False) -> Check:
+    """``qmin,qmax,rmin,rmax`` with ``qmin < qmax``, ``rmin < rmax`` (``optional``: or None)."""
+
+    def fn(n: str, v: Any) -> Any:
+        return None if optional and v is None else checks.check_box(v, n)
+
+    return Check(fn, "four numbers qmin < qmax, rmin < rmax" + (" or none" if optional else ""), "str", optional)
+
+
+def ints(count: int, lo: int, hi: int, what: str = "NX,NY", optional: bool = False) -> Check:
+    """``count`` whole numbers each in ``[lo, hi]`` (``optional``: or None)."""
+
+    def fn(n: str, v: Any) -> Any:
+        return None if optional and v is None else checks.check_ints(n, v, count, lo, hi, what)
+
+    return Check(fn, f"{count} integers {what} in [{lo}, {hi}]" + (" or none" if optional else ""), "str", optional)
+
+
+def optional_of(kind: type, none_is: Any = None) -> Check:
+    """An instance of ``kind``, or None: ``none_is`` (the option's default, e.g. an analysis' own numerics: a caller
+    passing None asks for the default)."""
+    inner = instance(kind)
+    return Check(lambda n, v: none_is if v is None else inner(n, v), f"a {kind.__name__} or none", optional=True)
 
 
 def option(default: Any, check: Check, help: str, *, flag: str | None = None, metavar: str | None = None) -> Any:
@@ -243,25 +304,34 @@ PRESETS = {"orbits": ORBITS, "settling": SETTLING, "jumps": JUMPS, "corrector": 
 
 
 # ---------------------------------------------------------------------------
-# How a builder's keywords are given on the command line (the command line is generated from these).
+# A builder's options, each declared once: default, check, help, and how the command line and a scene give it.
+
+#: An option with no default: the call must give it.
+REQUIRED: Any = inspect.Parameter.empty
 
 
 @dataclass(frozen=True)
 class Arg:
-    """How a builder's keyword is given on the command line: declared beside the builder (``@command_line``), its
-    default read from the builder's signature (declared once, there).
+    """One option of a builder (or a runner), declared once beside it (:func:`declare`): the call's ``default``, the
+    ``check`` that validates it, its ``help``, and how the command line gives it. The builder's signature, the
+    command line's flags and help, and the validation are all generated from these declarations.
 
+    default : the call's default (:data:`REQUIRED`: none, the call must give it).
+    check : validates one value and returns its canonical form (:class:`Check`); None only with ``checked_with``.
+    checked_with : the options the body checks this one with (its check depends on them: a seed inside the escape
+        bound of ``numerics``); a declaration says where its check is.
     parse : how the text becomes the value: ``"int"``, ``"float"``, ``"str"``, ``"switch"`` (a flag without a
         value: True), ``"range"`` (``A,B``), ``"ints"`` (``NX,NY``), ``"box"`` (``Q0,Q1,R0,R1``), ``"points"``
-        (``Q,R``, repeatable), ``"list"`` (comma-separated words).
-    flag : default ``--`` and the keyword with dashes.
+        (``Q,R``, repeatable), ``"point"``, ``"list"`` (comma-separated words).
+    flag : default ``--`` and the keyword with dashes; ``""``: taken from the scene only.
+    cli : False: a keyword of calls only (numerics, nested options, internal sizes), no flag.
     scene : under ``--scene``, the default is this attribute of the scene (``box``, ``points``, ``view``,
         ``transient``, ``periods``, ``initial_conditions``) when the flag is not given.
     unless : the scene's value is not taken when one of these options is given (``--random`` instead of the
         scene's initial conditions).
     positional : passed to the builder by position (in the declared order), not by keyword.
-    default : the command line's default where it differs from the call's (a command runs a transient that the
-        call leaves to its caller); the help shows it.
+    cli_default : the command line's default where it differs from the call's (a command runs a transient that
+        the call leaves to its caller); the help shows it.
     """
 
     help: str = ""
@@ -272,11 +342,64 @@ class Arg:
     scene: str | None = None
     choices: tuple[str, ...] | None = None
     positional: bool = False
-    default: Any = None
+    cli_default: Any = None
     unless: tuple[str, ...] = ()
+    default: Any = REQUIRED
+    check: Check | None = None
+    checked_with: tuple[str, ...] = ()
+    cli: bool = True
 
     def flag_of(self, name: str) -> str:
         return self.flag or "--" + name.replace("_", "-")
+
+
+def declare(**args: Arg) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Declare a builder's (or a runner's) options once (:class:`Arg`) and validate them generically.
+
+    The function's own parameters carry no default for a declared option (a second place would drift): the
+    returned builder's signature takes the declarations' defaults, every value given or defaulted goes through its
+    option's ``check`` (a refusal is tagged with the option's name, ``exc.option``) before the body runs, and the
+    body does only what needs several options at once (cross-checks, derived values). ``builder.__options__`` has
+    every declaration, ``builder.__cli__`` those with a flag.
+    """
+
+    def attach(fn: Callable[..., Any]) -> Callable[..., Any]:
+        sig = inspect.signature(fn)
+        for name, arg in args.items():
+            p = sig.parameters.get(name)
+            if p is None:
+                raise TypeError(f"{fn.__name__} declares {name!r}, which it does not take")
+            if p.default is not inspect.Parameter.empty:
+                raise TypeError(f"{fn.__name__}: the default of {name!r} belongs in its declaration, not the signature")
+            if (arg.check is None) == (not arg.checked_with):
+                raise TypeError(f"{fn.__name__}: {name!r} needs a check, or checked_with naming what the body "
+                                "checks it with (not both)")  # fmt: skip
+        # Raises if a defaulted positional option precedes one without a default (the declarations' order).
+        full = sig.replace(parameters=[p.replace(default=args[p.name].default) if p.name in args else p
+                                       for p in sig.parameters.values()])  # fmt: skip
+
+        @functools.wraps(fn)
+        def build(*a: Any, **kw: Any) -> Any:
+            bound = full.bind(*a, **kw)
+            bound.apply_defaults()
+            values = bound.arguments
+            for name, arg in args.items():
+                if arg.check is None:
+                    continue
+                try:
+                    values[name] = arg.check(name, values[name])
+                except ParameterError as exc:
+                    if getattr(exc, "option", None) is None:
+                        exc.option = name  # type: ignore[attr-defined]
+                    raise
+            return fn(*bound.args, **bound.kwargs)
+
+        build.__signature__ = full  # type: ignore[attr-defined]
+        build.__options__ = dict(args)  # type: ignore[attr-defined]
+        build.__cli__ = {n: a for n, a in args.items() if a.cli}  # type: ignore[attr-defined]
+        return build
+
+    return attach
 
 
 def command_line(**args: Arg) -> Callable[[Callable[..., Any]], Callable[..., Any]]:

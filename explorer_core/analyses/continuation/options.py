@@ -159,7 +159,7 @@ def _two(name: str, value: Any, what: str) -> tuple[float, float]:
         positional=True,
     ),
     seed=Arg("a point near the period-N orbit at A", "point", flag="--from", metavar="Q,R", positional=True),
-    period=Arg("the orbit's period", "int", positional=True, default=1),
+    period=Arg("the orbit's period", "int", positional=True, cli_default=1),
     switch=Arg("at each period doubling, follow the doubled orbit too", "switch"),
     max_period=Arg("cap of a cascade", "int"),
     max_points=Arg("points per branch (default 5000)", "int"),
