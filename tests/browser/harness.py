@@ -157,6 +157,16 @@ def text(page, css: str) -> str:
     )
 
 
+def wait_text(page, css: str, words: str, timeout: float = 30.0) -> str:
+    """Wait until the pane ``css`` shows ``words``; return its text."""
+    deadline = time.time() + timeout
+    while words not in (shown := text(page, css)):
+        if time.time() > deadline:
+            raise TimeoutError(f"{css} did not show {words!r}; it shows {shown!r}")
+        time.sleep(0.05)
+    return shown
+
+
 def wait_finished(page, timeout: float = 60.0) -> str:
     """Wait until the status line reports a finished run; return it."""
     deadline = time.time() + timeout

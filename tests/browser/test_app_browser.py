@@ -6,7 +6,7 @@ import time
 import urllib.parse
 
 import pytest
-from harness import JS_COUNT, box_value, drag_slider, section_q, set_number, text, wait_finished, wait_points
+from harness import JS_COUNT, box_value, drag_slider, section_q, set_number, text, wait_finished, wait_points, wait_text
 
 pytestmark = pytest.mark.browser
 DEFAULT_POINTS = 60 * 500  # fig1C: 60 random ICs x 500 periods
@@ -118,7 +118,8 @@ def test_stop_is_enabled_only_while_something_runs(page, app_url) -> None:
     open_app(page, app_url, "?scene=fig1C&n=40&periods=50&transient=5000&accuracy=high")
     stop = page.locator(".btn-stop")
     page.wait_for_selector(".btn-stop:not([disabled])", timeout=60_000)
-    assert "computing" in text(page, ".status-line")
+    # Stop and the status line are two updates of the page (a layer's job may enable Stop a moment first).
+    wait_text(page, ".status-line", "computing", timeout=10)
     stop.click()
     status = wait_finished(page, timeout=30)
     assert "stopped" in status and "computing" not in status
