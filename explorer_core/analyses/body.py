@@ -28,8 +28,8 @@ from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step
 from explorer_core.progress import run as run_updates
 from explorer_core.solve.integrators import advance_body, body_start
-from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.options import Arg, command_line
+from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.options import Arg, declare, integer, optional_of
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.tableaus import get_method
 from explorer_core.status import Status
@@ -226,7 +226,23 @@ def principal_axes(params: Params) -> tuple[np.ndarray, np.ndarray]:
     return moments, axes
 
 
+#: The series' numerics unless given.
+BODY_NUMERICS = Numerics()
+#: The single-value checks of a series' sizes (the builder's declarations, and :func:`iter_body_series`').
+_PERIODS = integer(1, MAX_BODY_PERIODS)
+_SAMPLES = integer(MIN_SAMPLES, MAX_SAMPLES)
+_K0 = integer(0, config.MAX_PERIODS)
+
+
 def _check(params: Params, ic: Any, periods: int, samples: int, k0: int, numerics: Numerics) -> np.ndarray:
+    """Every check of a series' inputs: each size's (:data:`_PERIODS` ...), then :func:`_check_together`."""
+    periods, samples, k0 = _PERIODS("periods", periods), _SAMPLES("samples", samples), _K0("k0", k0)
+    return _check_together(params, ic, periods, samples, k0, numerics)
+
+
+def _check_together(params: Params, ic: Any, periods: int, samples: int, k0: int, numerics: Numerics) -> np.ndarray:
+    """The checks that need several of a series' inputs (the sizes checked each already): the one initial
+    condition inside the escape bound, the frames, the method and its steps, the series' end time."""
     if not isinstance(params, Params):
         raise ParameterError(f"params must be a Params, got {type(params).__name__}")
     x = check_ics(ic)
@@ -234,9 +250,6 @@ def _check(params: Params, ic: Any, periods: int, samples: int, k0: int, numeric
         raise ParameterError(f"the body follows one trajectory: give one (q, r), got {x.shape[0]}")
     if np.max(np.abs(x)) > numerics.bound:
         raise ParameterError(f"initial condition {x[0].tolist()} lies outside the escape bound {numerics.bound:g}")
-    periods = check_int("periods", periods, 1, MAX_BODY_PERIODS)
-    samples = check_int("samples", samples, MIN_SAMPLES, MAX_SAMPLES)
-    check_int("k0", k0, 0, config.MAX_PERIODS)
     if periods * samples + 1 > MAX_FRAMES:
         raise ParameterError(f"{periods} periods x {samples} samples + 1 = {periods * samples + 1} frames exceeds the "
                              f"limit {MAX_FRAMES}")  # fmt: skip
@@ -267,7 +280,7 @@ class BodySpec:
                 "k0": self.k0, "numerics": self.numerics.as_dict()}  # fmt: skip
 
 
-@command_line(
+@declare(
     ic=Arg(
         "initial condition at t0 (one: the body follows one trajectory)",
         "points",
@@ -275,18 +288,19 @@ class BodySpec:
         scene="points",
         positional=True,
         cli_default=[(0.1, 0.1)],
+        checked_with=("numerics",),
     ),
-    periods=Arg("periods of the series", "int", positional=True),
-    samples=Arg("frames per period", "int"),
-    k0=Arg("start after this many periods (the orientation is the identity there)", "int"),
+    periods=Arg("periods of the series", "int", positional=True, default=20, check=_PERIODS),
+    samples=Arg("frames per period", "int", default=48, check=_SAMPLES),
+    k0=Arg("start after this many periods (the orientation is the identity there)", "int", default=0, check=_K0),
+    numerics=Arg("the integration", cli=False, default=BODY_NUMERICS, check=optional_of(Numerics, BODY_NUMERICS)),
 )
-def body_spec(
-    params: Params, ic: Any, periods: int = 20, *, samples: int = 48, k0: int = 0, numerics: Numerics | None = None
-) -> BodySpec:
-    """A validated :class:`BodySpec` (the checks of :func:`body_series`, naming the bad value)."""
-    numerics = numerics or Numerics()
-    x = _check(params, ic, periods, samples, k0, numerics)
-    return BodySpec(params, (float(x[0]), float(x[1])), int(periods), int(samples), int(k0), numerics)
+def body_spec(params: Params, ic: Any, periods: int, *, samples: int, k0: int, numerics: Numerics) -> BodySpec:
+    """A validated :class:`BodySpec` (the checks of :func:`body_series`, naming the bad value, ``exc.option``: its
+    keyword for a single value's). The options are declared above: defaults, checks (run before this body), flags.
+    """
+    x = _check_together(params, ic, periods, samples, k0, numerics)
+    return BodySpec(params, (float(x[0]), float(x[1])), periods, samples, k0, numerics)
 
 
 def body_series(
@@ -335,7 +349,7 @@ def iter_body_series(
     """:func:`body_series` as updates (the contract of :mod:`explorer_core.progress`): one after the ``k0``
     periods before the start and one per :data:`CHUNK_PERIODS` periods, in periods of ``k0 + periods``; the
     last carries the series. The inputs are checked at once (a ParameterError before the first update)."""
-    numerics = numerics or Numerics()
+    numerics = numerics or BODY_NUMERICS
     x0 = _check(params, ic, periods, samples, k0, numerics)
     return _iter_body_series(params, x0, int(periods), int(samples), int(k0), numerics, cancel)
 

@@ -24,15 +24,16 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from explorer_core import config, export
-from explorer_core.analyses.specs import Checking, check_periods
+from explorer_core.analyses.sections import PERIODS_ARG, SEED_ARG, TRANSIENT_ARG, _ics_or_none
+from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.scenes import plot_tolerance
-from explorer_core.solve.checks import check_ints, check_seed
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int, random_ics
-from explorer_core.solve.options import Arg, command_line, instance
+from explorer_core.solve.options import Arg, declare, ints, optional_of
+from explorer_core.solve.options import box as box_check
 from explorer_core.solve.section import iter_section
 from explorer_core.status import Status, count_names
 from explorer_core.system.params import ParameterError, Params
@@ -257,55 +258,56 @@ class DensitySpec:
                 "transient": self.transient, "view": list(self.view), "pixels": list(self.pixels)}  # fmt: skip
 
 
-@command_line(
-    periods=Arg("section points per trajectory", "int", scene="periods", positional=True, metavar="N"),
-    random=Arg("random initial conditions in --box", "int", metavar="N"),
-    ics=Arg("initial condition beside the random ones (repeatable)", "points", flag="--ic"),
-    seed=Arg("seed of --random", "int"),
-    box=Arg("box of the initial conditions", "box", scene="box", positional=True),
-    transient=Arg("periods dropped first", "int", scene="transient"),
-    view=Arg("the image's window (default: --box)", "box", scene="view"),
-    pixels=Arg("the image's size (at most 4096 each)", "ints", metavar="W,H"),
-    bound=Arg("", scene="bound", flag=""),
+@declare(
+    periods=PERIODS_ARG,
+    random=Arg("random initial conditions in --box", "int", metavar="N", default=1000, checked_with=("ics",)),
+    ics=Arg(
+        "initial condition beside the random ones (repeatable)",
+        "points",
+        flag="--ic",
+        default=None,
+        check=_ics_or_none(),
+    ),
+    seed=SEED_ARG,
+    box=Arg("box of the initial conditions", "box", scene="box", positional=True, check=box_check()),
+    transient=TRANSIENT_ARG,
+    view=Arg("the image's window (default: --box)", "box", scene="view", default=None, check=box_check(optional=True)),
+    pixels=Arg("the image's size", "ints", metavar="W,H", default=(800, 600), check=ints(2, 1, MAX_PIXELS, "W,H")),
+    bound=Arg("", scene="bound", flag="", default=None, checked_with=("numerics",)),
+    numerics=Arg("default: for the view's pixels", cli=False, default=None, check=optional_of(Numerics)),
 )
 def density_spec(
     params: Params,
     periods: int,
-    box: Sequence[float],
+    box: tuple[float, float, float, float],
     *,
-    random: int = 1000,
-    seed: int = 0,
-    ics: Any = None,
-    transient: int = 0,
-    view: Sequence[float] | None = None,
-    pixels: Sequence[int] = (800, 600),
-    bound: float | None = None,
-    numerics: Numerics | None = None,
+    random: int,
+    seed: int,
+    ics: np.ndarray | None,
+    transient: int,
+    view: tuple[float, float, float, float] | None,
+    pixels: tuple[int, int],
+    bound: float | None,
+    numerics: Numerics | None,
 ) -> DensitySpec:
-    """A validated :class:`DensitySpec` (a bad value raises ParameterError naming it). ``numerics`` default:
-    :func:`density_numerics` for the view, escaping at ``bound`` (default the project's escape bound)."""
+    """A validated :class:`DensitySpec` (a bad value raises ParameterError naming it, ``exc.option``: its keyword).
+    ``random`` may be 0 beside given ``ics``. ``numerics`` default: :func:`density_numerics` for the view, escaping
+    at ``bound`` (default the project's escape bound). The options are declared above: defaults, checks (run before
+    this body), flags."""
     with Checking() as at:
-        periods, transient = check_periods(at, periods, transient)
-        at("ics")
-        points = () if ics is None else tuple((float(q), float(r)) for q, r in check_ics(ics))
+        points = () if ics is None else tuple((float(q), float(r)) for q, r in ics)
         at("random")
         random = check_int("random", random, 0 if points else 1, config.MAX_TRAJECTORIES)
         n = random + len(points)
         if n * periods > MAX_DENSITY_POINTS:
             raise ParameterError(f"{n} initial conditions x {periods} periods = {n * periods} points; "
                                  f"a density image takes at most {MAX_DENSITY_POINTS}")  # fmt: skip
-        at("seed")
-        seed = check_seed(seed)
-        at("box")
-        box = check_box(box, "box")
-        at("view")
-        view = box if view is None else check_box(view, "view")
-        at("pixels")
-        px = check_ints("pixels", pixels, 2, 1, MAX_PIXELS, "W,H")
+        view = box if view is None else view
         at("numerics")
         bound = config.DEFAULT_ESCAPE_BOUND if bound is None else float(bound)
-        numerics = instance(Numerics)("numerics", numerics or density_numerics(view, px, bound))
-    return DensitySpec(params, periods, transient, random, seed, box, view, px, numerics, points)  # type: ignore[arg-type]
+        if numerics is None:
+            numerics = density_numerics(view, pixels, bound)
+    return DensitySpec(params, periods, transient, random, seed, box, view, pixels, numerics, points)  # type: ignore[arg-type]
 
 
 def density(

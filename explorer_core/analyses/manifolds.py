@@ -48,10 +48,11 @@ from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
-from explorer_core.solve.checks import check_ints, check_optional_box, check_point, check_positive
+from explorer_core.solve.checks import check_point
 from explorer_core.solve.integrators import Batch
 from explorer_core.solve.numerics import Numerics, check_box, check_int
-from explorer_core.solve.options import Arg, command_line, instance
+from explorer_core.solve.options import POSITIVE, Arg, Check, declare, integer, ints, optional_of
+from explorer_core.solve.options import box as box_check
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.status import Status
 from explorer_core.system.params import ParameterError, Params
@@ -772,7 +773,19 @@ class ManifoldSpec:
                 "numerics": self.numerics.as_dict()}  # fmt: skip
 
 
-@command_line(
+def _kinds() -> Check:
+    """Which branches: a non-empty sequence of names in :data:`KINDS`, as a tuple."""
+
+    def fn(name: str, value: Any) -> tuple[str, ...]:
+        kinds = tuple(value)
+        if not kinds or any(k not in KINDS for k in kinds):
+            raise ParameterError(f"{name} must be unstable, stable or both (comma-separated), got {','.join(kinds)!r}")
+        return kinds
+
+    return Check(fn, "unstable, stable or both", "str")
+
+
+@declare(
     point=Arg(
         "a point near the saddle orbit (Newton finds it)",
         "point",
@@ -780,55 +793,47 @@ class ManifoldSpec:
         metavar="Q,R",
         required=True,
         positional=True,
+        checked_with=("numerics",),
     ),
-    period=Arg("the orbit's period", "int", positional=True),
-    length=Arg("arc length of each branch"),
-    kinds=Arg("unstable, stable or both (default both)", "list", metavar="K[,K]"),
-    view=Arg("the plot window the curves are refined for (default: around the orbit)", "box", scene="view"),
-    pixels=Arg("the window's size in pixels", "ints", metavar="W,H"),
-    delta_px=Arg("longest segment in pixels", "float"),
-    max_points=Arg("points computed over all branches", "int"),
-    bound=Arg("", scene="bound", flag=""),
+    period=Arg("the orbit's period", "int", positional=True, default=1, check=integer(1, 64)),
+    length=Arg("arc length of each branch", default=10.0, check=POSITIVE),
+    kinds=Arg("the branches grown", "list", metavar="K[,K]", default=KINDS, check=_kinds()),
+    view=Arg(
+        "the plot window the curves are refined for (default: around the orbit)",
+        "box",
+        scene="view",
+        default=None,
+        check=box_check(optional=True),
+    ),
+    pixels=Arg("the window's size in pixels", "ints", metavar="W,H", default=PIXELS, check=ints(2, 1, 100_000, "W,H")),
+    delta_px=Arg("longest segment in pixels", "float", default=DELTA_PX, check=POSITIVE),
+    max_points=Arg("points computed over all branches", "int", default=200_000, check=integer(100, 10_000_000)),
+    bound=Arg("", scene="bound", flag="", default=None, checked_with=("numerics",)),
+    numerics=Arg("default: MANIFOLD_NUMERICS", cli=False, default=None, check=optional_of(Numerics)),
 )
 def manifold_spec(
     params: Params,
     point: Any,
-    period: int = 1,
+    period: int,
     *,
-    kinds: Sequence[str] = KINDS,
-    length: float = 10.0,
-    view: Sequence[float] | None = None,
-    pixels: Sequence[int] = PIXELS,
-    delta_px: float = DELTA_PX,
-    max_points: int = 200_000,
-    bound: float | None = None,
-    numerics: Numerics | None = None,
+    kinds: tuple[str, ...],
+    length: float,
+    view: tuple[float, float, float, float] | None,
+    pixels: tuple[int, int],
+    delta_px: float,
+    max_points: int,
+    bound: float | None,
+    numerics: Numerics | None,
 ) -> ManifoldSpec:
-    """A validated :class:`ManifoldSpec` (a bad value raises ParameterError naming it). ``numerics`` default:
-    :data:`MANIFOLD_NUMERICS` with the escape ``bound`` (a scene's)."""
+    """A validated :class:`ManifoldSpec` (a bad value raises ParameterError naming it, ``exc.option``: its keyword).
+    ``numerics`` default: :data:`MANIFOLD_NUMERICS` with the escape ``bound`` (a scene's). The options are declared
+    above: defaults, checks (run before this body), flags."""
     with Checking() as at:
         at("numerics")
         if numerics is None:
             numerics = MANIFOLD_NUMERICS if bound is None else replace(MANIFOLD_NUMERICS, bound=float(bound))
-        numerics = instance(Numerics)("numerics", numerics)
         at("point")
         q, r = check_point("orbit", point, numerics.bound)
-        at("period")
-        period = check_int("period", period, 1, 64)
-        at("kinds")
-        kinds = tuple(kinds)
-        if not kinds or any(k not in KINDS for k in kinds):
-            raise ParameterError(f"kinds must be unstable, stable or both (comma-separated), got {','.join(kinds)!r}")
-        at("length")
-        length = check_positive("length", length)
-        at("view")
-        view = check_optional_box(view, "view")
-        at("pixels")
-        pixels = check_ints("pixels", pixels, 2, 1, 100_000, "W,H")
-        at("delta_px")
-        delta_px = check_positive("delta_px", delta_px)
-        at("max_points")
-        max_points = check_int("max_points", max_points, 100, 10_000_000)
     return ManifoldSpec(params, (q, r), period, kinds, length, view, pixels, delta_px, max_points, numerics)  # type: ignore[arg-type]
 
 

@@ -9,18 +9,20 @@ picture of the window needs (:func:`~explorer_core.scenes.plot_numerics`) unless
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
 from explorer_core import config
-from explorer_core.analyses.specs import Checking, check_periods, spec_of
+from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.scenes import pixel_size, plot_numerics
-from explorer_core.solve.checks import check_bool, check_ics, check_int, check_optional_box, check_seed
+from explorer_core.solve.checks import check_ics
 from explorer_core.solve.numerics import Numerics, random_ics
-from explorer_core.solve.options import Arg, command_line, instance
+from explorer_core.solve.options import BOOL, Arg, Check, declare, integer, optional_of
+from explorer_core.solve.options import box as box_check
+from explorer_core.solve.options import seed as seed_check
 from explorer_core.solve.section import Section, SectionChunk, section
 from explorer_core.system.params import ParameterError, Params
 
@@ -49,52 +51,73 @@ class SectionSpec:
                 "direction": self.direction, "view": None if self.view is None else list(self.view)}  # fmt: skip
 
 
-@command_line(
-    periods=Arg("section points per trajectory", "int", scene="periods", positional=True, metavar="N"),
-    ics=Arg("initial condition (repeatable)", "points", flag="--ic", scene="initial_conditions", unless=("random",)),
-    random=Arg("random initial conditions in --box", "int", metavar="N"),
-    seed=Arg("seed of --random", "int"),
-    box=Arg("box for --random (default -2,2,-2,2)", "box", scene="box"),
-    transient=Arg("periods dropped first", "int", scene="transient"),
-    backward=Arg("integrate backward in time (points at t0 - k T)", "switch"),
-    view=Arg("", scene="view", flag=""),
-    bound=Arg("", scene="bound", flag=""),
+def _ics_or_none() -> Check:
+    """Initial conditions as a finite (n, 2) array (:func:`~explorer_core.solve.checks.check_ics`), or None."""
+    return Check(lambda n, v: None if v is None else check_ics(v), "(q, r) pairs or none", optional=True)
+
+
+#: Options a section's builder and a density image's (:func:`~explorer_core.analyses.density.density_spec`) share.
+PERIODS_ARG = Arg(
+    "section points per trajectory", "int", scene="periods", positional=True, metavar="N",
+    check=integer(1, config.MAX_PERIODS),
+)  # fmt: skip
+SEED_ARG = Arg("seed of --random", "int", default=0, check=seed_check())
+TRANSIENT_ARG = Arg("periods dropped first", "int", scene="transient", default=0, check=integer(0, config.MAX_PERIODS))
+
+
+@declare(
+    periods=PERIODS_ARG,
+    ics=Arg(
+        "initial condition (repeatable)",
+        "points",
+        flag="--ic",
+        scene="initial_conditions",
+        unless=("random",),
+        default=None,
+        check=_ics_or_none(),
+    ),
+    random=Arg(
+        "random initial conditions in --box",
+        "int",
+        metavar="N",
+        default=None,
+        check=integer(1, config.MAX_TRAJECTORIES, optional=True),
+    ),
+    seed=SEED_ARG,
+    box=Arg("box for --random", "box", scene="box", default=DEFAULT_RANDOM_BOX, check=box_check(optional=True)),
+    transient=TRANSIENT_ARG,
+    backward=Arg("integrate backward in time (points at t0 - k T)", "switch", default=False, check=BOOL),
+    view=Arg("", scene="view", flag="", default=None, check=box_check(optional=True)),
+    bound=Arg("", scene="bound", flag="", default=None, checked_with=("numerics",)),
+    numerics=Arg("default: a picture's of the view", cli=False, default=None, check=optional_of(Numerics)),
 )
 def section_spec(
     params: Params,
     periods: int,
     *,
-    ics: Any = None,
-    random: int | None = None,
-    seed: int = 0,
-    box: Sequence[float] | None = None,
-    transient: int = 0,
-    backward: bool = False,
-    view: Sequence[float] | None = None,
-    bound: float | None = None,
-    numerics: Numerics | None = None,
+    ics: np.ndarray | None,
+    random: int | None,
+    seed: int,
+    box: tuple[float, float, float, float] | None,
+    transient: int,
+    backward: bool,
+    view: tuple[float, float, float, float] | None,
+    bound: float | None,
+    numerics: Numerics | None,
 ) -> SectionSpec:
-    """A validated :class:`SectionSpec` (a bad value raises ParameterError naming it).
+    """A validated :class:`SectionSpec` (a bad value raises ParameterError naming it, ``exc.option``: its keyword).
 
-    The initial conditions: ``random`` of them uniform in ``box`` (default :data:`DEFAULT_RANDOM_BOX`) from
+    The initial conditions: ``random`` of them uniform in ``box`` (None: :data:`DEFAULT_RANDOM_BOX`) from
     ``seed``, then the given ``ics`` (n, 2) (as a scene's: its random ones, then its points). ``numerics``
     default: a picture's of ``view`` over the whole run (:func:`~explorer_core.scenes.plot_numerics`) escaping at
-    ``bound``, or :class:`Numerics` (with ``bound``) when there is no view.
+    ``bound``, or :class:`Numerics` (with ``bound``) when there is no view. The options are declared above:
+    defaults, checks (run before this body), flags.
     """
     with Checking() as at:
-        periods, transient = check_periods(at, periods, transient)
-        at("backward")
-        direction = -1 if check_bool("backward", backward) else 1
-        at("seed")
-        seed = check_seed(seed)
-        at("box")
-        box = check_optional_box(box, "box")
-        at("ics")
-        given = np.empty((0, 2)) if ics is None else check_ics(ics)
+        direction = -1 if backward else 1
+        given = np.empty((0, 2)) if ics is None else ics
         origin = None
         if random is not None:
-            at("random")
-            random = check_int("random", random, 1, config.MAX_TRAJECTORIES)
             box = box or DEFAULT_RANDOM_BOX
             origin = {"random": random, "box": list(box), "seed": seed, "points": given.tolist()}
             given = np.concatenate([random_ics(random, box, seed=seed), given])  # as a scene's: random ones first
@@ -105,13 +128,10 @@ def section_spec(
         if ics.shape[0] * periods > config.MAX_POINTS:
             raise ParameterError(f"{ics.shape[0]} trajectories x {periods} periods = {ics.shape[0] * periods} "
                                  f"points exceeds the limit {config.MAX_POINTS}")  # fmt: skip
-        at("view")
-        view = check_optional_box(view, "view")
         at("numerics")
-        if numerics is None:
+        if numerics is None:  # the bound is checked where it is used (Numerics), only without numerics
             bound = config.DEFAULT_ESCAPE_BOUND if bound is None else float(bound)
             numerics = plot_numerics(view, periods + transient, bound) if view else Numerics(bound=bound)
-        numerics = instance(Numerics)("numerics", numerics)
     return SectionSpec(params, ics, periods, transient, numerics, direction, view, origin)  # type: ignore[arg-type]
 
 

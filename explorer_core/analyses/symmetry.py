@@ -31,17 +31,21 @@ from typing import Any
 
 import numpy as np
 
+from explorer_core.analyses.sections import _ics_or_none
 from explorer_core.analyses.specs import Checking
 from explorer_core.losses import Loss
-from explorer_core.solve.checks import check_number, check_positive
 from explorer_core.solve.numerics import Numerics, check_ics, check_int, random_ics
-from explorer_core.solve.options import Arg, command_line, instance
+from explorer_core.solve.options import POSITIVE, Arg, declare, integer, number, optional_of
+from explorer_core.solve.options import box as box_check
+from explorer_core.solve.options import seed as seed_check
 from explorer_core.solve.section import section
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params, check_time
 
 #: A residual of the field identities below this (relative to the field's size) is rounding.
 FIELD_TOL = 1e-12
+#: A check's integration unless given: rtol = atol = 1e-12 (the "auto" method: vern9).
+SYMMETRY_NUMERICS = Numerics(rtol=1e-12, atol=1e-12)
 
 
 def symmetry_centres(params: Params) -> list[float]:
@@ -192,41 +196,44 @@ class SymmetrySpec:
                 "centre": self.centre, "tol": self.tol, "numerics": self.numerics.as_dict()}  # fmt: skip
 
 
-@command_line(
-    ics=Arg("initial condition (repeatable)", "points", flag="--ic"),
-    periods=Arg("compared section points", "int"),
-    random=Arg("random initial conditions in --box (without --ic)", "int", metavar="N"),
-    box=Arg("box of the random initial conditions", "box", metavar="QMIN,QMAX,RMIN,RMAX"),
-    seed=Arg("random seed of the initial conditions", "int"),
-    centre=Arg("centre s of t -> 2s - t (default t0)"),
-    tol=Arg("largest distance counted as symmetric"),
+@declare(
+    ics=Arg("initial condition (repeatable)", "points", flag="--ic", default=None, check=_ics_or_none()),
+    periods=Arg("compared section points", "int", default=10, check=integer(1, 100_000)),
+    random=Arg(
+        "random initial conditions in --box (without --ic)", "int", metavar="N", default=4, checked_with=("ics",)
+    ),
+    box=Arg(
+        "box of the random initial conditions",
+        "box",
+        metavar="QMIN,QMAX,RMIN,RMAX",
+        default=(-1.0, 1.0, -1.0, 1.0),
+        check=box_check(),
+    ),
+    seed=Arg("random seed of the initial conditions", "int", default=0, check=seed_check(optional=True)),
+    centre=Arg("centre s of t -> 2s - t (default t0)", default=None, check=number(optional=True)),
+    tol=Arg("largest distance counted as symmetric", default=1e-6, check=POSITIVE),
+    numerics=Arg(
+        "the integration", cli=False, default=SYMMETRY_NUMERICS, check=optional_of(Numerics, SYMMETRY_NUMERICS)
+    ),
 )
 def symmetry_spec(
     params: Params,
-    ics: Any = None,
-    periods: int = 10,
+    ics: np.ndarray | None,
+    periods: int,
     *,
-    random: int = 4,
-    box: Any = (-1.0, 1.0, -1.0, 1.0),
-    seed: int = 0,
-    centre: float | None = None,
-    tol: float = 1e-6,
-    numerics: Numerics | None = None,
+    random: int,
+    box: tuple[float, float, float, float],
+    seed: int,
+    centre: float | None,
+    tol: float,
+    numerics: Numerics,
 ) -> SymmetrySpec:
     """A validated :class:`SymmetrySpec`: ``ics``, or ``random`` ones in ``box`` (``seed``) without them; the other
-    options as :func:`check_symmetry`'s (a bad value raises ParameterError naming it)."""
+    options as :func:`check_symmetry`'s (a bad value raises ParameterError naming it, ``exc.option``: its keyword).
+    The options are declared above: defaults, checks (run before this body), flags."""
     with Checking() as at:
-        at("ics" if ics is not None else "random")
-        x = check_ics(ics) if ics is not None else random_ics(check_int("random", random, 1, 10_000), box, seed=seed)
-        at("periods")
-        periods = check_int("periods", periods, 1, 100_000)
-        at("centre")
-        if centre is not None:
-            centre = check_number("centre", centre)
-        at("tol")
-        tol = check_positive("tol", tol)
-        at("numerics")
-        numerics = instance(Numerics)("numerics", numerics or Numerics(rtol=1e-12, atol=1e-12))
+        at("random")
+        x = ics if ics is not None else random_ics(check_int("random", random, 1, 10_000), box, seed=seed)
     return SymmetrySpec(params, tuple((float(q), float(r)) for q, r in x), periods, centre, tol, numerics)
 
 
@@ -264,7 +271,7 @@ def check_symmetry(
     check_time("centre", s, params.period)
     if not (isinstance(tol, int | float) and tol > 0):
         raise ParameterError(f"tol must be positive, got {tol!r}")
-    numerics = numerics or Numerics(rtol=1e-12, atol=1e-12)
+    numerics = numerics or SYMMETRY_NUMERICS
     p = params.with_(t0=s)
     fwd = section(p, ics, periods, numerics=numerics)
     mirrored = ics * np.array([1.0, -1.0])

@@ -26,7 +26,7 @@ from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.solve import checks
 from explorer_core.solve.numerics import Numerics
-from explorer_core.solve.options import Arg, command_line
+from explorer_core.solve.options import BOOL, Arg, Check, declare, number, optional_of, span
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.status import Status, status_names
 from explorer_core.system.model import Model
@@ -109,12 +109,18 @@ class TPrimeMap(Drawable):
         )
 
 
+#: The per-period map's integration unless given.
+PER_PERIOD_NUMERICS = Numerics(rtol=1e-8, atol=1e-8)
+
+
 def check_range(rng: Any, name: str) -> tuple[float, float]:
     """A finite ``(lo, hi)`` with ``lo < hi``; the error names the parameter (``solve.checks.check_range``)."""
     return checks.check_range(name, rng)
 
 
-def _grid(q_range: Any, r_range: Any, grid: Any) -> tuple[np.ndarray, np.ndarray]:
+def _cells(grid: Any) -> int | tuple[int, int]:
+    """``grid`` as given: ``N`` (as an ``int``) or ``(NQ, NR)`` (a tuple of ``int``), each in ``[2, MAX_GRID]``."""
+
     def whole(v: Any) -> int:
         if isinstance(v, bool) or not isinstance(v, int | np.integer):
             raise ParameterError(f"grid must be an integer N or a pair (NQ, NR) of integers, got {grid!r}")
@@ -122,15 +128,27 @@ def _grid(q_range: Any, r_range: Any, grid: Any) -> tuple[np.ndarray, np.ndarray
 
     if isinstance(grid, int | np.integer) and not isinstance(grid, bool):
         nq = nr = int(grid)
+        cells: int | tuple[int, int] = nq
     else:
         try:
             gq, gr = grid
         except (TypeError, ValueError):
             raise ParameterError(f"grid must be N or (NQ, NR), got {grid!r}") from None
         nq, nr = whole(gq), whole(gr)
+        cells = (nq, nr)
     for v in (nq, nr):
         if not 2 <= v <= config.MAX_GRID:
             raise ParameterError(f"grid must be between 2 and {config.MAX_GRID} per axis, got {grid!r}")
+    return cells
+
+
+#: A grid's check (declared by :func:`tprime_spec`): N or (NQ, NR), as :func:`_cells`.
+_GRID = Check(lambda n, v: _cells(v), f"an integer in [2, {config.MAX_GRID}] per axis", "int")
+
+
+def _grid(q_range: Any, r_range: Any, grid: Any) -> tuple[np.ndarray, np.ndarray]:
+    cells = _cells(grid)
+    nq, nr = (cells, cells) if isinstance(cells, int) else cells
     qlo, qhi = check_range(q_range, "q_range")
     rlo, rhi = check_range(r_range, "r_range")
     return np.linspace(qlo, qhi, nq), np.linspace(rlo, rhi, nr)
@@ -163,7 +181,7 @@ def energy_change_map(
     the instantaneous sign alternates within a period almost everywhere.
     """
     start = time.perf_counter()
-    numerics = numerics or Numerics(rtol=1e-8, atol=1e-8)
+    numerics = numerics or PER_PERIOD_NUMERICS
     q, r = _grid(q_range, r_range, grid)
     qq, rr = np.meshgrid(q, r)
     ics = np.column_stack([qq.ravel(), rr.ravel()])
@@ -212,42 +230,37 @@ class TPrimeSpec:
                 "numerics": self.numerics.as_dict()}  # fmt: skip
 
 
-@command_line(
-    t=Arg("frozen time (default t0)"),
-    q_range=Arg("the q axis", "range", metavar="A,B", scene="q_range"),
-    r_range=Arg("the r axis", "range", metavar="C,D", scene="r_range"),
-    grid=Arg("cells per axis", "int"),
-    per_period=Arg("energy change over one period from t0 instead", "switch"),
+@declare(
+    t=Arg("frozen time (default t0)", default=None, check=number(optional=True)),
+    q_range=Arg("the q axis", "range", metavar="A,B", scene="q_range", default=(-3.0, 3.0), check=span()),
+    r_range=Arg("the r axis", "range", metavar="C,D", scene="r_range", default=(-3.0, 3.0), check=span()),
+    grid=Arg("cells per axis", "int", default=200, check=_GRID),
+    per_period=Arg("energy change over one period from t0 instead", "switch", default=False, check=BOOL),
+    numerics=Arg(
+        "the per-period map's integration",
+        cli=False,
+        default=PER_PERIOD_NUMERICS,
+        check=optional_of(Numerics, PER_PERIOD_NUMERICS),
+    ),
 )
 def tprime_spec(
     params: Params,
-    t: float | None = None,
-    q_range: Any = (-3.0, 3.0),
-    r_range: Any = (-3.0, 3.0),
-    grid: Any = 200,
+    t: float | None,
+    q_range: tuple[float, float],
+    r_range: tuple[float, float],
+    grid: int | tuple[int, int],
     *,
-    per_period: bool = False,
-    numerics: Numerics | None = None,
+    per_period: bool,
+    numerics: Numerics,
 ) -> TPrimeSpec:
-    """A validated :class:`TPrimeSpec` (a bad value raises ParameterError naming it). ``t`` (default ``t0``) is the
-    instantaneous map's; the per-period map starts at ``t0`` and refuses a ``t``. ``numerics`` (the per-period
-    map's; default DOP853 at 1e-8)."""
+    """A validated :class:`TPrimeSpec` (a bad value raises ParameterError naming it, ``exc.option``: its keyword).
+    ``t`` (default ``t0``) is the instantaneous map's; the per-period map starts at ``t0`` and refuses a ``t``.
+    The options are declared above: defaults, checks (run before this body), flags."""
     with Checking() as at:
         at("per_period")
-        if checks.check_bool("per_period", per_period) and t is not None:
+        if per_period and t is not None:
             raise ParameterError("per_period integrates over one period from t0; give t0, not t")
-        at("t")
-        t = params.t0 if t is None else checks.check_number("t", t)
-        at("q_range")
-        q = check_range(q_range, "q_range")
-        at("r_range")
-        r = check_range(r_range, "r_range")
-        at("grid")
-        _grid(q, r, grid)
-        at("numerics")
-        numerics = numerics or Numerics(rtol=1e-8, atol=1e-8)
-    g = int(grid) if isinstance(grid, int | np.integer) else tuple(int(v) for v in grid)
-    return TPrimeSpec(params, t, q, r, g, per_period, numerics)  # type: ignore[arg-type]
+    return TPrimeSpec(params, params.t0 if t is None else t, q_range, r_range, grid, per_period, numerics)
 
 
 def tprime(spec: TPrimeSpec, workers: int | None = None) -> TPrimeMap:
