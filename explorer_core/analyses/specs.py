@@ -14,8 +14,6 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Any, TypeVar
 
-from explorer_core import config
-from explorer_core.solve.checks import check_int
 from explorer_core.system.params import ParameterError
 
 S = TypeVar("S")
@@ -48,12 +46,3 @@ def spec_of(kind: type[S], build: Callable[..., S], first: Any, args: tuple, kw:
         given = ", ".join(map(repr, args)) or ", ".join(kw)
         raise TypeError(f"a {kind.__name__} comes alone, not with {given}")
     return first
-
-
-def check_periods(at: Checking, periods: Any, transient: Any) -> tuple[int, int]:
-    """A run's ``periods`` (at least 1) and ``transient`` (at least 0), each at most ``config.MAX_PERIODS``,
-    checked under their own names (``at``)."""
-    at("periods")
-    periods = check_int("periods", periods, 1, config.MAX_PERIODS)
-    at("transient")
-    return periods, check_int("transient", transient, 0, config.MAX_PERIODS)

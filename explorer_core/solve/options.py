@@ -378,20 +378,39 @@ def declare(**args: Arg) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
         full = sig.replace(parameters=[p.replace(default=args[p.name].default) if p.name in args else p
                                        for p in sig.parameters.values()])  # fmt: skip
 
-        @functools.wraps(fn)
-        def build(*a: Any, **kw: Any) -> Any:
+        kinds = {p.kind for p in full.parameters.values()}
+        plain = not kinds & {inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.VAR_POSITIONAL,
+                             inspect.Parameter.VAR_KEYWORD}  # fmt: skip
+        positional = [n for n, p in full.parameters.items() if p.kind is inspect.Parameter.POSITIONAL_OR_KEYWORD]
+        defaults = {n: p.default for n, p in full.parameters.items() if p.default is not inspect.Parameter.empty}
+        checked = [(n, a.check) for n, a in args.items() if a.check is not None]
+        every = full.parameters.keys()
+
+        def bind(a: tuple, kw: dict[str, Any]) -> dict[str, Any]:
+            # Signature.bind's answer without its cost (a builder runs on every slider move): plain
+            # parameters only; anything unusual (a missing or unknown name) goes to bind for its TypeError.
+            if plain and len(a) <= len(positional) and not kw.keys() & positional[: len(a)]:
+                values = {**defaults, **dict(zip(positional, a, strict=False)), **kw}
+                if values.keys() == every:
+                    return values
             bound = full.bind(*a, **kw)
             bound.apply_defaults()
-            values = bound.arguments
-            for name, arg in args.items():
-                if arg.check is None:
-                    continue
+            return dict(bound.arguments)
+
+        @functools.wraps(fn)
+        def build(*a: Any, **kw: Any) -> Any:
+            values = bind(a, kw)
+            for name, check in checked:
                 try:
-                    values[name] = arg.check(name, values[name])
+                    values[name] = check(name, values[name])
                 except ParameterError as exc:
                     if getattr(exc, "option", None) is None:
                         exc.option = name  # type: ignore[attr-defined]
                     raise
+            if plain:
+                return fn(**values)
+            bound = full.bind_partial()
+            bound.arguments.update(values)
             return fn(*bound.args, **bound.kwargs)
 
         build.__signature__ = full  # type: ignore[attr-defined]
