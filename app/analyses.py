@@ -359,7 +359,7 @@ class BifurcationTab(AnalysisTab):
             seeds = np.concatenate([d.final[0, 0][np.asarray(d.status[0, 0]) == Status.OK], ics])
             spec = seeds_spec(params, name, (lo, hi), seeds, max_orbits=4, numerics=cont_numerics)
             cont = continue_from_seeds(spec, cancel=cancelled)
-            if not cancelled():
+            if not cancelled(wait=False):
                 emit(lambda: self._continued(cont))
 
         self._start(job, f"computing on {scheduler}…" if scheduler else "computing…")
@@ -521,7 +521,7 @@ class ChartTab(AnalysisTab):
                 return
             emit(lambda: self.set_view(message=self.view["message"] + "; following the boundaries…"))
             parts = chart_boundaries(final, cancel=cancelled)
-            if not cancelled():
+            if not cancelled(wait=False):
                 emit(lambda: self._curves(parts))
 
         self._start(job, f"computing on {scheduler}…" if scheduler else "computing…")

@@ -218,8 +218,8 @@ class ExplorerSession(param.Parameterized):
         publish()
 
         def job(cancelled: Callable[[], bool], emit: Emit) -> None:
-            for result in layer.job(arg, cancelled):
-                if cancelled():
+            for result in layer.job(arg, cancelled):  # the layer's own polls yield its slot between chunks
+                if cancelled(wait=False):  # a result computed is sent at once if still wanted
                     return
                 emit(lambda r=result: self._apply(layer, inputs, r))
 

@@ -423,10 +423,13 @@ class Runner:
             ticket.fresh = False
         stamps = [time.perf_counter()] if TRACE else None  # started, given a slot, first result out
 
-        def cancelled() -> bool:
+        def cancelled(wait: bool = True) -> bool:
+            """Whether the job is stale; ``wait`` (a poll between chunks of work): also where it yields its slot
+            to a job due first, and waits for its turn back. After its last chunk a job asks with ``wait=False``:
+            its results are computed, and waiting for a turn would only hold them back."""
             if stale():
                 return True
-            return ticket is not None and not sched.checkpoint(ticket)  # may wait for this job's turn
+            return wait and ticket is not None and not sched.checkpoint(ticket)
 
         first = [True]
 

@@ -441,3 +441,26 @@ def test_classroom_under_load(tmp_path) -> None:
     # measured -0.58 MB per session); the per-session figure is measured with 30 in benchmarks/load_test.py.
     assert c["memory"]["per_session_mb"] < 60 and c["memory"]["procs"] == 2
     assert report["cycles"]["max_growth_mb"] < 150
+
+
+def test_a_job_done_computing_sends_its_results_without_waiting_for_a_turn() -> None:
+    """After its last chunk a job asks only whether it is still wanted (``cancelled(wait=False)``): its results go
+    out at once, not after the jobs due before it have had their turn (a poll with ``wait`` yields the slot)."""
+    sched = FairScheduler(slots=1, max_wait=60)
+    pool = ThreadPoolExecutor(4)
+    hold, log = threading.Event(), []
+    a, b = _runner(sched, pool), _runner(sched, pool)
+
+    def section(cancelled, emit) -> None:
+        log.append("computed")
+        _until(lambda: sched.stats()["waiting"] == 1)  # another session's job is due: a poll would yield to it
+        if not cancelled(wait=False):
+            emit(lambda: log.append("sent"))
+
+    a.start("section", section)
+    _until(lambda: "computed" in log)
+    b.start("section", lambda cancelled, emit: (log.append("other"), hold.wait(10)))
+    _until(lambda: "sent" in log or "other" in log)
+    hold.set()
+    pool.shutdown(wait=True)
+    assert log[:2] == ["computed", "sent"]

@@ -67,7 +67,7 @@ class DensityImage:
                 cadence.layers_if_late()
             if last is not None:
                 flush(last)
-            done = not cancelled()
+            done = not cancelled(wait=False)  # the image is computed: only whether it is still wanted
             cadence.layers_at_end(done)
             status = last.status.copy() if last is not None else None
             emit(lambda: self.section.finish(done, status))

@@ -228,7 +228,7 @@ class OrbitsLayer(Layer):
                 res = orbit_search(self.spec(inputs), cancel=cancelled)
             else:
                 res = find_orbits(inputs.params, [], list(inputs.periods), numerics=inputs.numerics)
-            if not cancelled():
+            if not cancelled(wait=False):  # type: ignore[call-arg]  # the runner's poll (app/runner.py)
                 yield res
             return
         # Followed: each period's orbits from their last points (one Newton each), then the clicked seeds, then

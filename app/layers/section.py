@@ -182,7 +182,7 @@ class SectionLayer(Layer):
                 traj, _, q, r = flush(last_status, req.periods, req.periods)
                 if whole:  # a frame's one reliability check, of the states it reached, in its own job (no second job)
                     warnings = _assess(req, traj, q, r, last_status, window, pixel)
-            done = not cancelled()
+            done = not cancelled(wait=False)  # the points are computed: only whether they are still wanted
             cadence.layers_at_end(done)
             emit(lambda: self.finish(done, last_status, warnings))
 

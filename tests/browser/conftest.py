@@ -12,7 +12,8 @@ from harness import served_app
 @pytest.fixture(scope="session")
 def app_url(tmp_path_factory) -> str:
     log = tmp_path_factory.mktemp("serve") / "panel.log"
-    with served_app(str(log)) as url:
+    # The runner traces its jobs into the log (slot waits, spans): a wait that times out quotes it.
+    with served_app(str(log), env={"BILIMOVICH_TRACE": "1"}) as url:
         yield url
     # An exception on the server (e.g. a model changed off the document's thread) can leave the page
     # looking fine while a step after it never ran: none may be logged.

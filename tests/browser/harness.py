@@ -32,6 +32,21 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+#: The log of the app served last (:func:`serve`): a wait that times out quotes its end (what the jobs did).
+SERVED_LOG: list[str] = []
+
+
+def log_tail(lines: int = 40) -> str:
+    """The last ``lines`` lines of the served app's log (with the runner's job trace), or ""."""
+    if not SERVED_LOG or SERVED_LOG[-1] == os.devnull:
+        return ""
+    try:
+        text = Path(SERVED_LOG[-1]).read_text(errors="replace").splitlines()
+    except OSError:
+        return ""
+    return "\nthe server's log ends with:\n" + "\n".join(text[-lines:])
+
+
 class Server(NamedTuple):
     url: str
     pid: int
@@ -69,6 +84,7 @@ def serve(
             if proc.poll() is not None or time.time() > deadline:
                 raise RuntimeError(f"the server did not start (exit {proc.poll()}); see {log_path}")
             time.sleep(0.3)
+        SERVED_LOG.append(log_path or os.devnull)
         yield Server(f"http://127.0.0.1:{port}/main", proc.pid, log_path or os.devnull)
     finally:
         proc.terminate()
@@ -90,9 +106,9 @@ def tree_pids(pid: int) -> list[int]:
 
 
 @contextlib.contextmanager
-def served_app(log_path: str | None = None, threads: int = 4) -> Iterator[str]:
+def served_app(log_path: str | None = None, threads: int = 4, env: dict[str, str] | None = None) -> Iterator[str]:
     """:func:`serve`, yielding the app's URL."""
-    with serve(log_path, threads) as server:
+    with serve(log_path, threads, env) as server:
         yield server.url
 
 
@@ -162,7 +178,7 @@ def wait_text(page, css: str, words: str, timeout: float = 30.0) -> str:
     deadline = time.time() + timeout
     while words not in (shown := text(page, css)):
         if time.time() > deadline:
-            raise TimeoutError(f"{css} did not show {words!r}; it shows {shown!r}")
+            raise TimeoutError(f"{css} did not show {words!r}; it shows {shown!r}{log_tail()}")
         time.sleep(0.05)
     return shown
 
@@ -175,7 +191,7 @@ def wait_finished(page, timeout: float = 60.0) -> str:
         if "trajectories" in status and not status.startswith("computing"):
             return status
         time.sleep(0.1)
-    raise TimeoutError(f"run did not finish; status {status!r}")
+    raise TimeoutError(f"run did not finish; status {status!r}{log_tail()}")
 
 
 def section_q(page) -> list[float]:
