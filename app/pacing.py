@@ -178,6 +178,26 @@ class Deliveries:
             self._loop = IOLoop.current()
 
     async def _drain(self) -> None:
+        try:
+            await self._drain_queue()
+        except BaseException:
+            # The loop is ending (a cancelled task) or a bug: never leave the queue marked as drained by a
+            # coroutine that is gone, or every later delivery of every session would wait for ever.
+            with self._lock:
+                self._scheduled = False
+                again = bool(self._urgent or self._queue)
+            if again:
+                self._schedule()
+            raise
+
+    def _schedule(self) -> None:
+        with self._lock:
+            if self._scheduled:
+                return
+            self._scheduled = True
+        self._loop.add_callback(self._drain)
+
+    async def _drain_queue(self) -> None:
         from panel.io.document import unlocked
         from panel.io.state import set_curdoc
 
