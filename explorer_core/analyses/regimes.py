@@ -52,6 +52,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from explorer_core import config, export
+from explorer_core.analyses.specs import Checking
 from explorer_core.analyses.sweeps import check_param, params_at, sweep_values
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -59,10 +60,22 @@ from explorer_core.parallel.executor import Executor, local_executor
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
-from explorer_core.solve.checks import check_fraction, check_number
+from explorer_core.solve.checks import check_range
 from explorer_core.solve.integrators import coefficients, lockstep_groups
-from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.options import SETTLING, Arg, NewtonOptions, command_line, instance
+from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.options import (
+    BOOL,
+    SETTLING,
+    Arg,
+    Check,
+    NewtonOptions,
+    declare,
+    fraction,
+    instance,
+    integer,
+    number,
+    optional_of,
+)
 from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.solve.recurrence import CHART, NEAR, recurrence
 from explorer_core.solve.rk import Coefficients
@@ -161,84 +174,114 @@ class ChartSpec:
         }
 
 
+#: A chart's default numerics: DOP853 at DEFAULT_CHART_TOL (the "auto" rule).
+CHART_NUMERICS = Numerics(rtol=DEFAULT_CHART_TOL, atol=DEFAULT_CHART_TOL)
+
+
 def chart_numerics() -> Numerics:
-    """A chart's default numerics: DOP853 at DEFAULT_CHART_TOL (the "auto" rule)."""
-    return Numerics(rtol=DEFAULT_CHART_TOL, atol=DEFAULT_CHART_TOL)
+    """A chart's default numerics: :data:`CHART_NUMERICS` (DOP853 at DEFAULT_CHART_TOL, the "auto" rule)."""
+    return CHART_NUMERICS
 
 
-_PARAM = "alpha, I11..I23, g0, g1, g2 or omega"
+#: A sweepable parameter, canonical (``Omega`` is ``omega``); the message is :func:`check_param`'s.
+_SWEEP_PARAM = Check(lambda n, v: check_param(v), "alpha, I11..I23, g0, g1, g2 or omega", "str")
+#: Finite points ``(q, r)`` as an (n, 2) array (:func:`~explorer_core.solve.checks.check_ics`' messages).
+_POINTS = Check(lambda n, v: check_ics(v), "(q, r) points", "str")
+#: A parameter's range ``lo < hi``, refused as "range" (:func:`sweep_values`' message).
+_SWEEP_RANGE = Check(lambda n, v: check_range("range", v), "two numbers lo < hi", "str")
 
 
-@command_line(
-    x_param=Arg(_PARAM, "str", required=True, positional=True),
-    x_range=Arg("the x parameter's range", "range", metavar="A,B", required=True, positional=True),
-    y_param=Arg(_PARAM, "str", required=True, positional=True),
-    y_range=Arg("the y parameter's range", "range", metavar="C,D", required=True, positional=True),
-    grid=Arg("pixels", "ints", metavar="NX,NY", positional=True),
-    ics=Arg("initial condition at every pixel (repeatable)", "points", flag="--ic", scene="points"),
-    transient=Arg("periods dropped first", "int"),
-    periods=Arg("measured periods", "int"),
-    p_max=Arg("longest cycle detected", "int"),
-    tol=Arg("return tolerance (relative to 1 + |x|)"),
-    lyap_threshold=Arg("chaos above this exponent (per unit time)"),
+def _grid(name: str, grid: Any) -> tuple[int, int]:
+    """``(nx, ny)``: two whole numbers in ``[1, MAX_GRID]`` (``int()`` of each, as charts have always taken)."""
+    try:
+        nx, ny = (int(v) for v in grid)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be two integers NX,NY, got {grid!r}") from None
+    if not (1 <= nx <= config.MAX_GRID and 1 <= ny <= config.MAX_GRID):
+        raise ParameterError(f"{name} must be between 1 and {config.MAX_GRID} per axis, got {grid!r}")
+    return nx, ny
+
+
+@declare(
+    x_param=Arg("the x parameter", "str", required=True, positional=True, check=_SWEEP_PARAM),
+    x_range=Arg("the x parameter's range", "range", metavar="A,B", required=True, positional=True, check=_SWEEP_RANGE),
+    y_param=Arg("the y parameter", "str", required=True, positional=True, check=_SWEEP_PARAM),
+    y_range=Arg("the y parameter's range", "range", metavar="C,D", required=True, positional=True, check=_SWEEP_RANGE),
+    grid=Arg(
+        "pixels",
+        "ints",
+        metavar="NX,NY",
+        positional=True,
+        default=(40, 40),
+        check=Check(_grid, f"2 integers NX,NY in [1, {config.MAX_GRID}]", "str"),
+    ),
+    ics=Arg(
+        "initial condition at every pixel (repeatable)",
+        "points",
+        flag="--ic",
+        scene="points",
+        default=((0.1, 0.1),),
+        check=_POINTS,
+    ),
+    transient=Arg("periods dropped first", "int", default=500, check=integer(0, config.MAX_PERIODS)),
+    periods=Arg("measured periods", "int", default=500, check=integer(4, 10**6)),
+    p_max=Arg("longest cycle detected", "int", default=16, checked_with=("periods",)),
+    tol=Arg("return tolerance (relative to 1 + |x|)", default=1e-5, check=fraction()),
+    lyap_threshold=Arg("chaos above this exponent (per unit time)", default=5e-3, check=number()),
+    numerics=Arg(
+        "the chart's integration", cli=False, default=CHART_NUMERICS, check=optional_of(Numerics, CHART_NUMERICS)
+    ),
+    newton=Arg("Newton on a member's settled cycle", cli=False, default=SETTLING, check=instance(NewtonOptions)),
 )
 def chart_spec(
     params: Params,
     x_param: str,
-    x_range: Sequence[float],
+    x_range: tuple[float, float],
     y_param: str,
-    y_range: Sequence[float],
-    grid: Sequence[int] = (40, 40),
+    y_range: tuple[float, float],
+    grid: tuple[int, int],
     *,
-    ics: Any = ((0.1, 0.1),),
-    transient: int = 500,
-    periods: int = 500,
-    p_max: int = 16,
-    tol: float = 1e-5,
-    lyap_threshold: float = 5e-3,
-    numerics: Numerics | None = None,
-    newton: NewtonOptions = SETTLING,
+    ics: np.ndarray,
+    transient: int,
+    periods: int,
+    p_max: int,
+    tol: float,
+    lyap_threshold: float,
+    numerics: Numerics,
+    newton: NewtonOptions,
 ) -> ChartSpec:
-    """Validated :class:`ChartSpec` over ``x_range x y_range`` with ``grid = (nx, ny)`` pixels.
+    """Validated :class:`ChartSpec` over ``x_range x y_range`` with ``grid = (nx, ny)`` pixels (default 40 x 40).
 
     Pixel centres include both ends of each range. ``ics`` are used at every pixel
-    (several: multistability is seen per pixel). ``newton``: Newton on a member's settled cycle (its map follows
-    ``numerics``' tolerance: :meth:`~explorer_core.solve.options.NewtonOptions.at`).
+    (several: multistability is seen per pixel). ``numerics``: default :data:`CHART_NUMERICS`. ``newton``: Newton
+    on a member's settled cycle (its map follows ``numerics``' tolerance:
+    :meth:`~explorer_core.solve.options.NewtonOptions.at`). The options are declared above: defaults, checks (run
+    before this body), flags.
     """
-
-    xp, yp = check_param(x_param), check_param(y_param)
-    if xp == yp:
-        raise ParameterError(f"x and y parameters must differ, both are {xp!r}")
-    try:
-        nx, ny = (int(v) for v in grid)
-    except (TypeError, ValueError):
-        raise ParameterError(f"grid must be two integers NX,NY, got {grid!r}") from None
-    for n in (nx, ny):
-        if not 1 <= n <= config.MAX_GRID:
-            raise ParameterError(f"grid must be between 1 and {config.MAX_GRID} per axis, got {grid!r}")
-    ics = check_ics(ics)
-    transient = check_int("transient", transient, 0, config.MAX_PERIODS)
-    periods = check_int("periods", periods, 4, 10**6)
-    if isinstance(p_max, bool) or not isinstance(p_max, int | np.integer) or not 1 <= p_max < periods // 2:
-        raise ParameterError(f"p_max must be an integer in [1, periods/2), got {p_max!r}")
-    tol = check_fraction("tol", tol)
-    lyap_threshold = check_number("lyap_threshold", lyap_threshold)
+    nx, ny = grid
+    with Checking() as at:
+        at("y_param")
+        if x_param == y_param:
+            raise ParameterError(f"x and y parameters must differ, both are {x_param!r}")
+        at("p_max")
+        if isinstance(p_max, bool) or not isinstance(p_max, int | np.integer) or not 1 <= p_max < periods // 2:
+            raise ParameterError(f"p_max must be an integer in [1, periods/2), got {p_max!r}")
     if nx * ny * ics.shape[0] * periods > 50 * config.MAX_POINTS:
         raise ParameterError(f"chart of {nx}x{ny} pixels x {ics.shape[0]} ICs x {periods} periods is too large")
     return ChartSpec(
         params=params,
-        x_param=xp,
+        x_param=x_param,
         x_values=sweep_values(x_range, nx),
-        y_param=yp,
+        y_param=y_param,
         y_values=sweep_values(y_range, ny),
         ics=ics,
-        transient=int(transient),
-        periods=int(periods),
+        transient=transient,
+        periods=periods,
         p_max=int(p_max),
-        tol=float(tol),
-        lyap_threshold=float(lyap_threshold),
-        numerics=numerics or chart_numerics(),
-        newton=instance(NewtonOptions)("newton", newton),
+        tol=tol,
+        lyap_threshold=lyap_threshold,
+        numerics=numerics,
+        newton=newton,
     )
 
 
@@ -1106,22 +1149,34 @@ def _iter_refined(
         yield ChartUpdate(None, done, planned, chart)
 
 
-@command_line(
-    coarse=Arg("stride of the first coarse pass", "int"),
-    refine=Arg("finer levels only where neighbours differ (README)", "switch"),
+def _power_of_two(name: str, v: Any) -> int:
+    """A whole number ``2**k``, ``k >= 0`` (a lattice's stride), as a plain ``int``."""
+    if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1 or v & (v - 1):
+        raise ParameterError(f"{name} must be a power of two, got {v!r}")
+    return int(v)
+
+
+@declare(
+    coarse=Arg(
+        "stride of the first coarse pass", "int", default=8, check=Check(_power_of_two, "a power of two", "int")
+    ),
+    tile_pixels=Arg("pixels per tile", cli=False, default=64, check=integer(1, config.MAX_GRID**2)),
+    refine=Arg("finer levels only where neighbours differ (README)", "switch", default=False, check=BOOL),
 )
 def regime_chart(
     spec: ChartSpec,
     *,
-    coarse: int = 8,
-    tile_pixels: int = 64,
+    coarse: int,
+    tile_pixels: int,
     workers: int | None = None,
     progress: Callable[[ChartUpdate], None] | None = None,
     cancel: Callable[[], bool] | None = None,
     executor: Executor | None = None,
-    refine: bool = False,
+    refine: bool,
 ) -> Chart:
-    """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``."""
+    """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``. The options are
+    declared above (defaults, checks, flags); ``workers``, ``progress``, ``cancel``, ``executor``: the run's
+    plumbing."""
     kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "executor": executor,
           "refine": refine}  # fmt: skip
     return run_updates(iter_chart(spec, **kw), progress)

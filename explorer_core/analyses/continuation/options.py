@@ -13,10 +13,22 @@ from typing import Any
 import numpy as np
 
 from explorer_core.analyses.orbits import ORBIT_NUMERICS
+from explorer_core.analyses.regimes import _POINTS, _SWEEP_PARAM, DEFAULT_CHART_TOL
 from explorer_core.analyses.specs import Checking
-from explorer_core.analyses.sweeps import check_param
-from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.options import CORRECTOR, ORBITS, Arg, NewtonOptions, command_line
+from explorer_core.solve.checks import check_point
+from explorer_core.solve.numerics import Numerics, check_int
+from explorer_core.solve.options import (
+    BOOL,
+    CORRECTOR,
+    ORBITS,
+    Arg,
+    Check,
+    NewtonOptions,
+    declare,
+    integer,
+    optional_of,
+    positive_or_none,
+)
 from explorer_core.system.params import ParameterError, Params
 
 #: Newton on a corrected point stops when ``|F| <= CORRECTOR_TOL (1 + |x|)`` (the ``CORRECTOR`` preset's ftol).
@@ -137,6 +149,10 @@ class ContinuationSpec:
                 "window1": None if self.window1 is None else list(self.window1)}  # fmt: skip
 
 
+#: The engine's settings when a call gives none.
+DEFAULT_OPTIONS = ContinuationOptions()
+
+
 def _two(name: str, value: Any, what: str) -> tuple[float, float]:
     """Two finite numbers (a range), or a ParameterError naming ``name`` and ``value``."""
     try:
@@ -148,49 +164,140 @@ def _two(name: str, value: Any, what: str) -> tuple[float, float]:
     return a, b
 
 
-@command_line(
-    param=Arg("alpha, I11..I23, g0, g1, g2 or omega", "str", required=True, positional=True),
-    value_range=Arg(
+def _value_range(name: str, value: Any) -> tuple[float, float]:
+    """``(A, B)``, different and finite (either way: from where the orbit is seeded), refused as "range"."""
+    a, b = _two("range", value, "A,B")
+    if a == b:
+        raise ParameterError(f"range must be two different numbers, got {value!r}")
+    return a, b
+
+
+def _range2(name: str, value: Any) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    c, d = _two(name, value, "C,D")
+    if not c < d:
+        raise ParameterError(f"{name} must have C < D, got {value!r}")
+    return c, d
+
+
+def _window(name: str, value: Any) -> tuple[float, float] | None:
+    """None, or a range in increasing order."""
+    w = None if value is None else _two(name, value, "A,B")
+    return None if w is None else (min(w), max(w))
+
+
+def _options_default(name: str) -> str:
+    """``(default X)``: a :class:`ContinuationOptions` field's own default, for the help of the keyword that sets it
+    (its declared default is None: the options' own)."""
+    value = next(f.default for f in fields(ContinuationOptions) if f.name == name)
+    return f"(default {value:g})"
+
+
+#: The continuation's options that continue_from_seeds passes on as they are (one declaration for both builders).
+_BRANCH = {
+    "param": Arg("the parameter followed", "str", required=True, positional=True, check=_SWEEP_PARAM),
+    "value_range": Arg(
         "from A (where the orbit is seeded) to B",
         "range",
         flag="--range",
         metavar="A,B",
         required=True,
         positional=True,
+        check=Check(_value_range, "two different numbers A,B", "str"),
     ),
-    seed=Arg("a point near the period-N orbit at A", "point", flag="--from", metavar="Q,R", positional=True),
-    period=Arg("the orbit's period", "int", positional=True, cli_default=1),
-    switch=Arg("at each period doubling, follow the doubled orbit too", "switch"),
-    max_period=Arg("cap of a cascade", "int"),
-    max_points=Arg("points per branch (default 5000)", "int"),
-    ds=Arg("first arclength step in (q, r, (p - A) / (B - A)) (default 0.02)"),
-    ds_min=Arg("smallest step before a branch gives up (default 1e-7)"),
-    ds_max=Arg("largest step (default 0.1)"),
-    param2=Arg("also follow each fold / period doubling in (PARAM, PARAM2)", "str"),
-    range2=Arg("the range of PARAM2", "range", metavar="C,D"),
+    "options": Arg(
+        "the engine's settings",
+        cli=False,
+        default=DEFAULT_OPTIONS,
+        check=optional_of(ContinuationOptions, DEFAULT_OPTIONS),
+    ),
+    "numerics": Arg("integration", cli=False, default=ORBIT_NUMERICS, check=optional_of(Numerics, ORBIT_NUMERICS)),
+    "param2": Arg(
+        "also follow each fold / period doubling in (PARAM, PARAM2)",
+        "str",
+        default=None,
+        check=Check(
+            lambda n, v: None if v is None else _SWEEP_PARAM(n, v), f"{_SWEEP_PARAM.text} or none", "str", optional=True
+        ),
+    ),
+    "range2": Arg(
+        "the range of PARAM2",
+        "range",
+        metavar="C,D",
+        default=None,
+        check=Check(_range2, "two numbers C < D or none", "str", optional=True),
+    ),
+    "window1": Arg(
+        "PARAM's range on the curves (default: the range)",
+        cli=False,
+        default=None,
+        check=Check(_window, "two numbers A,B or none", "str", optional=True),
+    ),
+}
+
+
+@declare(
+    param=_BRANCH["param"],
+    value_range=_BRANCH["value_range"],
+    seed=Arg(
+        "a point near the period-N orbit at A",
+        "point",
+        flag="--from",
+        metavar="Q,R",
+        positional=True,
+        checked_with=("numerics",),
+    ),
+    period=Arg("the orbit's period", "int", positional=True, cli_default=1, check=integer(1, 1024)),
+    switch=Arg("at each period doubling, follow the doubled orbit too", "switch", default=False, check=BOOL),
+    max_period=Arg("cap of a cascade", "int", default=DEFAULT_MAX_PERIOD, checked_with=("period",)),
+    max_points=Arg(
+        f"points per branch {_options_default('max_points')}",
+        "int",
+        default=None,
+        check=integer(2, 1_000_000, optional=True),
+    ),
+    ds=Arg(
+        f"first arclength step in (q, r, (p - A) / (B - A)) {_options_default('ds')}",
+        default=None,
+        check=positive_or_none(),
+    ),
+    ds_min=Arg(
+        f"smallest step before a branch gives up {_options_default('ds_min')}",
+        default=None,
+        check=positive_or_none(),
+    ),
+    ds_max=Arg(f"largest step {_options_default('ds_max')}", default=None, check=positive_or_none()),
+    param2=_BRANCH["param2"],
+    range2=_BRANCH["range2"],
+    options=_BRANCH["options"],
+    numerics=_BRANCH["numerics"],
+    window1=_BRANCH["window1"],
+    check_end=Arg("refuse a range's end that is no valid system", cli=False, default=False, check=BOOL),
 )
 def continuation_spec(
     params: Params,
     param: str,
-    value_range: Sequence[float],
+    value_range: tuple[float, float],
     seed: Sequence[float],
     period: int,
     *,
-    switch: bool = False,
-    max_period: int = DEFAULT_MAX_PERIOD,
-    options: ContinuationOptions | None = None,
-    ds: float | None = None,
-    ds_min: float | None = None,
-    ds_max: float | None = None,
-    max_points: int | None = None,
-    numerics: Numerics | None = None,
-    param2: str | None = None,
-    range2: Sequence[float] | None = None,
-    window1: Sequence[float] | None = None,
-    check_end: bool = False,
+    switch: bool,
+    max_period: int,
+    options: ContinuationOptions,
+    ds: float | None,
+    ds_min: float | None,
+    ds_max: float | None,
+    max_points: int | None,
+    numerics: Numerics,
+    param2: str | None,
+    range2: tuple[float, float] | None,
+    window1: tuple[float, float] | None,
+    check_end: bool,
 ) -> ContinuationSpec:
     """A validated :class:`ContinuationSpec`; every bad value raises :class:`ParameterError` naming it (and
-    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`).
+    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`). The options are declared above:
+    defaults, checks (run before this body), flags; the body checks what needs several of them.
 
     Parameters
     ----------
@@ -203,79 +310,41 @@ def continuation_spec(
     seed : one point ``(q, r)`` near the orbit at ``A``, inside the escape bound of ``numerics``.
     period : the orbit's period, in ``[1, 1024]``; ``max_period`` (``>= period``) caps a cascade.
     switch : at each period doubling, also follow the doubled branch (up to ``max_period``).
-    options : the engine's settings (:class:`ContinuationOptions`); ``ds``, ``ds_min``, ``ds_max`` and
-        ``max_points``, when given, replace theirs (``ds_max`` alone also bounds the first step).
+    options : the engine's settings (:class:`ContinuationOptions`, default :data:`DEFAULT_OPTIONS`); ``ds``,
+        ``ds_min``, ``ds_max`` and ``max_points``, when given, replace theirs (``ds_max`` alone also bounds the
+        first step).
     numerics : integration (default :data:`~explorer_core.analyses.orbits.ORBIT_NUMERICS`).
     param2, range2 : together or neither: also follow every fold and period doubling found as a curve in
         ``(param, param2)``, ``param2`` (not ``param``) over ``range2 = (C, D)``, ``C < D``, and ``param``
         over ``window1`` (default: the range).
     """
     with Checking() as at:
-        at("param")
-        param = check_param(param)
         at("value_range")
-        a, b = _two("range", value_range, "A,B")
-        if a == b:
-            raise ParameterError(f"range must be two different numbers, got {value_range!r}")
+        a, b = value_range
         for end, v in (("first value", a), ("end", b))[: 2 if check_end else 1]:
             try:
                 params.with_(**{param: v})
             except ParameterError as exc:
                 raise ParameterError(f"the range's {end} {param} = {v:g} is not a valid system: {exc}") from None
-        at("period")
-        period = check_int("period", period, 1, 1024)
         at("max_period")
         max_period = check_int("max_period", max_period, period, 1024)
-        at("options")
-        if not isinstance(options, ContinuationOptions | None):
-            raise ParameterError(f"options must be a ContinuationOptions, got {options!r}")
-        opts = options or ContinuationOptions()
-        given = {}
-        for key, v in (("ds", ds), ("ds_min", ds_min), ("ds_max", ds_max), ("max_points", max_points)):
-            if v is not None:
-                at(key)
-                given[key] = check_int(key, v, 2, 1_000_000) if key == "max_points" else _positive(key, v)
+        opts = options
+        given = {k: v for k, v in (("ds", ds), ("ds_min", ds_min), ("ds_max", ds_max), ("max_points", max_points))
+                 if v is not None}  # fmt: skip
         if given:
             at("ds" if "ds" in given else next(iter(given)))
             if "ds" not in given and "ds_max" in given:  # an old-style ds_max alone bounds the default first step
                 given["ds"] = min(float(opts.ds), float(given["ds_max"]))
             opts = ContinuationOptions(**{**asdict(opts), **given})
-        at("numerics")
-        numerics = ORBIT_NUMERICS if numerics is None else numerics
-        if not isinstance(numerics, Numerics):
-            raise ParameterError(f"numerics must be a Numerics, got {numerics!r}")
         at("seed")
-        x0 = check_ics(seed)
-        if x0.shape[0] != 1:
-            raise ParameterError(f"seed must be one point (q, r), got {x0.shape[0]}")
-        q, r = (float(v) for v in x0[0])
-        if max(abs(q), abs(r)) > numerics.bound:
-            raise ParameterError(f"seed {q:g},{r:g} is outside the escape bound {numerics.bound:g}")
+        q, r = check_point("seed", seed, numerics.bound)
         at("param2")
         if (param2 is None) != (range2 is None):
             raise ParameterError(f"param2 and range2 go together (both or neither), got {param2!r} and {range2!r}")
-        rng2 = None
-        if param2 is not None:
-            param2 = check_param(param2)
-            if param2 == param:
-                raise ParameterError(f"param2 must differ from param, got {param2!r} twice")
-            at("range2")
-            c, d = _two("range2", range2, "C,D")
-            if not c < d:
-                raise ParameterError(f"range2 must have C < D, got {range2!r}")
-            rng2 = (c, d)
-        at("window1")
-        w1 = None if window1 is None else _two("window1", window1, "A,B")
-        w1 = None if w1 is None else (min(w1), max(w1))
-    return ContinuationSpec(params, param, (a, b), (q, r), period, bool(switch), max_period, opts, numerics,
-                            param2, rng2, w1)  # fmt: skip
-
-
-def _positive(name: str, v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating) or not math.isfinite(v) \
-            or v <= 0:  # fmt: skip
-        raise ParameterError(f"{name} must be a positive finite number, got {v!r}")
-    return float(v)
+        if param2 is not None and param2 == param:
+            raise ParameterError(f"param2 must differ from param, got {param2!r} twice")
+    return ContinuationSpec(params, param, (a, b), (q, r), period, switch, max_period, opts, numerics,
+                            param2, range2, window1)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -321,34 +390,45 @@ class SeedsSpec:
         return {**self.branch.as_dict(), "seed": None, "period": None, **own}
 
 
+#: Periods to look for: at least one, each a whole number in ``[1, 1024]``.
+_PERIODS = Check(lambda n, v: _periods(v), "periods in [1, 1024]", "str")
+
+
+# No command runs it (the app does): its own options are keywords of calls only; the shared ones keep the flags of
+# `continue`.
+@declare(
+    param=_BRANCH["param"],
+    value_range=_BRANCH["value_range"],
+    seeds=Arg("points near the orbits at A", cli=False, check=_POINTS),
+    periods=Arg("the periods Newton looks for", cli=False, default=(1, 2, 3, 4), check=_PERIODS),
+    max_orbits=Arg("orbits continued at most (lowest periods first)", cli=False, default=6, check=integer(1, 1000)),
+    switch=Arg("at each period doubling, follow the doubled orbit too", cli=False, default=True, check=BOOL),
+    max_period=Arg("cap of a cascade", cli=False, default=DEFAULT_MAX_PERIOD, check=integer(1, 1024)),
+    options=_BRANCH["options"],
+    numerics=_BRANCH["numerics"],
+    param2=_BRANCH["param2"],
+    range2=_BRANCH["range2"],
+    window1=_BRANCH["window1"],
+)
 def seeds_spec(
     params: Params,
     param: str,
-    value_range: Sequence[float],
-    seeds: Any,
+    value_range: tuple[float, float],
+    seeds: np.ndarray,
     *,
-    periods: Sequence[int] = (1, 2, 3, 4),
-    max_orbits: int = 6,
-    switch: bool = True,
-    max_period: int = DEFAULT_MAX_PERIOD,
-    options: ContinuationOptions | None = None,
-    numerics: Numerics | None = None,
-    param2: str | None = None,
-    range2: Sequence[float] | None = None,
-    window1: Sequence[float] | None = None,
+    periods: tuple[int, ...],
+    max_orbits: int,
+    switch: bool,
+    max_period: int,
+    options: ContinuationOptions,
+    numerics: Numerics,
+    param2: str | None,
+    range2: tuple[float, float] | None,
+    window1: tuple[float, float] | None,
 ) -> SeedsSpec:
     """A validated :class:`SeedsSpec`: the seeds (n, 2), the periods Newton looks for (each in ``[1, 1024]``),
     ``max_orbits`` in ``[1, 1000]``; the rest as :func:`continuation_spec` checks it (the orbit's own seed and
-    period are Newton's, found when it runs)."""
-    with Checking() as at:
-        at("seeds")
-        seeds = check_ics(seeds)
-        at("periods")
-        periods = _periods(periods)
-        at("max_orbits")
-        max_orbits = check_int("max_orbits", max_orbits, 1, 1000)
-        at("max_period")
-        max_period = check_int("max_period", max_period, 1, 1024)
+    period are Newton's, found when it runs). The options are declared above (defaults, checks)."""
     branch = continuation_spec(params, param, value_range, (0.0, 0.0), max(periods), switch=switch,
                                max_period=max(max_period, *periods), options=options, numerics=numerics,
                                param2=param2, range2=range2, window1=window1)  # fmt: skip
@@ -369,26 +449,29 @@ class BoundariesSpec:
         return {"chart": self.chart.spec.as_dict(), "periods": list(self.periods), "numerics": self.numerics.as_dict()}
 
 
-def boundaries_spec(
-    chart: Any, *, periods: Sequence[int] = (1, 2, 3), numerics: Numerics | None = None
-) -> BoundariesSpec:
+def _computed_chart(name: str, chart: Any) -> Any:
+    if getattr(chart, "spec", None) is None or not hasattr(chart, "regime"):
+        raise ParameterError(f"{name} must be a computed chart of regimes, got {type(chart).__name__}")
+    return chart
+
+
+@declare(
+    chart=Arg("a computed chart of regimes", cli=False, check=Check(_computed_chart, "a computed chart", "str")),
+    periods=Arg("the periods whose regions are bounded", cli=False, default=(1, 2, 3), check=_PERIODS),
+    numerics=Arg(
+        "the continuation's integration (none: following the chart's)",
+        cli=False,
+        default=None,
+        check=optional_of(Numerics),
+    ),
+)
+def boundaries_spec(chart: Any, *, periods: tuple[int, ...], numerics: Numerics | None) -> BoundariesSpec:
     """A validated :class:`BoundariesSpec`. ``numerics`` default: the orbits' map as it follows the chart's
     tolerance (:meth:`~explorer_core.solve.options.NewtonOptions.at` of
     :data:`~explorer_core.solve.options.ORBITS`: vern9 at 1e-12 for a chart at its default 1e-8, 1e-10 for a
-    chart at 1e-6)."""
-    from explorer_core.analyses.regimes import DEFAULT_CHART_TOL
-
-    with Checking() as at:
-        at("chart")
-        if getattr(chart, "spec", None) is None or not hasattr(chart, "regime"):
-            raise ParameterError(f"chart must be a computed chart of regimes, got {type(chart).__name__}")
-        at("periods")
-        periods = _periods(periods)
-        at("numerics")
-        if numerics is None:
-            numerics = ORBITS.at(chart.spec.numerics, DEFAULT_CHART_TOL)[0]
-        if not isinstance(numerics, Numerics):
-            raise ParameterError(f"numerics must be a Numerics, got {numerics!r}")
+    chart at 1e-6). The options are declared above (defaults, checks)."""
+    if numerics is None:
+        numerics = ORBITS.at(chart.spec.numerics, DEFAULT_CHART_TOL)[0]
     return BoundariesSpec(chart, periods, numerics)
 
 
