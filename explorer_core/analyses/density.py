@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from explorer_core import config, export
-from explorer_core.analyses.sections import PERIODS_ARG, SEED_ARG, TRANSIENT_ARG, _ics_or_none
+from explorer_core.analyses.sections import PERIODS_ARG, SEED_ARG, TRANSIENT_ARG
 from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -32,7 +32,7 @@ from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.scenes import plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int, random_ics
-from explorer_core.solve.options import Arg, declare, ints, optional_of
+from explorer_core.solve.options import Arg, declare, ics, ints, optional_of
 from explorer_core.solve.options import box as box_check
 from explorer_core.solve.section import iter_section
 from explorer_core.status import Status, count_names
@@ -266,7 +266,7 @@ class DensitySpec:
         "points",
         flag="--ic",
         default=None,
-        check=_ics_or_none(),
+        check=ics(optional=True),
     ),
     seed=SEED_ARG,
     box=Arg("box of the initial conditions", "box", scene="box", positional=True, check=box_check()),

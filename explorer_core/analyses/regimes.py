@@ -62,7 +62,7 @@ from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
 from explorer_core.solve.checks import check_range
 from explorer_core.solve.integrators import coefficients, lockstep_groups
-from explorer_core.solve.numerics import Numerics, check_ics
+from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.options import (
     BOOL,
     SETTLING,
@@ -71,6 +71,7 @@ from explorer_core.solve.options import (
     NewtonOptions,
     declare,
     fraction,
+    ics,
     instance,
     integer,
     number,
@@ -184,9 +185,7 @@ def chart_numerics() -> Numerics:
 
 
 #: A sweepable parameter, canonical (``Omega`` is ``omega``); the message is :func:`check_param`'s.
-_SWEEP_PARAM = Check(lambda n, v: check_param(v), "alpha, I11..I23, g0, g1, g2 or omega", "str")
-#: Finite points ``(q, r)`` as an (n, 2) array (:func:`~explorer_core.solve.checks.check_ics`' messages).
-_POINTS = Check(lambda n, v: check_ics(v), "(q, r) points", "str")
+SWEEP_PARAM = Check(lambda n, v: check_param(v), "alpha, I11..I23, g0, g1, g2 or omega", "str")
 #: A parameter's range ``lo < hi``, refused as "range" (:func:`sweep_values`' message).
 _SWEEP_RANGE = Check(lambda n, v: check_range("range", v), "two numbers lo < hi", "str")
 
@@ -203,9 +202,9 @@ def _grid(name: str, grid: Any) -> tuple[int, int]:
 
 
 @declare(
-    x_param=Arg("the x parameter", "str", required=True, positional=True, check=_SWEEP_PARAM),
+    x_param=Arg("the x parameter", "str", required=True, positional=True, check=SWEEP_PARAM),
     x_range=Arg("the x parameter's range", "range", metavar="A,B", required=True, positional=True, check=_SWEEP_RANGE),
-    y_param=Arg("the y parameter", "str", required=True, positional=True, check=_SWEEP_PARAM),
+    y_param=Arg("the y parameter", "str", required=True, positional=True, check=SWEEP_PARAM),
     y_range=Arg("the y parameter's range", "range", metavar="C,D", required=True, positional=True, check=_SWEEP_RANGE),
     grid=Arg(
         "pixels",
@@ -221,7 +220,7 @@ def _grid(name: str, grid: Any) -> tuple[int, int]:
         flag="--ic",
         scene="points",
         default=((0.1, 0.1),),
-        check=_POINTS,
+        check=ics(),
     ),
     transient=Arg("periods dropped first", "int", default=500, check=integer(0, config.MAX_PERIODS)),
     periods=Arg("measured periods", "int", default=500, check=integer(4, 10**6)),

@@ -18,9 +18,8 @@ import numpy as np
 from explorer_core import config
 from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.scenes import pixel_size, plot_numerics
-from explorer_core.solve.checks import check_ics
 from explorer_core.solve.numerics import Numerics, random_ics
-from explorer_core.solve.options import BOOL, Arg, Check, declare, integer, optional_of
+from explorer_core.solve.options import BOOL, Arg, declare, ics, integer, optional_of
 from explorer_core.solve.options import box as box_check
 from explorer_core.solve.options import seed as seed_check
 from explorer_core.solve.section import Section, SectionChunk, section
@@ -51,11 +50,6 @@ class SectionSpec:
                 "direction": self.direction, "view": None if self.view is None else list(self.view)}  # fmt: skip
 
 
-def _ics_or_none() -> Check:
-    """Initial conditions as a finite (n, 2) array (:func:`~explorer_core.solve.checks.check_ics`), or None."""
-    return Check(lambda n, v: None if v is None else check_ics(v), "(q, r) pairs or none", optional=True)
-
-
 #: Options a section's builder and a density image's (:func:`~explorer_core.analyses.density.density_spec`) share.
 PERIODS_ARG = Arg(
     "section points per trajectory", "int", scene="periods", positional=True, metavar="N",
@@ -74,7 +68,7 @@ TRANSIENT_ARG = Arg("periods dropped first", "int", scene="transient", default=0
         scene="initial_conditions",
         unless=("random",),
         default=None,
-        check=_ics_or_none(),
+        check=ics(optional=True),
     ),
     random=Arg(
         "random initial conditions in --box",

@@ -31,11 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core.analyses.sections import _ics_or_none
 from explorer_core.analyses.specs import Checking
 from explorer_core.losses import Loss
 from explorer_core.solve.numerics import Numerics, check_ics, check_int, random_ics
-from explorer_core.solve.options import POSITIVE, Arg, declare, integer, number, optional_of
+from explorer_core.solve.options import POSITIVE, Arg, declare, ics, integer, number, optional_of
 from explorer_core.solve.options import box as box_check
 from explorer_core.solve.options import seed as seed_check
 from explorer_core.solve.section import section
@@ -197,7 +196,7 @@ class SymmetrySpec:
 
 
 @declare(
-    ics=Arg("initial condition (repeatable)", "points", flag="--ic", default=None, check=_ics_or_none()),
+    ics=Arg("initial condition (repeatable)", "points", flag="--ic", default=None, check=ics(optional=True)),
     periods=Arg("compared section points", "int", default=10, check=integer(1, 100_000)),
     random=Arg(
         "random initial conditions in --box (without --ic)", "int", metavar="N", default=4, checked_with=("ics",)

@@ -142,6 +142,16 @@ def ints(count: int, lo: int, hi: int, what: str = "NX,NY", optional: bool = Fal
     return Check(fn, f"{count} integers {what} in [{lo}, {hi}]" + (" or none" if optional else ""), "str", optional)
 
 
+def ics(optional: bool = False) -> Check:
+    """Initial conditions (or seeds) as a finite ``(n, 2)`` array (:func:`~explorer_core.solve.checks.check_ics`'
+    messages); ``optional``: or None."""
+
+    def fn(n: str, v: Any) -> Any:
+        return None if optional and v is None else checks.check_ics(v)
+
+    return Check(fn, "(q, r) pairs" + (" or none" if optional else ""), "str", optional)
+
+
 def optional_of(kind: type, none_is: Any = None) -> Check:
     """An instance of ``kind``, or None: ``none_is`` (the option's default, e.g. an analysis' own numerics: a caller
     passing None asks for the default)."""

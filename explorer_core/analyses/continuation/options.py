@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core.analyses.orbits import ORBIT_NUMERICS
-from explorer_core.analyses.regimes import _POINTS, _SWEEP_PARAM, DEFAULT_CHART_TOL
+from explorer_core.analyses.regimes import DEFAULT_CHART_TOL, SWEEP_PARAM
 from explorer_core.analyses.specs import Checking
 from explorer_core.solve.checks import check_point
 from explorer_core.solve.numerics import Numerics, check_int
@@ -25,6 +25,7 @@ from explorer_core.solve.options import (
     Check,
     NewtonOptions,
     declare,
+    ics,
     integer,
     optional_of,
     positive_or_none,
@@ -196,7 +197,7 @@ def _options_default(name: str) -> str:
 
 #: The continuation's options that continue_from_seeds passes on as they are (one declaration for both builders).
 _BRANCH = {
-    "param": Arg("the parameter followed", "str", required=True, positional=True, check=_SWEEP_PARAM),
+    "param": Arg("the parameter followed", "str", required=True, positional=True, check=SWEEP_PARAM),
     "value_range": Arg(
         "from A (where the orbit is seeded) to B",
         "range",
@@ -218,7 +219,7 @@ _BRANCH = {
         "str",
         default=None,
         check=Check(
-            lambda n, v: None if v is None else _SWEEP_PARAM(n, v), f"{_SWEEP_PARAM.text} or none", "str", optional=True
+            lambda n, v: None if v is None else SWEEP_PARAM(n, v), f"{SWEEP_PARAM.text} or none", "str", optional=True
         ),
     ),
     "range2": Arg(
@@ -399,7 +400,7 @@ _PERIODS = Check(lambda n, v: _periods(v), "periods in [1, 1024]", "str")
 @declare(
     param=_BRANCH["param"],
     value_range=_BRANCH["value_range"],
-    seeds=Arg("points near the orbits at A", cli=False, check=_POINTS),
+    seeds=Arg("points near the orbits at A", cli=False, check=ics()),
     periods=Arg("the periods Newton looks for", cli=False, default=(1, 2, 3, 4), check=_PERIODS),
     max_orbits=Arg("orbits continued at most (lowest periods first)", cli=False, default=6, check=integer(1, 1000)),
     switch=Arg("at each period doubling, follow the doubled orbit too", cli=False, default=True, check=BOOL),
