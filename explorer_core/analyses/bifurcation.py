@@ -729,7 +729,7 @@ def _values(n: str, v: Any) -> np.ndarray | None:
     transient=Arg("periods run first at every value", "int", default=500, check=integer(0, config.MAX_PERIODS)),
     seeding=Arg("how each value is seeded", "str", choices=SEEDINGS, default="continuation", check=choice(SEEDINGS)),
     sweeps=Arg(
-        "continuation sweeps (default both)",
+        "continuation sweeps",
         "list",
         metavar="forward,backward",
         default=SWEEPS,
