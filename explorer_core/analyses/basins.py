@@ -76,10 +76,22 @@ from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
-from explorer_core.solve.checks import check_fraction, check_number
 from explorer_core.solve.integrators import Batch
-from explorer_core.solve.numerics import Numerics, check_box, check_int
-from explorer_core.solve.options import ORBITS, Arg, NewtonOptions, command_line, instance, integer, option
+from explorer_core.solve.numerics import Numerics, check_int
+from explorer_core.solve.options import (
+    ORBITS,
+    Arg,
+    Check,
+    NewtonOptions,
+    declare,
+    fraction,
+    instance,
+    integer,
+    number,
+    option,
+    optional_of,
+)
+from explorer_core.solve.options import box as box_check
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.recurrence import CHART, SWEEP, recurrence
 from explorer_core.status import Status, count_names, describe, status_names
@@ -507,42 +519,112 @@ class BasinsUpdate:
 # Validation.
 
 
-#: The confirmation horizon's declaration (default, check, help): the builder's keyword and flag read it.
+#: The confirmation horizon's declaration (default, check, help) on the spec's field: the builder's option reads it.
 _CONFIRM = BasinSpec.__dataclass_fields__["confirm"]
 
 
-@command_line(
-    box=Arg("the initial conditions' window", "box", metavar="Q0,Q1,R0,R1", scene="box", positional=True),
-    grid=Arg("pixels", "ints", metavar="NX,NY", positional=True),
-    max_periods=Arg("a pixel with no fate after this many periods is undecided (label -3)", "int"),
-    cell_box=Arg(
-        "box of the recurrence cells (default: --box widened by its size on every side)", "box", metavar="Q0,Q1,R0,R1"
+def _grid(n: str, v: Any) -> tuple[int, int]:
+    """``(NX, NY)`` pixels, each in ``[1, config.MAX_BASIN_GRID]``, at most ``config.MAX_BASIN_PIXELS`` in all."""
+    try:
+        nx, ny = (x for x in v)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{n} must be two integers NX,NY, got {v!r}") from None
+    nx = check_int(f"{n} NX", nx, 1, config.MAX_BASIN_GRID)
+    ny = check_int(f"{n} NY", ny, 1, config.MAX_BASIN_GRID)
+    if nx * ny > config.MAX_BASIN_PIXELS:
+        raise ParameterError(f"{n} {nx}x{ny} has {nx * ny} pixels, more than {config.MAX_BASIN_PIXELS}")
+    return nx, ny
+
+
+def _cells(n: str, v: Any) -> tuple[int, int] | None:
+    """``(NQ, NR)`` recurrence cells, each in ``[1, 4096]``, or None (the default, from the boxes)."""
+    if v is None:
+        return None
+    try:
+        cq, cr = (x for x in v)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{n} must be two integers, got {v!r}") from None
+    return check_int(f"{n} NQ", cq, 1, 4096), check_int(f"{n} NR", cr, 1, 4096)
+
+
+@declare(
+    box=Arg(
+        "the initial conditions' window", "box", metavar="Q0,Q1,R0,R1", scene="box", positional=True, check=box_check()
     ),
-    cells=Arg("recurrence cells per axis (default 64 across --box)", "ints", metavar="NQ,NR"),
-    confirm=Arg(_CONFIRM.metadata["help"], "int", metavar="PERIODS"),
+    grid=Arg(
+        "pixels",
+        "ints",
+        metavar="NX,NY",
+        positional=True,
+        default=(100, 100),
+        check=Check(
+            _grid, f"two integers in [1, {config.MAX_BASIN_GRID}], at most {config.MAX_BASIN_PIXELS} pixels", "str"
+        ),
+    ),
+    max_periods=Arg(
+        "a pixel with no fate after this many periods is undecided (label -3)",
+        "int",
+        default=3000,
+        check=integer(1, config.MAX_PERIODS),
+    ),
+    cell_box=Arg(
+        "box of the recurrence cells (default: --box widened by its size on every side)",
+        "box",
+        metavar="Q0,Q1,R0,R1",
+        default=None,
+        check=box_check(optional=True),
+    ),
+    cells=Arg(
+        "recurrence cells per axis (default 64 across --box)",
+        "ints",
+        metavar="NQ,NR",
+        default=None,
+        check=Check(_cells, "two integers in [1, 4096] or none", "str", optional=True),
+    ),
+    confirm=Arg(
+        _CONFIRM.metadata["help"], "int", metavar="PERIODS", default=_CONFIRM.default, check=_CONFIRM.metadata["check"]
+    ),
+    # None: derived from the cell box (the body).
+    numerics=Arg("integration", cli=False, default=None, check=optional_of(Numerics)),
+    chunk=Arg("periods per engine call", cli=False, default=5, check=integer(1, 1000)),
+    recurrences=Arg("recurrences that locate an attractor", cli=False, default=100, check=integer(2, 1_000_000)),
+    locate=Arg("periods that locate an attractor's cells", cli=False, default=1000, check=integer(1, 1_000_000)),
+    hit_attractor=Arg("attractor cells that label a pixel", cli=False, default=3, check=integer(1, 1_000_000)),
+    hit_basin=Arg(
+        "basin cells that label a pixel (None: none)",
+        cli=False,
+        default=None,
+        check=integer(1, 1_000_000, optional=True),
+    ),
+    p_max=Arg("longest cycle that goes to Newton", cli=False, default=16, check=integer(1, 64)),
+    inflight=Arg("trajectories integrated at once", cli=False, default=512, check=integer(1, config.MAX_TRAJECTORIES)),
+    tol=Arg("a cycle's points return within tol (1 + |x|)", cli=False, default=1e-5, check=fraction()),
+    lyap_threshold=Arg("chaotic above it, quasi-periodic below", cli=False, default=5e-3, check=number()),
+    newton=Arg("Newton on a cycle", cli=False, default=BASIN_NEWTON, check=instance(NewtonOptions)),
 )
 def basin_spec(
     params: Params,
-    box: Sequence[float],
-    grid: Sequence[int] = (100, 100),
+    box: tuple[float, float, float, float],
+    grid: tuple[int, int],
     *,
-    numerics: Numerics | None = None,
-    cell_box: Sequence[float] | None = None,
-    cells: Sequence[int] | None = None,
-    chunk: int = 5,
-    max_periods: int = 3000,
-    recurrences: int = 100,
-    locate: int = 1000,
-    hit_attractor: int = 3,
-    hit_basin: int | None = None,
-    p_max: int = 16,
-    tol: float = 1e-5,
-    lyap_threshold: float = 5e-3,
-    inflight: int = 512,
-    newton: NewtonOptions = BASIN_NEWTON,
-    confirm: int = _CONFIRM.default,
+    numerics: Numerics | None,
+    cell_box: tuple[float, float, float, float] | None,
+    cells: tuple[int, int] | None,
+    chunk: int,
+    max_periods: int,
+    recurrences: int,
+    locate: int,
+    hit_attractor: int,
+    hit_basin: int | None,
+    p_max: int,
+    tol: float,
+    lyap_threshold: float,
+    inflight: int,
+    newton: NewtonOptions,
+    confirm: int,
 ) -> BasinSpec:
-    """A validated :class:`BasinSpec`; every bad value raises :class:`ParameterError` naming it.
+    """A validated :class:`BasinSpec`; every bad value raises :class:`ParameterError` naming it. The options are
+    declared above (defaults, checks run before this body, flags); the body derives what depends on several.
 
     Parameters
     ----------
@@ -569,52 +651,28 @@ def basin_spec(
     newton : Newton on a cycle (default :data:`BASIN_NEWTON`: the orbits' preset without patience; its map
         follows ``numerics``' tolerance, 1e-12 at the default 1e-8).
     confirm : periods a chaotic or quasi-periodic set's seed is continued before the set is listed as an
-        attractor (default :data:`CONFIRM_PERIODS`; 0: no check), see :meth:`_Run.confirm`.
+        attractor (default :data:`CONFIRM_PERIODS`, declared on :attr:`BasinSpec.confirm`; 0: no check), see
+        :meth:`_Run.confirm`.
     """
-    b = check_box(box)
-    try:
-        nx, ny = (v for v in grid)
-    except (TypeError, ValueError):
-        raise ParameterError(f"grid must be two integers NX,NY, got {grid!r}") from None
-    nx = check_int("grid NX", nx, 1, config.MAX_BASIN_GRID)
-    ny = check_int("grid NY", ny, 1, config.MAX_BASIN_GRID)
-    if nx * ny > config.MAX_BASIN_PIXELS:
-        raise ParameterError(f"grid {nx}x{ny} has {nx * ny} pixels, more than {config.MAX_BASIN_PIXELS}")
+    b = box
     if cell_box is None:
         wq, wr = b[1] - b[0], b[3] - b[2]
         cb = (b[0] - wq, b[1] + wq, b[2] - wr, b[3] + wr)
     else:
-        cb = check_box(cell_box, "cell_box")
+        cb = cell_box
     if cells is None:
         nq = max(1, round(64 * (cb[1] - cb[0]) / (b[1] - b[0])))
         nr = max(1, round(64 * (cb[3] - cb[2]) / (b[3] - b[2])))
         cl = (min(nq, 4096), min(nr, 4096))
     else:
-        try:
-            cq, cr = (v for v in cells)
-        except (TypeError, ValueError):
-            raise ParameterError(f"cells must be two integers, got {cells!r}") from None
-        cl = (check_int("cells NQ", cq, 1, 4096), check_int("cells NR", cr, 1, 4096))
+        cl = cells
     if numerics is None:
         big = max(abs(v) for v in cb)
         bound = min(max(100.0, 10.0 * big), max(config.DEFAULT_ESCAPE_BOUND, 2.0 * big))
         numerics = Numerics(rtol=DEFAULT_BASIN_TOL, atol=DEFAULT_BASIN_TOL, bound=bound)
-    chunk = check_int("chunk", chunk, 1, 1000)
-    max_periods = check_int("max_periods", max_periods, 1, config.MAX_PERIODS)
-    recurrences = check_int("recurrences", recurrences, 2, 1_000_000)
-    locate = check_int("locate", locate, 1, 1_000_000)
-    hit_attractor = check_int("hit_attractor", hit_attractor, 1, 1_000_000)
-    if hit_basin is not None:
-        hit_basin = check_int("hit_basin", hit_basin, 1, 1_000_000)
-    p_max = check_int("p_max", p_max, 1, 64)
-    inflight = check_int("inflight", inflight, 1, config.MAX_TRAJECTORIES)
-    tol = check_fraction("tol", tol)
-    lyap_threshold = check_number("lyap_threshold", lyap_threshold)
-    confirm = _CONFIRM.metadata["check"]("confirm", confirm)
-    return BasinSpec(params, b, nx, ny, numerics, cb, cl, chunk, max_periods, recurrences, locate, hit_attractor,
-                     hit_basin, p_max, float(tol), float(lyap_threshold), inflight,
-                     cells is None and cell_box is None,
-                     instance(NewtonOptions)("newton", newton), confirm)  # fmt: skip
+    return BasinSpec(params, b, *grid, numerics, cb, cl, chunk, max_periods, recurrences, locate, hit_attractor,
+                     hit_basin, p_max, tol, lyap_threshold, inflight, cells is None and cell_box is None, newton,
+                     confirm)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------

@@ -40,17 +40,28 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config, export
-from explorer_core.analyses.specs import spec_of
+from explorer_core.analyses.lyapunov import _ics
+from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.analyses.sweeps import check_param, params_at, sweep_values
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.parallel.executor import Executor
 from explorer_core.progress import Progress, stream
 from explorer_core.progress import run as run_updates
-from explorer_core.solve.checks import check_choice
+from explorer_core.solve.checks import check_choice, check_range
 from explorer_core.solve.integrators import lockstep_groups
-from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.options import JUMPS, Arg, NewtonOptions, command_line, instance
+from explorer_core.solve.numerics import Numerics
+from explorer_core.solve.options import (
+    JUMPS,
+    Arg,
+    Check,
+    NewtonOptions,
+    choice,
+    declare,
+    instance,
+    integer,
+    optional_of,
+)
 from explorer_core.solve.poincare import PoincareMap, newton
 from explorer_core.solve.recurrence import CHART, DIAGRAM, recurrence
 from explorer_core.status import Status, count_names
@@ -58,6 +69,8 @@ from explorer_core.system.params import ParameterError, Params
 
 SEEDINGS = ("continuation", "fixed")
 SWEEPS = ("forward", "backward")
+#: The initial conditions at ``t0`` unless the caller gives its own.
+ICS = ((0.1, 0.1),)
 
 
 # ---------------------------------------------------------------------------
@@ -398,6 +411,8 @@ SETTLE_TOL = DIAGRAM.tol
 #: The tolerance a diagram's numerics have by default (``Numerics()``): Newton's ``ftol`` follows the ratio of
 #: the diagram's tolerance to it (:meth:`~explorer_core.solve.options.NewtonOptions.at`).
 DIAGRAM_RTOL = config.DEFAULT_RTOL
+#: A diagram's numerics unless the caller gives its own.
+DIAGRAM_NUMERICS = Numerics()
 #: The tolerance of a diagram as a picture (the app's Accuracy "plot"): its points are far below its pixels
 #: (vern9 by the "auto" rule).
 DIAGRAM_PLOT_RTOL = 1e-9
@@ -678,32 +693,74 @@ class DiagramSpec:
                 "newton": sw.newton.as_dict(), "seeding": self.seeding, "sweeps": list(self.sweeps)}  # fmt: skip
 
 
-@command_line(
-    param=Arg("alpha, I11..I23, g0, g1, g2 or omega", "str", required=True, positional=True),
-    value_range=Arg("the parameter's range", "range", flag="--range", metavar="A,B", required=True),
-    n_values=Arg("values over the range", "int", metavar="N"),
-    points=Arg("section points per value", "int"),
-    transient=Arg("periods run first at every value", "int"),
-    seeding=Arg("how each value is seeded", "str", choices=SEEDINGS),
-    sweeps=Arg("continuation sweeps (default both)", "list", metavar="forward,backward"),
-    ics=Arg("initial condition (repeatable)", "points", flag="--ic", scene="points"),
+def _values(n: str, v: Any) -> np.ndarray | None:
+    """The parameter's values given as such (1-D, finite, at least one), or None (from ``value_range``)."""
+    if v is None:
+        return None
+    vals = np.asarray(v, dtype=float).ravel()
+    if vals.size == 0 or not np.all(np.isfinite(vals)):
+        raise ParameterError(f"{n} must be a non-empty list of finite numbers, got {v!r}")
+    return vals
+
+
+@declare(
+    param=Arg(
+        "alpha, I11..I23, g0, g1, g2 or omega",
+        "str",
+        required=True,
+        positional=True,
+        check=Check(lambda n, v: check_param(v), "a sweepable parameter", "str"),
+    ),
+    values=Arg(
+        "the parameter values", cli=False, default=None, check=Check(_values, "finite numbers or none", optional=True)
+    ),
+    # value_range and n_values: checked as sweep_values checks them (under its names), whether used or not.
+    value_range=Arg(
+        "the parameter's range",
+        "range",
+        flag="--range",
+        metavar="A,B",
+        required=True,
+        default=None,
+        check=Check(lambda n, v: None if v is None else check_range("range", v), "two numbers lo < hi", "str", True),
+    ),
+    n_values=Arg("values over the range", "int", metavar="N", default=200, check=integer(1, config.MAX_GRID * 16)),
+    points=Arg("section points per value", "int", default=200, check=integer(1, 1_000_000)),
+    transient=Arg("periods run first at every value", "int", default=500, check=integer(0, config.MAX_PERIODS)),
+    seeding=Arg("how each value is seeded", "str", choices=SEEDINGS, default="continuation", check=choice(SEEDINGS)),
+    sweeps=Arg(
+        "continuation sweeps",
+        "list",
+        metavar="forward,backward",
+        default=SWEEPS,
+        checked_with=("seeding",),
+    ),
+    ics=Arg("initial condition (repeatable)", "points", flag="--ic", scene="points", default=ICS, check=_ics(ICS)),
+    numerics=Arg(
+        "integration settings (escape bound included)",
+        cli=False,
+        default=DIAGRAM_NUMERICS,
+        check=optional_of(Numerics, DIAGRAM_NUMERICS),
+    ),
+    newton=Arg("Newton on a settling member's cycle", cli=False, default=JUMPS, check=instance(NewtonOptions)),
 )
 def diagram_spec(
     params: Params,
     param: str,
-    values: Any = None,
+    values: np.ndarray | None,
     *,
-    value_range: Sequence[float] | None = None,
-    n_values: int = 200,
-    points: int = 200,
-    transient: int = 500,
-    seeding: str = "continuation",
-    ics: Any = None,
-    sweeps: Sequence[str] = SWEEPS,
-    numerics: Numerics | None = None,
-    newton: NewtonOptions = JUMPS,
+    value_range: Sequence[float] | None,
+    n_values: int,
+    points: int,
+    transient: int,
+    seeding: str,
+    ics: np.ndarray,
+    sweeps: Sequence[str],
+    numerics: Numerics,
+    newton: NewtonOptions,
 ) -> DiagramSpec:
-    """A validated :class:`DiagramSpec`; every bad value raises :class:`ParameterError` naming it.
+    """A validated :class:`DiagramSpec`; every bad value raises :class:`ParameterError` naming it. The options are
+    declared above (defaults, checks run before this body, flags); the body checks what needs several of them.
 
     Parameters
     ----------
@@ -715,29 +772,27 @@ def diagram_spec(
     points : section points kept per value and initial condition.
     transient : periods run first at every value.
     seeding : ``"continuation"`` or ``"fixed"``.
-    ics : (n, 2) initial conditions at ``t0`` (default ``[(0.1, 0.1)]``).
+    ics : (n, 2) initial conditions at ``t0`` (default :data:`ICS`; None: the default).
     sweeps : the continuation sweeps to run (``"forward"``, ``"backward"``); both run at once.
-    numerics : integration settings (escape bound included).
+    numerics : integration settings (escape bound included; default :data:`DIAGRAM_NUMERICS`; None: the default).
     newton : Newton on a settling member's cycle (default :data:`~explorer_core.solve.options.JUMPS`).
     """
-    param = check_param(param)
-    if (values is None) == (value_range is None):
-        raise ParameterError(f"give values or value_range (not both), got {values!r} and {value_range!r}")
-    if values is None:
-        values = sweep_values(value_range, n_values)
-    vals = np.asarray(values, dtype=float).ravel()
-    if vals.size == 0 or not np.all(np.isfinite(vals)):
-        raise ParameterError(f"values must be a non-empty list of finite numbers, got {values!r}")
-    points = check_int("points", points, 1, 1_000_000)
-    transient = check_int("transient", transient, 0, config.MAX_PERIODS)
-    names = check_sweeps(seeding, sweeps)
-    ics = check_ics([(0.1, 0.1)] if ics is None else ics)
-    numerics = numerics or Numerics()
-    n_sweeps = 1 if seeding == "fixed" else len(tuple(sweeps))
-    if n_sweeps * vals.size * ics.shape[0] * points > config.MAX_POINTS:
-        raise ParameterError(f"{vals.size} values x {ics.shape[0]} ICs x {points} points exceeds {config.MAX_POINTS}")
-    sweep = SweepSpec(params, param, vals, ics, int(transient), int(points), numerics,
-                      instance(NewtonOptions)("newton", newton))  # fmt: skip
+    with Checking() as at:
+        at("values")
+        if (values is None) == (value_range is None):
+            given = None if values is None else values.tolist()
+            raise ParameterError(f"give values or value_range (not both), got {given!r} and {value_range!r}")
+        if values is None:
+            values = sweep_values(value_range, n_values)
+        at("sweeps")
+        names = check_sweeps(seeding, sweeps)
+        at("points")
+        n_sweeps = 1 if seeding == "fixed" else len(tuple(sweeps))
+        if n_sweeps * values.size * ics.shape[0] * points > config.MAX_POINTS:
+            raise ParameterError(
+                f"{values.size} values x {ics.shape[0]} ICs x {points} points exceeds {config.MAX_POINTS}"
+            )
+    sweep = SweepSpec(params, param, values, ics, transient, points, numerics, newton)
     return DiagramSpec(sweep, seeding, names)
 
 

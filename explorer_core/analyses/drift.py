@@ -35,14 +35,17 @@ import numpy as np
 from numpy.polynomial import polynomial as P
 
 from explorer_core import config, export
+from explorer_core.analyses.lyapunov import _ics
 from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, stream
 from explorer_core.progress import run as run_updates
-from explorer_core.solve.checks import check_choice, check_seed
+from explorer_core.solve.checks import check_choice
 from explorer_core.solve.integrators import tables
-from explorer_core.solve.numerics import Numerics, check_box, check_ics, check_int
-from explorer_core.solve.options import Arg, command_line
+from explorer_core.solve.numerics import Numerics, check_int
+from explorer_core.solve.options import Arg, Check, choice, declare, integer, optional_of
+from explorer_core.solve.options import box as box_check
+from explorer_core.solve.options import seed as seed_check
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import Status
 from explorer_core.system.model import Model
@@ -56,6 +59,8 @@ MONOTONE_FRACTION = 0.95
 MAX_TURN = 0.05
 #: "leaves": growth factor of |x| over the window.
 LEAVE_GROWTH = 10.0
+#: The fit's numerics unless the caller gives its own (the defaults of :class:`Numerics`).
+DRIFT_NUMERICS = Numerics()
 
 
 def fit_polynomial(k: np.ndarray, x: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
@@ -362,30 +367,72 @@ def _whole(name: str, value: Any, what: str) -> tuple[int, int]:
     return int(vals[0]), int(vals[1])
 
 
-@command_line(
-    window=Arg("inclusive k range (k = 0 is the IC)", "ints", metavar="K0,K1", required=True, positional=True),
-    degree=Arg("degrees of the q and r polynomials", "ints", metavar="DQ,DR"),
-    m=Arg("drifting ICs to average", "int", flag="--members"),
-    ics=Arg("explicit ICs instead of random ones (repeatable)", "points", flag="--ic"),
-    box=Arg("box for random ICs", "box", metavar="QMIN,QMAX,RMIN,RMAX", scene="box"),
-    seed=Arg("random seed of the ICs", "int"),
-    criterion=Arg("which ICs count", "str", choices=CRITERIA),
+def _window(name: str, value: Any) -> tuple[int, int]:
+    k0, k1 = _whole(name, value, "k0,k1")
+    if not 0 <= k0 < k1 <= config.MAX_PERIODS:
+        raise ParameterError(f"{name} must satisfy 0 <= k0 < k1 <= {config.MAX_PERIODS}, got {value!r}")
+    return k0, k1
+
+
+def _members(name: str, value: Any) -> int:
+    return check_int(f"{name} (members)", value, 1, 10_000)
+
+
+@declare(
+    window=Arg(
+        "inclusive k range (k = 0 is the IC)",
+        "ints",
+        metavar="K0,K1",
+        required=True,
+        positional=True,
+        check=Check(_window, f"two integers 0 <= k0 < k1 <= {config.MAX_PERIODS}", "str"),
+    ),
+    # Below the window's length: checked with it in the body.
+    degree=Arg("degrees of the q and r polynomials", "ints", metavar="DQ,DR", default=(1, 2), checked_with=("window",)),
+    m=Arg(
+        "drifting ICs to average",
+        "int",
+        flag="--members",
+        default=10,
+        check=Check(_members, "an integer in [1, 10000]", "int"),
+    ),
+    ics=Arg("explicit ICs instead of random ones (repeatable)", "points", flag="--ic", default=None, check=_ics(None)),
+    box=Arg(
+        "box for random ICs",
+        "box",
+        metavar="QMIN,QMAX,RMIN,RMAX",
+        scene="box",
+        default=None,
+        check=box_check(optional=True),
+    ),
+    seed=Arg("random seed of the ICs", "int", default=0, check=seed_check(optional=True)),
+    criterion=Arg("which ICs count", "str", choices=CRITERIA, default="on_curve", check=choice(CRITERIA)),
+    max_draws=Arg(
+        "random initial conditions drawn at most (None: 50 m)",
+        cli=False,
+        default=None,
+        check=integer(1, 10**7, optional=True),
+    ),
+    numerics=Arg(
+        "integration settings", cli=False, default=DRIFT_NUMERICS, check=optional_of(Numerics, DRIFT_NUMERICS)
+    ),
 )
 def drift_spec(
     params: Params | None,
-    window: Sequence[int],
+    window: tuple[int, int],
     *,
-    degree: Sequence[int] = (1, 2),
-    m: int = 10,
-    ics: Any = None,
-    box: Sequence[float] | None = None,
-    seed: int | None = 0,
-    max_draws: int | None = None,
-    criterion: str = "on_curve",
-    numerics: Numerics | None = None,
+    degree: Sequence[int],
+    m: int,
+    ics: np.ndarray | None,
+    box: tuple[float, float, float, float] | None,
+    seed: int | None,
+    max_draws: int | None,
+    criterion: str,
+    numerics: Numerics,
 ) -> DriftSpec:
     """A validated :class:`DriftSpec`; every bad value raises :class:`ParameterError` naming it (and
-    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`).
+    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`). The options are declared above
+    (defaults, checks run before this body, flags); the body checks what needs several of them.
 
     Parameters
     ----------
@@ -399,38 +446,22 @@ def drift_spec(
         (default ``50 m``, at most ``10^7``) are spent.
     criterion : which trajectories count as drifting (:func:`on_drift`): ``"on_curve"`` through the whole
         window, or ``"leaves"`` the compact region within it.
-    numerics : integration settings; the escape ``bound`` must exceed the drift's reach.
+    numerics : integration settings (default :data:`DRIFT_NUMERICS`; None: the default); the escape ``bound``
+        must exceed the drift's reach.
     """
+    k0, k1 = window
     with Checking() as at:
-        at("window")
-        k0, k1 = _whole("window", window, "k0,k1")
-        if not 0 <= k0 < k1 <= config.MAX_PERIODS:
-            raise ParameterError(f"window must satisfy 0 <= k0 < k1 <= {config.MAX_PERIODS}, got {window!r}")
         at("degree")
         dq, dr = _whole("degree", degree, "(q, r)")
         for d in (dq, dr):
             if not 0 <= d <= 12 or d >= k1 - k0 + 1:
                 raise ParameterError(f"degree must be in [0, 12] and below the window length, got {degree!r}")
-        at("criterion")
-        check_choice("criterion", criterion, CRITERIA)
-        at("m")
-        m = check_int("m (members)", m, 1, 10_000)
-        at("ics")
-        pool = None if ics is None else tuple((float(q), float(r)) for q, r in check_ics(ics))
         at("box")
-        if pool is None and box is None:
+        if ics is None and box is None:
             raise ParameterError("give initial conditions (ics) or a box for random ones")
-        box = None if box is None else check_box(box)
-        at("seed")
-        if seed is not None:
-            seed = check_seed(seed)
-        at("max_draws")
-        max_draws = 50 * m if max_draws is None else check_int("max_draws", max_draws, 1, 10**7)
-        at("numerics")
-        numerics = Numerics() if numerics is None else numerics
-        if not isinstance(numerics, Numerics):
-            raise ParameterError(f"numerics must be a Numerics, got {numerics!r}")
-    return DriftSpec(params, (k0, k1), (dq, dr), m, pool, box, seed, max_draws, criterion, numerics)
+    pool = None if ics is None else tuple((float(q), float(r)) for q, r in ics)
+    max_draws = 50 * m if max_draws is None else max_draws
+    return DriftSpec(params, window, (dq, dr), m, pool, box, seed, max_draws, criterion, numerics)
 
 
 def iter_drift_fit(

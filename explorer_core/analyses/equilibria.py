@@ -55,8 +55,7 @@ from explorer_core.analyses.specs import Checking
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, run
-from explorer_core.solve.checks import check_bool, check_int, check_number
-from explorer_core.solve.options import Arg, command_line
+from explorer_core.solve.options import BOOL, Arg, declare, integer, number
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError, Params
 
@@ -855,28 +854,24 @@ class CriticalSpec:
                 "max_refine": self.max_refine}  # fmt: skip
 
 
-@command_line(
-    t=Arg("frozen time (default t0)"),
-    track=Arg("track them over one period", "switch"),
-    n_t=Arg("time samples for --track", "int", cli_default=721),
-    max_refine=Arg("bisections for --track where the equilibria's count changes (default 4 per sample)", "int"),
+@declare(
+    t=Arg("frozen time (default t0)", default=None, check=number(optional=True)),
+    track=Arg("track them over one period", "switch", default=False, check=BOOL),
+    n_t=Arg("time samples for --track", "int", cli_default=721, default=400, check=integer(2, 1_000_000)),
+    max_refine=Arg(
+        "bisections for --track where the equilibria's count changes (default 4 per sample)",
+        "int",
+        default=None,
+        check=integer(0, 100_000_000, optional=True),
+    ),
 )
-def critical_spec(
-    params: Params, t: float | None = None, *, track: bool = False, n_t: int = 400, max_refine: int | None = None
-) -> CriticalSpec:
-    """A validated :class:`CriticalSpec` (a bad value raises ParameterError naming it); ``t`` default ``t0``."""
+def critical_spec(params: Params, t: float | None, *, track: bool, n_t: int, max_refine: int | None) -> CriticalSpec:
+    """A validated :class:`CriticalSpec` (a bad value raises ParameterError naming it); ``t`` default ``t0``. The
+    options are declared above (defaults, checks run before this body, flags)."""
     with Checking() as at:
-        at("t")
-        t = params.t0 if t is None else check_number("t", t)
-        at("track")
-        track = check_bool("track", track)
-        at("n_t")
-        n_t = check_int("n_t", n_t, 2, 1_000_000)
-        at("max_refine")
-        max_refine = None if max_refine is None else check_int("max_refine", max_refine, 0, 100_000_000)
         at("params")
         check_tables(_as_model(params))
-    return CriticalSpec(params, t, track, n_t, max_refine)
+    return CriticalSpec(params, params.t0 if t is None else t, track, n_t, max_refine)
 
 
 def critical_points(spec: CriticalSpec, progress: Callable[[Any], None] | None = None,

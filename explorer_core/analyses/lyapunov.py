@@ -48,10 +48,10 @@ from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, run, stream
 from explorer_core.solve import rk, tangent
-from explorer_core.solve.checks import check_seed
 from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.options import Arg, command_line
+from explorer_core.solve.options import REQUIRED, Arg, Check, declare, integer, optional_of
+from explorer_core.solve.options import seed as seed_check
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import Status
 from explorer_core.system.model import Model
@@ -60,6 +60,8 @@ from explorer_core.system.params import ParameterError, Params
 _OK = int(Status.OK)
 #: Default size of the random offsets of ensemble members (relative to 1 + |ic|).
 ENSEMBLE_OFFSET = 1e-3
+#: The measurement's numerics unless the caller gives its own (the defaults of :class:`Numerics`).
+LYAPUNOV_NUMERICS = Numerics()
 
 
 def qr_exponents(matrices: Any) -> np.ndarray:
@@ -483,27 +485,72 @@ class LyapunovSpec:
                 "offset": self.offset, "seed": self.seed}  # fmt: skip
 
 
-@command_line(
-    ics=Arg("initial condition (repeatable: one member each)", "points", flag="--ic", scene="points", positional=True),
-    periods=Arg("measured periods", "int", positional=True, cli_default=2000),
-    transient=Arg("periods dropped first", "int", scene="transient", cli_default=100),
-    ensemble=Arg("members placed on the attractor of the one initial condition", "int", metavar="M"),
-    offset=Arg("relative offset of the ensemble's members"),
-    seed=Arg("the offsets' random seed", "int"),
+def _ics(none_is: Any = REQUIRED) -> Check:
+    """Initial conditions as a finite (n, 2) array (:func:`check_ics`, whose messages name them); None is
+    ``none_is`` where the option has a default (None itself: none given), else refused as ``check_ics`` refuses it.
+    """
+    optional = none_is is not REQUIRED
+
+    def fn(n: str, v: Any) -> Any:
+        if v is None and optional:
+            return None if none_is is None else check_ics(none_is)
+        return check_ics(v)
+
+    return Check(fn, "finite (q, r) pairs" + (" or none" if optional else ""), "str", optional)
+
+
+def _offset(n: str, v: Any) -> float:
+    # More than 1 (relative to 1 + |x|) is not "near the attractor".
+    if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating) or not 0 < v <= 1:
+        raise ParameterError(f"{n} must be in (0, 1] (relative to 1 + |x|), got {v!r}")
+    return float(v)
+
+
+@declare(
+    ics=Arg(
+        "initial condition (repeatable: one member each)",
+        "points",
+        flag="--ic",
+        scene="points",
+        positional=True,
+        check=_ics(),
+    ),
+    periods=Arg("measured periods", "int", positional=True, cli_default=2000, check=integer(1, config.MAX_PERIODS)),
+    transient=Arg(
+        "periods dropped first",
+        "int",
+        scene="transient",
+        cli_default=100,
+        default=0,
+        check=integer(0, config.MAX_PERIODS),
+    ),
+    numerics=Arg(
+        "method and tolerances", cli=False, default=LYAPUNOV_NUMERICS, check=optional_of(Numerics, LYAPUNOV_NUMERICS)
+    ),
+    ensemble=Arg(
+        "members placed on the attractor of the one initial condition",
+        "int",
+        metavar="M",
+        default=1,
+        check=integer(1, config.MAX_TRAJECTORIES),
+    ),
+    offset=Arg("relative offset of the ensemble's members", default=1e-6, check=Check(_offset, "a number in (0, 1]")),
+    seed=Arg("the offsets' random seed", "int", default=0, check=seed_check(optional=True)),
 )
 def lyapunov_spec(
     params: Params,
-    ics: Any,
+    ics: np.ndarray,
     periods: int,
     *,
-    transient: int = 0,
-    numerics: Numerics | None = None,
-    ensemble: int = 1,
-    offset: float = 1e-6,
-    seed: int | None = 0,
+    transient: int,
+    numerics: Numerics,
+    ensemble: int,
+    offset: float,
+    seed: int | None,
 ) -> LyapunovSpec:
     """A validated :class:`LyapunovSpec`; every bad value raises :class:`ParameterError` naming it (and
-    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`).
+    carrying the keyword as ``exc.option``, :mod:`explorer_core.analyses.specs`). The options are declared above
+    (defaults, checks run before this body, flags); the body checks what needs several of them.
 
     Parameters
     ----------
@@ -512,40 +559,22 @@ def lyapunov_spec(
     periods : measured periods after the transient, in ``[1, config.MAX_PERIODS]``; members x periods at
         most ``config.MAX_POINTS``.
     transient : periods integrated first and not counted, in ``[0, config.MAX_PERIODS]``.
-    numerics : method and tolerances (default :class:`Numerics`).
+    numerics : method and tolerances (default :data:`LYAPUNOV_NUMERICS`; None: the default).
     ensemble : members placed on the attractor of the one initial condition (1: the ``ics`` as given).
     offset : the members' offsets relative to ``1 + |x|``, in ``(0, 1]`` (more is not "near the attractor").
     seed : the offsets' random seed (an integer >= 0, or None).
     """
     with Checking() as at:
-        at("ics")
-        arr = check_ics(ics)
-        at("periods")
-        periods = check_int("periods", periods, 1, config.MAX_PERIODS)
-        at("transient")
-        transient = check_int("transient", transient, 0, config.MAX_PERIODS)
-        at("numerics")
-        numerics = Numerics() if numerics is None else numerics
-        if not isinstance(numerics, Numerics):
-            raise ParameterError(f"numerics must be a Numerics, got {numerics!r}")
         at("ensemble")
-        ensemble = check_int("ensemble", ensemble, 1, config.MAX_TRAJECTORIES)
-        if ensemble > 1 and arr.shape[0] != 1:
+        if ensemble > 1 and ics.shape[0] != 1:
             raise ParameterError(f"an ensemble of {ensemble} takes one initial condition (the members are placed "
-                                 f"on its attractor), got {arr.shape[0]}")  # fmt: skip
-        at("offset")
-        if isinstance(offset, bool) or not isinstance(offset, int | float | np.integer | np.floating) \
-                or not 0 < offset <= 1:  # fmt: skip
-            raise ParameterError(f"offset must be in (0, 1] (relative to 1 + |x|), got {offset!r}")
-        at("seed")
-        if seed is not None:
-            seed = check_seed(seed)
+                                 f"on its attractor), got {ics.shape[0]}")  # fmt: skip
         at("periods")
-        members = max(ensemble, arr.shape[0])
+        members = max(ensemble, ics.shape[0])
         if members * periods > config.MAX_POINTS:
             raise ParameterError(f"{members} members x {periods} periods exceeds the limit {config.MAX_POINTS}")
-    ics_ = tuple((float(q), float(r)) for q, r in arr)
-    return LyapunovSpec(params, ics_, periods, transient, numerics, ensemble, float(offset), seed)
+    ics_ = tuple((float(q), float(r)) for q, r in ics)
+    return LyapunovSpec(params, ics_, periods, transient, numerics, ensemble, offset, seed)
 
 
 def iter_lyapunov(
