@@ -449,7 +449,9 @@ def _add_declared_args(p: argparse.ArgumentParser, fn: Callable[..., Any], title
         text = arg.help
         if arg.check is not None and arg.parse not in ("switch", "points") and not arg.choices:
             text += f" ({arg.check.text.removesuffix(' or none')})"  # the declared check's range
-        if default not in (inspect.Parameter.empty, None, False, ()) and arg.parse != "switch":
+        # (by identity: a default of 0 is shown, though 0 == False)
+        if not any(default is v for v in (inspect.Parameter.empty, None, False)) and default != () \
+                and arg.parse != "switch":  # fmt: skip
             text += f" (default {_shown(default)})"
         if arg.scene:
             text += f" (with --scene: the scene's {arg.scene.replace('_', ' ')})"

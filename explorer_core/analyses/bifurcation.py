@@ -40,7 +40,6 @@ from typing import Any
 import numpy as np
 
 from explorer_core import config, export
-from explorer_core.analyses.lyapunov import _ics
 from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.analyses.sweeps import check_param, params_at, sweep_values
 from explorer_core.drawing import Drawable
@@ -58,6 +57,7 @@ from explorer_core.solve.options import (
     NewtonOptions,
     choice,
     declare,
+    ics,
     instance,
     integer,
     optional_of,
@@ -735,7 +735,14 @@ def _values(n: str, v: Any) -> np.ndarray | None:
         default=SWEEPS,
         checked_with=("seeding",),
     ),
-    ics=Arg("initial condition (repeatable)", "points", flag="--ic", scene="points", default=ICS, check=_ics(ICS)),
+    ics=Arg(
+        "initial condition (repeatable)",
+        "points",
+        flag="--ic",
+        scene="points",
+        default=ICS,
+        check=ics(optional=True, none_is=ICS),
+    ),
     numerics=Arg(
         "integration settings (escape bound included)",
         cli=False,

@@ -35,7 +35,6 @@ import numpy as np
 from numpy.polynomial import polynomial as P
 
 from explorer_core import config, export
-from explorer_core.analyses.lyapunov import _ics
 from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, stream
@@ -43,7 +42,7 @@ from explorer_core.progress import run as run_updates
 from explorer_core.solve.checks import check_choice
 from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_int
-from explorer_core.solve.options import Arg, Check, choice, declare, integer, optional_of
+from explorer_core.solve.options import Arg, Check, choice, declare, ics, integer, optional_of
 from explorer_core.solve.options import box as box_check
 from explorer_core.solve.options import seed as seed_check
 from explorer_core.solve.poincare import PoincareMap
@@ -396,7 +395,13 @@ def _members(name: str, value: Any) -> int:
         default=10,
         check=Check(_members, "an integer in [1, 10000]", "int"),
     ),
-    ics=Arg("explicit ICs instead of random ones (repeatable)", "points", flag="--ic", default=None, check=_ics(None)),
+    ics=Arg(
+        "explicit ICs instead of random ones (repeatable)",
+        "points",
+        flag="--ic",
+        default=None,
+        check=ics(optional=True),
+    ),
     box=Arg(
         "box for random ICs",
         "box",

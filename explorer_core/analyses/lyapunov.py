@@ -50,7 +50,7 @@ from explorer_core.progress import Progress, run, stream
 from explorer_core.solve import rk, tangent
 from explorer_core.solve.integrators import tables
 from explorer_core.solve.numerics import Numerics, check_ics, check_int
-from explorer_core.solve.options import REQUIRED, Arg, Check, declare, integer, optional_of
+from explorer_core.solve.options import Arg, Check, declare, ics, integer, optional_of
 from explorer_core.solve.options import seed as seed_check
 from explorer_core.solve.poincare import PoincareMap
 from explorer_core.solve.rk import Status
@@ -485,20 +485,6 @@ class LyapunovSpec:
                 "offset": self.offset, "seed": self.seed}  # fmt: skip
 
 
-def _ics(none_is: Any = REQUIRED) -> Check:
-    """Initial conditions as a finite (n, 2) array (:func:`check_ics`, whose messages name them); None is
-    ``none_is`` where the option has a default (None itself: none given), else refused as ``check_ics`` refuses it.
-    """
-    optional = none_is is not REQUIRED
-
-    def fn(n: str, v: Any) -> Any:
-        if v is None and optional:
-            return None if none_is is None else check_ics(none_is)
-        return check_ics(v)
-
-    return Check(fn, "finite (q, r) pairs" + (" or none" if optional else ""), "str", optional)
-
-
 def _offset(n: str, v: Any) -> float:
     # More than 1 (relative to 1 + |x|) is not "near the attractor".
     if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating) or not 0 < v <= 1:
@@ -513,7 +499,7 @@ def _offset(n: str, v: Any) -> float:
         flag="--ic",
         scene="points",
         positional=True,
-        check=_ics(),
+        check=ics(),
     ),
     periods=Arg("measured periods", "int", positional=True, cli_default=2000, check=integer(1, config.MAX_PERIODS)),
     transient=Arg(

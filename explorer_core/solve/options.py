@@ -142,14 +142,16 @@ def ints(count: int, lo: int, hi: int, what: str = "NX,NY", optional: bool = Fal
     return Check(fn, f"{count} integers {what} in [{lo}, {hi}]" + (" or none" if optional else ""), "str", optional)
 
 
-def ics(optional: bool = False) -> Check:
+def ics(optional: bool = False, none_is: Any = None) -> Check:
     """Initial conditions (or seeds) as a finite ``(n, 2)`` array (:func:`~explorer_core.solve.checks.check_ics`'
-    messages); ``optional``: or None."""
+    messages); ``optional``: or None, which stands for ``none_is`` (the option's default; None: none given)."""
 
     def fn(n: str, v: Any) -> Any:
-        return None if optional and v is None else checks.check_ics(v)
+        if optional and v is None:
+            return None if none_is is None else checks.check_ics(none_is)
+        return checks.check_ics(v)
 
-    return Check(fn, "(q, r) pairs" + (" or none" if optional else ""), "str", optional)
+    return Check(fn, "finite (q, r) pairs" + (" or none" if optional else ""), "str", optional)
 
 
 def optional_of(kind: type, none_is: Any = None) -> Check:
