@@ -431,13 +431,3 @@ def declare(**args: Arg) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
         return build
 
     return attach
-
-
-def command_line(**args: Arg) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Declare how a builder's (or a runner's) keywords are given on the command line: ``builder.__cli__``."""
-
-    def attach(fn: Callable[..., Any]) -> Callable[..., Any]:
-        fn.__cli__ = dict(args)  # type: ignore[attr-defined]
-        return fn
-
-    return attach
