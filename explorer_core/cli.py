@@ -425,7 +425,7 @@ def _with_scene(summary: dict[str, Any], args: argparse.Namespace) -> dict[str, 
 # --- commands generated from the analyses' declarations ---------------------------------------------------
 #
 # An analysis command (``Command(analysis=...)``) has no body here: its flags come from the ``@declare``
-# declarations of its builder and runner (``explorer_core.solve.options.Arg``, defaults from their signatures),
+# declarations of its builder and runner (one ``explorer_core.solve.options.Arg`` per option: default, check, help),
 # its run is builder -> runner -> ``result.write`` for every output -> ``result.report()`` (the lines printed),
 # and its JSON is ``result.summary()`` with ``out`` (one record per file written) and ``scene``.
 
