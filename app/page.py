@@ -150,8 +150,8 @@ class Page:
             problems.append(self.tour_message)
         tour = self.tours.get(st.tour) if st.tour else None
         if st.tour and tour is None:
-            why = "no tour" if file_read else "not shown (it was to come from that file):"
-            problems.append(f"URL parameter tour: {why} {st.tour!r}")
+            why = "no tour {!r}" if file_read else "{!r} is not shown: it was to come from that file"
+            problems.append("URL parameter tour: " + why.format(st.tour))
             st.tour = ""
         if tour is not None:
             step, note = nearest_step(tour, self._url_step)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from harness import ROOT, new_page, text
+from harness import ROOT, new_page, text, wait_finished
 from test_app_browser import open_app, query_of
 
 pytestmark = pytest.mark.browser
@@ -131,4 +131,7 @@ def test_a_missing_tours_file_is_named_not_taken_for_a_missing_tour(screen, app_
     assert "no tours file '/tours/nope.json'" in said and "no tour 'mine'" not in said, said
     b = msg.bounding_box()
     assert in_view({"x": b["x"], "y": b["y"], "w": b["width"], "h": b["height"]}), b
+    # The page works on, with the paper's tours (and nothing computes when the server stops after the last test).
+    assert "trajectories" in wait_finished(page, timeout=120)
+    assert page.locator("header .tour-choice option[value=fig8B]").count() == 1
     assert not page.errors
