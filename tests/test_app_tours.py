@@ -254,3 +254,10 @@ def test_a_step_that_presses_run_must_open_a_tab_with_a_run(step: dict[str, Any]
     with pytest.raises(TourError, match=words):
         parse_tours(_doc(**step), "mine.json")
     assert parse_tours(_doc(run=True, settings={"tab": "chart"}))["mine"].steps[1].run
+
+
+def test_the_teachers_template_shows_a_step_that_presses_the_charts_run() -> None:
+    page, jobs = page_for({"tour_url": "/tours/example.json", "tour": "example", "step": "3", "ch_n": "10",
+                           "ch_tr": "0", "ch_curves": "0", "n": "2", "periods": "5"})  # fmt: skip
+    assert page.state.tab == "chart" and page.state.chart_grid == (20, 15)
+    assert page.tabs["chart"].chart is not None and page.ui.view["chart"]["message"] == "24/24 tiles"
