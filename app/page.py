@@ -142,8 +142,9 @@ class Page:
         that step (a step it does not have: the nearest, and says so)."""
         st = self.state
         # The link's words about its tour are said with the tour (on every tab), not among the section's errors.
-        problems = [e for e in self.url_errors if _url_key(e) in ("tour", "tour_url")]  # step's: nearest_step's words
-        self.url_errors = [e for e in self.url_errors if _url_key(e) not in ("tour", "step", "tour_url")]
+        # (A refused step=: a tour shown says it in nearest_step's words; without a tour it stays with the errors.)
+        problems = [e for e in self.url_errors if _url_key(e) in ("tour", "tour_url")]
+        self.url_errors = [e for e in self.url_errors if e not in problems]
         file_read = not st.tour_url or self._load_tours(lambda: read_tour_url(st.tour_url))
         info = self.tour_message if file_read else ""
         if not file_read:
