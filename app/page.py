@@ -43,9 +43,10 @@ from app.state import (
     parse_query,
     plot_point,
     plot_view,
+    query_value,
     state_from_query,
 )
-from app.tours import TOURS, Tour, TourError, parse_tours, read_tour_url
+from app.tours import TOURS, Tour, TourError, nearest_step, parse_tours, read_tour_url
 from app.ui import ExplorerUI
 from app.views import SectionFigure, SeriesData
 from explorer_core.scenes import get_scene
@@ -105,7 +106,14 @@ class Page:
                              wait_for_browser=wait_for_browser)  # fmt: skip
         #: The tours on offer: the paper's, and a teacher's own (tour_url= or an uploaded file) over them.
         self.tours: dict[str, Tour] = dict(TOURS)
+        #: What the page says about the tours (shown with the tour's strip on every tab), and whether it is a problem
+        #: (a file not read, a tour or a step the link names that is not there).
         self.tour_message = ""
+        self.tour_problem = False
+        #: The link's own ``step=`` (checked against its tour's steps when the tour is known: :meth:`start`).
+        self._url_step = query_value(query, "step")
+        #: Tab -> (tour, step) whose Run the tour pressed there: not pressed again while that run computes or stands.
+        self._step_runs: dict[str, tuple[str, int]] = {}
         self._analysis_box = Column(sizing_mode="stretch_both", name="analysis_box")
         #: The body in 3-D of the selected trajectory (computed once, animated by the page).
         self.body = BodyView(self.session, self._ship_body, on_change=lambda: self._refresh_views())
@@ -130,20 +138,31 @@ class Page:
     # --- lifecycle ------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """The page is loaded: compute the section (and open the tab the URL names)."""
-        if self.state.tour_url:
-            self._load_tours(lambda: read_tour_url(self.state.tour_url))
-        if self.state.tour:
-            if self.state.tour in self.tours:
-                self.show_tour(self.state.tour, self.state.tour_step)  # a link to a tour's step shows that step
-                if self.state.tab != "section":
-                    self._open_tab(self.state.tab)
-                return
-            self.tour_message = f"URL parameter tour: no tour {self.state.tour!r}"
-            self.state.tour = ""
-        self.session.recompute()
-        if self.state.tab != "section":
-            self._open_tab(self.state.tab)
+        """The page is loaded: compute the section (and open the tab the URL names); a link to a tour's step shows
+        that step (a step it does not have: the nearest, and says so)."""
+        st = self.state
+        # The link's words about its tour are said with the tour (on every tab), not among the section's errors.
+        # (A refused step=: a tour shown says it in nearest_step's words; without a tour it stays with the errors.)
+        problems = [e for e in self.url_errors if _url_key(e) in ("tour", "tour_url")]
+        self.url_errors = [e for e in self.url_errors if e not in problems]
+        file_read = not st.tour_url or self._load_tours(lambda: read_tour_url(st.tour_url))
+        info = self.tour_message if file_read else ""
+        if not file_read:
+            problems.append(self.tour_message)
+        tour = self.tours.get(st.tour) if st.tour else None
+        if st.tour and tour is None:
+            why = "no tour {!r}" if file_read else "{!r} is not shown: it was to come from that file"
+            problems.append("URL parameter tour: " + why.format(st.tour))
+            st.tour = ""
+        if tour is not None:
+            step, note = nearest_step(tour, self._url_step)
+            self.show_tour(tour.id, step)
+            problems += [note] if note else []
+        else:
+            self.session.recompute()
+        self._say_tour("\n".join(problems) or info, problem=bool(problems))
+        if st.tab != "section":
+            self._open_tab(st.tab)
 
     def close(self) -> None:
         self.runner.close()
@@ -167,8 +186,10 @@ class Page:
                 self.session.stop()
                 self.body.stop()
             elif tab in self.tabs:
+                self._step_runs.pop(tab, None)  # a tour's step coming back presses Run again
                 self.tabs[tab].stop()
         elif action == "run" and tab in TAB_CLASSES:
+            self._step_runs.pop(tab, None)
             self._open_tab(tab).run()
         elif action == "clear":
             self.session.clear_clicked()
@@ -188,8 +209,10 @@ class Page:
         elif action == "shown" and msg.get("value", "").isdigit():
             self.player.shown(int(msg["value"]))
         elif action == "tour":
+            self._say_tour("")
             self.show_tour(msg.get("value", ""), 1)
         elif action == "tour_step" and msg.get("value") in ("next", "back"):
+            self._say_tour("")
             self.show_tour(self.state.tour, self.state.tour_step + (1 if msg["value"] == "next" else -1))
         elif action == "tour_file":
             self._load_tours(lambda: parse_tours(msg.get("value", ""), "the uploaded file"))
@@ -236,7 +259,8 @@ class Page:
 
     def show_tour(self, tour_id: str, step: int) -> None:
         """Show step ``step`` (from 1) of a tour: its settings on top of its scene, its marks on the plot, the
-        tour and step in the URL; an empty id closes the tour (the settings stay)."""
+        tour and step in the URL, and its tab's Run pressed when the step says so; an empty id closes the tour (the
+        settings stay)."""
         if self.player.playing:
             self.player.pause()
         tour = self.tours.get(tour_id)
@@ -257,21 +281,41 @@ class Page:
         self.messages.clear()
         self.url_errors = []
         self.ui.values = self._values()
+        if s.run:
+            self._press_run(s.tab, (tour.id, step))
         self._refresh_views()
 
-    def _load_tours(self, read: Callable[[], dict[str, Tour]]) -> None:
+    def _press_run(self, name: str, step: tuple[str, int]) -> None:
+        """A tour's step presses its tab's Run; not again when that step's run is on the tab (computing, or done:
+        going back to the step shows it). The user's Run or Stop there, or a failure, lets the step press it again."""
+        if self._step_runs.get(name) == step:
+            return
+        self._step_runs.pop(name, None)
+        self._open_tab(name).run()
+        if self.runner.busy(name):
+            self._step_runs[name] = step
+
+    def _say_tour(self, message: str, problem: bool = False) -> None:
+        self.tour_message, self.tour_problem = message, problem
+        self._refresh_views()
+
+    def _load_tours(self, read: Callable[[], dict[str, Tour]]) -> bool:
+        """Add a teacher's tours to the paper's (``read``: the file's); whether they were read (the page says what
+        was loaded or why not)."""
         try:
             own = read()
         except (TourError, OSError) as exc:
-            self.tour_message = str(exc)
-        else:
-            self.tours = {**TOURS, **own}
-            self.tour_message = f"loaded {len(own)} tours: {', '.join(t.title for t in own.values())}"[:300]
-        self._refresh_views()
+            self._say_tour(str(exc), problem=True)
+            return False
+        self.tours = {**TOURS, **own}
+        n = f"{len(own)} tours" if len(own) > 1 else "1 tour"
+        self._say_tour(f"loaded {n}: {', '.join(t.title for t in own.values())}"[:300])
+        return True
 
     def _tour_view(self) -> dict[str, Any]:
         st = self.state
-        out: dict[str, Any] = {"choices": [[t.id, t.title] for t in self.tours.values()], "message": self.tour_message}
+        out: dict[str, Any] = {"choices": [[t.id, t.title] for t in self.tours.values()], "message": self.tour_message,
+                               "problem": self.tour_problem}  # fmt: skip
         tour = self.tours.get(st.tour)
         if tour is not None:
             step = min(st.tour_step, len(tour.steps))
@@ -325,6 +369,7 @@ class Page:
         self._refresh_views()
 
     def _job_failed(self, channel: str, exc: BaseException) -> None:
+        self._step_runs.pop(channel, None)
         if channel == BODY_CHANNEL:
             self.body.failed(exc)
         elif channel in self.tabs:
@@ -476,9 +521,13 @@ def _timer(deliver: Callable[[Callable[[], None]], None]) -> Schedule:
 def _url_tab(message: str) -> str:
     """The tab whose setting a URL error message is about (by the URL key it names): an analysis tab, or
     "section" (the system, the numerics, the layers and the view)."""
-    key = message.removeprefix("URL parameter ").split(":", 1)[0]
-    c = BY_URL.get(key)
+    c = BY_URL.get(_url_key(message))
     return c.area if c is not None and c.area in TAB_CLASSES else "section"
+
+
+def _url_key(message: str) -> str:
+    """The URL key a URL error message names ("URL parameter KEY: ...")."""
+    return message.removeprefix("URL parameter ").split(":", 1)[0]
 
 
 def _about(message: str, name: str) -> bool:

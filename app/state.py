@@ -877,6 +877,18 @@ def _shown(v: Any) -> str:
 # --- URL query parameters -------------------------------------------------------------------------
 
 
+def query_value(query: Mapping[str, Any], key: str) -> str | None:
+    """The text of URL parameter ``key`` (its last value; raw bytes decoded), None when the URL has none."""
+    v = query.get(key)
+    if v is None:
+        return None
+    if isinstance(v, list | tuple):
+        v = v[-1] if v else ""
+    if isinstance(v, bytes):
+        v = v.decode("utf-8", "replace")
+    return str(v)
+
+
 def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
     """Validated state updates from URL query parameters, and one message per bad value.
 
@@ -889,18 +901,8 @@ def parse_query(query: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
     updates: dict[str, Any] = {}
     errors: list[str] = []
 
-    def get(key: str) -> str | None:
-        v = query.get(key)
-        if v is None:
-            return None
-        if isinstance(v, list | tuple):
-            v = v[-1] if v else ""
-        if isinstance(v, bytes):
-            v = v.decode("utf-8", "replace")
-        return str(v)
-
     def attempt(key: str, fn: Callable[[str], None]) -> None:
-        text = get(key)
+        text = query_value(query, key)
         if text is None:
             return
         try:

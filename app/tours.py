@@ -2,7 +2,9 @@
 
 A tour is a few steps; each step is a sentence or two, the settings it needs (as in a link: URL keys and
 values of :data:`app.state.URL_KEYS`, on top of the tour's scene, so every step stands alone and
-``tour=ID&step=N`` in a URL shows it) and what to look at (points of the section plane ringed and labelled).
+``tour=ID&step=N`` in a URL shows it), what to look at (points of the section plane ringed and labelled) and
+whether the page presses the Run of the analysis tab the step opens (``"run": true``: the class sees the
+result come, instead of being told to press a button).
 A teacher's own tours file has the same form: loaded from a path of this server (``tour_url=``) or uploaded
 in the page, never fetched from another site. Every entry is checked on load; a bad one is refused with a
 message that names it (the tour, the step and the key).
@@ -17,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from app.state import _ID, MAX_TOUR_STEPS, URL_KEYS, state_from_query
+from app.state import _ID, MAX_TOUR_STEPS, TABS, URL_KEYS, state_from_query
 from explorer_core.scenes import get_scene
 
 TOURS_FILE = Path(__file__).with_name("tours.json")
@@ -29,6 +31,8 @@ MAX_TOURS = 40
 MAX_TEXT_CHARS = 600
 MAX_LOOK = 8
 _SETTING_KEYS = {u.key for u in URL_KEYS} - {"scene", "tour", "step", "tour_url", "present"}
+#: The tabs whose Run a step may press (the speed-vs-accuracy tab measures this server: not a lesson's step).
+RUN_TABS = tuple(t for t in TABS if t not in ("section", "bench"))
 
 
 class TourError(ValueError):
@@ -49,6 +53,12 @@ class Step:
     text: str
     settings: dict[str, str]
     look: tuple[Look, ...]
+    #: The page presses Run on the step's tab when it shows the step.
+    run: bool = False
+
+    @property
+    def tab(self) -> str:
+        return self.settings.get("tab", "section")
 
 
 @dataclass(frozen=True)
@@ -67,9 +77,9 @@ def _where(tour: Any, step: int | None = None) -> str:
 def _step(data: Any, where: str, scene: str) -> Step:
     if not isinstance(data, dict):
         raise TourError(f"{where}: a step is an object with 'text', 'settings' and 'look', got {type(data).__name__}")
-    extra = set(data) - {"text", "settings", "look"}
+    extra = set(data) - {"text", "settings", "look", "run"}
     if extra:
-        raise TourError(f"{where}: unknown field {sorted(extra)[0]!r} (a step has 'text', 'settings', 'look')")
+        raise TourError(f"{where}: unknown field {sorted(extra)[0]!r} (a step has 'text', 'settings', 'look', 'run')")
     text = data.get("text")
     if not isinstance(text, str) or not text.strip() or len(text) > MAX_TEXT_CHARS:
         raise TourError(f"{where}: 'text' must be a sentence or two (1..{MAX_TEXT_CHARS} characters)")
@@ -99,7 +109,13 @@ def _step(data: Any, where: str, scene: str) -> Step:
         if not isinstance(label, str) or len(label) > 80:
             raise TourError(f"{where}: look #{i}'s label must be text of at most 80 characters")
         marks.append(Look(float(q), float(r), label))
-    return Step(text.strip(), clean, tuple(marks))
+    run = data.get("run", False)
+    if not isinstance(run, bool):
+        raise TourError(f"{where}: 'run' must be true or false, got {run!r}")
+    if run and clean.get("tab") not in RUN_TABS:
+        raise TourError(f"{where}: 'run' presses the Run of the tab the step opens: its settings need 'tab' one of "
+                        f"{', '.join(RUN_TABS)}, got {clean.get('tab', 'section')!r}")  # fmt: skip
+    return Step(text.strip(), clean, tuple(marks), run)
 
 
 def parse_tours(text: str | bytes, source: str = "tours file") -> dict[str, Tour]:
@@ -155,13 +171,35 @@ def read_tour_url(url: str) -> dict[str, Tour]:
         raise TourError(f"tour_url must be a path /tours/NAME.json on this server, got {url[:60]!r}")
     path = (TOURS_DIR / url.removeprefix("/tours/")).resolve()
     if TOURS_DIR.resolve() not in path.parents or not path.is_file():
-        raise TourError(f"tour_url: no tours file {url[:60]!r} on this server")
+        raise TourError(
+            f"tour_url: no tours file {url[:60]!r} on this server (a teacher's tours files go in its "
+            "directory of tours, app/tours/ or BILIMOVICH_TOURS_DIR): only the paper's tours are offered"
+        )
     if path.stat().st_size > MAX_TOURS_BYTES:
         raise TourError(f"tour_url {url[:60]!r}: at most {MAX_TOURS_BYTES} bytes")
     return parse_tours(path.read_bytes(), url)
 
 
+def nearest_step(tour: Tour, text: str | None) -> tuple[int, str]:
+    """The step a link's ``step=`` names (``text``; None: none, the first), or else the nearest one and a message
+    that names the value and the step shown instead ("" when the value names a step)."""
+    if text is None:
+        return 1, ""
+    n = len(tour.steps)
+    try:
+        wanted = float(text.strip())
+    except ValueError:
+        wanted = math.nan
+    if math.isfinite(wanted) and wanted == int(wanted) and 1 <= wanted <= n:
+        return int(wanted), ""
+    # A number: the step nearest to it; anything else: the first.
+    step = min(max(1, round(wanted)), n) if math.isfinite(wanted) else 1
+    what = f"there is no step {text[:20]}" if math.isfinite(wanted) else f"{text[:20]!r} is not a step number"
+    return step, f"URL parameter step: {what} (the tour '{tour.title}' has steps 1 to {n}): showing step {step}"
+
+
 #: The paper's tours (the file shipped with the app): a bad file stops the server at start, naming the entry.
 TOURS: dict[str, Tour] = load_tours()
 
-__all__ = ["TOURS", "Look", "Step", "Tour", "TourError", "load_tours", "parse_tours", "read_tour_url"]
+__all__ = ["RUN_TABS", "TOURS", "Look", "Step", "Tour", "TourError", "load_tours",
+           "nearest_step", "parse_tours", "read_tour_url"]  # fmt: skip

@@ -114,8 +114,10 @@ progress[hidden] { display: none; }
 .play-bar .ctl.select select { width: auto; }
 .play-bar .ctl-msg { position: absolute; z-index: 5; }
 .play-status { font-size: .9em; color: #3a4554; align-self: center; }
-/* A guided tour: its step over the section, readable from the back of a room in presentation mode. */
-.tour { border: 2px solid #0a58ca; border-radius: 6px; background: #f0f6ff; padding: 6px 10px; flex: none; }
+/* A guided tour: its step heads the main area on every tab (a step may open an analysis tab) and stays in view when
+   the tab is scrolled; readable from the back of a room in presentation mode. */
+.tour-area { position: sticky; top: -6px; z-index: 20; flex: none; background: #fff; }
+.tour { border: 2px solid #0a58ca; border-radius: 6px; background: #f0f6ff; padding: 6px 10px; margin-bottom: 4px; }
 .tour[hidden] { display: none; }
 .tour .tour-head { display: flex; gap: 8px; align-items: center; font-weight: 600; color: #0a58ca; }
 .tour .tour-head .spacer { flex: 1; }
@@ -126,12 +128,17 @@ header select.tour-choice { font: inherit; padding: 2px; max-width: 420px; }
 /* One header row at 1280x720 in presentation mode: the tour menu only while a tour shows (choose one before). */
 .app.present:not(.touring) header select.tour-choice { display: none; }
 .app.present.touring:not(.tour-plays) .pane-section > .bar { display: none; }
+/* An analysis tab in a tour: the step's text says what the tab shows, and the tour has set it (and pressed Run): the
+   plot gets the room of the tab's help (and in presentation mode of its form; both back outside the tour). */
+.app.touring .pane-analysis > .analysis-help, .app.present.touring .pane-analysis > .form { display: none; }
 .app.present .play-bar { display: none; }
 .app.present .tour { padding: 4px 10px; }
 .app.present .tour .tour-text { margin: 2px 0 0; }
 header label.tour-upload { cursor: pointer; border: 1px solid rgba(255,255,255,.45); border-radius: 4px; padding: 3px 8px; }
 header label.tour-upload input { display: none; }
-.tour-message { font-size: .9em; color: #3a4554; }
+.tour-message { font-size: .9em; color: #3a4554; margin-bottom: 4px; white-space: pre-line; }
+.tour-message.problem { color: #664d03; background: #fff3cd; border: 1px solid #ffecb5; border-radius: 4px;
+  padding: 3px 8px; }
 .tour-message:empty { display: none; }
 `
 
@@ -297,23 +304,23 @@ export function render({model, el}) {
   tourNext.addEventListener("click", () => send({action: "tour_step", value: "next"}))
   const tourClose = h("button", {class: "act light btn-tour-close", text: "✕", title: "Leave the tour"})
   tourClose.addEventListener("click", () => send({action: "tour", value: ""}))
-  const tourTitle = h("span", {class: "tour-title"})
   const tourCount = h("span", {class: "tour-count"})
   const tourText = h("div", {class: "tour-text", "aria-live": "polite"})
-  const tourHead = h("div", {class: "tour-head"}, tourTitle, tourCount, h("span", {class: "spacer"}), tourBack,
-                     tourNext, tourClose)
+  const tourHead = h("div", {class: "tour-head"}, tourCount, h("span", {class: "spacer"}), tourBack, tourNext,
+                     tourClose)
   const tourBox = h("div", {class: "tour", hidden: true, role: "region", "aria-label": "Guided tour"}, tourHead, tourText)
   function placeTourChoice() {
-    // Presentation mode with a tour shown: the menu (showing the tour's title) takes the title's place in the tour's
-    // box, so the header keeps one row at 1280x720; elsewhere it is in the header.
-    const inBox = app.classList.contains("present") && !tourBox.hidden
+    // A tour shown: the menu (showing the tour's title) heads the tour's box, so the header keeps one row at
+    // 1280x720; else it is in the header.
+    const inBox = !tourBox.hidden
     if (inBox !== (tourChoice.parentElement === tourHead)) {
       if (inBox) tourHead.prepend(tourChoice)
       else header.insertBefore(tourChoice, tourUpload)
     }
-    tourTitle.hidden = inBox
   }
-  const tourMsg = h("div", {class: "tour-message"})
+  // What the page says about the tours (a file loaded, or a problem: a file, tour or step the link names not there).
+  const tourMsg = h("div", {class: "tour-message", role: "status"})
+  const tourArea = h("div", {class: "tour-area"}, tourBox, tourMsg)
   // Arrow keys move through the tour (not while typing in a box).
   document.addEventListener("keydown", (e) => {
     if (tourBox.hidden || e.altKey || e.ctrlKey || e.metaKey) return
@@ -372,7 +379,7 @@ export function render({model, el}) {
   const colourNote = h("div", {class: "legend colour-note", hidden: true})
   const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
   const orbTable = h("div", {class: "orbits", hidden: true})
-  const paneSection = h("section", {class: "pane pane-section"}, tourBox, tourMsg, secBar, playBar, secErrors, warnings, status,
+  const paneSection = h("section", {class: "pane pane-section"}, secBar, playBar, secErrors, warnings, status,
                         h("div", {class: "plots"}, plotSection, plotSeries), orbStatus, orbTable, eqLegend, orbLegend,
                         densLegend, manLegend, manStatus, basStatus, basLegend, colourNote)
 
@@ -399,7 +406,7 @@ export function render({model, el}) {
   const aFoot = h("p", {class: "help analysis-footnote"})
   const paneAnalysis = h("section", {class: "pane pane-analysis", hidden: true}, aHelp, aForm, aBar, aError,
                          progress, aMsg, aResult, plotAnalysis, aLegend, aFoot)
-  const main = h("main", {class: "main"}, paneSection, paneAnalysis)
+  const main = h("main", {class: "main"}, tourArea, paneSection, paneAnalysis)
   app.append(header, side, main)
   el.append(style, app)
 
@@ -602,13 +609,13 @@ export function render({model, el}) {
     app.classList.toggle("touring", !!tr.id)
     app.classList.toggle("tour-plays", !!tr.plays)
     if (tr.id) {
-      tourTitle.textContent = tr.title
       tourCount.textContent = `step ${tr.step} of ${tr.steps}`
       tourText.textContent = tr.text
       tourBack.disabled = tr.step <= 1
       tourNext.disabled = tr.step >= tr.steps
     }
     tourMsg.textContent = tr.message || ""
+    tourMsg.classList.toggle("problem", !!tr.problem)
     placeTourChoice()
     sceneInfo.textContent = s.scene_info || ""
     const b = s.body || {}

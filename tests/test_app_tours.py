@@ -189,3 +189,75 @@ def test_every_step_shown_in_a_page_sets_its_settings_marks_and_url() -> None:
             assert page.state.tab == step.settings.get("tab", "section")
             assert page.fig.marks_data()["label"] == [m.label for m in step.look]
             assert not page.ui.view["section"]["errors"], (tour.id, n)
+
+
+#: A small orbit diagram (the tour's scene sets its range; these stay from the link).
+SMALL_DIAGRAM = {"bif_n": "4", "bif_pts": "3", "bif_tr": "5", "bif_orb": "0", "n": "2", "periods": "5"}
+
+
+def test_a_step_that_opens_an_analysis_tab_presses_its_run_once() -> None:
+    """Fig. 10's first step said "Press Run on this tab" on a tab where the tour's text was not shown: now the page
+    presses it, and going back to the step shows that run's diagram instead of computing it again."""
+    step = TOURS["fig10"].steps[0]
+    assert step.run and step.tab == "bifurcation" and "Press Run" not in step.text
+    assert TOURS["fig11"].steps[0].run and TOURS["fig11"].steps[0].tab == "chart"
+    page, jobs = page_for({"tour": "fig10", "step": "1", **SMALL_DIAGRAM})
+    tab = page.tabs["bifurcation"]
+    assert page.state.tab == "bifurcation" and page.tabs["bifurcation"].view["result"]  # computed: 4 values
+    assert page.ui.view["bifurcation"]["message"].startswith("4 values")
+    runs: list[int] = []
+    tab.run = lambda run=tab.run: (runs.append(1), run())[1]  # type: ignore[method-assign]
+    page.handle({"action": "tour_step", "value": "next"})
+    page.handle({"action": "tour_step", "value": "back"})
+    jobs.drain()
+    assert page.state.tab == "bifurcation" and runs == [] and tab.view["result"]
+    page.handle({"action": "run", "tab": "bifurcation"})  # the user's own Run: the step presses it again after it
+    page.handle({"action": "tour_step", "value": "next"})
+    page.handle({"action": "tour_step", "value": "back"})
+    assert runs == [1, 1]
+
+
+@pytest.mark.parametrize(("step", "shown", "words"), [("99", 4, "there is no step 99"), ("0", 1, "there is no step 0"),
+                                                       ("5", 4, "there is no step 5"),
+                                                       ("abc", 1, "'abc' is not a step number")])  # fmt: skip
+def test_a_step_the_tour_does_not_have_shows_the_nearest_and_says_so(step: str, shown: int, words: str) -> None:
+    page, jobs = page_for({"tour": "fig10", "step": step, **SMALL_DIAGRAM})
+    view = page.ui.view["section"]["tour"]
+    assert page.state.tour_step == shown and view["step"] == shown and view["problem"]
+    assert f"URL parameter step: {words}" in view["message"] and f"showing step {shown}" in view["message"]
+    assert "has steps 1 to 4" in view["message"] and not page.ui.view["section"]["errors"]
+    page.handle({"action": "tour_step", "value": "next" if shown == 1 else "back"})
+    assert page.ui.view["section"]["tour"]["message"] == ""  # said once: moving on leaves it
+
+
+def test_a_missing_tours_file_is_named_and_not_taken_for_a_missing_tour() -> None:
+    page, jobs = page_for({"tour_url": "/tours/nope.json", "tour": "mine", "n": "2", "periods": "5"})
+    view = page.ui.view["section"]["tour"]
+    assert view["problem"] and "tour_url: no tours file '/tours/nope.json' on this server" in view["message"]
+    assert "no tour 'mine'" not in view["message"] and "'mine'" in view["message"]
+    assert page.state.tour == "" and page.session.n_points == 10  # the page works, with the paper's tours
+    # A tour of the paper's with the file missing: shown, and the file still named.
+    page, jobs = page_for({"tour_url": "/tours/nope.json", "tour": "fig8B", "step": "2", "n": "2", "periods": "5"})
+    view = page.ui.view["section"]["tour"]
+    assert view["step"] == 2 and "no tours file '/tours/nope.json'" in view["message"]
+    # A tour that is in no file: "no tour".
+    page, jobs = page_for({"tour": "mine", "n": "2", "periods": "5"})
+    assert "URL parameter tour: no tour 'mine'" in page.ui.view["section"]["tour"]["message"]
+
+
+@pytest.mark.parametrize(
+    ("step", "words"),
+    [({"run": "yes"}, "'run' must be true or false"), ({"run": True}, "'run' presses the Run of the tab"),
+     ({"run": True, "settings": {"tab": "bench"}}, "got 'bench'")],
+)  # fmt: skip
+def test_a_step_that_presses_run_must_open_a_tab_with_a_run(step: dict[str, Any], words: str) -> None:
+    with pytest.raises(TourError, match=words):
+        parse_tours(_doc(**step), "mine.json")
+    assert parse_tours(_doc(run=True, settings={"tab": "chart"}))["mine"].steps[1].run
+
+
+def test_the_teachers_template_shows_a_step_that_presses_the_charts_run() -> None:
+    page, jobs = page_for({"tour_url": "/tours/example.json", "tour": "example", "step": "3", "ch_n": "10",
+                           "ch_tr": "0", "ch_curves": "0", "n": "2", "periods": "5"})  # fmt: skip
+    assert page.state.tab == "chart" and page.state.chart_grid == (20, 15)
+    assert page.tabs["chart"].chart is not None and page.ui.view["chart"]["message"] == "24/24 tiles"

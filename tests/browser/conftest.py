@@ -6,7 +6,7 @@ import itertools
 import re
 
 import pytest
-from harness import served_app
+from harness import new_page, served_app
 
 
 @pytest.fixture(scope="session")
@@ -37,10 +37,6 @@ def server_exceptions(text: str) -> str:
 
 @pytest.fixture
 def page(browser):
-    ctx = browser.new_context(viewport={"width": 1400, "height": 1000})
-    pg = ctx.new_page()
-    errors: list[str] = []
-    pg.on("pageerror", lambda e: errors.append(str(e)))
-    pg.errors = errors
+    pg = new_page(browser, 1400, 1000)
     yield pg
-    ctx.close()
+    pg.context.close()

@@ -112,6 +112,15 @@ def served_app(log_path: str | None = None, threads: int = 4, env: dict[str, str
         yield server.url
 
 
+def new_page(browser, width: int, height: int):
+    """A page of its own browser context at ``width`` x ``height``; the errors it raises are kept in ``.errors``."""
+    pg = browser.new_context(viewport={"width": width, "height": height}).new_page()
+    errors: list[str] = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    pg.errors = errors
+    return pg
+
+
 # In-page probes (BokehJS models are looked up by the names set in app/views.py).
 JS_COUNT = "() => Bokeh.documents[0].get_model_by_name('section_source').get_length()"
 
