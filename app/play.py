@@ -141,15 +141,15 @@ class Player:
         self._request(self._next_index())
 
     def pause(self) -> None:
-        """Stop after the frame on screen; it is computed again as a still (the state's periods)."""
+        """Stop after the frame on screen; it is computed again as a still (the state's periods), keeping the
+        orbits found while playing (the teacher who pauses explains what was on screen)."""
         if not self.playing:
             return
         self._gen += 1
         self.playing = False
         self._waiting = False
         self.session.frame_periods = None
-        self.session.follow_orbits = ()
-        self.session.recompute()
+        self._with_orbits_shown(self.session.recompute)
         self._changed()
 
     def step(self) -> None:
@@ -163,7 +163,7 @@ class Player:
         if self.frame < 0 or abs(self.values()[self.frame] - getattr(self.state, self.state.play_param)) > 1e-12:
             self.frame = self._nearest()
         self.frame = self._next_index()
-        self._set(self.frame)
+        self._with_orbits_shown(lambda: self._set(self.frame))  # the orbits shown, followed to the next frame
         self._changed()
 
     def shown(self, number: int) -> None:
@@ -181,10 +181,22 @@ class Player:
             self.playing = False
             self.session.frame_periods = None
 
-    def _request(self, i: int) -> None:
+    def _orbits_shown(self) -> tuple[tuple[float, float, int], ...]:
+        """The periodic orbits on screen as the orbits layer follows them: ``(q, r, period)`` each."""
         orbits = self.session.layers["orbits"].orbits if "orbits" in self.session.layers else []  # type: ignore[attr-defined]
-        self.session.follow_orbits = tuple((float(o.points[0, 0]), float(o.points[0, 1]), int(o.period))
-                                           for o in orbits)  # fmt: skip
+        return tuple((float(o.points[0, 0]), float(o.points[0, 1]), int(o.period)) for o in orbits)
+
+    def _with_orbits_shown(self, recompute: Callable[[], None]) -> None:
+        """``recompute`` (a still: Pause, Step) with the orbits on screen followed to it, not dropped: the orbits
+        layer starts its job from them (and its seeds) during the call; later changes follow nothing."""
+        self.session.follow_orbits = self._orbits_shown()
+        try:
+            recompute()
+        finally:
+            self.session.follow_orbits = ()
+
+    def _request(self, i: int) -> None:
+        self.session.follow_orbits = self._orbits_shown()
         self.frame = i
         self._number += 1
         self._waiting, self._computed = True, False
