@@ -11,6 +11,7 @@ import pytest
 from jobs import Jobs
 from test_app_play import page_for
 
+from app.layers.orbits import MAX_SETTLED, settled_cycles, unfollowed
 from app.page import Page
 from app.runner import WARM
 from app.state import NO_SELECTION, state_from_query
@@ -126,3 +127,26 @@ def test_pause_keeps_the_orbits_found_while_playing_and_step_follows_them_to_the
     expected = find_orbits(page.state.system(), [(q, r) for _, q, r in played], sorted({p for p, _, _ in played}))
     for n, q, r in stepped:
         assert any(o.period == n and np.abs(o.points - (q, r)).max(axis=1).min() < 1e-7 for o in expected.orbits)
+
+
+def test_a_still_shows_the_orbits_its_trajectories_settle_on_as_a_frame_does() -> None:
+    """Fig. 10 played from -0.36 down to -0.42 with the orbits followed, then paused; Step wraps to -0.35: of the
+    orbits followed there only the period-1 one exists, and the trajectories settle on a cycle no followed orbit is
+    near. As a played frame does, the still hands its settled trajectories to Newton once its section is done:
+    every cycle they settle on has its orbit."""
+    page, jobs, clock = page_for({"n": "10", "alpha": "-0.36", "play_dir": "backward"})
+    page.handle({"action": "play"})
+    while page.state.alpha > -0.419:
+        jobs.drain()
+        clock.advance(0.2)
+    jobs.drain()
+    page.handle({"action": "pause"})
+    jobs.drain()
+    assert page.session.orbits
+    page.handle({"action": "step"})
+    jobs.drain()
+    assert page.state.alpha == pytest.approx(-0.35)
+    layer = page.session.layers["orbits"]
+    cycles = settled_cycles(*page.session.data(), page.state.orbit_period)
+    assert cycles and len(cycles) <= MAX_SETTLED
+    assert unfollowed(cycles, layer.orbits) == []  # type: ignore[attr-defined]
