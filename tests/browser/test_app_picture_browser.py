@@ -74,7 +74,12 @@ def test_the_selected_trajectory_leaves_fig_8bs_attractor_visible(page, app_url)
     changed = np.abs(with_selection - without).max(axis=2) > 60
     covered = float((changed & attractor).sum()) / max(1, int(attractor.sum()))
     assert attractor.sum() > 2000
+    # Measured at 1400x1000: the old rings changed 34 % of these pixels and added 68 % of the attractor's ink; the
+    # thin rings 7 % and 17 %.
     assert covered < 0.15, f"{covered:.0%} of the attractor's pixels changed under the selection"
+    lum_with, lum_without = with_selection.mean(axis=2), without.mean(axis=2)
+    added = float(np.clip(lum_without - lum_with, 0, None).sum()) / float((255 - lum_without).sum())
+    assert added < 0.35, f"the selection adds {added:.0%} of the attractor's own ink"
     assert not page.errors
 
 
@@ -105,7 +110,7 @@ def test_the_selection_is_cleared_with_the_control_and_with_the_url(page, app_ur
 
 
 PLAY = ("?scene=fig10&n=10&periods=100&tracks=0&tprime=off&alpha=-0.36&play_from=-0.42&play_to=-0.35&play_n=8"
-        "&play_fps=2&play_dir=backward")  # fmt: skip
+        "&play_fps=1&play_dir=backward")  # fmt: skip
 
 
 def test_pause_keeps_the_orbits_found_while_playing(page, app_url) -> None:
@@ -116,16 +121,18 @@ def test_pause_keeps_the_orbits_found_while_playing(page, app_url) -> None:
     assert page.evaluate(JS_ORBITS) == 0
     page.locator(".btn-play").first.click()
     page.wait_for_function(f"() => ({JS_ORBITS})() > 0", timeout=90_000)
-    # Pause just after a frame is shown (the next one is half a second away): the count read and the click at once.
-    label = text(page, ".play-status")
-    deadline = time.time() + 30
-    while text(page, ".play-status") == label and time.time() < deadline:
+    # Pause once a frame is drawn whole (Stop is disabled: none of its jobs runs, the settled search included), before
+    # the next one is asked for (a second later): the orbits read and the click in one turn of the page.
+    before = None
+    deadline = time.time() + 60
+    while before is None and time.time() < deadline:
+        before = page.evaluate(
+            f"""() => {{ const find = (c) => Array.from(document.querySelectorAll('*'))
+                          .map(e => e.shadowRoot?.querySelector(c)).find(b => b);
+            if (!find('.btn-stop').disabled) return null;
+            const points = ({JS_ORBIT_POINTS})(); find('.btn-play').click(); return points }}"""
+        )
         time.sleep(0.02)
-    before = page.evaluate(
-        f"""() => {{ const points = ({JS_ORBIT_POINTS})();
-        const btn = Array.from(document.querySelectorAll('*')).map(e => e.shadowRoot?.querySelector('.btn-play'))
-                    .find(b => b); btn.click(); return points }}"""
-    )
     assert before
     page.wait_for_function(
         "() => Array.from(document.querySelectorAll('*')).some(e => e.shadowRoot && "
