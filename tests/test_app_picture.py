@@ -150,3 +150,17 @@ def test_a_still_shows_the_orbits_its_trajectories_settle_on_as_a_frame_does() -
     cycles = settled_cycles(*page.session.data(), page.state.orbit_period)
     assert cycles and len(cycles) <= MAX_SETTLED
     assert unfollowed(cycles, layer.orbits) == []  # type: ignore[attr-defined]
+
+
+def test_no_selection_restarts_no_density_run_and_survives_clearing_the_clicked_points() -> None:
+    """A density view keeps the selected trajectory's points: choosing none has nothing to keep (no restart), and
+    Clear clicked points, which selects the first trajectory when a clicked one was selected, keeps none."""
+    page, jobs = fig8b_page({"render": "density", "ics": "0.1,-1"})
+    started = page.session.section.t_start
+    assert page.commit("selected", "none") is None
+    jobs.drain()
+    assert page.session.section.t_start == started and page.state.selected == NO_SELECTION
+    page.handle({"action": "clear"})
+    jobs.drain()
+    assert page.state.clicked == [] and page.state.selected == NO_SELECTION
+    assert len(page.fig.selected.data["q"]) == 0 and page.ui.series["k"] == []
