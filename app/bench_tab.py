@@ -200,7 +200,7 @@ class BenchTab(AnalysisTab):
         ics = st.initial_conditions()
         if ics.shape[0] == 0:
             raise ParameterError("no initial condition: type one, or add trajectories in the section tab")
-        i = min(int(st.selected), ics.shape[0] - 1)
+        i = min(max(0, int(st.selected)), ics.shape[0] - 1)  # no trajectory selected (-1): the first
         return float(ics[i, 0]), float(ics[i, 1])
 
     def run(self) -> None:

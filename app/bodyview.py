@@ -174,6 +174,8 @@ class BodyView:
         if self.runner.busy(s.section.name) or s.section.params != params:
             return None, "the body's motion: computed once the section is done"
         traj, k, q, r = s.data()
+        if st.selected < 0:
+            return None, "no body: no trajectory is selected (type its number, or click with 'selects a trajectory')"
         sel = traj == st.selected
         if not sel.any():
             return None, f"no body: trajectory {st.selected} has no section points"

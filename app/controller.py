@@ -29,7 +29,18 @@ from app.layers import KEEP, LAYERS, Layer
 from app.layers.base import Action, Download, plain
 from app.layers.section import SectionLayer
 from app.runner import Emit, Runner
-from app.state import _ORDER, BY_NAME, CONTROLS, MAX_CLICKED, SYSTEM_FIELDS, TABS, ExplorerState, SectionRequest, commit
+from app.state import (
+    _ORDER,
+    BY_NAME,
+    CONTROLS,
+    MAX_CLICKED,
+    NO_SELECTION,
+    SYSTEM_FIELDS,
+    TABS,
+    ExplorerState,
+    SectionRequest,
+    commit,
+)
 from app.views import SectionFigure, SeriesData
 from explorer_core.system.params import ParameterError, Params
 
@@ -366,7 +377,8 @@ class ExplorerSession(param.Parameterized):
 
     def _on_selected(self) -> None:
         req = self.section.density.req
-        if req is not None and self.state.density_view() and self.state.selected not in req.keep:
+        sel = self.state.selected
+        if req is not None and self.state.density_view() and sel != NO_SELECTION and sel not in req.keep:
             self._restart_section()  # a density run keeps only the selected trajectory's points: keep this one
         else:
             self.runner.ui(self.section.update_series)
@@ -429,7 +441,8 @@ class ExplorerSession(param.Parameterized):
 
     def clear_clicked(self) -> None:
         if self.state.clicked:
-            self.state.param.update(clicked=[], selected=0)
+            # A clicked trajectory selected is gone: the first one instead (no selection stays none).
+            self.state.param.update(clicked=[], selected=min(self.state.selected, 0))
 
     # --- the layers' actions and downloads ------------------------------------------------------------
 

@@ -39,6 +39,7 @@ from app.state import (
     BY_URL,
     CONTROLS,
     LAYER_PICKS,
+    NO_SELECTION,
     TABS,
     parse_query,
     plot_point,
@@ -435,7 +436,11 @@ class Page:
         sel = st.selected
         who = " (clicked)" if sel in st.clicked_indices() else ""  # numbered after the random ones
         caption = f"Trajectory {sel}{who}: q_k, r_k and the energy T_k"
-        if sel in s.escaped:
+        series_note = ""  # why the k-series are empty ("": they show a trajectory's, or it has no points)
+        if sel == NO_SELECTION:
+            caption = "No trajectory selected: type its number above, or click one with 'selects a trajectory'"
+            series_note = "no trajectory selected"
+        elif sel in s.escaped:
             caption += " (escaped: its valid points)"
         elif sel in s.failed:
             caption += " (failed: its points before the failure)"
@@ -447,9 +452,11 @@ class Page:
             "n_clicked": len(st.clicked),
             "scene_info": info,
             "series_caption": caption,
+            "series_note": series_note,
             "play": self.player.view(),
             "tour": self._tour_view(),
-            "body": {**self.body.view(), "caption": f"Trajectory {sel}{who}: the rigid body turning"},
+            "body": {**self.body.view(), "caption": f"Trajectory {sel}{who}: the rigid body turning"
+                     if sel != NO_SELECTION else "No trajectory selected: no body to turn"},
         }
 
     def _tab_view(self, name: str) -> dict[str, Any]:

@@ -65,6 +65,9 @@ class Player:
         self._acked = -1  # the last frame number the page said it shows
         self._number = 0  # frames asked for, numbered (what the page acknowledges)
         self._settled = 0  # the last frame number whose settled trajectories were searched for new orbits
+        #: A still (Pause, Step) following the orbits shown, whose settled trajectories are searched for new orbits
+        #: once its jobs end, as a frame's are: it shows what its frame would.
+        self._still = False
         #: Newton searches started for settled trajectories (orbits born at a fold), per frame of this Play (the
         #: last frames': a bounded record).
         self.settled_searches: deque[int] = deque(maxlen=SETTLED_KEPT)
@@ -131,6 +134,7 @@ class Player:
             return
         self._gen += 1
         self.playing = True
+        self._still = False
         self.frame = -1
         self._sign = -1 if self.state.play_dir == "backward" else 1
         self.t_play = self._clock()
@@ -141,15 +145,15 @@ class Player:
         self._request(self._next_index())
 
     def pause(self) -> None:
-        """Stop after the frame on screen; it is computed again as a still (the state's periods)."""
+        """Stop after the frame on screen; it is computed again as a still (the state's periods), keeping the
+        orbits found while playing (the teacher who pauses explains what was on screen)."""
         if not self.playing:
             return
         self._gen += 1
         self.playing = False
         self._waiting = False
         self.session.frame_periods = None
-        self.session.follow_orbits = ()
-        self.session.recompute()
+        self._still = self._with_orbits_shown(self.session.recompute)
         self._changed()
 
     def step(self) -> None:
@@ -163,7 +167,8 @@ class Player:
         if self.frame < 0 or abs(self.values()[self.frame] - getattr(self.state, self.state.play_param)) > 1e-12:
             self.frame = self._nearest()
         self.frame = self._next_index()
-        self._set(self.frame)
+        self._still = self._with_orbits_shown(lambda: self._set(self.frame))  # the orbits shown, to the next frame
+        self._check_done()  # (an unchanged value computes nothing)
         self._changed()
 
     def shown(self, number: int) -> None:
@@ -181,10 +186,24 @@ class Player:
             self.playing = False
             self.session.frame_periods = None
 
-    def _request(self, i: int) -> None:
+    def _orbits_shown(self) -> tuple[tuple[float, float, int], ...]:
+        """The periodic orbits on screen as the orbits layer follows them: ``(q, r, period)`` each."""
         orbits = self.session.layers["orbits"].orbits if "orbits" in self.session.layers else []  # type: ignore[attr-defined]
-        self.session.follow_orbits = tuple((float(o.points[0, 0]), float(o.points[0, 1]), int(o.period))
-                                           for o in orbits)  # fmt: skip
+        return tuple((float(o.points[0, 0]), float(o.points[0, 1]), int(o.period)) for o in orbits)
+
+    def _with_orbits_shown(self, recompute: Callable[[], None]) -> bool:
+        """``recompute`` (a still: Pause, Step) with the orbits on screen followed to it, not dropped: the orbits
+        layer starts its job from them (and its seeds) during the call; later changes follow nothing. Returns
+        whether any orbit was shown (none, e.g. cleared: the still searches its settled trajectories for none)."""
+        self.session.follow_orbits = shown = self._orbits_shown()
+        try:
+            recompute()
+        finally:
+            self.session.follow_orbits = ()
+        return bool(shown)
+
+    def _request(self, i: int) -> None:
+        self.session.follow_orbits = self._orbits_shown()
         self.frame = i
         self._number += 1
         self._waiting, self._computed = True, False
@@ -200,6 +219,10 @@ class Player:
         """A frame asked for is drawn once the section view runs nothing and the page (if any) shows it."""
         # The runner's own count, not the session's ``running``: that is told on the next turn of the event loop, so
         # right after a frame's jobs start it still says the last frame's "not running".
+        if self._still and not self.playing and not self.session.busy():
+            self._still = False
+            self._search_settled()  # the still's trajectories that settled on a cycle no orbit shown is near
+            return
         if not (self._waiting and self.playing) or self.session.busy():
             return
         if self._settled != self._number:

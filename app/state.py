@@ -159,6 +159,20 @@ def _optional_point(name: str, text: str) -> tuple[float, ...]:
     return q, r
 
 
+#: The value of ``selected`` when no trajectory is selected (``sel=none`` in the URL): nothing is ringed in the plot
+#: and the k-series are empty, saying why.
+NO_SELECTION = -1
+#: How "no trajectory" is typed and shown (the box, the URL).
+NONE_WORD = "none"
+
+
+def _selection(name: str, text: str) -> int:
+    """The selected trajectory: a number, or blank / 'none' for no trajectory (:data:`NO_SELECTION`)."""
+    if text.strip().lower() in ("", NONE_WORD):
+        return NO_SELECTION
+    return _whole(name, text, 0, MAX_RANDOM + MAX_CLICKED)
+
+
 def _optional_number(name: str, text: str) -> tuple[float, ...]:
     """A number, or () when blank (a played range's end: blank is the slider's value ∓ a step of the range)."""
     if not str(text).strip():
@@ -283,7 +297,18 @@ CONTROLS: tuple[Control, ...] = (
         default="add",
         url_when=lambda s: s.click_mode not in ("add", "select"),  # the modes a shared link is about
     ),
-    _ints("selected", "Trajectory shown in the k-series", "section", "sel", 0, MAX_RANDOM + MAX_CLICKED, 0),
+    Control(
+        "selected",
+        "Trajectory shown in the k-series",
+        "int",
+        "section",
+        "sel",
+        (NO_SELECTION, MAX_RANDOM + MAX_CLICKED),
+        parse=_selection,
+        placeholder="none",
+        default=0,
+        doc="the trajectory ringed in the plot and drawn in the k-series ('none': no trajectory)",
+    ),
     Control(
         "show_body",
         "Body in 3-D",
@@ -678,7 +703,8 @@ class ExplorerState(param.Parameterized):
         ics = dspec.ics
         # Kept as points: the clicked trajectories (drawn), the selected one (ringed, its k-series) and the
         # first few, so that a selected trajectory lost in the transient can hand over to one with points.
-        keep = (*self.clicked_indices(), self.selected, *range(min(ics.shape[0], 8)))
+        selected = (self.selected,) if self.selected != NO_SELECTION else ()
+        keep = (*self.clicked_indices(), *selected, *range(min(ics.shape[0], 8)))
         return SectionRequest(params, ics, dspec.periods, dspec.transient, dspec.numerics, True, dspec.view,
                               tuple(sorted(set(keep))), spec=dspec)  # type: ignore[arg-type]  # fmt: skip
 
@@ -778,6 +804,8 @@ class ExplorerState(param.Parameterized):
         """The value in use of a control as the page shows it (text; bool for a checkbox)."""
         if name == "body_shape":
             return self.body_shape_used()  # the ellipsoid when no box has the moments: what is drawn
+        if name == "selected" and self.selected == NO_SELECTION:
+            return NONE_WORD
         v = getattr(self, name)
         kind = BY_NAME[name].kind
         if kind == "check":
@@ -813,6 +841,8 @@ def parse_control(name: str, text: Any, label: str | None = None) -> Any:
     if len(text) > MAX_TEXT:
         raise ParameterError(f"{label}: at most {MAX_TEXT} characters, got {len(text)}")
     t = text.strip()
+    if c.kind == "int" and c.parse is not None:  # a number with words of its own (the selection's 'none')
+        return c.parse(label, t)
     if c.kind in ("float", "int") and not t:
         raise ParameterError(f"{label} is empty: type a number")
     if c.kind == "float":

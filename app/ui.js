@@ -44,6 +44,7 @@ header .spacer { flex: 1; }
 .bar { display: flex; flex-wrap: wrap; gap: 8px; align-items: flex-end; }
 .bar .ctl { margin: 0; }
 .bar .ctl.int input.num { width: 6em; }
+.bar .ctl-selected .btn-no-selection { margin-left: 4px; padding: 3px 8px; }
 button.act { font: inherit; padding: 4px 12px; border-radius: 4px; border: 1px solid #2c5f8a; background: #2c5f8a;
   color: #fff; cursor: pointer; }
 button.act.warn { background: #b8860b; border-color: #b8860b; }
@@ -284,6 +285,11 @@ export function render({model, el}) {
   manCsvBtn.addEventListener("click", () => send({action: "download", what: "manifolds"}))
   const secBar = h("div", {class: "bar"})
   for (const s of byArea.section || []) secBar.append(control(s))
+  // No trajectory selected (sel=none): nothing ringed in the plot, the k-series empty; typed "none" does the same.
+  const noSelBtn = h("button", {class: "act light btn-no-selection", text: "None",
+                                title: "Select no trajectory: nothing ringed in the plot, no k-series"})
+  noSelBtn.addEventListener("click", () => commit("selected", "none"))
+  if (controls.selected) controls.selected.inputs[0].after(noSelBtn)
   const basNpzBtn = h("button", {class: "act light btn-basins-npz", text: "Download basins NPZ", hidden: true})
   basNpzBtn.addEventListener("click", () => send({action: "download", what: "basins"}))
   secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn, basNpzBtn)
@@ -453,6 +459,7 @@ export function render({model, el}) {
     return e
   }
   const fmt = (v) => Math.abs(v) >= 1e4 || (Math.abs(v) < 1e-3 && v !== 0) ? v.toExponential(2) : String(+v.toPrecision(4))
+  let seriesNote = ""  // why the k-series are empty (the view's words), "" when they show a trajectory
   function drawSeries() {
     const d = model.series || {}
     const ks = d.k || []
@@ -466,7 +473,7 @@ export function render({model, el}) {
       const ys = d[c.key] || []
       const mid = (top + H - bottom) / 2
       svg.append(sv("text", {x: 12, y: mid, "text-anchor": "middle", transform: `rotate(-90 12 ${mid})`}, c.label))
-      if (!ks.length) { svg.append(sv("text", {x: left, y: H / 2}, "no points")); continue }
+      if (!ks.length) { svg.append(sv("text", {x: left, y: H / 2}, seriesNote || "no points")); continue }
       const k0 = ks[0], k1 = ks[ks.length - 1] === k0 ? k0 + 1 : ks[ks.length - 1]
       let y0 = Math.min(...ys), y1 = Math.max(...ys)
       if (y1 === y0) { y0 -= 0.5; y1 += 0.5 }
@@ -534,6 +541,7 @@ export function render({model, el}) {
       const typing = (c.inputs || []).some((i) => i === active && i.value !== i.dataset.sent)
       if (!typing || name === force) c.set(values[name])
     }
+    noSelBtn.disabled = values.selected === "none"
   }
   function showMessages() {
     for (const [name, c] of Object.entries(controls)) {
@@ -620,6 +628,10 @@ export function render({model, el}) {
     sceneInfo.textContent = s.scene_info || ""
     const b = s.body || {}
     seriesCap.textContent = (b.open ? b.caption : s.series_caption) || ""
+    if ((s.series_note || "") !== seriesNote) {
+      seriesNote = s.series_note || ""
+      requestAnimationFrame(drawSeries)
+    }
     bodyView.show(!!b.open)
     if (app.classList.contains("body-open") !== !!b.open) {
       app.classList.toggle("body-open", !!b.open)

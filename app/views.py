@@ -1,7 +1,7 @@
 """Bokeh figures of the explorer: data in, glyphs out, no numerics.
 
 The (q, r) figure stacks the layers, bottom to top: the T' map, the equilibrium tracks over
-one period, the streamed section points, the selected trajectory (ringed), the equilibria at
+one period, the streamed section points, the selected trajectory (thin rings), the equilibria at
 the section phase, and the clicked initial conditions. The k-series of the selected trajectory
 are data here; the page draws them (:class:`SeriesData`).
 
@@ -81,6 +81,9 @@ BODY_COLOUR = "#ffd21f"
 #: Invariant manifolds of saddles: unstable and stable (apart from the T' map's red and blue).
 MANIFOLD_COLOURS = {"unstable": "#e8590c", "stable": "#0b7285"}
 N_COLORS = 20
+#: Section points: their size (px), and the selected trajectory's rings over them (size, line width, opacity).
+POINT_SIZE = 2.6
+SELECTED_RING, SELECTED_LINE, SELECTED_ALPHA = 3.6, 0.5, 0.45
 #: Section points described by a hover at most (the rest under the cursor are the same kind of thing).
 POINT_TIPS = 3
 #: Bokeh output backend of the point plots ("webgl" or "canvas"); see README (performance).
@@ -205,12 +208,14 @@ class SectionFigure:
         self.points = source(_empty_points(), "section_source")
         self.traj_mapper = LinearColorMapper(palette=TRAJ_PALETTE, low=0, high=N_COLORS - 1)
         colour = {"field": "c", "transform": self.traj_mapper}
-        dots = Scatter(x="q", y="r", size=2.6, line_color=None, fill_alpha=0.9, fill_color=colour)
+        dots = Scatter(x="q", y="r", size=POINT_SIZE, line_color=None, fill_alpha=0.9, fill_color=colour)
         pts = _renderer(self.points, dots, name="section_points")
-        # The selected trajectory, ringed in black on top of the others.
+        # The selected trajectory, ringed on top of the others: thin translucent rings just wider than a point, so
+        # an attractor it lies on keeps its structure and colours (6 px rings at 0.7 hid Fig. 8B's; issue 36).
         self.selected = source({"q": [], "r": []}, "selected_source")
-        sel = _renderer(self.selected, Scatter(x="q", y="r", size=6, line_color="black", line_width=0.8, line_alpha=0.7,
-                                               fill_color=None), name="selected_points")  # fmt: skip
+        sel = _renderer(self.selected, Scatter(x="q", y="r", size=SELECTED_RING, line_color="black",
+                                               line_width=SELECTED_LINE, line_alpha=SELECTED_ALPHA, fill_color=None),
+                        name="selected_points")  # fmt: skip
         self.equilibria = source({"q": [], "r": [], "color": [], "type": [], "label": []}, "equilibria_source")
         eq = _renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
                                                 line_color="black"), name="frozen_field_equilibria")  # fmt: skip

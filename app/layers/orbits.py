@@ -188,7 +188,10 @@ class OrbitsLayer(Layer):
         st = self.host.state
         seeds = [tuple(s) for s in st.orbit_seeds]
         follow = tuple(getattr(self.host, "follow_orbits", ()) or ())
-        if st.orbit_view and not follow:
+        # A played frame follows the last frame's orbits instead of the grid (its Newton work per frame); a still
+        # (Pause, Step) follows the orbits shown and searches the grid too.
+        frame = getattr(self.host, "frame_periods", None) is not None
+        if st.orbit_view and not (follow and frame):
             seeds += [tuple(x) for x in grid_seeds((*st.q_range, *st.r_range), *ORBIT_GRID)]
         if not st.show_orbits or not (seeds or follow):
             return None
@@ -309,7 +312,9 @@ class OrbitsLayer(Layer):
             periods = list(res.extra.get("periods", [])) or [0]
             tries = res.extra.get("searches", res.seeds * len(periods))
             if inputs.follow:
-                self.text = (f"{len(self.orbits)} periodic orbits followed to this frame ({tries} Newton searches, "
+                # Played: a frame; paused or stepped: a still (the orbits shown, followed to it).
+                to = "this frame" if getattr(self.host, "frame_periods", None) is not None else "this still"
+                self.text = (f"{len(self.orbits)} periodic orbits followed to {to} ({tries} Newton searches, "
                              f"one per orbit followed at its own period; {len(res.failures)} found none; "
                              f"{res.elapsed_s:.2f} s)")  # fmt: skip
             else:

@@ -21,7 +21,7 @@ from app.layers.base import Layer, Table, stale_note, stopped_lines
 from app.layers.density import DensityImage
 from app.layers.stream import MAX_CHUNK, Cadence
 from app.runner import LAYER, POINTS, Emit
-from app.state import SYSTEM_FIELDS, SectionRequest, key_words, url_keys
+from app.state import NO_SELECTION, SYSTEM_FIELDS, SectionRequest, key_words, url_keys
 from explorer_core.analyses.reliability import assess
 from explorer_core.losses import Loss
 from explorer_core.solve.integrators import Status
@@ -234,10 +234,10 @@ class SectionLayer(Layer):
                 self._warn(warnings)
             else:
                 self.check_reliability(None, status)
-        traj = self.data()[0]
-        if traj.size and not np.any(traj == self.host.state.selected):
+        traj, st = self.data()[0], self.host.state
+        if traj.size and st.selected != NO_SELECTION and not np.any(traj == st.selected):
             # The selected trajectory left (e.g. escaped in the transient): show one that has points.
-            self.host.state.selected = int(traj.min())
+            st.selected = int(traj.min())
         self.update_series()
 
     def stop(self) -> None:
