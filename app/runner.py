@@ -475,14 +475,26 @@ class Runner:
 
         if bump and sched is not None:
             sched.poke()  # the job this one replaces may be waiting: let it go now
-        if self._executor is _POOL and HEAVY_NICE and kind == HEAVY:
-            # A heavy job's tiles run in threads of its own that no poll can stop once started:
-            # they inherit a low CPU priority from this thread, so sections still get the cores.
-            threading.Thread(target=_niced, args=(run,), name=f"explorer-{channel}", daemon=True).start()
-        elif self._executor is _POOL and JOB_NICE:
-            self._executor.submit(_niced, run, JOB_NICE)
-        else:
-            self._executor.submit(run)
+        try:
+            if self._executor is _POOL and HEAVY_NICE and kind == HEAVY:
+                # A heavy job's tiles run in threads of its own that no poll can stop once started:
+                # they inherit a low CPU priority from this thread, so sections still get the cores.
+                threading.Thread(target=_niced, args=(run,), name=f"explorer-{channel}", daemon=True).start()
+            elif self._executor is _POOL and JOB_NICE:
+                self._executor.submit(_niced, run, JOB_NICE)
+            else:
+                self._executor.submit(run)
+        except RuntimeError:
+            # The server is shutting down (its pool takes no new job): a section that ends now starts no layers.
+            log.info("job on channel %s not started: the server is shutting down", channel)
+            if ticket is not None:
+                sched.release(ticket)
+            with self._lock:
+                left = self._live[channel].get(gen, 0) - 1
+                if left > 0:
+                    self._live[channel][gen] = left
+                else:
+                    self._live[channel].pop(gen, None)
         return gen
 
     def _trace_later(self, channel: str, stamps: list[float]) -> None:

@@ -464,3 +464,14 @@ def test_a_job_done_computing_sends_its_results_without_waiting_for_a_turn() -> 
     hold.set()
     pool.shutdown(wait=True)
     assert log[:2] == ["computed", "sent"]
+
+
+def test_a_job_started_while_the_server_shuts_down_is_not_an_error() -> None:
+    """A section ending as the server stops starts its layers on a pool that takes no new job: nothing is logged as
+    an exception and the channel is not left busy."""
+    sched = FairScheduler(slots=1)
+    pool = ThreadPoolExecutor(2)
+    pool.shutdown(wait=True)
+    r = _runner(sched, pool)
+    r.start("tracks", lambda cancelled, emit: None)
+    assert not r.busy("tracks") and sched.stats()["running"] == 0
