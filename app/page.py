@@ -445,6 +445,8 @@ class Page:
         elif sel in s.failed:
             caption += " (failed: its points before the failure)"
         view = {key: value for layer in s.every for key, value in layer.view().items()}
+        turning = f"Trajectory {sel}{who}: the rigid body turning" if sel != NO_SELECTION else \
+            "No trajectory selected: no body to turn"  # fmt: skip
         return {
             **view,
             "errors": errors,
@@ -455,8 +457,7 @@ class Page:
             "series_note": series_note,
             "play": self.player.view(),
             "tour": self._tour_view(),
-            "body": {**self.body.view(), "caption": f"Trajectory {sel}{who}: the rigid body turning"
-                     if sel != NO_SELECTION else "No trajectory selected: no body to turn"},
+            "body": {**self.body.view(), "caption": turning},
         }
 
     def _tab_view(self, name: str) -> dict[str, Any]:
