@@ -20,11 +20,11 @@ from explorer_core.analyses.continuation.problems import _BranchProblem
 from explorer_core.analyses.continuation.results import Bifurcation
 from explorer_core.analyses.continuation.system import (
     KINDS,
+    ContinuationMap,
     _complex_pair,
     _defining,
     _residual,
     _Stop,
-    _System,
     test_function,
 )
 from explorer_core.analyses.orbits import multipliers
@@ -90,7 +90,7 @@ def _locate(eng: _Engine, prob: _BranchProblem, fn: Callable[[_Point], float], p
 
 
 def _refine(
-    sys: _System, kind: str, n: int, Y: np.ndarray, final: bool = True, jac: np.ndarray | None = None
+    sys: ContinuationMap, kind: str, n: int, Y: np.ndarray, final: bool = True, jac: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray]:
     """Newton on the defining system from a located point: the bifurcation to the accuracy of ``P^n``, with ``A``
     and the orbit ``x, P(x), ..., P^(n-1)(x)`` there (``final=False``: the point alone, one integration less),
@@ -141,11 +141,10 @@ def _located(eng: _Engine, prob: _BranchProblem, kind: str, p0: _Point, p1: _Poi
     at, bracket = _locate(eng, prob, test, p0, p1, sigma_tol=math.inf, ptol=REFINE_FROM)
     n, sys = prob.n, prob.sys
     Y0 = np.array([at.X[0], at.X[1], prob.p(at.X)])
-    loose = sys.numerics.loosened(sys.numerics.rtol * 10, sys.numerics.atol * 10)
     try:
         Y, a, pts, jac = _refine(sys, kind, n, Y0)
         # The error estimate: the same zero of the less accurate map, from Y with the same Jacobian.
-        Y2, _, _, _ = _refine(_System(sys.base, sys.names, loose, 1), kind, n, Y, final=False, jac=jac)
+        Y2, _, _, _ = _refine(sys.coarse(), kind, n, Y, final=False, jac=jac)
         error = abs(Y2[2] - Y[2])
         # The zero is inside the bracket: a refinement further than that (and the map's accuracy) went elsewhere.
         if abs(Y[2] - Y0[2]) > bracket + 1e3 * (LOCATE_TOL + 1e-9) * (1 + abs(Y0[2])):

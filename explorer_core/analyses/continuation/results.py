@@ -15,7 +15,7 @@ import numpy as np
 
 from explorer_core import export
 from explorer_core.analyses.continuation.engine import _Point
-from explorer_core.analyses.continuation.options import ContinuationOptions, ContinuationSpec
+from explorer_core.analyses.continuation.options import ContinuationOptions, ContinuationSpec, MapSpec
 from explorer_core.analyses.orbits import UNIT_TOL, classify, multipliers
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -121,10 +121,10 @@ class Continuation(Drawable):
     (cancellation included): ``lost`` says what and why.
     """
 
-    params: Params
+    params: Params  # or, on a map in closed form (:class:`~.options.MapSpec`), the map
     param: str
     range: tuple[float, float]
-    numerics: Numerics
+    numerics: Numerics | None  # None on a map in closed form
     branches: list[Branch]
     bifurcations: list[Bifurcation]
     curves: list[Curve] = field(default_factory=list)
@@ -136,7 +136,7 @@ class Continuation(Drawable):
     lost: list[Loss] = field(default_factory=list)
     options: ContinuationOptions = field(default_factory=ContinuationOptions)
     #: what was asked (None for the orbits of several seeds, :func:`continue_from_seeds`)
-    spec: ContinuationSpec | None = None
+    spec: ContinuationSpec | MapSpec | None = None
 
     @property
     def complete(self) -> bool:
@@ -167,7 +167,7 @@ class Continuation(Drawable):
             "elapsed_s": round(float(self.elapsed_s), 6),
             "options": self.options.as_dict(),
             "params": self.params.as_dict(),
-            "numerics": self.numerics.as_dict(),
+            "numerics": None if self.numerics is None else self.numerics.as_dict(),
         }
         if self.param2 is not None:
             out["param2"] = self.param2
