@@ -259,9 +259,9 @@ class _MapRun(_OrbitRun):
 
     def __init__(self, spec: MapSpec, stop: Cancel) -> None:
         self.start = time.perf_counter()
-        self.spec, self.stop, self.workers = spec, stop, 1  # type: ignore[assignment]
+        self.spec, self.stop, self.workers = spec, stop, 1
         a = spec.range[0]
-        self.sys = spec.map.over([spec.param])
+        self.sys = spec.params.over([spec.param])
         self.eng = _Engine(spec.options, stop)
         x = np.array(spec.seed, dtype=float)
         for _ in range(spec.options.max_iter):
@@ -276,8 +276,7 @@ class _MapRun(_OrbitRun):
         d = minimal_period(np.vstack([x[None, :], pts]), end, spec.period, 1e-6)
         if d != spec.period:
             raise ParameterError(f"the orbit found from {list(spec.seed)} has period {d}, not {spec.period}")
-        self._begin(Continuation(spec.map, spec.param, spec.range, None, [], [], options=spec.options,
-                                 spec=spec), x)  # type: ignore[arg-type]  # fmt: skip
+        self._begin(Continuation(spec.params, spec.param, spec.range, None, [], [], options=spec.options, spec=spec), x)
 
 
 def continue_map(cmap: ContinuationMap, *args: Any, cancel: Callable[[], bool] | None = None,

@@ -143,11 +143,9 @@ class ContinuationSpec:
     window1: tuple[float, float] | None
 
     def as_dict(self) -> dict[str, Any]:
-        return {"params": self.params.as_dict(), "param": self.param, "range": list(self.range),
-                "seed": list(self.seed), "period": self.period, "switch": self.switch, "max_period": self.max_period,
-                "options": self.options.as_dict(), "numerics": self.numerics.as_dict(), "param2": self.param2,
-                "range2": None if self.range2 is None else list(self.range2),
-                "window1": None if self.window1 is None else list(self.window1)}  # fmt: skip
+        """Every field in order, as plain data (``params``, ``options``, ``numerics`` by their ``as_dict``)."""
+        plain = lambda v: v.as_dict() if hasattr(v, "as_dict") else list(v) if isinstance(v, tuple) else v  # noqa: E731
+        return {f.name: plain(getattr(self, f.name)) for f in fields(self)}
 
 
 #: The engine's settings when a call gives none.
@@ -349,29 +347,10 @@ def continuation_spec(
 
 
 @dataclass(frozen=True)
-class MapSpec:
+class MapSpec(ContinuationSpec):
     """A continuation on a map given in closed form (:class:`~.testmaps.ClosedFormMap`, any
-    :class:`~.system.ContinuationMap` with ``as_dict``) rather than this system: the fields of
-    :class:`ContinuationSpec` but ``params`` and ``numerics`` (the map is exact). Made by :func:`map_spec`."""
-
-    map: Any
-    param: str
-    range: tuple[float, float]
-    seed: tuple[float, float]
-    period: int
-    switch: bool
-    max_period: int
-    options: ContinuationOptions
-    param2: str | None
-    range2: tuple[float, float] | None
-    window1: tuple[float, float] | None
-
-    def as_dict(self) -> dict[str, Any]:
-        return {"map": self.map.as_dict(), "param": self.param, "range": list(self.range), "seed": list(self.seed),
-                "period": self.period, "switch": self.switch, "max_period": self.max_period,
-                "options": self.options.as_dict(), "param2": self.param2,
-                "range2": None if self.range2 is None else list(self.range2),
-                "window1": None if self.window1 is None else list(self.window1)}  # fmt: skip
+    :class:`~.system.ContinuationMap` with ``as_dict``) rather than this system: ``params`` is the map, ``numerics``
+    None (the map is exact). Made by :func:`map_spec`."""
 
 
 def map_spec(cmap: Any, param: str, value_range: tuple[float, float], seed: Sequence[float], period: int, *,
@@ -390,7 +369,7 @@ def map_spec(cmap: Any, param: str, value_range: tuple[float, float], seed: Sequ
     if (param2 is None) != (range2 is None) or (param2 is not None and param2 == param):
         raise ParameterError(f"param2 (not param) and range2 go together, got {param2!r} and {range2!r}")
     return MapSpec(cmap, param, (a, b), (q, r), period, bool(switch), max_period,
-                   DEFAULT_OPTIONS if options is None else options, param2, _range2("range2", range2),
+                   DEFAULT_OPTIONS if options is None else options, None, param2, _range2("range2", range2),
                    _window("window1", window1))  # fmt: skip
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from explorer_core import export
 from explorer_core.analyses.continuation.engine import _Point
-from explorer_core.analyses.continuation.options import ContinuationOptions, ContinuationSpec, MapSpec
+from explorer_core.analyses.continuation.options import ContinuationOptions, ContinuationSpec
 from explorer_core.analyses.orbits import UNIT_TOL, classify, multipliers
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -136,7 +136,7 @@ class Continuation(Drawable):
     lost: list[Loss] = field(default_factory=list)
     options: ContinuationOptions = field(default_factory=ContinuationOptions)
     #: what was asked (None for the orbits of several seeds, :func:`continue_from_seeds`)
-    spec: ContinuationSpec | MapSpec | None = None
+    spec: ContinuationSpec | None = None
 
     @property
     def complete(self) -> bool:
