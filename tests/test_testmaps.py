@@ -25,6 +25,12 @@ def test_the_henon_cascade_doubles_at_its_closed_forms(b: float) -> None:
     for bif in pds:
         assert bif.error < 1e-10
         assert np.min(np.abs(bif.multipliers + 1.0)) < 1e-10
+    if b == 0.3:  # the flip coefficient at the located point: 3087/22672 (tests/test_normal_forms.py, by sympy)
+        nf = pds[0].normal_form
+        assert abs(nf.coefficient - 3087 / 22672) < 1e-9 and nf.criticality == "supercritical"
+        line = res.report()[len(res.branches)]
+        assert line.startswith("supercritical period doubling of the period-1 orbit at a = 0.3675 +- "), line
+        assert "(b = 0.136159 +- " in line and line.endswith(")"), line
 
 
 def test_the_henon_fold_is_at_its_closed_form() -> None:
@@ -36,6 +42,8 @@ def test_the_henon_fold_is_at_its_closed_form() -> None:
     np.testing.assert_allclose(fold.point, [2 / (1 - b), 2 * b / (1 - b)], atol=1e-7)  # sqrt of the 1e-14 noise
     assert np.min(np.abs(fold.multipliers - 1.0)) < 1e-10
     assert "after a fold" in res.branches[0].stop  # turned back onto the other fixed point
+    assert abs(fold.normal_form.coefficient - 49 * np.sqrt(109) / 5668) < 1e-8  # (tests/test_normal_forms.py)
+    assert fold.normal_form.criticality == "" and res.summary()["bifurcations"][0]["criticality"] is None
 
 
 def test_the_delayed_logistic_map_has_its_neimark_sacker_point_at_2() -> None:
@@ -43,6 +51,8 @@ def test_the_delayed_logistic_map_has_its_neimark_sacker_point_at_2() -> None:
     (ns,) = res.bifurcations
     assert ns.kind == "neimark_sacker"
     assert abs(ns.value - 2.0) < 1e-10
+    assert abs(ns.normal_form.coefficient + 1.0) < 1e-8 and ns.normal_form.criticality == "supercritical"
+    assert res.summary()["bifurcations"][0]["criticality"] == "supercritical"
     np.testing.assert_allclose(ns.point, [0.5, 0.5], atol=1e-10)
     np.testing.assert_allclose(sorted(np.angle(ns.multipliers)), [-np.pi / 3, np.pi / 3], atol=1e-10)
     br = res.branches[0]

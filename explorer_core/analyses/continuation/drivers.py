@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -34,7 +35,7 @@ from explorer_core.analyses.continuation.options import (
     seeds_spec,
 )
 from explorer_core.analyses.continuation.problems import _BranchProblem
-from explorer_core.analyses.continuation.results import Bifurcation, Boundaries, Branch, Continuation
+from explorer_core.analyses.continuation.results import Boundaries, Branch, Continuation
 from explorer_core.analyses.continuation.switching import _birth, _switch
 from explorer_core.analyses.continuation.system import ContinuationMap, _Stop, _System
 from explorer_core.analyses.orbits import find_orbits, minimal_period, newton
@@ -193,8 +194,10 @@ class _OrbitRun:
         found.sort(key=lambda f: along(f[2]))
         if birth is not None:  # what lies beyond the birth point is the same orbit again
             found = [f for f in found if along(f[2]) < along(birth[0]) and f[0] != "fold"]
-        for kind, bif, at in found:
+        for kind, bif, at, why in found:
             res.bifurcations.append(bif)
+            if why:
+                res.messages.append(why)
             br.add(bif.value, at)
             if kind == "period_doubling" and spec.switch and 2 * n <= spec.max_period:
                 try:
@@ -350,8 +353,7 @@ def _continue_from_seeds(spec: SeedsSpec, *, stop: Cancel, workers: int | None =
         shift = len(out.branches)
         nb = len(out.bifurcations)
         out.branches += res.branches
-        out.bifurcations += [Bifurcation(b.kind, b.value, b.error, b.period, b.point, b.multipliers, b.branch + shift)
-                             for b in res.bifurcations]  # fmt: skip
+        out.bifurcations += [replace(b, branch=b.branch + shift) for b in res.bifurcations]
         for br in res.branches:
             if br.parent is not None:
                 br.parent += nb

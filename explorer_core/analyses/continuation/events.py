@@ -16,6 +16,7 @@ from collections.abc import Callable
 import numpy as np
 
 from explorer_core.analyses.continuation.engine import _Engine, _Point
+from explorer_core.analyses.continuation.normal_forms import normal_form
 from explorer_core.analyses.continuation.problems import _BranchProblem
 from explorer_core.analyses.continuation.results import Bifurcation
 from explorer_core.analyses.continuation.system import (
@@ -128,8 +129,9 @@ def _refine(
 
 
 def _located(eng: _Engine, prob: _BranchProblem, kind: str, p0: _Point, p1: _Point,
-             branch: int) -> tuple[Bifurcation, _Point]:  # fmt: skip
-    """Locate the bifurcation between two points of a branch.
+             branch: int) -> tuple[Bifurcation, _Point, str]:  # fmt: skip
+    """Locate the bifurcation between two points of a branch, with its normal form (:mod:`.normal_forms`), and
+    why there is none ("" if there is).
 
     Bracketed secant steps along the branch bring the test function's zero to within :data:`REFINE_FROM`;
     Newton on the defining system ``(P^n(x) - x, test(DP^n)) = 0`` then refines it to the accuracy of the
@@ -155,5 +157,10 @@ def _located(eng: _Engine, prob: _BranchProblem, kind: str, p0: _Point, p1: _Poi
         Y, a, pts, error = np.array([at.X[0], at.X[1], prob.p(at.X)]), at.A, at.pts, bracket
     X = np.array([Y[0], Y[1], prob.scaled(Y[2])])
     at = _Point(X, a, at.J, at.t, pts)
-    bif = Bifurcation(kind, float(Y[2]), float(error), n, Y[:2].copy(), multipliers(a), branch)
-    return bif, at
+    nf, why = None, ""
+    try:
+        nf = normal_form(sys, kind, Y[:2], [float(Y[2])], n, a)
+    except (_Stop, np.linalg.LinAlgError) as exc:
+        why = f"{kind} at {sys.names[0]} = {Y[2]:.12g}: no normal form ({exc})"
+    bif = Bifurcation(kind, float(Y[2]), float(error), n, Y[:2].copy(), multipliers(a), branch, nf)
+    return bif, at, why
