@@ -20,8 +20,9 @@ the map's second and third derivatives ``B(u, v) = D^2 P^n [u, v]``, ``C(u, v, w
   (``k = 1, 3``: ``e^{2 i theta} I - A`` is singular): the point says so.
 
 ``B`` and ``C`` are central differences of the exact ``DP^n`` (the tangent system; one differentiation less than
-differencing ``P^n``) at ``x +- h e_k`` and ``x +- h e_k +- h e_l``, all in one lock-step batch
-(:meth:`~.system.ContinuationMap.jacobians`) for two steps ``h`` and ``h / 2``: the coefficient is their Richardson
+differencing ``P^n``), in one lock-step batch (:meth:`~.system.ContinuationMap.jacobians`): at a fold or a flip
+along ``q`` only (``x +- h q``: their forms all take ``q`` first), at a Neimark-Sacker point the whole tensors
+(``x +- h e_k``, ``x +- h e_k +- h e_l``); for two steps ``h`` and ``h / 2``: the coefficient is their Richardson
 extrapolation (the differences' error goes as ``h^2``), its error estimate the difference of the two (three times
 the estimated error of the finer one: the noise of the map is in it too).
 """
@@ -61,34 +62,33 @@ class NormalForm:
                 "resonance": self.resonance}  # fmt: skip
 
 
-def derivatives(sys: ContinuationMap, x: np.ndarray, p: list[float], n: int, a: np.ndarray, h: float,
-                third: bool = True) -> tuple[np.ndarray, np.ndarray | None]:  # fmt: skip
-    """The tensors ``T2[i, j, k] = d^2 P_i / dx_j dx_k`` and (``third``) ``T3[i, j, k, l]`` at ``x`` by central
-    differences of ``DP^n`` (``a`` at ``x``) with the step ``h``, symmetrised."""
-    d = len(x)
-    e = np.eye(d)
-    pts = [x + s * h * e[k] for k in range(d) for s in (1.0, -1.0)]
-    pairs = list(itertools.combinations(range(d), 2)) if third else []
-    pts += [x + h * (s * e[k] + t * e[l]) for k, l in pairs for s, t in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
-    m = sys.jacobians(np.array(pts), p, n)
+def _stencil(kind: str, x: np.ndarray, q: np.ndarray, h: float) -> list[np.ndarray]:
+    """Where ``DP^n`` is differenced with the step ``h``: a fold's and a flip's forms all take ``q`` first, so
+    ``x +- h q`` give ``B(q, .)`` and ``C(q, q, .)``; a Neimark-Sacker point's take complex vectors: the whole
+    tensors, from ``x +- h e_k`` and ``x +- h e_k +- h e_l``."""
+    if kind != "neimark_sacker":
+        return [x + h * q, x - h * q]
+    e = np.eye(len(x))
+    pts = [x + s * h * e[k] for k in range(len(x)) for s in (1.0, -1.0)]
+    pairs = itertools.combinations(range(len(x)), 2)
+    return pts + [x + h * (s * e[k] + t * e[j]) for k, j in pairs for s, t in ((1, 1), (1, -1), (-1, 1), (-1, -1))]
+
+
+def derivatives(m: np.ndarray, a: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """The tensors ``T2[i, j, k] = d^2 P_i / dx_j dx_k`` and ``T3[i, j, k, l]``, symmetrised, from ``DP^n`` at the
+    Neimark-Sacker :func:`_stencil` ``m`` (``a`` at its centre) with the step ``h``."""
+    d = len(a)
+    pairs = list(itertools.combinations(range(d), 2))
     t2 = np.stack([(m[2 * k] - m[2 * k + 1]) / (2 * h) for k in range(d)], axis=-1)
     t2 = 0.5 * (t2 + t2.transpose(0, 2, 1))
-    if not third:
-        return t2, None
     t3 = np.empty((d, d, d, d))
     for k in range(d):
         t3[..., k, k] = (m[2 * k] - 2 * a + m[2 * k + 1]) / h**2
-    for i, (k, l) in enumerate(pairs):
+    for i, (k, j) in enumerate(pairs):
         pp, pm, mp, mm = m[2 * d + 4 * i : 2 * d + 4 * i + 4]
-        t3[..., k, l] = t3[..., l, k] = (pp - pm - mp + mm) / (4 * h**2)
+        t3[..., k, j] = t3[..., j, k] = (pp - pm - mp + mm) / (4 * h**2)
     t3 = sum(t3.transpose(0, *perm) for perm in itertools.permutations((1, 2, 3))) / 6.0
     return t2, t3
-
-
-def _bc(t2: np.ndarray, t3: np.ndarray | None):
-    b = lambda u, v: np.einsum("ijk,j,k->i", t2, u, v)  # noqa: E731
-    c = lambda u, v, w: np.einsum("ijkl,j,k,l->i", t3, u, v, w)  # noqa: E731
-    return b, c
 
 
 def eigenpair(a: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray, complex]:
@@ -115,17 +115,20 @@ def eigenpair(a: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray, complex
     return q, p, mu
 
 
-def coefficient(kind: str, a: np.ndarray, t2: np.ndarray, t3: np.ndarray | None) -> float:
-    """The normal-form coefficient of ``kind`` (fold ``a``, flip ``b``, Neimark-Sacker ``Re d``) from ``A`` and the
-    derivative tensors (module docstring)."""
+def coefficient(kind: str, a: np.ndarray, m: np.ndarray, h: float) -> float:
+    """The normal-form coefficient of ``kind`` (fold ``a``, flip ``b``, Neimark-Sacker ``Re d``) from ``A = DP^n``
+    and ``DP^n`` at the :func:`_stencil` ``m`` of the step ``h`` (module docstring)."""
     q, p, mu = eigenpair(a, kind)
-    b, c = _bc(t2, t3)
     eye = np.eye(len(q))
-    if kind == "fold":
-        return float(0.5 * np.vdot(p, b(q, q)).real)
-    if kind == "period_doubling":
-        h2 = np.linalg.solve(eye - a, b(q, q))
-        return float((np.vdot(p, c(q, q, q)) / 6.0 + 0.5 * np.vdot(p, b(q, h2))).real)
+    if kind != "neimark_sacker":
+        b_q, c_qq = (m[0] - m[1]) / (2 * h), (m[0] - 2 * a + m[1]) / h**2  # B(q, .), C(q, q, .)
+        if kind == "fold":
+            return float(0.5 * p @ b_q @ q)
+        h2 = np.linalg.solve(eye - a, b_q @ q)
+        return float(p @ c_qq @ q / 6.0 + 0.5 * p @ b_q @ h2)
+    t2, t3 = derivatives(m, a, h)
+    b = lambda u, v: np.einsum("ijk,j,k->i", t2, u, v)  # noqa: E731
+    c = lambda u, v, w: np.einsum("ijkl,j,k,l->i", t3, u, v, w)  # noqa: E731
     qb = np.conj(q)
     e = mu / abs(mu)
     h11 = np.linalg.solve(eye - a, b(q, qb))
@@ -152,8 +155,12 @@ def normal_form(sys: ContinuationMap, kind: str, x: np.ndarray, p: list[float], 
     multiplier 1 beside a flip), :class:`~.system._Stop` if the map fails at a point of the differences."""
     x = np.asarray(x, dtype=float)
     h = NF_STEP * (1.0 + float(np.abs(x).max())) / math.sqrt(max(1.0, float(np.abs(a).max())))
-    third = kind != "fold"
-    c1, c2 = (coefficient(kind, a, *derivatives(sys, x, p, n, a, s, third)) for s in (h, 0.5 * h))
+    q = eigenpair(a, kind)[0]
+    steps = (h, 0.5 * h)
+    stencils = [_stencil(kind, x, q, s) for s in steps]
+    m = sys.jacobians(np.array([pt for st in stencils for pt in st]), p, n)  # one lock-step batch
+    c1, c2 = (coefficient(kind, a, m[i * len(stencils[0]) : (i + 1) * len(stencils[0])], s)
+              for i, s in enumerate(steps))  # fmt: skip
     value, error = c2 + (c2 - c1) / 3.0, abs(c2 - c1)
     res = resonance(eigenpair(a, kind)[2]) if kind == "neimark_sacker" else None
     crit = ""
