@@ -139,10 +139,19 @@ def test_cli_continue_json_and_errors(tmp_path) -> None:
     (bif,) = d["bifurcations"]
     assert set(bif) >= {"type", "value", "error", "period", "point", "multipliers"}
     assert bif["type"] == "period_doubling" and bif["error"] < 1e-9
+    # Its normal form (tests/test_normal_forms.py: b = 7.4152, supercritical by brute force).
+    assert bif["criticality"] == "supercritical" and abs(bif["coefficient"] - 7.4152) < 1e-3
+    assert 0 < bif["coefficient_error"] < 1e-3 and bif["resonance"] is None
     (curve,) = d["curves"]
     assert set(curve["points"][0]) == {"alpha", "I11", "q", "r"}
     assert d["params"] and d["numerics"]
-    assert out.read_text().splitlines()[0] == "branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable"
+    lines = out.read_text().splitlines()
+    assert lines[0] == ("branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable,bifurcation,coefficient,"
+                        "coefficient_error,criticality")  # fmt: skip
+    (row,) = [line.split(",") for line in lines[1:] if "period_doubling" in line]
+    assert float(row[2]) == bif["value"] and float(row[11]) == bif["coefficient"] and row[13] == "supercritical"
+    assert sum(line.endswith(",,,,") for line in lines[1:]) == len(lines) - 2  # the other points: no bifurcation
+    assert "supercritical period_doubling" not in stdout
     base = ("continue", "--scene", "fig10", "--period", "1", "--json")
     for args, msg in (
         (("--param", "I99", "--range", "0,1", "--from", "0,0"), "cannot sweep"),

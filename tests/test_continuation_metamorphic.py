@@ -115,14 +115,18 @@ def test_outputs_hold_plain_numbers(tmp_path) -> None:
     d = json.loads(stdout)
     assert d["complete"] is True and d["lost"] == []
     assert "np." not in stdout and "np." not in out.read_text()
-    table = np.loadtxt(out, delimiter=",", skiprows=1)
-    assert table.shape[1] == 10 and np.isfinite(table).all()
+    table = np.loadtxt(out, delimiter=",", skiprows=1, usecols=range(10))  # the points' numbers ...
+    assert np.isfinite(table).all()
+    rows = [line.split(",")[10:] for line in out.read_text().splitlines()[1:]]  # ... and at a bifurcation its own
+    assert sorted(r[0] for r in rows if any(r)) == ["period_doubling"] and all(len(r) == 4 for r in rows)
+    assert all(np.isfinite(float(v)) for r in rows if any(r) for v in r[1:3])
     res = continue_orbit(FIG10, "alpha", (-0.35, -0.38), FIXED_POINT_035, 1)
     buf = io.StringIO()
     csv.writer(buf).writerows(res.csv_rows())
     text = json.dumps(res.summary()) + buf.getvalue() + repr(res.csv_rows()) + repr(res.branches[0].states)
     assert "np." not in text
-    assert all(type(v) in (int, float) for row in res.csv_rows() for v in row)
+    assert all(type(v) in (int, float) for row in res.csv_rows() for v in row[:10])
+    assert all(type(v) in (type(None), str, float) for row in res.csv_rows() for v in row[10:])
 
 
 @pytest.mark.parametrize(

@@ -16,7 +16,8 @@ The modules, bottom to top:
 
 * :mod:`.options`: :class:`ContinuationOptions` (the engine's settings), :class:`ContinuationSpec` and its
   builder :func:`continuation_spec`;
-* :mod:`.system`: the system at ``(x, p)``: ``P^n``, ``DP^n``, ``F_p`` by lock-step central differences, the test
+* :mod:`.system`: what the engine asks of a map (:class:`ContinuationMap`) and this system's (``_System``: ``P^n``,
+  ``DP^n``, ``F_p`` by lock-step central differences), the test
   functions (:func:`test_function`) and a bifurcation's defining system;
 * :mod:`.engine`: predictor, corrector, step control, landing on the range's ends (:class:`_Engine`), the state
   of a curve being followed (:class:`_Walk`) and the generator :meth:`_Engine.follow`;
@@ -28,12 +29,15 @@ The modules, bottom to top:
 * :mod:`.switching`: births and switching at period doublings;
 * :mod:`.curves`: two-parameter curves of folds and doublings;
 * :mod:`.drivers`: :func:`continue_orbit` / :func:`iter_continue_orbit`, :func:`continue_from_seeds` /
-  :func:`iter_continue_from_seeds`, :func:`chart_boundaries` / :func:`iter_chart_boundaries`.
+  :func:`iter_continue_from_seeds`, :func:`chart_boundaries` / :func:`iter_chart_boundaries`, and
+  :func:`continue_map` (the same on any :class:`~.system.ContinuationMap` with ``as_dict``);
+* :mod:`.testmaps`: maps in closed form with exact bifurcation sets (Henon, the delayed logistic map).
 """
 
 from explorer_core.analyses.continuation.drivers import (
     chart_boundaries,
     continue_from_seeds,
+    continue_map,
     continue_orbit,
     iter_chart_boundaries,
     iter_continue_from_seeds,
@@ -48,9 +52,11 @@ from explorer_core.analyses.continuation.options import (
     BoundariesSpec,
     ContinuationOptions,
     ContinuationSpec,
+    MapSpec,
     SeedsSpec,
     boundaries_spec,
     continuation_spec,
+    map_spec,
     seeds_spec,
 )
 from explorer_core.analyses.continuation.problems import _BranchProblem, _CurveProblem
@@ -69,6 +75,7 @@ from explorer_core.analyses.continuation.system import (
     FD_RTOL_MAX,
     FD_STEP,
     KINDS,
+    ContinuationMap,
     _defining,
     _Stop,
     _System,
@@ -96,9 +103,11 @@ __all__ = [
     "BoundariesSpec",
     "Branch",
     "Continuation",
+    "ContinuationMap",
     "ContinuationOptions",
     "ContinuationSpec",
     "Curve",
+    "MapSpec",
     "SeedsSpec",
     "_BranchProblem",
     "_CurveProblem",
@@ -113,10 +122,12 @@ __all__ = [
     "classify_branch",
     "continuation_spec",
     "continue_from_seeds",
+    "continue_map",
     "continue_orbit",
     "iter_chart_boundaries",
     "iter_continue_from_seeds",
     "iter_continue_orbit",
+    "map_spec",
     "seeds_spec",
     "test_function",
 ]

@@ -12,24 +12,22 @@ import numpy as np
 from explorer_core.analyses.continuation.engine import _Engine, _Point
 from explorer_core.analyses.continuation.problems import _CurveProblem
 from explorer_core.analyses.continuation.results import Bifurcation, Curve
-from explorer_core.analyses.continuation.system import _Stop, _System
+from explorer_core.analyses.continuation.system import ContinuationMap, _Stop
 from explorer_core.losses import Loss
-from explorer_core.solve.numerics import Numerics
 from explorer_core.status import Status
-from explorer_core.system.params import Params
 
 
-def _follow_curve(eng: _Engine, base: Params, name1: str, name2: str, bif: Bifurcation, rng1: tuple[float, float],
-                  rng2: tuple[float, float], numerics: Numerics,
-                  workers: int | None) -> tuple[Curve, list[Loss]]:  # fmt: skip
-    """The curve of ``F = 0, phi = 0`` through ``bif`` in ``(name1, name2)``, both ways, within ``rng1 x rng2``.
+def _follow_curve(eng: _Engine, branch: ContinuationMap, name2: str, bif: Bifurcation, rng1: tuple[float, float],
+                  rng2: tuple[float, float]) -> tuple[Curve, list[Loss]]:  # fmt: skip
+    """The curve of ``F = 0, phi = 0`` through ``bif`` (located on a branch of the map ``branch``) in
+    ``(name1, name2)``, ``name1`` the branch's parameter, both ways, within ``rng1 x rng2``.
 
     Pseudo-arclength in ``(q, r, s1, s2)`` with each parameter scaled to its range (``rng1``: the window of the
     first parameter, ``rng2``), by the same engine as the branches; each half ends on the box's edge.
     """
-    p2_0 = float(getattr(base, name2) if name2 not in ("I11", "I22", "I33", "I12", "I13", "I23")
-                 else base.inertia[("I11", "I22", "I33", "I12", "I13", "I23").index(name2)])  # fmt: skip
-    sys = _System(base, [name1, name2], numerics, workers)
+    name1 = branch.names[0]
+    p2_0 = branch.value(name2)
+    sys = branch.over([name1, name2])
     n, kind = bif.period, bif.kind
     curve = Curve(kind, n)
     what = f"the {kind} curve of the period-{n} orbit from {name1} = {bif.value:.12g}"

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -26,15 +27,17 @@ from explorer_core.analyses.continuation.events import _crossed, _located
 from explorer_core.analyses.continuation.options import (
     BoundariesSpec,
     ContinuationSpec,
+    MapSpec,
     SeedsSpec,
     boundaries_spec,
     continuation_spec,
+    map_spec,
     seeds_spec,
 )
 from explorer_core.analyses.continuation.problems import _BranchProblem
-from explorer_core.analyses.continuation.results import Bifurcation, Boundaries, Branch, Continuation
+from explorer_core.analyses.continuation.results import Boundaries, Branch, Continuation
 from explorer_core.analyses.continuation.switching import _birth, _switch
-from explorer_core.analyses.continuation.system import _Stop, _System
+from explorer_core.analyses.continuation.system import ContinuationMap, _Stop, _System
 from explorer_core.analyses.orbits import find_orbits, minimal_period, newton
 from explorer_core.analyses.specs import spec_of
 from explorer_core.losses import Loss
@@ -82,7 +85,7 @@ class _OrbitRun:
         params, param, (a, _), period, numerics = spec.params, spec.param, spec.range, spec.period, spec.numerics
         x0 = np.array(spec.seed, dtype=float)
         self.base = params.with_(**{param: a})
-        self.sys = _System(self.base, [param], numerics, workers)
+        self.sys: ContinuationMap = _System(self.base, [param], numerics, workers)
         self.eng = _Engine(spec.options, stop)
         self.workers = workers
 
@@ -98,9 +101,13 @@ class _OrbitRun:
             raise ParameterError(
                 f"the orbit found from {x0.tolist()} has period {d}, not {period}: ask for --period {d}"
             )
-        self.result = Continuation(params, param, spec.range, numerics, [], [], options=spec.options, spec=spec)
+        self._begin(Continuation(params, param, spec.range, numerics, [], [], options=spec.options, spec=spec), x_start)
+
+    def _begin(self, result: Continuation, x_start: np.ndarray) -> None:
+        self.result = result
         #: the branches to follow: (period, a point of the orbit, its parameter, the bifurcation it was born at)
-        self.queue: list[tuple[int, np.ndarray, float, int | None]] = [(period, x_start, a, None)]
+        self.queue: list[tuple[int, np.ndarray, float, int | None]] = [(self.spec.period, x_start, self.spec.range[0],
+                                                                         None)]  # fmt: skip
         self.meter = _Meter("branches", self.result)
 
     def _step(self, finished: int, total: int, value: float | None) -> Step[Continuation]:
@@ -162,8 +169,7 @@ class _OrbitRun:
                         res.lost.append(Loss(f"the {bif.kind} curve from {param} = {bif.value:.12g}", 1, "cancelled"))
                         continue
                     w1 = (a, b) if spec.window1 is None else spec.window1
-                    curve, losses = _follow_curve(eng, self.base, param, res.param2, bif, w1, (c, d), spec.numerics,
-                                                  self.workers)  # fmt: skip
+                    curve, losses = _follow_curve(eng, self.sys, res.param2, bif, w1, (c, d))
                     res.curves.append(curve)
                     res.lost += losses
                     stopped = stopped or "cancelled" in curve.stop
@@ -188,8 +194,10 @@ class _OrbitRun:
         found.sort(key=lambda f: along(f[2]))
         if birth is not None:  # what lies beyond the birth point is the same orbit again
             found = [f for f in found if along(f[2]) < along(birth[0]) and f[0] != "fold"]
-        for kind, bif, at in found:
+        for kind, bif, at, why in found:
             res.bifurcations.append(bif)
+            if why:
+                res.messages.append(why)
             br.add(bif.value, at)
             if kind == "period_doubling" and spec.switch and 2 * n <= spec.max_period:
                 try:
@@ -245,6 +253,44 @@ def iter_continue_orbit(
         yield one.meter.last(res.completed, len(res.branches) + len(res.curves), res.elapsed_s, (res.n_points, None))
 
     return stoppable(updates, cancel)
+
+
+class _MapRun(_OrbitRun):
+    """:class:`_OrbitRun` on a map in closed form (:class:`~.options.MapSpec`): the same branches, events,
+    switching and curves; Newton on ``P^n(x) - x`` (the map's own ``DP^n``) finds the orbit at the range's first
+    value."""
+
+    def __init__(self, spec: MapSpec, stop: Cancel) -> None:
+        self.start = time.perf_counter()
+        self.spec, self.stop, self.workers = spec, stop, 1
+        a = spec.range[0]
+        self.sys = spec.params.over([spec.param])
+        self.eng = _Engine(spec.options, stop)
+        x = np.array(spec.seed, dtype=float)
+        for _ in range(spec.options.max_iter):
+            end, mono, pts = self.sys.orbit(x, [a], spec.period)
+            dx = np.linalg.solve(mono - np.eye(2), x - end)
+            x = x + dx
+            if np.linalg.norm(dx) <= 1e-14 * (1.0 + np.linalg.norm(x)):
+                break
+        end, _, pts = self.sys.orbit(x, [a], spec.period)
+        if not np.linalg.norm(end - x) <= 1e-12 * (1.0 + np.linalg.norm(x)):
+            raise ParameterError(f"no period-{spec.period} orbit found from {list(spec.seed)} at {spec.param} = {a}")
+        d = minimal_period(np.vstack([x[None, :], pts]), end, spec.period, 1e-6)
+        if d != spec.period:
+            raise ParameterError(f"the orbit found from {list(spec.seed)} has period {d}, not {spec.period}")
+        self._begin(Continuation(spec.params, spec.param, spec.range, None, [], [], options=spec.options, spec=spec), x)
+
+
+def continue_map(cmap: ContinuationMap, *args: Any, cancel: Callable[[], bool] | None = None,
+                 **kw: Any) -> Continuation:  # fmt: skip
+    """The continuation of an orbit of a map in closed form (:mod:`.testmaps`): ``continue_map(cmap, param,
+    value_range, seed, period, **options)`` with the arguments of :func:`~.options.map_spec`; the result as
+    :func:`continue_orbit`'s (its ``params`` the map, no ``numerics``)."""
+    one = _MapRun(map_spec(cmap, *args, **kw), cancel or (lambda: False))
+    for _ in one:
+        pass
+    return one.result
 
 
 def continue_from_seeds(
@@ -307,8 +353,7 @@ def _continue_from_seeds(spec: SeedsSpec, *, stop: Cancel, workers: int | None =
         shift = len(out.branches)
         nb = len(out.bifurcations)
         out.branches += res.branches
-        out.bifurcations += [Bifurcation(b.kind, b.value, b.error, b.period, b.point, b.multipliers, b.branch + shift)
-                             for b in res.bifurcations]  # fmt: skip
+        out.bifurcations += [replace(b, branch=b.branch + shift) for b in res.bifurcations]
         for br in res.branches:
             if br.parent is not None:
                 br.parent += nb

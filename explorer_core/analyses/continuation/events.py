@@ -16,15 +16,16 @@ from collections.abc import Callable
 import numpy as np
 
 from explorer_core.analyses.continuation.engine import _Engine, _Point
+from explorer_core.analyses.continuation.normal_forms import normal_form
 from explorer_core.analyses.continuation.problems import _BranchProblem
 from explorer_core.analyses.continuation.results import Bifurcation
 from explorer_core.analyses.continuation.system import (
     KINDS,
+    ContinuationMap,
     _complex_pair,
     _defining,
     _residual,
     _Stop,
-    _System,
     test_function,
 )
 from explorer_core.analyses.orbits import multipliers
@@ -90,7 +91,7 @@ def _locate(eng: _Engine, prob: _BranchProblem, fn: Callable[[_Point], float], p
 
 
 def _refine(
-    sys: _System, kind: str, n: int, Y: np.ndarray, final: bool = True, jac: np.ndarray | None = None
+    sys: ContinuationMap, kind: str, n: int, Y: np.ndarray, final: bool = True, jac: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray]:
     """Newton on the defining system from a located point: the bifurcation to the accuracy of ``P^n``, with ``A``
     and the orbit ``x, P(x), ..., P^(n-1)(x)`` there (``final=False``: the point alone, one integration less),
@@ -128,8 +129,9 @@ def _refine(
 
 
 def _located(eng: _Engine, prob: _BranchProblem, kind: str, p0: _Point, p1: _Point,
-             branch: int) -> tuple[Bifurcation, _Point]:  # fmt: skip
-    """Locate the bifurcation between two points of a branch.
+             branch: int) -> tuple[Bifurcation, _Point, str]:  # fmt: skip
+    """Locate the bifurcation between two points of a branch, with its normal form (:mod:`.normal_forms`), and
+    why there is none ("" if there is).
 
     Bracketed secant steps along the branch bring the test function's zero to within :data:`REFINE_FROM`;
     Newton on the defining system ``(P^n(x) - x, test(DP^n)) = 0`` then refines it to the accuracy of the
@@ -141,11 +143,10 @@ def _located(eng: _Engine, prob: _BranchProblem, kind: str, p0: _Point, p1: _Poi
     at, bracket = _locate(eng, prob, test, p0, p1, sigma_tol=math.inf, ptol=REFINE_FROM)
     n, sys = prob.n, prob.sys
     Y0 = np.array([at.X[0], at.X[1], prob.p(at.X)])
-    loose = sys.numerics.loosened(sys.numerics.rtol * 10, sys.numerics.atol * 10)
     try:
         Y, a, pts, jac = _refine(sys, kind, n, Y0)
         # The error estimate: the same zero of the less accurate map, from Y with the same Jacobian.
-        Y2, _, _, _ = _refine(_System(sys.base, sys.names, loose, 1), kind, n, Y, final=False, jac=jac)
+        Y2, _, _, _ = _refine(sys.coarse(), kind, n, Y, final=False, jac=jac)
         error = abs(Y2[2] - Y[2])
         # The zero is inside the bracket: a refinement further than that (and the map's accuracy) went elsewhere.
         if abs(Y[2] - Y0[2]) > bracket + 1e3 * (LOCATE_TOL + 1e-9) * (1 + abs(Y0[2])):
@@ -156,5 +157,10 @@ def _located(eng: _Engine, prob: _BranchProblem, kind: str, p0: _Point, p1: _Poi
         Y, a, pts, error = np.array([at.X[0], at.X[1], prob.p(at.X)]), at.A, at.pts, bracket
     X = np.array([Y[0], Y[1], prob.scaled(Y[2])])
     at = _Point(X, a, at.J, at.t, pts)
-    bif = Bifurcation(kind, float(Y[2]), float(error), n, Y[:2].copy(), multipliers(a), branch)
-    return bif, at
+    nf, why = None, ""
+    try:
+        nf = normal_form(sys, kind, Y[:2], [float(Y[2])], n, a)
+    except (_Stop, np.linalg.LinAlgError) as exc:
+        why = f"{kind} at {sys.names[0]} = {Y[2]:.12g}: no normal form ({exc})"
+    bif = Bifurcation(kind, float(Y[2]), float(error), n, Y[:2].copy(), multipliers(a), branch, nf)
+    return bif, at, why

@@ -143,11 +143,9 @@ class ContinuationSpec:
     window1: tuple[float, float] | None
 
     def as_dict(self) -> dict[str, Any]:
-        return {"params": self.params.as_dict(), "param": self.param, "range": list(self.range),
-                "seed": list(self.seed), "period": self.period, "switch": self.switch, "max_period": self.max_period,
-                "options": self.options.as_dict(), "numerics": self.numerics.as_dict(), "param2": self.param2,
-                "range2": None if self.range2 is None else list(self.range2),
-                "window1": None if self.window1 is None else list(self.window1)}  # fmt: skip
+        """Every field in order, as plain data (``params``, ``options``, ``numerics`` by their ``as_dict``)."""
+        plain = lambda v: v.as_dict() if hasattr(v, "as_dict") else list(v) if isinstance(v, tuple) else v  # noqa: E731
+        return {f.name: plain(getattr(self, f.name)) for f in fields(self)}
 
 
 #: The engine's settings when a call gives none.
@@ -346,6 +344,33 @@ def continuation_spec(
             raise ParameterError(f"param2 must differ from param, got {param2!r} twice")
     return ContinuationSpec(params, param, (a, b), (q, r), period, switch, max_period, opts, numerics,
                             param2, range2, window1)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class MapSpec(ContinuationSpec):
+    """A continuation on a map given in closed form (:class:`~.testmaps.ClosedFormMap`, any
+    :class:`~.system.ContinuationMap` with ``as_dict``) rather than this system: ``params`` is the map, ``numerics``
+    None (the map is exact). Made by :func:`map_spec`."""
+
+
+def map_spec(cmap: Any, param: str, value_range: tuple[float, float], seed: Sequence[float], period: int, *,
+             switch: bool = False, max_period: int = DEFAULT_MAX_PERIOD, options: ContinuationOptions | None = None,
+             param2: str | None = None, range2: tuple[float, float] | None = None,
+             window1: tuple[float, float] | None = None) -> MapSpec:  # fmt: skip
+    """A validated :class:`MapSpec` (the arguments as :func:`continuation_spec`'s; ``param`` and ``param2`` among
+    the map's ``values``); every bad value raises :class:`ParameterError` naming it."""
+    for name in (param, param2):
+        if name is not None and name not in cmap.values:
+            raise ParameterError(f"the map has no parameter {name!r} (it has {', '.join(cmap.values)})")
+    a, b = _value_range("range", value_range)
+    period = check_int("period", period, 1, 1024)
+    max_period = check_int("max_period", max_period, period, 1024)
+    q, r = check_point("seed", seed, math.inf)
+    if (param2 is None) != (range2 is None) or (param2 is not None and param2 == param):
+        raise ParameterError(f"param2 (not param) and range2 go together, got {param2!r} and {range2!r}")
+    return MapSpec(cmap, param, (a, b), (q, r), period, bool(switch), max_period,
+                   DEFAULT_OPTIONS if options is None else options, None, param2, _range2("range2", range2),
+                   _window("window1", window1))  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from explorer_core.analyses.continuation.system import _defining, _System
+from explorer_core.analyses.continuation.system import ContinuationMap, _defining
 
 
 class _BranchProblem:
@@ -18,7 +18,7 @@ class _BranchProblem:
     moves the parameter by at most ``ds_max`` of the range however fast the orbit moves.
     """
 
-    def __init__(self, sys: _System, rng: tuple[float, float], n: int, tol: float) -> None:
+    def __init__(self, sys: ContinuationMap, rng: tuple[float, float], n: int, tol: float) -> None:
         self.sys, self.n, self.tol = sys, n, tol
         self.a, self.b = rng
         self.box = ((2, 0.0, 1.0),)
@@ -53,7 +53,8 @@ class _CurveProblem:
     """A bifurcation's defining system ``(P^n(x) - x, phi(DP^n)) = 0`` in ``(q, r, s1, s2)``, each parameter
     scaled to its range: a step of ``curve_ds_max`` moves each parameter by at most that fraction of its range."""
 
-    def __init__(self, sys: _System, kind: str, n: int, origin: np.ndarray, width: np.ndarray, tol: float) -> None:
+    def __init__(self, sys: ContinuationMap, kind: str, n: int, origin: np.ndarray, width: np.ndarray,
+                 tol: float) -> None:  # fmt: skip
         self.sys, self.kind, self.n, self.o, self.w, self.tol = sys, kind, n, origin, width, tol
         self.box = ((2, 0.0, 1.0), (3, 0.0, 1.0))
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from explorer_core import export
 from explorer_core.analyses.continuation.engine import _Point
+from explorer_core.analyses.continuation.normal_forms import NormalForm
 from explorer_core.analyses.continuation.options import ContinuationOptions, ContinuationSpec
 from explorer_core.analyses.orbits import UNIT_TOL, classify, multipliers
 from explorer_core.drawing import Drawable
@@ -70,7 +71,9 @@ class Branch:
 
 @dataclass(frozen=True)
 class Bifurcation:
-    """A located bifurcation on a branch."""
+    """A located bifurcation on a branch; ``normal_form`` its coefficient, error estimate, criticality and (at a
+    Neimark-Sacker point) resonance (:mod:`.normal_forms`), None where it could not be computed (``messages``
+    of the continuation say why)."""
 
     kind: str
     value: float
@@ -79,6 +82,7 @@ class Bifurcation:
     point: np.ndarray
     multipliers: np.ndarray
     branch: int
+    normal_form: NormalForm | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -89,7 +93,31 @@ class Bifurcation:
             "point": [float(self.point[0]), float(self.point[1])],
             "multipliers": [[float(m.real), float(m.imag)] for m in self.multipliers],
             "branch": int(self.branch),
+            **_normal_form_fields(self.normal_form),
         }
+
+    def describe(self, param: str) -> str:
+        """The line the command line prints: "supercritical period doubling of the period-1 orbit at alpha =
+        -0.375344852807 +- 1e-15 (b = 7.4152 +- 0.0001)"."""
+        nf = self.normal_form
+        crit = f"{nf.criticality} " if nf is not None and nf.criticality else ""
+        line = f"{crit}{self.kind.replace('_', ' ')} of the period-{self.period} orbit at {param} = {self.value:.12g}"
+        line += f" +- {self.error:.1g}"
+        if nf is not None:
+            near = f", near the strong resonance {nf.resonance}" if nf.resonance else ""
+            line += f" ({COEFFICIENT_NAMES[self.kind]} = {nf.coefficient:.6g} +- {nf.error:.1g}{near})"
+        return line
+
+
+#: The normal-form coefficients' names (Kuznetsov's, MatContM's): fold ``a``, flip ``b``, Neimark-Sacker ``Re d``.
+COEFFICIENT_NAMES = {"fold": "a", "period_doubling": "b", "neimark_sacker": "Re d"}
+
+
+def _normal_form_fields(nf: NormalForm | None) -> dict[str, Any]:
+    """A normal form's JSON fields, all None where it was not computed (a fold has no criticality: None too)."""
+    if nf is None:
+        return {"coefficient": None, "coefficient_error": None, "criticality": None, "resonance": None}
+    return {**nf.as_dict(), "criticality": nf.criticality or None}
 
 
 @dataclass
@@ -121,10 +149,10 @@ class Continuation(Drawable):
     (cancellation included): ``lost`` says what and why.
     """
 
-    params: Params
+    params: Params  # or, on a map in closed form (:class:`~.options.MapSpec`), the map
     param: str
     range: tuple[float, float]
-    numerics: Numerics
+    numerics: Numerics | None  # None on a map in closed form
     branches: list[Branch]
     bifurcations: list[Bifurcation]
     curves: list[Curve] = field(default_factory=list)
@@ -150,8 +178,7 @@ class Continuation(Drawable):
         """What the command line prints: the branches, the bifurcations with their errors, the messages."""
         return [*(f"branch {i}: period {br.period}, {len(br.values)} points, {self.param} {br.values[0]:.10g} .. "
                   f"{br.values[-1]:.10g} ({br.stop})" for i, br in enumerate(self.branches)),
-                *(f"{b.kind} of the period-{b.period} orbit at {self.param} = {b.value:.12g} +- {b.error:.1g}"
-                  for b in self.bifurcations), *self.messages]  # fmt: skip
+                *(b.describe(self.param) for b in self.bifurcations), *self.messages]  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -167,7 +194,7 @@ class Continuation(Drawable):
             "elapsed_s": round(float(self.elapsed_s), 6),
             "options": self.options.as_dict(),
             "params": self.params.as_dict(),
-            "numerics": self.numerics.as_dict(),
+            "numerics": None if self.numerics is None else self.numerics.as_dict(),
         }
         if self.param2 is not None:
             out["param2"] = self.param2
@@ -180,7 +207,8 @@ class Continuation(Drawable):
     as_dict = summary
 
     #: the CSV's columns (:meth:`csv_rows`)
-    CSV_HEADER = ("branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable")
+    CSV_HEADER = ("branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable",
+                  "bifurcation", "coefficient", "coefficient_error", "criticality")  # fmt: skip
 
     def write(self, path: str) -> dict[str, Any]:
         """``.csv``: a row per point (:attr:`CSV_HEADER`); ``.json``: the summary."""
@@ -189,12 +217,19 @@ class Continuation(Drawable):
             path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "continuation"
         )
 
-    def csv_rows(self) -> list[tuple[int, int, float, float, float, float, float, float, float, int]]:
-        """``branch, period, value, q, r, mu1_re, mu1_im, mu2_re, mu2_im, stable`` per point, plain numbers."""
+    def csv_rows(self) -> list[tuple[Any, ...]]:
+        """``branch, period, value, q, r, mu1_re, mu1_im, mu2_re, mu2_im, stable`` per point, plain numbers; at a
+        located bifurcation (a point of its branch) also ``bifurcation`` (its type), ``coefficient``,
+        ``coefficient_error`` and ``criticality`` of its normal form (else empty)."""
+        at = {(b.branch, float(b.value)): b for b in self.bifurcations}
         rows = []
         for i, br in enumerate(self.branches):
             for v, x, mu, st in zip(br.values, br.states, br.mults, br.stable, strict=True):
-                rows.append((i, br.period, v, x[0], x[1], mu[0].real, mu[0].imag, mu[1].real, mu[1].imag, int(st)))
+                b = at.get((i, float(v)))
+                nf = _normal_form_fields(None if b is None else b.normal_form)
+                rows.append((i, br.period, v, x[0], x[1], mu[0].real, mu[0].imag, mu[1].real, mu[1].imag, int(st),
+                             None if b is None else b.kind, nf["coefficient"], nf["coefficient_error"],
+                             nf["criticality"]))  # fmt: skip
         return rows
 
 

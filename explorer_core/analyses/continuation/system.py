@@ -10,6 +10,11 @@ pair (Neimark-Sacker, ``|mu| = 1``), ``A = DP^n`` (:func:`test_function`). A fol
 of its defining system ``G = (P^n(x) - x, phi(DP^n))`` (:func:`_defining`), ``phi`` the test function, with
 ``phi``'s derivatives by central differences of the monodromy (up to nine members in one lock-step batch).
 
+The engine, the events, the normal forms and the two-parameter curves ask a map for no more than
+:class:`ContinuationMap` says (``P^n``, ``DP^n``, ``F_p`` at ``(x, p)``); :class:`_System` is this system's
+(the Poincare map, integrated), :mod:`.testmaps` has maps in closed form (Henon, the delayed logistic map) that
+test the engine against exact bifurcation sets.
+
 :class:`_Stop` is how anything here or in the engine refuses a step or ends a branch, with its status.
 """
 
@@ -17,6 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -51,8 +57,57 @@ def _failed(code: int) -> _Stop:
     return _Stop(f"the orbit's trajectory failed: {st.label}", st)
 
 
+#: The inertia's components, parameters that are not attributes of :class:`Params`.
+_INERTIA = ("I11", "I22", "I33", "I12", "I13", "I23")
+
+
+class ContinuationMap(Protocol):
+    """What the continuation asks of a map ``x -> P(x; p)`` of the plane: its ``n``-th iterate and derivatives at
+    ``(x, p)``, ``p`` the values of the continuation parameters ``names`` (one on a branch, two on a curve).
+
+    Branches and located bifurcations need :meth:`orbit`, :meth:`fp` and :meth:`evaluate`; the error estimate of
+    a located value :meth:`coarse`; the normal forms :meth:`jacobians`; the two-parameter curves :meth:`over`
+    and :meth:`value`. Failures (the orbit escaped, the parameters left the valid ones) raise :class:`_Stop`.
+    """
+
+    names: list[str]
+
+    def orbit(self, x: np.ndarray, p: Sequence[float], n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``P^n(x)``, ``A = DP^n(x)`` (2, 2) and the points ``P(x) .. P^n(x)`` (n, 2)."""
+        ...
+
+    def fp(self, x: np.ndarray, p: Sequence[float], n: int, amp: float = 1.0) -> np.ndarray:
+        """``dP^n/dp_k`` (2, k); ``amp = |DP^n|`` may set the step of a finite difference."""
+        ...
+
+    def evaluate(self, x: np.ndarray, p: Sequence[float], n: int, dx: bool = False) -> tuple[Any, ...]:
+        """``(P^n(x), DP^n, F_p, div, points, extra)``: ``div`` anything (unused by the engine); with ``dx``,
+        ``extra = {"A_p": [(A(p_k + d), A(p_k - d), d), ...], "A_x": [(A(x + h e_j), A(x - h e_j), h), ...]}``
+        (the derivatives of a test function by central differences), else None."""
+        ...
+
+    def jacobians(self, xs: np.ndarray, p: Sequence[float], n: int) -> np.ndarray:
+        """``DP^n`` at the points ``xs`` (m, 2), (m, 2, 2), to the accuracy of :meth:`orbit` and smooth in ``x``
+        (the normal forms difference them)."""
+        ...
+
+    def coarse(self) -> ContinuationMap:
+        """The same map computed less accurately (ten times, for an integrated one): the shift of a located
+        value under it is the value's error estimate. A map in closed form is its own."""
+        ...
+
+    def over(self, names: Sequence[str]) -> ContinuationMap:
+        """The same map (the same values of every parameter) with ``names`` as its continuation parameters."""
+        ...
+
+    def value(self, name: str) -> float:
+        """The value of the parameter ``name`` (at the point the map was made at)."""
+        ...
+
+
 class _System:
-    """``P^n`` and its derivatives at ``(x, p...)`` for one or two continuation parameters."""
+    """``P^n`` and its derivatives at ``(x, p...)`` for one or two continuation parameters: this system's
+    :class:`ContinuationMap` (the Poincare map, ``DP^n`` by the tangent system)."""
 
     def __init__(self, base: Params, names: Sequence[str], numerics: Numerics, workers: int | None) -> None:
         self.base = base
@@ -77,6 +132,26 @@ class _System:
         if key not in self._fd:
             self._fd[key] = self.numerics.loosened(tol["rtol"], tol["atol"])  # the method chosen again if auto chose
         return self._fd[key]
+
+    def coarse(self) -> _System:
+        loose = self.numerics.loosened(self.numerics.rtol * 10, self.numerics.atol * 10)
+        return _System(self.base, self.names, loose, 1)
+
+    def over(self, names: Sequence[str]) -> _System:
+        return _System(self.base, names, self.numerics, self.workers)
+
+    def value(self, name: str) -> float:
+        return float(getattr(self.base, name) if name not in _INERTIA else self.base.inertia[_INERTIA.index(name)])
+
+    def jacobians(self, xs: np.ndarray, p: Sequence[float], n: int) -> np.ndarray:
+        """``DP^n`` at the points ``xs``: one lock-step batch (one step sequence, so differences of the matrices
+        are smooth) at the accuracy asked."""
+        prs = [self.params(p)] * len(xs)
+        mono = monodromy_at(prs, np.asarray(xs, dtype=float), n, self.numerics, workers=1, block=len(xs))
+        bad = np.flatnonzero(mono.status != Status.OK)
+        if bad.size:
+            raise _failed(mono.status[bad[0]])
+        return mono.matrix
 
     def params(self, p: Sequence[float]) -> Params:
         try:
@@ -173,7 +248,8 @@ def _complex_pair(a: np.ndarray) -> bool:
     return tr * tr < 4.0 * det
 
 
-def _defining(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _defining(sys: ContinuationMap, kind: str, n: int,
+              Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """The bifurcation's defining system at ``Y = (q, r, p_1, ...)``: ``G = (P^n(x) - x, test(A))``, its Jacobian,
     ``A`` and the section points ``P(x) .. P^n(x)``.
 
@@ -188,7 +264,7 @@ def _defining(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarra
     return g, jac, a, pts
 
 
-def _residual(sys: _System, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _residual(sys: ContinuationMap, kind: str, n: int, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The defining system's ``G`` alone at ``Y``, with ``A`` and the orbit ``x, P(x), ..., P^(n-1)(x)``: one
     integration of the tangent system (no central differences)."""
     end, a, pts = sys.orbit(Y[:2], list(Y[2:]), n)
