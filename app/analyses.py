@@ -150,6 +150,13 @@ class AnalysisTab:
         self.session.runner.start(self.channel, job)
 
 
+def _kind_words(b: Any) -> str:
+    """A located bifurcation's kind for a tooltip, with its criticality where its normal form decided it."""
+    nf = getattr(b, "normal_form", None)
+    crit = f"{nf.criticality} " if nf is not None and nf.criticality else ""
+    return crit + b.kind.replace("_", " ")
+
+
 class LyapunovTab(AnalysisTab):
     channel = "lyapunov"
     help = LYAPUNOV_HELP
@@ -393,8 +400,8 @@ class BifurcationTab(AnalysisTab):
         bifs = cont.bifurcations
         lines.append(f"continuation: {len(cont.branches)} branches, {cont.n_points} points, {cont.elapsed_s:.1f} s"
                      + ("" if bifs else "; no bifurcation in the range"))  # fmt: skip
-        lines += [f"{b.kind.replace('_', ' ')} of the period-{b.period} orbit at {cont.param} = {b.value:.12g} "
-                  f"(± {b.error:.1g})" for b in bifs[:12]]  # fmt: skip
+        # the command line's words: criticality and the normal-form coefficient with their error estimates
+        lines += [b.describe(cont.param).replace(" +- ", " ± ") for b in bifs[:12]]
         lines += cont.messages[:3]
         lines += [loss.line() for loss in cont.lost[:4]]  # a branch that stopped short says so on screen
         lines.append(f"continuation numerics: {self.cont_with}")
@@ -424,7 +431,7 @@ class BifurcationTab(AnalysisTab):
         self.bifs.data = {
             "x": [b.value for b in cont.bifurcations] if cont else [],
             "y": [float(b.point[col]) for b in cont.bifurcations] if cont else [],
-            "kind": [b.kind.replace("_", " ") for b in cont.bifurcations] if cont else [],
+            "kind": [_kind_words(b) for b in cont.bifurcations] if cont else [],
             "value": [f"{b.value:.12g} ± {b.error:.1g}" for b in cont.bifurcations] if cont else [],
             "period": [b.period for b in cont.bifurcations] if cont else [],
         }

@@ -128,3 +128,17 @@ def test_chart_tab_click_on_an_invalid_system_keeps_the_state() -> None:
                                      y_values=np.array([5.0, 6.0]))  # fmt: skip
     tab._on_tap(SimpleNamespace(x=-0.6, y=5.0))
     assert (st.alpha, st.I12) == before and "not positive definite" in tab.view["error"]
+
+
+def test_bifurcation_tab_says_whether_a_doubling_is_supercritical() -> None:
+    """The continued orbits' bifurcations are listed in the command line's words: the criticality from the normal
+    form's coefficient (Fig. 10's first doubling is supercritical, b = 7.4, docs/architecture.md), in the list and the
+    points' tooltips."""
+    sess = session("fig10")
+    tab = BifurcationTab(sess)
+    sess.state.param.update(bif_values=4, bif_points=5, bif_transient=50, bif_range=(-0.38, -0.37))
+    tab.figure()
+    tab.run()
+    line = next(x for x in tab.view["result"] if "orbit at alpha = -0.3753448" in x)
+    assert line.startswith("supercritical period doubling of the period-1 orbit") and "(b = 7.4" in line, line
+    assert "supercritical period doubling" in tab.bifs.data["kind"]
