@@ -273,6 +273,14 @@ class LyapunovTab(AnalysisTab):
         return self.result if probe else result_file(self.result, what, suffix)
 
 
+#: The orbit diagram's colours: the sweep forward and backward, the continued orbits, the bifurcations.
+_FORWARD, _BACKWARD = Category10[3][0], Category10[3][1]
+_STABLE, _UNSTABLE, _BIFURCATION = "#2ca02c", "#7f7f7f", "#9467bd"
+#: Its key under the plot (label, colour): the page draws the swatches.
+BIFURCATION_LEGEND = [["sweep forward", _FORWARD], ["backward", _BACKWARD], ["stable orbit", _STABLE],
+                      ["unstable orbit (dashed)", _UNSTABLE], ["bifurcation (diamond)", _BIFURCATION]]  # fmt: skip
+
+
 class BifurcationTab(AnalysisTab):
     channel = "bifurcation"
     help = BIFURCATION_HELP
@@ -285,6 +293,7 @@ class BifurcationTab(AnalysisTab):
 
     def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
         super().__init__(session, publish)
+        self.view.update(legend=BIFURCATION_LEGEND, legend_title="")
         self.source = ColumnDataSource({"x": [], "y": [], "c": []}, name="bifurcation_source")
         self.stable = ColumnDataSource({"xs": [], "ys": []}, name="branches_stable")
         self.unstable = ColumnDataSource({"xs": [], "ys": []}, name="branches_unstable")
@@ -307,12 +316,12 @@ class BifurcationTab(AnalysisTab):
         self.now = Span(location=float(getattr(self.session.state, self.session.state.bif_param)), dimension="height",
                         line_color="#0a58ca", line_width=2, line_alpha=0.8, name="bifurcation_current")  # fmt: skip
         f.add_layout(self.now)
-        mapper = LinearColorMapper(palette=[Category10[3][0], Category10[3][1]], low=0, high=1)
+        mapper = LinearColorMapper(palette=[_FORWARD, _BACKWARD], low=0, high=1)
         f.scatter("x", "y", source=self.source, size=1.6, line_color=None,
                   fill_color={"field": "c", "transform": mapper})  # fmt: skip
-        f.multi_line("xs", "ys", source=self.unstable, line_color="#7f7f7f", line_dash="dashed", line_width=1.4)
-        f.multi_line("xs", "ys", source=self.stable, line_color="#2ca02c", line_width=2.2)
-        marks = f.scatter("x", "y", source=self.bifs, marker="diamond", size=11, fill_color="#9467bd",
+        f.multi_line("xs", "ys", source=self.unstable, line_color=_UNSTABLE, line_dash="dashed", line_width=1.4)
+        f.multi_line("xs", "ys", source=self.stable, line_color=_STABLE, line_width=2.2)
+        marks = f.scatter("x", "y", source=self.bifs, marker="diamond", size=11, fill_color=_BIFURCATION,
                           line_color="black", name="bifurcation_marks")  # fmt: skip
         f.add_tools(HoverTool(renderers=[marks], tooltips=[("", "@kind of the period-@period orbit"),
                                                            ("value", "@value")]))  # fmt: skip
@@ -459,7 +468,7 @@ class ChartTab(AnalysisTab):
 
     def __init__(self, session: ExplorerSession, publish: Publish | None = None) -> None:
         super().__init__(session, publish)
-        self.view["legend"] = CHART_LEGEND
+        self.view.update(legend=CHART_LEGEND, legend_title="period of the cycle:")
         self.source = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []}, name="chart_source")
         self.current = ColumnDataSource({"x": [], "y": []}, name="chart_current")
         self.curves = ColumnDataSource({"xs": [], "ys": [], "color": [], "kind": []}, name="chart_curves")

@@ -6,16 +6,16 @@
 const CSS = `
 :host { display: block; width: 100%; height: 100%; }
 * { box-sizing: border-box; }
-.app { display: grid; grid-template-columns: 330px minmax(0, 1fr); grid-template-rows: auto minmax(0, 1fr);
+.app { display: grid; grid-template-columns: 300px minmax(0, 1fr); grid-template-rows: auto minmax(0, 1fr);
   height: 100vh; font-family: system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif;
   font-size: 13px; color: #1d2430; background: #fff; }
 .app.side-collapsed { grid-template-columns: 0 minmax(0, 1fr); }
 .app.side-collapsed .side { visibility: hidden; padding: 0; border: 0; }
-header { grid-column: 1 / 3; display: flex; align-items: center; gap: 10px; padding: 4px 10px;
+header { grid-column: 1 / 3; display: flex; align-items: center; gap: 6px; padding: 4px 10px;
   background: #2c5f8a; color: #fff; min-height: 40px; flex-wrap: wrap; }
 header .title { font-weight: 600; font-size: 1.15em; margin-right: 8px; white-space: nowrap; }
 header button { background: transparent; color: #fff; border: 1px solid rgba(255,255,255,.45); border-radius: 4px;
-  padding: 4px 10px; cursor: pointer; font: inherit; }
+  padding: 4px 8px; cursor: pointer; font: inherit; white-space: nowrap; }
 header button:hover { background: rgba(255,255,255,.12); }
 header .tab-btn[aria-selected="true"] { background: #fff; color: #2c5f8a; border-color: #fff; }
 header .spacer { flex: 1; }
@@ -36,7 +36,8 @@ header .spacer { flex: 1; }
 .ctl-msg { color: #842029; background: #f8d7da; border: 1px solid #f5c2c7; border-radius: 4px; padding: 3px 6px;
   margin-top: 3px; font-size: .9em; }
 .ctl-msg:empty { display: none; }
-.seg { display: inline-flex; border: 1px solid #b9c2cf; border-radius: 4px; overflow: hidden; }
+.seg { display: inline-flex; flex-wrap: wrap; max-width: 100%; border: 1px solid #b9c2cf; border-radius: 4px;
+  overflow: hidden; }
 .seg button { font: inherit; border: 0; padding: 3px 9px; background: #fff; cursor: pointer; }
 .seg button[aria-pressed="true"] { background: #2c5f8a; color: #fff; }
 .ctl.check label { display: flex; gap: 6px; align-items: center; font-size: 1em; }
@@ -45,6 +46,11 @@ header .spacer { flex: 1; }
 .bar .ctl { margin: 0; }
 .bar .ctl.int input.num { width: 6em; }
 .bar .ctl-selected .btn-no-selection { margin-left: 4px; padding: 3px 8px; }
+/* The section's bar in few rows: each label beside its control, the buttons a little narrower. */
+.pane-section > .bar { gap: 4px 6px; align-items: center; }
+.pane-section > .bar .ctl { display: flex; align-items: center; gap: 6px; }
+.pane-section > .bar .ctl > label, .pane-section > .bar .ctl > .lab { margin: 0; }
+.pane-section > .bar button.act { padding: 3px 8px; }
 button.act { font: inherit; padding: 4px 12px; border-radius: 4px; border: 1px solid #2c5f8a; background: #2c5f8a;
   color: #fff; cursor: pointer; }
 button.act.warn { background: #b8860b; border-color: #b8860b; }
@@ -59,27 +65,57 @@ button.act.light[aria-pressed="true"]:disabled { opacity: 1; background: #dbe9f5
 .warn-box.level-error { color: #842029; background: #f8d7da; border-color: #f5c2c7; }
 .status-line { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: .95em; min-height: 1.3em;
   white-space: pre-wrap; flex: none; }
-.plots { flex: 1 1 auto; min-height: 300px; display: grid; grid-template-columns: minmax(0, 3fr) minmax(240px, 2fr);
+/* The plot first and large: the plot's column takes what the side column (k-series, results, forms) leaves; the
+   side column grows with the screen (282 px at 1280, 422 px at 1920; the section's: below). */
+.app { --side: clamp(280px, 22vw, 520px); }
+.plots { flex: 1 1 0; min-height: 300px; display: grid; grid-template-columns: minmax(0, 1fr) var(--side);
   gap: 10px; }
+.plot-col { display: flex; flex-direction: column; gap: 2px; min-height: 0; min-width: 0; }
+.side-col { display: flex; flex-direction: column; gap: 4px; min-height: 0; min-width: 0; }
 .plot-section, .plot-series, .plot-analysis { min-height: 0; min-width: 0; position: relative; display: flex; }
+.plot-col > .plot-section, .plot-col > .plot-analysis { flex: 1 1 0; min-height: 260px; }
+.side-col > .plot-series { flex: 1 1 0; min-height: 250px; }
+.plot-key { flex: none; }
+/* The section's side column holds the orbit table too: a little wider (340 px at 1280, 460 px at 1920). */
+.pane-section { --side: clamp(340px, 24vw, 520px); }
+.plot-key > :empty, .plot-key > [hidden] { display: none; }
+/* Under the k-series: the orbit table, the layers' statuses and legends, scrolled in their box. */
+.notes { flex: 0 1 auto; max-height: 45%; overflow: auto; min-height: 0; }
+.notes .legend { margin-top: 3px; }
+/* There an orbit takes two lines (period, type, q, r; then its multipliers): a row fits the column's width. */
+.notes .orbits { max-height: 14em; }
+.notes .orbit-table { display: block; }
+.notes .orbit-table tr { display: grid; grid-template-columns: 3.6em minmax(0, 1.3fr) minmax(0, 1fr) minmax(0, 1fr);
+  column-gap: 4px; border-bottom: 1px solid #eef1f5; }
+.notes .orbit-table tr:first-child { position: sticky; top: 0; background: #fff; z-index: 1; }
+.notes .orbit-table :is(th, td) { padding: 0; white-space: normal; position: static; }
+.notes .orbit-table :is(th, td):last-child { grid-column: 2 / -1; }
 .plot-series { flex-direction: column; }
 .plot-series .cap { font-size: .92em; color: #3a4554; }
 .series-head { display: flex; gap: 10px; align-items: baseline; flex-wrap: wrap; }
 .series-head .ctl { margin: 0; white-space: nowrap; }
 /* The body in 3-D needs height: the plots take the screen below the bars (the legends scroll under them). */
 .app.body-open .plots { min-height: max(300px, calc(100vh - 320px)); }
+.app.body-open .notes { max-height: 25%; }
 .series-chart { flex: 1 1 0; min-height: 70px; position: relative; }
 .series-chart svg { position: absolute; inset: 0; width: 100%; height: 100%; overflow: visible; }
 .series-chart text { font-size: 11px; fill: #3a4554; }
 .app.present .series-chart text { font-size: 15px; }
 .series-chart .axis { stroke: #9aa5b4; stroke-width: 1; }
-.plot-analysis { flex: 1 1 auto; min-height: 300px; }
+/* An analysis tab: the plot's column (the plot, its key) and the side column (form, Run, results, help). */
+.pane-analysis { display: grid; grid-template-columns: minmax(0, 1fr) var(--side); gap: 10px; }
+.pane-analysis > .plot-col { min-height: 300px; }
+.analysis-side { overflow-y: auto; overflow-x: hidden; }
+.analysis-side .form .ctl { flex: 1 1 130px; min-width: 120px; }
+.analysis-side .bar { gap: 4px 6px; }
+.analysis-side .result { font-size: .95em; }
 .legend { font-size: .9em; color: #3a4554; }
 .basin-item { margin-right: 12px; white-space: nowrap; }
 .legend span.sw { display: inline-block; width: 12px; height: 12px; border: 1px solid #999; vertical-align: -2px;
   margin: 0 3px 0 8px; }
 .form { display: flex; flex-wrap: wrap; gap: 4px 14px; }
 .form .ctl { flex: 0 1 170px; min-width: 140px; }
+.form .ctl.check { flex-basis: 100%; }
 .form .ctl.text { flex-basis: 200px; }
 progress { width: 100%; height: 10px; }
 progress[hidden] { display: none; }
@@ -99,10 +135,11 @@ progress[hidden] { display: none; }
 .app.present header button { padding: 3px 8px; }
 .tour .tour-head select.tour-choice { font: inherit; color: #0a58ca; padding: 1px 2px; max-width: 60%;
   border: 1px solid #9ec5fe; border-radius: 4px; background: #fff; }
-/* The status line on one line in presentation mode (the whole text in its tooltip): the plot keeps its height. */
-.app.present .status-line { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
+/* The status line on one line (the whole text in its tooltip): the plot keeps its height. */
+.status-line { white-space: nowrap; overflow: hidden; text-overflow: ellipsis; }
 /* A tall screen (1920x1080) has the room for the whole text. */
-@media (min-height: 900px) { .app.present .status-line { white-space: normal; } }
+@media (min-height: 900px) { .status-line { white-space: pre-wrap; } }
+.analysis-side .status-line { white-space: pre-wrap; }
 .app.present .status-line { font-size: 1em; }
 /* At 1280x720 the table sits just under the plot: smaller rows show the header and 3-4 orbits without scrolling. */
 .app.present .orbits { font-size: .8em; }
@@ -124,19 +161,23 @@ progress[hidden] { display: none; }
 .tour .tour-head .spacer { flex: 1; }
 .tour .tour-text { margin: 4px 0 2px; line-height: 1.35; }
 .app.present .tour .tour-text { font-size: 1.05em; }
-header select.tour-choice { font: inherit; padding: 2px; max-width: 420px; }
-.app.present header label.tour-upload { display: none; }
+/* One header row at 1280 px: the menu as wide as its first words (a tour's title is shown whole in the tour's box). */
+header select.tour-choice { font: inherit; padding: 2px; width: 150px; }
+header .tabs { display: flex; gap: 4px; }
 /* One header row at 1280x720 in presentation mode: the tour menu only while a tour shows (choose one before). */
 .app.present:not(.touring) header select.tour-choice { display: none; }
 .app.present.touring:not(.tour-plays) .pane-section > .bar { display: none; }
 /* An analysis tab in a tour: the step's text says what the tab shows, and the tour has set it (and pressed Run): the
    plot gets the room of the tab's help (and in presentation mode of its form; both back outside the tour). */
-.app.touring .pane-analysis > .analysis-help, .app.present.touring .pane-analysis > .form { display: none; }
+.app.touring .pane-analysis .analysis-help, .app.present.touring .pane-analysis .form { display: none; }
 .app.present .play-bar { display: none; }
+/* Presentation: the side columns' words a little smaller than the page's (the plot is what the room reads), and the
+   section's bar in two rows, each label beside its control, in the header's size. */
+.app.present .side-col { font-size: 15px; }
+.app.present .pane-section > .bar { font-size: 14px; }
+.app.present .warn-box { font-size: 15px; padding: 3px 10px; }
 .app.present .tour { padding: 4px 10px; }
 .app.present .tour .tour-text { margin: 2px 0 0; }
-header label.tour-upload { cursor: pointer; border: 1px solid rgba(255,255,255,.45); border-radius: 4px; padding: 3px 8px; }
-header label.tour-upload input { display: none; }
 .tour-message { font-size: .9em; color: #3a4554; margin-bottom: 4px; white-space: pre-line; }
 .tour-message.problem { color: #664d03; background: #fff3cd; border: 1px solid #ffecb5; border-radius: 4px;
   padding: 3px 8px; }
@@ -243,18 +284,21 @@ export function render({model, el}) {
     send({action: "presentation", on})
   })
   // Tours: choose one (the paper's and a teacher's own), or upload a tours file (read here, sent as text).
+  // The menu's last entry loads a file (one header row at 1280 px: no button of its own).
+  const UPLOAD = ":upload"  // not a tour id (app/state.py's _ID: letters, digits, _ . -)
   const tourChoice = h("select", {class: "tour-choice", "aria-label": "Guided tour"})
-  tourChoice.addEventListener("change", () => send({action: "tour", value: tourChoice.value}))
-  const tourFile = h("input", {type: "file", accept: ".json,application/json"})
+  const tourFile = h("input", {type: "file", class: "tour-file", accept: ".json,application/json", hidden: true})
+  tourChoice.addEventListener("change", () => {
+    if (tourChoice.value !== UPLOAD) send({action: "tour", value: tourChoice.value})
+    else { tourChoice.value = tourChoice.dataset.shown || ""; tourFile.click() }
+  })
   tourFile.addEventListener("change", async () => {
     const f = tourFile.files && tourFile.files[0]
     if (f) send({action: "tour_file", value: await f.text()})
     tourFile.value = ""
   })
-  const tourUpload = h("label", {class: "tour-upload", title: "Load your own tours file (JSON, as app/tours.json)"},
-                       document.createTextNode("Load tours…"), tourFile)
   const header = h("header", {}, sideBtn, h("span", {class: "title", text: "Bilimovich Explorer"}), nav,
-                   h("span", {class: "spacer"}), tourChoice, tourUpload, presentBtn)
+                   h("span", {class: "spacer"}), tourChoice, tourFile, presentBtn)
 
   const side = h("aside", {class: "side"})
   const byArea = {}
@@ -321,7 +365,7 @@ export function render({model, el}) {
     const inBox = !tourBox.hidden
     if (inBox !== (tourChoice.parentElement === tourHead)) {
       if (inBox) tourHead.prepend(tourChoice)
-      else header.insertBefore(tourChoice, tourUpload)
+      else header.insertBefore(tourChoice, tourFile)
     }
   }
   // What the page says about the tours (a file loaded, or a problem: a file, tour or step the link names not there).
@@ -385,9 +429,14 @@ export function render({model, el}) {
   const colourNote = h("div", {class: "legend colour-note", hidden: true})
   const orbStatus = h("div", {class: "orbit-status", "aria-live": "polite"})
   const orbTable = h("div", {class: "orbits", hidden: true})
+  // The plot first and large: its key (basins' colours, density) right under it; beside it a column with the k-series
+  // and, under them, the orbit table, the layers' statuses and the long legends (scrolled in their box).
+  const notes = h("div", {class: "notes"}, orbTable, orbStatus, basStatus, manStatus, colourNote, eqLegend, orbLegend,
+                  manLegend)
+  const plotKey = h("div", {class: "plot-key"}, basLegend, densLegend)
   const paneSection = h("section", {class: "pane pane-section"}, secBar, playBar, secErrors, warnings, status,
-                        h("div", {class: "plots"}, plotSection, plotSeries), orbStatus, orbTable, eqLegend, orbLegend,
-                        densLegend, manLegend, manStatus, basStatus, basLegend, colourNote)
+                        h("div", {class: "plots"}, h("div", {class: "plot-col"}, plotSection, plotKey),
+                          h("div", {class: "side-col"}, plotSeries, notes)))
 
   // Analysis pane (one for every analysis tab; its form is the open tab's controls).
   const aHelp = h("p", {class: "help analysis-help"})
@@ -410,8 +459,11 @@ export function render({model, el}) {
   const plotAnalysis = h("div", {class: "plot-analysis"})
   const aLegend = h("div", {class: "legend analysis-legend"})
   const aFoot = h("p", {class: "help analysis-footnote"})
-  const paneAnalysis = h("section", {class: "pane pane-analysis", hidden: true}, aHelp, aForm, aBar, aError,
-                         progress, aMsg, aResult, plotAnalysis, aLegend, aFoot)
+  // The plot takes the pane's height, its key (legend, footnote) under it; the form, Run, the results and the help in
+  // a column beside it (scrolled in its box when long: the bifurcations' list).
+  const aSide = h("div", {class: "side-col analysis-side"}, aForm, aBar, progress, aMsg, aError, aResult, aHelp)
+  const paneAnalysis = h("section", {class: "pane pane-analysis", hidden: true},
+                         h("div", {class: "plot-col"}, plotAnalysis, aLegend, aFoot), aSide)
   const main = h("main", {class: "main"}, tourArea, paneSection, paneAnalysis)
   app.append(header, side, main)
   el.append(style, app)
@@ -525,7 +577,7 @@ export function render({model, el}) {
     app.classList.toggle("present", on)
     bodyView.setScale(on ? 1.3 : 1)
     app.classList.toggle("side-collapsed", on)
-    presentBtn.textContent = on ? "Leave presentation" : "Presentation mode"
+    presentBtn.textContent = on ? "Leave presentation" : "Presentation"
     placeTourChoice()
   }
   function syncValues(force = null) {
@@ -606,12 +658,12 @@ export function render({model, el}) {
       requestAnimationFrame(() => send({action: "shown", value: String(p.number)}))
     }
     const tr = s.tour || {}
-    const choices = [["", "Guided tour…"], ...(tr.choices || [])]
+    const choices = [["", "Guided tour…"], ...(tr.choices || []), [UPLOAD, "Load your own tours file (JSON)…"]]
     if (tourChoice.options.length !== choices.length ||
         choices.some(([v], i) => tourChoice.options[i].value !== v)) {
       tourChoice.replaceChildren(...choices.map(([v, t]) => h("option", {value: v, text: t})))
     }
-    tourChoice.value = tr.id || ""
+    tourChoice.value = tourChoice.dataset.shown = tr.id || ""
     tourBox.hidden = !tr.id
     // A tour in presentation mode: the plot gets the room; the bars come back outside it or when a step plays.
     app.classList.toggle("touring", !!tr.id)
@@ -661,7 +713,7 @@ export function render({model, el}) {
       aFoot.textContent = a.footnote || ""
       aLegend.replaceChildren()
       if (a.legend) {
-        aLegend.append(document.createTextNode("period of the cycle:"))
+        if (a.legend_title) aLegend.append(document.createTextNode(a.legend_title))
         for (const [lab, c] of a.legend) aLegend.append(h("span", {class: "sw", style: `background:${c}`}),
                                                        document.createTextNode(lab))
       }
