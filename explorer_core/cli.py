@@ -555,24 +555,28 @@ def cmd_analysis(args: argparse.Namespace) -> int:
     _, run_kw = _declared_values(args, runner, scene)
     if c.scheduler:
         run_kw["executor"] = _executor(args)
-    with _Run(args) as run:
-        # A short check has neither progress nor cancel; a runner that passes keywords on (**kw) takes both.
-        accepts = inspect.signature(runner).parameters
-        anything = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in accepts.values())
-        run_kw.update({k: v for k, v in (("cancel", run), ("progress", run.update)) if anything or k in accepts})
+    # A short check has neither progress nor cancel; a runner that passes keywords on (**kw) takes both.
+    accepts = inspect.signature(runner).parameters
+    anything = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in accepts.values())
+    with contextlib.ExitStack() as stack, _Run(args) as run:
+        streams = _streams(a.get("result"), outs, stack) if anything or "progress" in accepts else {}
+        run_kw.update({k: v for k, v in (("cancel", run), ("progress", _tap(run, streams.values())))
+                       if anything or k in accepts})  # fmt: skip
         result = runner(spec, **run_kw)
-    summary = _with_scene(result.summary(), args)
-    if getattr(args, "scheduler", None):
-        summary["scheduler"] = args.scheduler
-    written = []
-    for path in [*outs, *(getattr(args, f) for f in c.files if getattr(args, f, None))]:
-        picture = next((fn for suffix, fn in c.pictures.items() if path.lower().endswith(suffix)), None)
-        if picture is None:
-            written.append(result.write(path))
-        else:  # matplotlib (reports/) only when a picture is asked for
-            module, _, name = picture.partition(":")
-            getattr(importlib.import_module(module), name)(result, path)
-            written.append({"path": path})
+        summary = _with_scene(result.summary(), args)
+        if getattr(args, "scheduler", None):
+            summary["scheduler"] = args.scheduler
+        written = []
+        for path in [*outs, *(getattr(args, f) for f in c.files if getattr(args, f, None))]:
+            picture = next((fn for suffix, fn in c.pictures.items() if path.lower().endswith(suffix)), None)
+            if path in streams:  # its rows are on the disk: a head and a rename
+                written.append(streams[path].write_result(result))
+            elif picture is None:
+                written.append(result.write(path))
+            else:  # matplotlib (reports/) only when a picture is asked for
+                module, _, name = picture.partition(":")
+                getattr(importlib.import_module(module), name)(result, path)
+                written.append({"path": path})
     if written:
         summary["out"] = written
     # A stop signal during the run is an interrupted run, whatever the result says of itself (manifolds cancelled
@@ -583,6 +587,32 @@ def cmd_analysis(args: argparse.Namespace) -> int:
     notes = [] if getattr(args, "quiet", False) else getattr(result, "notes", list)()
     return _finish(args, summary, result.report, result=result, completed=completed, what=c.what, as_json=as_json,
                    notes=notes)  # fmt: skip
+
+
+def _streams(result_type: type, outs: Sequence[str], stack: contextlib.ExitStack) -> dict[str, Any]:
+    """The outputs ``result_type`` writes while its run goes (its ``streamed(path)``: a writer fed every progress
+    update, ``write_result(result)`` at the end; a section's CSV), each discarded if the command fails."""
+    streamed = getattr(result_type, "streamed", None)
+    out: dict[str, Any] = {}
+    for path in outs if streamed is not None else ():
+        writer = streamed(path)
+        if writer is not None:
+            out[path] = stack.enter_context(writer)
+    return out
+
+
+def _tap(run: _Run, streams: Any) -> Callable[[Any], None]:
+    """The run's progress callback: the progress line, and every update to the outputs written as it goes."""
+    streams = list(streams)
+    if not streams:
+        return run.update
+
+    def update(u: Any) -> None:
+        for s in streams:
+            s.feed(u)
+        run.update(u)
+
+    return update
 
 
 # --- commands ----------------------------------------------------------------------------------------------
