@@ -17,19 +17,13 @@ import csv
 import errno
 import json
 import os
-import pty
-import shutil
 import signal
-import subprocess
-import sys
-import tempfile
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 from clirun import run_cli
+from sigrun import check_csv, signalled, warm_worker
 
 from explorer_core import cli, export
 from explorer_core.scenes import get_scene
@@ -215,60 +209,6 @@ AFTER_PROGRESS_S = {"big section": 5.0}
 EXIT_S = 8.0
 
 
-def signalled(argv: list[str], sig: int, env: dict[str, str], cwd: Path, after: float = 0.5) -> tuple[int, str, float]:
-    """Run ``bilimovich argv`` with stderr on a terminal, send ``sig`` ``after`` seconds once its progress shows,
-    and return the exit status, what it wrote on stderr and the seconds from the signal to its exit."""
-    master, slave = pty.openpty()
-    proc = subprocess.Popen([sys.executable, "-m", "explorer_core.cli", *argv], cwd=cwd, env=env,
-                            stdout=subprocess.PIPE, stderr=slave, text=True)  # fmt: skip
-    os.close(slave)
-    chunks: list[bytes] = []
-
-    def read() -> None:
-        while True:
-            try:
-                data = os.read(master, 4096)
-            except OSError:
-                return
-            if not data:
-                return
-            chunks.append(data)
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    deadline = time.monotonic() + 240
-    # The work runs: a progress line (\r) or a stage's time, not only the worker's greeting.
-    while not any(m in b"".join(chunks) for m in (b"\r", b"sections: ")):
-        assert proc.poll() is None, b"".join(chunks).decode(errors="replace")
-        assert time.monotonic() < deadline, "no progress within 240 s"
-        time.sleep(0.05)
-    time.sleep(after)
-    start = time.monotonic()
-    proc.send_signal(sig)
-    proc.communicate(timeout=180)
-    took = time.monotonic() - start
-    reader.join(timeout=10)
-    os.close(master)
-    return proc.returncode, b"".join(chunks).decode(errors="replace").replace("\r\n", "\n"), took
-
-
-def check_csv(path: Path, numbers: bool = True) -> bool:
-    """The CSV reads back whole (every row as wide as its header, the last line ended; with ``numbers``, by
-    numpy too); True if it says it is partial (its run was stopped)."""
-    text = path.read_text()
-    assert text.endswith("\n"), f"{path} ends in a cut line"
-    lines = text.splitlines()
-    head = [ln for ln in lines if ln.startswith("#")]
-    rows = list(csv.reader(ln for ln in lines if not ln.startswith("#")))
-    assert rows and all(len(r) == len(rows[0]) for r in rows), f"{path} has a cut row"
-    if numbers and len(rows) > 1:
-        if len(rows) > 100_000:  # numpy's C reader (genfromtxt takes a minute for millions of rows)
-            np.loadtxt(path, delimiter=",", skiprows=1, comments="#")
-        else:
-            np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")
-    return bool(head) and lines[1].startswith("# partial: the run was stopped")
-
-
 def check_outputs(kind: str, d: Path, err: str) -> None:
     if kind == "reproduce":
         summary = json.loads((d / "rep" / "reproduce.json").read_text())
@@ -320,20 +260,8 @@ def test_an_interrupted_run_writes_what_it_computed(kind: str, sig: int, lone_en
 
 @pytest.fixture(scope="module")
 def worker_env():
-    # A short directory: a Unix socket's path must fit in 107 bytes (pytest's tmp_path may not).
-    sock_dir = tempfile.mkdtemp(prefix="bwi-", dir="/tmp")
-    env = {**os.environ, "BILIMOVICH_WORKER": "1", "BILIMOVICH_WORKER_DIR": sock_dir, "BILIMOVICH_WORKER_TRACE": "1",
-           "PYTHONPATH": str(ROOT)}  # fmt: skip
-    small = ["section", "--scene", "fig1A", "--ic", "0.1,0.2", "--periods", "3", "--quiet"]
-    subprocess.run([sys.executable, "-m", "explorer_core.cli", *small], env=env, cwd=ROOT, timeout=300, check=True)
-    deadline = time.monotonic() + 240
-    while not list(Path(sock_dir).glob("*/worker-*.sock")):
-        assert time.monotonic() < deadline, "no worker started"
-        time.sleep(0.2)
-    yield env
-    subprocess.run([sys.executable, "-m", "explorer_core.cli", "worker", "stop"], env=env, cwd=ROOT, timeout=60,
-                   capture_output=True)  # fmt: skip
-    shutil.rmtree(sock_dir, ignore_errors=True)
+    with warm_worker() as env:
+        yield env
 
 
 @pytest.mark.slow
