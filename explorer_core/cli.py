@@ -569,6 +569,8 @@ def cmd_analysis(args: argparse.Namespace) -> int:
         streams = _streams(a.get("result"), outs, stack) if anything or "progress" in accepts else {}
         run_kw.update({k: v for k, v in (("cancel", run), ("progress", _tap(run, streams.values())))
                        if anything or k in accepts})  # fmt: skip
+        if "stop" in accepts:  # a runner whose threads poll a stop flag themselves (a chart's running tiles)
+            run_kw["stop"] = run
         result = runner(spec, **run_kw)
         summary = _with_scene(result.summary(), args)
         if getattr(args, "scheduler", None):

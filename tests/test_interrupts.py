@@ -29,6 +29,7 @@ from explorer_core import cli, export
 from explorer_core.scenes import get_scene
 from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.section import Section, section
+from explorer_core.status import Status
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -152,6 +153,39 @@ def test_a_streamed_csv_of_a_failed_run_leaves_nothing(tmp_path: Path) -> None:
             w.feed(3)  # the backlog bound makes the run wait for the writer, never lose a row
         assert w.write(["partial: a test"]) == 150
     assert path.read_text() == "a,b\n# partial: a test\n" + "1,2\n" * 150
+
+
+# --- a chart stops within a tile ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("refine", [False, True])
+def test_a_chart_stops_within_a_tile_and_keeps_only_whole_tiles(refine: bool) -> None:
+    """``stop`` is polled by the running tiles (every SETTLE_CHUNK periods): once it returns True a tile ends at
+    its next look with nothing, as one never started. The pixels of the tiles that ended are bit for bit an
+    uninterrupted chart's; the stopped ones are not computed (``not_run``), and a refined chart infers nothing
+    from an unfinished level."""
+    from explorer_core.analyses.regimes import chart_spec, regime_chart
+
+    spec = chart_spec(get_scene("fig11").params, "alpha", (-0.42, -0.36), "I11", (0.9, 1.3), (8, 8), transient=300,
+                      periods=300)  # fmt: skip
+    kw = {"workers": 1, "tile_pixels": 16, "coarse": 4, "refine": refine}
+    whole = regime_chart(spec, **kw)
+    assert whole.completed and whole.computed.all()
+    ended, polls = [], []
+
+    def stop() -> bool:  # from the second tile on: True at its third look (well inside it)
+        if ended:
+            polls.append(1)
+        return len(polls) > 2
+
+    stopped = regime_chart(spec, **kw, progress=lambda u: u.tile is not None and ended.append(u.tile), stop=stop)
+    assert len(ended) == 1 and len(polls) > 2  # the first tile ended; every later one was stopped inside
+    assert not stopped.completed and 0 < stopped.computed.sum() < stopped.computed.size
+    done = stopped.computed
+    for name in ("regime", "period", "lyap", "status"):
+        assert np.array_equal(getattr(stopped, name)[done], getattr(whole, name)[done]), name
+    assert (stopped.status[~done] == int(Status.NOT_RUN)).all() and not stopped.inferred.any()
+    assert any("not computed" in loss.why for loss in stopped.lost)
 
 
 # --- no total failure in silence ----------------------------------------------------------------------------
