@@ -765,9 +765,15 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     with _Run(args) as run:
         rep = reproduce(size, stages=stages, progress=lambda u: u.detail and progress(*u.detail), cancel=run)
-    from explorer_core.reports.render import render_reproduction  # matplotlib only here
+    if run() or not rep.completed:  # stopped: no figures, and no wait for matplotlib's import (a second or more)
+        from explorer_core.losses import Loss
 
-    figures = render_reproduction(rep, out, cancel=run)  # a stop signal: no more figures
+        figures: list[str] = []
+        rep.lost.append(Loss("figures", 1, "not drawn: the run was stopped (run it again for them)"))
+    else:
+        from explorer_core.reports.render import render_reproduction  # matplotlib only here
+
+        figures = render_reproduction(rep, out, cancel=run)  # a stop signal: no more figures
     table = [os.path.join(out, "table.md"), os.path.join(out, "table.csv")]
     rep.write_table(*table)
     summary = {**rep.summary(), "figures": figures, "table": table, "elapsed_s": round(time.perf_counter() - start, 2)}
