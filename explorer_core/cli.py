@@ -210,6 +210,13 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 FAILED_STATUS = 3
 
 
+class Interrupted(KeyboardInterrupt):
+    """A stop signal before the work began, raised by the command line's handlers. A subclass, not
+    ``KeyboardInterrupt`` itself: CPython marks a bare ``KeyboardInterrupt`` that passes through code it runs
+    from C (an import's) as unhandled, and then ends the process by SIGINT (exit -2) whatever status the
+    command returns (a SIGTERM came out as a death by SIGINT)."""
+
+
 class _Signals:
     """The stop signals one command received. Before its work starts a signal ends the command at once (a
     ``KeyboardInterrupt``: nothing is computed yet); once a :class:`_Run` has started it is a request the work
@@ -234,7 +241,7 @@ class _Signals:
     def _on_signal(self, signum: int, frame: Any) -> None:
         self.received.append(int(signum))
         if not self.defer:
-            raise KeyboardInterrupt
+            raise Interrupted
 
     def status(self) -> int:
         """The exit status of an interrupted command: ``128 +`` the first signal (130 without one: a
@@ -557,34 +564,67 @@ def cmd_analysis(args: argparse.Namespace) -> int:
     _, run_kw = _declared_values(args, runner, scene)
     if c.scheduler:
         run_kw["executor"] = _executor(args)
-    with _Run(args) as run:
-        # A short check has neither progress nor cancel; a runner that passes keywords on (**kw) takes both.
-        accepts = inspect.signature(runner).parameters
-        anything = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in accepts.values())
-        run_kw.update({k: v for k, v in (("cancel", run), ("progress", run.update)) if anything or k in accepts})
+    # A short check has neither progress nor cancel; a runner that passes keywords on (**kw) takes both.
+    accepts = inspect.signature(runner).parameters
+    anything = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in accepts.values())
+    with contextlib.ExitStack() as stack, _Run(args) as run:
+        streams = _streams(a.get("result"), outs, stack) if anything or "progress" in accepts else {}
+        run_kw.update({k: v for k, v in (("cancel", run), ("progress", _tap(run, streams.values())))
+                       if anything or k in accepts})  # fmt: skip
+        if "stop" in accepts:  # a runner whose threads poll a stop flag themselves (a chart's running tiles)
+            run_kw["stop"] = run
         result = runner(spec, **run_kw)
-    summary = _with_scene(result.summary(), args)
-    if getattr(args, "scheduler", None):
-        summary["scheduler"] = args.scheduler
-    written = []
-    for path in [*outs, *(getattr(args, f) for f in c.files if getattr(args, f, None))]:
-        picture = next((fn for suffix, fn in c.pictures.items() if path.lower().endswith(suffix)), None)
-        if picture is None:
-            written.append(result.write(path))
-        else:  # matplotlib (reports/) only when a picture is asked for
-            module, _, name = picture.partition(":")
-            getattr(importlib.import_module(module), name)(result, path)
-            written.append({"path": path})
+        summary = _with_scene(result.summary(), args)
+        if getattr(args, "scheduler", None):
+            summary["scheduler"] = args.scheduler
+        written = []
+        for path in [*outs, *(getattr(args, f) for f in c.files if getattr(args, f, None))]:
+            picture = next((fn for suffix, fn in c.pictures.items() if path.lower().endswith(suffix)), None)
+            if path in streams:  # its rows are on the disk: a head and a rename
+                written.append(streams[path].write_result(result))
+            elif picture is None:
+                written.append(result.write(path))
+            else:  # matplotlib (reports/) only when a picture is asked for
+                module, _, name = picture.partition(":")
+                getattr(importlib.import_module(module), name)(result, path)
+                written.append({"path": path})
     if written:
         summary["out"] = written
-    # A stop signal during the run is an interrupted run, whatever the result says of itself (manifolds cancelled
-    # mid-growth say so in their losses, not in `completed`).
-    completed = bool(getattr(result, "completed", True)) and not run()
+    # Stopped: what its files say (export.partial: not `completed`, or a loss by the cancel, as manifolds cancelled
+    # mid-growth say). A signal that came as the last piece of work ended stopped nothing: its files are complete
+    # and main says "interrupted as its work ended" (it said "the points computed so far" over a whole file).
+    completed = not export.partial(result)
     as_json = bool(getattr(args, "json", False)) or (c.json_unless_out and not written)
     # A result's notes (the section's reliability warnings) go to stderr unless --quiet.
     notes = [] if getattr(args, "quiet", False) else getattr(result, "notes", list)()
     return _finish(args, summary, result.report, result=result, completed=completed, what=c.what, as_json=as_json,
                    notes=notes)  # fmt: skip
+
+
+def _streams(result_type: type, outs: Sequence[str], stack: contextlib.ExitStack) -> dict[str, Any]:
+    """The outputs ``result_type`` writes while its run goes (its ``streamed(path)``: a writer fed every progress
+    update, ``write_result(result)`` at the end; a section's CSV), each discarded if the command fails."""
+    streamed = getattr(result_type, "streamed", None)
+    out: dict[str, Any] = {}
+    for path in outs if streamed is not None else ():
+        writer = streamed(path)
+        if writer is not None:
+            out[path] = stack.enter_context(writer)
+    return out
+
+
+def _tap(run: _Run, streams: Any) -> Callable[[Any], None]:
+    """The run's progress callback: the progress line, and every update to the outputs written as it goes."""
+    streams = list(streams)
+    if not streams:
+        return run.update
+
+    def update(u: Any) -> None:
+        for s in streams:
+            s.feed(u)
+        run.update(u)
+
+    return update
 
 
 # --- commands ----------------------------------------------------------------------------------------------
@@ -727,9 +767,15 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     with _Run(args) as run:
         rep = reproduce(size, stages=stages, progress=lambda u: u.detail and progress(*u.detail), cancel=run)
-    from explorer_core.reports.render import render_reproduction  # matplotlib only here
+    if run() or not rep.completed:  # stopped: no figures, and no wait for matplotlib's import (a second or more)
+        from explorer_core.losses import Loss
 
-    figures = render_reproduction(rep, out, cancel=run)  # a stop signal: no more figures
+        figures: list[str] = []
+        rep.lost.append(Loss("figures", 1, "not drawn: the run was stopped (run it again for them)"))
+    else:
+        from explorer_core.reports.render import render_reproduction  # matplotlib only here
+
+        figures = render_reproduction(rep, out, cancel=run)  # a stop signal: no more figures
     table = [os.path.join(out, "table.md"), os.path.join(out, "table.csv")]
     rep.write_table(*table)
     summary = {**rep.summary(), "figures": figures, "table": table, "elapsed_s": round(time.perf_counter() - start, 2)}
@@ -993,7 +1039,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     once; once the work runs, the work stops at its next look, writes what it computed, prints what was lost and
     exits ``128 + signal`` (130 for Ctrl-C, 143 for SIGTERM). A run in which every member failed exits
     :data:`FAILED_STATUS`."""
-    global _signals
+    global _signals, _began
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
     args = parser.parse_args(argv)
@@ -1003,7 +1049,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     outer = _signals
     with warnings.catch_warnings(record=True) as caught, _Signals() as signals:
         warnings.simplefilter("always")
-        _signals = signals
+        _signals, _began = signals, True
         try:
             status = _run(args, prefix)
         finally:
@@ -1057,16 +1103,53 @@ def entry() -> None:
         worker.serve(argv[1], main)
         return
     cmd = worker.command_of(argv)
+    # Outside the command's own handlers (main's, or the worker client's) a stop signal is no traceback and no
+    # death by the signal: before the command it ends the process at once (nothing ran); after it, the files
+    # are written and the exit status says the signal came (as a signal at the very end of the work does).
+    late: list[int] = []
+
+    def outside(signum: int, frame: Any) -> None:
+        late.append(int(signum))
+        if _began is None:
+            raise Interrupted
+
+    for s in STOP_SIGNALS:
+        signal.signal(s, outside)
+    try:
+        status = _entry(argv, cmd)
+    except KeyboardInterrupt:
+        sys.stderr.write(f"bilimovich{f' {cmd}' if cmd else ''}: interrupted\n")
+        status = 128 + late[0] if late else 130
+    if late and status == 0:
+        sys.stderr.write(f"bilimovich{f' {cmd}' if cmd else ''}: interrupted ({signal.Signals(late[0]).name}) as "
+                         "its work ended; what it wrote is complete\n")  # fmt: skip
+        status = 128 + late[0]
+    for s in STOP_SIGNALS:  # the work is over: a signal now is ignored (Python's exit would die of it)
+        signal.signal(s, signal.SIG_IGN)
+    sys.exit(status)
+
+
+#: Whether :func:`main` has begun its command in this process (None: not yet; a signal then ends it at once).
+_began: bool | None = None
+
+
+def _entry(argv: list[str], cmd: str | None) -> int:
+    """The command's exit status, run by a free warm worker if there is one, else here (then leaving a worker)."""
+    from explorer_core import worker
+
+    global _began
     use = worker.enabled() and cmd is not None and cmd not in worker.LOCAL and not {"-h", "--help"} & set(argv)
     if use:
+        _began = True  # the client's handlers from here (a job may start: it runs to its end or is cancelled)
         status = worker.run_in_worker(argv)
+        _began = status is not None or None
         if status is not None:
-            sys.exit(status)
+            return status
     status = worker.run_here(main, argv)  # a stop signal is honoured as in the worker, even inside a kernel
     if use and "numba" in sys.modules:  # this run paid for the kernels: the next one need not
         with contextlib.suppress(OSError):
             worker.spawn([sys.executable, "-m", "explorer_core.cli", _WORKER])
-    sys.exit(status)
+    return status
 
 
 if __name__ == "__main__":

@@ -249,35 +249,46 @@ def run_in_worker(argv: Sequence[str]) -> int | None:
         if _refused(exc):
             _remove_if_stale(path)
         return None
-    try:
-        request = {"argv": list(argv), "cwd": os.getcwd(), "tty": [sys.stdout.isatty(), sys.stderr.isatty()]}
-        _send(sock, b"h", json.dumps(request).encode())
-        kind, payload = _recv(sock)  # "a" (accepted) or "b" (busy), at once
-    except (OSError, ConnectionError):
-        sock.close()
-        return None
-    if kind != b"a":
-        sock.close()
-        return None
-    sock.settimeout(None)
     received: list[int] = []
+    accepted = False
 
-    def forward(signum: int, frame: FrameType | None) -> None:
-        received.append(signum)
-        if len(received) > 1:
-            raise _Leave
+    def tell(signum: int) -> None:
         with contextlib.suppress(OSError):
             _send(sock, b"i", str(int(signum)).encode())
         # The worker answers when the job has written what it computed, or abandons it (and exits, which
         # closes the socket) after CANCEL_HARD_S at the latest.
         sock.settimeout(CANCEL_HARD_S + 10.0)
 
+    def forward(signum: int, frame: FrameType | None) -> None:
+        received.append(signum)
+        if len(received) > 1:
+            raise _Leave
+        if accepted:  # before, the job is told as soon as the worker has taken it
+            tell(signum)
+
     def cancelled(status: int) -> int:
         # 128 + the first signal, as a lone process: an interrupted job (130) or one that had ended (0).
         return 128 + int(received[0]) if status in (0, 130) else status
 
+    # The handlers before the request: a signal while the worker takes the job cancels it as any other (it
+    # killed the client there, and the job went on to write a partial file after the client's exit).
     old = {s: signal.signal(s, forward) for s in FORWARDED}
     try:
+        try:
+            request = {"argv": list(argv), "cwd": os.getcwd(), "tty": [sys.stdout.isatty(), sys.stderr.isatty()]}
+            _send(sock, b"h", json.dumps(request).encode())
+            kind, payload = _recv(sock)  # "a" (accepted) or "b" (busy), at once
+        except (OSError, ConnectionError):
+            kind = b""
+        if kind != b"a":  # no job: run here, unless a signal came (then nothing runs)
+            if received:
+                sys.stderr.write(f"bilimovich {command_of(argv) or ''}: interrupted\n")
+                return 128 + int(received[0])
+            return None
+        sock.settimeout(None)
+        accepted = True
+        if received:
+            tell(received[0])
         while True:
             try:
                 kind, payload = _recv(sock)

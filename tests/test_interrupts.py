@@ -17,23 +17,19 @@ import csv
 import errno
 import json
 import os
-import pty
-import shutil
 import signal
-import subprocess
-import sys
-import tempfile
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 from clirun import run_cli
+from sigrun import check_csv, signalled, warm_worker
 
 from explorer_core import cli, export
 from explorer_core.scenes import get_scene
-from explorer_core.solve.section import section
+from explorer_core.solve.numerics import Numerics
+from explorer_core.solve.section import Section, section
+from explorer_core.status import Status
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -101,6 +97,97 @@ def test_a_full_disk_names_the_path(tmp_path: Path, monkeypatch) -> None:
     assert not out.exists() and os.listdir(tmp_path) == []
 
 
+# --- a section's CSV written while it runs -----------------------------------------------------------------
+
+
+def test_a_streamed_section_csv_is_the_ordinary_one_byte_for_byte(tmp_path: Path) -> None:
+    """The CSV the command line streams during the run (``Section.streamed``, fed every chunk) is the file
+    ``to_csv`` writes: k-major rows (every trajectory at k in order, then k + 1), numbers as ``repr``; for a run
+    that ended, one stopped midway (its ``# partial`` head) and one with trajectories that escape early."""
+    fig1a = get_scene("fig1A").params
+    ics = [(0.1, 0.2), (0.3, -0.1), (0.25, 0.25), (-0.2, 0.05)]  # the third escapes |q|, |r| < 0.5 at once
+    calls = [0]
+
+    def stop_at_5() -> bool:
+        calls[0] += 1
+        return calls[0] > 5
+
+    for name, cancel in (("whole", None), ("stopped", stop_at_5)):
+        calls[0] = 0
+        streamed = tmp_path / f"{name}-streamed.csv"
+        writer = Section.streamed(str(streamed))
+        with writer:
+            sec = section(
+                fig1a, ics, 40, numerics=Numerics(bound=0.5), progress=writer.feed, cancel=cancel, chunk_periods=3
+            )
+            out = writer.write_result(sec)
+        ordinary = tmp_path / f"{name}.csv"
+        assert sec.to_csv(str(ordinary)) == out["rows"] == int(sec.npts.sum())
+        assert streamed.read_bytes() == ordinary.read_bytes(), name
+        assert sec.completed is (name == "whole") and len(set(sec.npts.tolist())) > 1, sec.npts  # a short one
+        # The order and the numbers, built independently of the writer: by k, then by trajectory.
+        expect = [(i, sec.k_first + j, repr(float(sec.points[i, j, 0])), repr(float(sec.points[i, j, 1])))
+                  for j in range(sec.periods) for i in range(sec.n) if j < sec.npts[i]]  # fmt: skip
+        lines = ordinary.read_text().splitlines()
+        assert lines[1].startswith("# partial") is (name == "stopped")
+        rows = [tuple(r) for r in csv.reader(ln for ln in lines[1:] if not ln.startswith("#"))]
+        assert rows == [(str(i), str(k), q, r) for i, k, q, r in expect]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        f"{n}{s}.csv" for n in ("whole", "stopped") for s in ("", "-streamed")
+    )  # no temporary file left
+
+
+def test_a_streamed_csv_of_a_failed_run_leaves_nothing(tmp_path: Path) -> None:
+    path = tmp_path / "s.csv"
+    path.write_text("before\n")
+    with pytest.raises(RuntimeError), export.StreamedCsv(str(path), ("a",), lambda n: "1\r\n" * n, int) as w:
+        w.feed(3)
+        raise RuntimeError("the run failed")
+    assert path.read_text() == "before\n" and os.listdir(tmp_path) == ["s.csv"]
+    with pytest.raises(ValueError, match="a bad piece"), export.StreamedCsv(str(path), ("a",), int, int) as w:
+        w.feed("a bad piece")  # the writer's error comes back at the end, the file untouched
+        w.write()
+    assert path.read_text() == "before\n" and os.listdir(tmp_path) == ["s.csv"]
+    with export.StreamedCsv(str(path), ("a", "b"), lambda n: "1,2\r\n" * n, int, backlog=2) as w:
+        for _ in range(50):
+            w.feed(3)  # the backlog bound makes the run wait for the writer, never lose a row
+        assert w.write(["partial: a test"]) == 150
+    assert path.read_text() == "a,b\n# partial: a test\n" + "1,2\n" * 150
+
+
+# --- a chart stops within a tile ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("refine", [False, True])
+def test_a_chart_stops_within_a_tile_and_keeps_only_whole_tiles(refine: bool) -> None:
+    """``stop`` is polled by the running tiles (every SETTLE_CHUNK periods): once it returns True a tile ends at
+    its next look with nothing, as one never started. The pixels of the tiles that ended are bit for bit an
+    uninterrupted chart's; the stopped ones are not computed (``not_run``), and a refined chart infers nothing
+    from an unfinished level."""
+    from explorer_core.analyses.regimes import chart_spec, regime_chart
+
+    spec = chart_spec(get_scene("fig11").params, "alpha", (-0.42, -0.36), "I11", (0.9, 1.3), (8, 8), transient=300,
+                      periods=300)  # fmt: skip
+    kw = {"workers": 1, "tile_pixels": 16, "coarse": 4, "refine": refine}
+    whole = regime_chart(spec, **kw)
+    assert whole.completed and whole.computed.all()
+    ended, polls = [], []
+
+    def stop() -> bool:  # from the second tile on: True at its third look (well inside it)
+        if ended:
+            polls.append(1)
+        return len(polls) > 2
+
+    stopped = regime_chart(spec, **kw, progress=lambda u: u.tile is not None and ended.append(u.tile), stop=stop)
+    assert len(ended) == 1 and len(polls) > 2  # the first tile ended; every later one was stopped inside
+    assert not stopped.completed and 0 < stopped.computed.sum() < stopped.computed.size
+    done = stopped.computed
+    for name in ("regime", "period", "lyap", "status"):
+        assert np.array_equal(getattr(stopped, name)[done], getattr(whole, name)[done]), name
+    assert (stopped.status[~done] == int(Status.NOT_RUN)).all() and not stopped.inferred.any()
+    assert any("not computed" in loss.why for loss in stopped.lost)
+
+
 # --- no total failure in silence ----------------------------------------------------------------------------
 
 
@@ -147,60 +234,13 @@ RUNS = {
               "--y-range", "1,2", "--grid", "60,60", "--ic=-0.09,-2", "--periods", "2000", "--transient", "2000",
               "--out", "{d}/c.csv", "--out", "{d}/c.npz"],
     "reproduce": ["reproduce", "--size", "tiny", "--stages", "sections,lyapunov", "--out", "{d}/rep"],
+    # Millions of rows by the signal (issue 35's case): its CSV, streamed while the run goes, is whole at once.
+    "big section": ["section", "--scene", "fig1A", "--random", "2000", "--periods", "20000", "--out", "{d}/s.csv"],
 }  # fmt: skip
+#: Seconds each run goes on after its progress shows before the signal (the big section: a few million rows).
+AFTER_PROGRESS_S = {"big section": 5.0}
 #: Seconds from the signal to the client's exit allowed here (the aim is about one; the machine is shared).
 EXIT_S = 8.0
-
-
-def signalled(argv: list[str], sig: int, env: dict[str, str], cwd: Path) -> tuple[int, str, float]:
-    """Run ``bilimovich argv`` with stderr on a terminal, send ``sig`` once its progress shows, and return the
-    exit status, what it wrote on stderr and the seconds from the signal to its exit."""
-    master, slave = pty.openpty()
-    proc = subprocess.Popen([sys.executable, "-m", "explorer_core.cli", *argv], cwd=cwd, env=env,
-                            stdout=subprocess.PIPE, stderr=slave, text=True)  # fmt: skip
-    os.close(slave)
-    chunks: list[bytes] = []
-
-    def read() -> None:
-        while True:
-            try:
-                data = os.read(master, 4096)
-            except OSError:
-                return
-            if not data:
-                return
-            chunks.append(data)
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    deadline = time.monotonic() + 240
-    # The work runs: a progress line (\r) or a stage's time, not only the worker's greeting.
-    while not any(m in b"".join(chunks) for m in (b"\r", b"sections: ")):
-        assert proc.poll() is None, b"".join(chunks).decode(errors="replace")
-        assert time.monotonic() < deadline, "no progress within 240 s"
-        time.sleep(0.05)
-    time.sleep(0.5)
-    start = time.monotonic()
-    proc.send_signal(sig)
-    proc.communicate(timeout=180)
-    took = time.monotonic() - start
-    reader.join(timeout=10)
-    os.close(master)
-    return proc.returncode, b"".join(chunks).decode(errors="replace").replace("\r\n", "\n"), took
-
-
-def check_csv(path: Path, numbers: bool = True) -> bool:
-    """The CSV reads back whole (every row as wide as its header, the last line ended; with ``numbers``, by
-    numpy too); True if it says it is partial (its run was stopped)."""
-    text = path.read_text()
-    assert text.endswith("\n"), f"{path} ends in a cut line"
-    lines = text.splitlines()
-    head = [ln for ln in lines if ln.startswith("#")]
-    rows = list(csv.reader(ln for ln in lines if not ln.startswith("#")))
-    assert rows and all(len(r) == len(rows[0]) for r in rows), f"{path} has a cut row"
-    if numbers and len(rows) > 1:
-        np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")
-    return bool(head) and lines[1].startswith("# partial: the run was stopped")
 
 
 def check_outputs(kind: str, d: Path, err: str) -> None:
@@ -222,15 +262,16 @@ def check_outputs(kind: str, d: Path, err: str) -> None:
 
 
 def interrupt(kind: str, sig: int, env: dict[str, str], tmp_path: Path) -> str:
-    d = tmp_path / kind
+    d = tmp_path / kind.replace(" ", "-")
     d.mkdir()
     argv = [a.replace("{d}", str(d)) for a in RUNS[kind]]
-    rc, err, took = signalled(argv, sig, env, tmp_path)
+    rc, err, took = signalled(argv, sig, env, tmp_path, AFTER_PROGRESS_S.get(kind, 0.5))
     assert rc == 128 + sig, err
     assert "interrupted" in err, err
     assert "Traceback" not in err and "nothing more written" not in err, err
     assert took < EXIT_S, f"{kind}: {took:.1f} s from the signal to the exit\n{err}"
-    print(f"{kind} {signal.Signals(sig).name}: exit {rc} {took:.2f} s after the signal")
+    mode = "worker" if env.get("BILIMOVICH_WORKER") == "1" else "lone"
+    print(f"\nEXIT {kind} {mode} {signal.Signals(sig).name}: exit {rc} {took:.2f} s after the signal")
     if kind != "reproduce":  # a reproduction may have ended its work before the signal (then it is complete)
         assert "lost:" in err and "computed so far were written" in err, err
     check_outputs(kind, d, err)
@@ -242,39 +283,29 @@ def lone_env():
     return {**os.environ, "BILIMOVICH_WORKER": "0", "PYTHONPATH": str(ROOT)}
 
 
-@pytest.mark.parametrize(("kind", "sig"), [("section", signal.SIGINT), ("manifolds", signal.SIGTERM),
-                                           ("chart", signal.SIGINT), ("reproduce", signal.SIGTERM)])  # fmt: skip
+#: Every analysis with either signal, and the big section once per mode.
+SIGNALLED = [(kind, sig) for kind in RUNS if kind != "big section" for sig in (signal.SIGINT, signal.SIGTERM)]
+
+
+@pytest.mark.parametrize(("kind", "sig"), [*SIGNALLED, ("big section", signal.SIGINT)])
 def test_an_interrupted_run_writes_what_it_computed(kind: str, sig: int, lone_env, tmp_path: Path) -> None:
     interrupt(kind, sig, lone_env, tmp_path)
 
 
 @pytest.fixture(scope="module")
 def worker_env():
-    # A short directory: a Unix socket's path must fit in 107 bytes (pytest's tmp_path may not).
-    sock_dir = tempfile.mkdtemp(prefix="bwi-", dir="/tmp")
-    env = {**os.environ, "BILIMOVICH_WORKER": "1", "BILIMOVICH_WORKER_DIR": sock_dir, "BILIMOVICH_WORKER_TRACE": "1",
-           "PYTHONPATH": str(ROOT)}  # fmt: skip
-    small = ["section", "--scene", "fig1A", "--ic", "0.1,0.2", "--periods", "3", "--quiet"]
-    subprocess.run([sys.executable, "-m", "explorer_core.cli", *small], env=env, cwd=ROOT, timeout=300, check=True)
-    deadline = time.monotonic() + 240
-    while not list(Path(sock_dir).glob("*/worker-*.sock")):
-        assert time.monotonic() < deadline, "no worker started"
-        time.sleep(0.2)
-    yield env
-    subprocess.run([sys.executable, "-m", "explorer_core.cli", "worker", "stop"], env=env, cwd=ROOT, timeout=60,
-                   capture_output=True)  # fmt: skip
-    shutil.rmtree(sock_dir, ignore_errors=True)
+    with warm_worker() as env:
+        yield env
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("kind", "sig"), [("section", signal.SIGTERM), ("manifolds", signal.SIGINT),
-                                           ("chart", signal.SIGTERM), ("reproduce", signal.SIGINT)])  # fmt: skip
+@pytest.mark.parametrize(("kind", "sig"), [*SIGNALLED, ("big section", signal.SIGTERM)])
 def test_an_interrupted_run_in_the_worker_writes_what_it_computed(kind, sig, worker_env, tmp_path: Path) -> None:
     err = interrupt(kind, sig, worker_env, tmp_path)
     assert "served by the worker" in err  # the job ran in the worker, and its lines reached the caller
     (log,) = Path(worker_env["BILIMOVICH_WORKER_DIR"]).glob("*/worker-*.log")
     text = log.read_text()
-    job = [ln for ln in text.splitlines() if f"'{kind}'" in ln and str(tmp_path) in ln]
+    job = [ln for ln in text.splitlines() if f"'{kind.split()[-1]}'" in ln and str(tmp_path) in ln]
     assert any(ln.endswith(": started") for ln in job), text[-2000:]
     assert any(f"cancelled (the client's {signal.Signals(sig).name})" in ln for ln in job), text[-2000:]
     assert any("ended, exit status 130" in ln and "cancelled" in ln for ln in job), text[-2000:]

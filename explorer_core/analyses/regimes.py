@@ -56,7 +56,7 @@ from explorer_core.analyses.specs import Checking
 from explorer_core.analyses.sweeps import check_param, params_at, sweep_values
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
-from explorer_core.parallel.executor import Executor, local_executor
+from explorer_core.parallel.executor import Executor, LocalExecutor, local_executor
 from explorer_core.progress import Progress
 from explorer_core.progress import run as run_updates
 from explorer_core.solve import tangent
@@ -419,8 +419,11 @@ class TileResult:
     steps: np.ndarray | None = None
 
 
-def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
-    """Classify every pixel of ``tile`` (a pure function of its arguments; single-threaded).
+def compute_tile(spec: ChartSpec, tile: TileSpec, stop: Callable[[], bool] | None = None) -> TileResult | None:
+    """Classify every pixel of ``tile`` (a pure function of its arguments; single-threaded); None if ``stop``
+    (polled at every look, every :data:`SETTLE_CHUNK` periods) returned True: a stopped tile computed nothing,
+    as a tile never started (its pixels are not kept half done, so the others are exactly an uninterrupted
+    chart's).
 
     Every pixel and initial condition runs with the tangent system on its own step sequence (lock-step
     blocks across pixels were measured slower: a block steps at its most demanding member's pace, and
@@ -456,7 +459,7 @@ def compute_tile(spec: ChartSpec, tile: TileSpec) -> TileResult:
     had not converged on (Newton finds them; near a period doubling, the least period), and long chaotic
     transients that settle (or escape) after the chaos decision.
     """
-    return _tile(spec, tile, _classify_members)
+    return _tile(spec, tile, _classify_members, stop)
 
 
 class _Out(NamedTuple):
@@ -470,8 +473,15 @@ class _Out(NamedTuple):
     steps: np.ndarray
 
 
-def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileResult:
-    """The tile's arrays; ``fill(spec, params, at, out)`` classifies its valid members into ``out``."""
+class _TileStopped(Exception):
+    """A tile's ``stop`` returned True: it ends with nothing."""
+
+
+def _tile(
+    spec: ChartSpec, tile: TileSpec, fill: Callable[..., None], stop: Callable[[], bool] | None = None
+) -> TileResult | None:
+    """The tile's arrays; ``fill(spec, params, at, out)`` classifies its valid members into ``out`` (with
+    ``stop=stop`` when given: None if it stopped)."""
     start = time.perf_counter()
     pix = tile.pixels()
     n_ic = spec.ics.shape[0]
@@ -495,7 +505,11 @@ def _tile(spec: ChartSpec, tile: TileSpec, fill: Callable[..., None]) -> TileRes
         member_params += [p] * n_ic
     if members:
         at = np.array(members, dtype=np.int64)
-        fill(spec, member_params, at, _Out(regime, period, lyap, status, periods_run, steps))
+        out = _Out(regime, period, lyap, status, periods_run, steps)
+        try:
+            fill(spec, member_params, at, out) if stop is None else fill(spec, member_params, at, out, stop=stop)
+        except _TileStopped:
+            return None
     jj = np.array([j for j, _ in pix], dtype=np.int64)
     ii = np.array([i for _, i in pix], dtype=np.int64)
     return TileResult(tile, jj, ii, regime, period, lyap, status, tuple(errors), time.perf_counter() - start,
@@ -641,8 +655,11 @@ def _divisors(p: int) -> list[int]:
     return [d for d in range(1, p + 1) if p % d == 0]
 
 
-def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out) -> None:
-    """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile)."""
+def _classify_members(
+    spec: ChartSpec, params: list[Params], at: np.ndarray, out: _Out, stop: Callable[[], bool] | None = None
+) -> None:
+    """Fill the tile's arrays at ``at[m] = (pixel, ic)`` for member ``m`` under ``params[m]`` (see compute_tile);
+    raises :class:`_TileStopped` once ``stop`` returns True at a look."""
     regime, period, lyap, status = out[:4]
     bound = min(spec.numerics.bound, ESCAPE_BOUND)
     total = spec.transient + spec.periods
@@ -668,6 +685,8 @@ def _classify_members(spec: ChartSpec, params: list[Params], at: np.ndarray, out
         live = np.flatnonzero(batch.status == Status.OK)
         done = 0
         while done < total and live.size:
+            if stop is not None and stop():
+                raise _TileStopped
             # Looks every SETTLE_CHUNK periods, landing on every multiple of CHAOS_BLOCK (the chaos bounds').
             step = min(SETTLE_CHUNK, CHAOS_BLOCK - done % CHAOS_BLOCK, total - done)
             part = batch.take(live)
@@ -1060,12 +1079,16 @@ def iter_chart(
     cancel: Callable[[], bool] | None = None,
     executor: Executor | None = None,
     refine: bool = False,
+    stop: Callable[[], bool] | None = None,
 ) -> Iterator[ChartUpdate]:
     """Compute the chart tile by tile, coarse levels first, yielding after every tile.
 
     Tiles are tasks of ``executor`` (:mod:`explorer_core.parallel.executor`; default: ``workers`` threads
     of this process, both cores) -- a Dask executor runs them on a cluster with the same updates and
     the same chart. ``cancel`` is polled whenever a tile finishes; no new tile starts once it returns True.
+    ``stop`` (thread-safe, returning at once: a stop flag) is polled by the running tiles too, every
+    :data:`SETTLE_CHUNK` periods, on this machine's threads (a cluster's tiles run to their end); a tile it
+    stops computed nothing, as one never started, so a stop waits for a look, not for the tiles to end.
 
     ``refine``: compute the ``coarse`` lattice (:func:`lattice`: every ``coarse``-th pixel and the last
     row and column), then each finer level only where the coarser one is not uniform around a pixel
@@ -1073,18 +1096,20 @@ def iter_chart(
     Levels run one after another (each needs the previous one); ``total_tiles`` of an update counts
     the tiles planned so far.
     """
+    ex = local_executor(executor, workers)
+    stop = stop if isinstance(ex, LocalExecutor) else None  # a cluster's task cannot poll this process
     if refine:
-        yield from _iter_refined(spec, coarse, tile_pixels, local_executor(executor, workers), cancel)
+        yield from _iter_refined(spec, coarse, tile_pixels, ex, cancel, stop)
         return
     start = time.perf_counter()
     tiles = plan_tiles(spec.shape, coarse, tile_pixels)
     chart = Chart.empty(spec)
     done = 0
-    todo = deque((n, compute_tile, (spec, tile)) for n, tile in enumerate(tiles))
-    with closing(local_executor(executor, workers).stream(todo, cancel)) as stream:
+    todo = deque(_task(n, spec, tile, stop) for n, tile in enumerate(tiles))
+    with closing(ex.stream(todo, cancel)) as stream:
         for batch in stream:
-            # Tiles that finish together: coarser first, so the picture refines in order.
-            for _, res in sorted(batch, key=lambda tr: tr[1].tile.stride, reverse=True):
+            # Tiles that finish together: coarser first, so the picture refines in order (a stopped one: nothing).
+            for _, res in sorted(_finished(batch), key=lambda tr: tr[1].tile.stride, reverse=True):
                 chart.add(res)
                 done += 1
                 chart.elapsed_s = time.perf_counter() - start
@@ -1100,10 +1125,26 @@ def iter_chart(
 REFINE_RING = 1
 
 
+def _task(tag: Any, spec: ChartSpec, tile: TileSpec, stop: Callable[[], bool] | None) -> tuple:
+    """An executor's task computing ``tile`` (polling ``stop`` if there is one: a cluster's task has none)."""
+    return (tag, compute_tile, (spec, tile) if stop is None else (spec, tile, stop))
+
+
+def _finished(batch: list[tuple[Any, TileResult | None]]) -> list[tuple[Any, TileResult]]:
+    """The tiles of a batch that ended (not stopped)."""
+    return [(tag, res) for tag, res in batch if res is not None]
+
+
 def _iter_refined(
-    spec: ChartSpec, coarse: int, tile_pixels: int, ex: Executor, cancel: Callable[[], bool] | None
+    spec: ChartSpec,
+    coarse: int,
+    tile_pixels: int,
+    ex: Executor,
+    cancel: Callable[[], bool] | None,
+    stop: Callable[[], bool] | None = None,
 ) -> Iterator[ChartUpdate]:
-    """:func:`iter_chart` with ``refine=True``."""
+    """:func:`iter_chart` with ``refine=True`` (a stopped tile leaves its level unfinished: no level after it is
+    planned, nothing is inferred from it)."""
     if coarse < 1 or coarse & (coarse - 1):
         raise ParameterError(f"coarse must be a power of two, got {coarse!r}")
     start = time.perf_counter()
@@ -1117,14 +1158,14 @@ def _iter_refined(
         size = max(4, min(tile_pixels, math.ceil(len(pixels) / (4 * ex.threads()))))
         for k in range(0, len(pixels), size):
             tile = TileSpec(stride, coarse, 0, ny, 0, nx, only=tuple(pixels[k : k + size]))
-            todo.append((None, compute_tile, (spec, tile)))
+            todo.append(_task(None, spec, tile, stop))
         return math.ceil(len(pixels) / size)
 
     first = [(int(j), int(i)) for j in lattice(ny, coarse) for i in lattice(nx, coarse)]
     pending = planned = push(first, coarse)
     with closing(ex.stream(todo, cancel)) as stream:
         for batch in stream:
-            for _, res in batch:
+            for _, res in _finished(batch):
                 chart.add(res)
                 done += 1
                 pending -= 1
@@ -1172,10 +1213,11 @@ def regime_chart(
     cancel: Callable[[], bool] | None = None,
     executor: Executor | None = None,
     refine: bool,
+    stop: Callable[[], bool] | None = None,
 ) -> Chart:
     """The whole chart (see :func:`iter_chart`); a cancelled chart has ``completed=False``. The options are
-    declared above (defaults, checks, flags); ``workers``, ``progress``, ``cancel``, ``executor``: the run's
-    plumbing."""
+    declared above (defaults, checks, flags); ``workers``, ``progress``, ``cancel``, ``executor``, ``stop`` (a
+    thread-safe cancel the running tiles poll): the run's plumbing."""
     kw = {"coarse": coarse, "tile_pixels": tile_pixels, "workers": workers, "cancel": cancel, "executor": executor,
-          "refine": refine}  # fmt: skip
+          "refine": refine, "stop": stop}  # fmt: skip
     return run_updates(iter_chart(spec, **kw), progress)

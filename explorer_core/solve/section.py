@@ -10,7 +10,7 @@ app, the CLI's progress line) can draw points as they come and stop early;
 
 from __future__ import annotations
 
-import csv
+import os
 import time
 from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass, field
@@ -56,6 +56,31 @@ class SectionChunk:
     @property
     def k_step(self) -> int:
         return 1 if self.k_first >= 0 else -1
+
+    def rows(self) -> int:
+        """Its CSV rows: the valid points."""
+        return int(self.npts.sum())
+
+    def csv_rows(self) -> str:
+        """Its valid points as CSV rows in the file's order (:data:`CSV_HEADER`)."""
+        return _csv_rows(self.points, self.npts, self.k_first, self.k_step)
+
+
+#: The section CSV's columns. Its rows are k-major: every trajectory's point at ``k`` in trajectory order, then
+#: ``k + 1``, ...: the order the run computes them in, so the file streamed while it runs
+#: (:meth:`Section.streamed`) is the one :meth:`Section.to_csv` writes, byte for byte.
+CSV_HEADER = ("traj", "k", "q", "r")
+#: Rows :meth:`Section.to_csv` formats at a time (a bounded piece of text in memory).
+_CSV_BLOCK_ROWS = 100_000
+
+
+def _csv_rows(points: np.ndarray, npts: np.ndarray, k_first: int, k_step: int) -> str:
+    """``traj,k,q,r`` rows, k-major, of the valid points ``points[i, :npts[i]]`` at ``k_first + k_step * j``:
+    numbers as ``csv.writer`` writes ``repr`` (the shortest text that reads back to the same double), ``\\r\\n``
+    ended (one ``%`` per row: a third of the time of ``csv.writer``)."""
+    j, i = np.nonzero(np.arange(points.shape[1])[:, None] < npts[None, :])  # row-major: by j, then by i
+    cols = (i.tolist(), (k_first + k_step * j).tolist(), points[i, j, 0].tolist(), points[i, j, 1].tolist())
+    return "".join(map("%d,%d,%r,%r\r\n".__mod__, zip(*cols, strict=True)))
 
 
 def _long(points: np.ndarray, npts: np.ndarray, k_first: int, k_step: int = 1):
@@ -250,17 +275,25 @@ class Section(Drawable):
         return self.completed and not self.lost
 
     def to_csv(self, path: str) -> int:
-        """Write ``traj,k,q,r`` rows (valid points only), whole or not at all; a section whose run was stopped
-        says so after its header (``# `` lines, see :func:`explorer_core.export.partial`). Returns the row
-        count."""
-        traj, k, q, r = self.long()
+        """Write ``traj,k,q,r`` rows (valid points only) in k-major order (:data:`CSV_HEADER`), whole or not at
+        all; a section whose run was stopped says so after its header (``# `` lines, see
+        :func:`explorer_core.export.partial`). Returns the row count."""
+        block = max(1, _CSV_BLOCK_ROWS // max(1, self.n))
         with export.atomic(path) as tmp, open(tmp, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["traj", "k", "q", "r"])
-            fh.writelines(export.comment_lines(export.partial(self)))
-            for row in zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True):
-                w.writerow((row[0], row[1], repr(row[2]), repr(row[3])))
-        return int(traj.size)
+            fh.write(export.csv_head(CSV_HEADER, export.partial(self)))
+            for j in range(0, int(self.npts.max(initial=0)), block):
+                npts = np.clip(self.npts - j, 0, block)
+                fh.write(_csv_rows(self.points[:, j : j + block], npts, self.k_first + self.k_step * j, self.k_step))
+        return int(self.npts.sum())
+
+    @classmethod
+    def streamed(cls, path: str) -> export.StreamedCsv | None:
+        """A writer of ``path`` fed the run's chunks while it goes (its ``feed``: the run's ``progress``), whose
+        ``write_result(section)`` ends the file as :meth:`write` would write it (:meth:`to_csv`, byte for byte);
+        None for a file written only at the end (not ``.csv``)."""
+        if not os.fspath(path).lower().endswith(".csv"):
+            return None
+        return export.StreamedCsv(path, CSV_HEADER, SectionChunk.csv_rows, SectionChunk.rows)
 
 
 def section(
