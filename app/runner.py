@@ -388,16 +388,20 @@ class Runner:
         if self._on_busy is not None and not self.closed:
             self._deliver(lambda: self._on_busy(channel))
 
+    def _one_less(self, channel: str, gen: int) -> bool:
+        """One job of ``channel``'s generation ``gen`` fewer (lock held); whether none is left."""
+        left = self._live[channel].get(gen, 0) - 1
+        if left > 0:
+            self._live[channel][gen] = left
+        else:
+            self._live[channel].pop(gen, None)
+        return left <= 0
+
     def _ended(self, channel: str, gen: int) -> None:
         """A job is over (document thread): delivered after everything it emitted, so a channel is
         busy until its results are on the page, not only until its thread is done."""
         with self._lock:
-            left = self._live[channel].get(gen, 0) - 1
-            if left > 0:
-                self._live[channel][gen] = left
-            else:
-                self._live[channel].pop(gen, None)
-            notify = left <= 0 and gen == self._gen[channel]
+            notify = self._one_less(channel, gen) and gen == self._gen[channel]
         if notify and self._on_busy is not None and not self.closed:
             self._on_busy(channel)
 
@@ -490,11 +494,7 @@ class Runner:
             if ticket is not None:
                 sched.release(ticket)
             with self._lock:
-                left = self._live[channel].get(gen, 0) - 1
-                if left > 0:
-                    self._live[channel][gen] = left
-                else:
-                    self._live[channel].pop(gen, None)
+                self._one_less(channel, gen)
         return gen
 
     def _trace_later(self, channel: str, stamps: list[float]) -> None:
