@@ -536,10 +536,9 @@ def _grid(n: str, v: Any) -> tuple[int, int]:
     return nx, ny
 
 
-def _cells(n: str, v: Any) -> tuple[int, int] | None:
-    """``(NQ, NR)`` recurrence cells, each in ``[1, 4096]``, or None (the default, from the boxes)."""
-    if v is None:
-        return None
+def _cells(n: str, v: Any) -> tuple[int, int]:
+    """``(NQ, NR)`` recurrence cells, each in ``[1, 4096]`` (its Check is optional: None, the default from the
+    boxes, never reaches here)."""
     try:
         cq, cr = (x for x in v)
     except (TypeError, ValueError):

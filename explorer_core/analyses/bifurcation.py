@@ -693,10 +693,9 @@ class DiagramSpec:
                 "newton": sw.newton.as_dict(), "seeding": self.seeding, "sweeps": list(self.sweeps)}  # fmt: skip
 
 
-def _values(n: str, v: Any) -> np.ndarray | None:
-    """The parameter's values given as such (1-D, finite, at least one), or None (from ``value_range``)."""
-    if v is None:
-        return None
+def _values(n: str, v: Any) -> np.ndarray:
+    """The parameter's values given as such (1-D, finite, at least one; its Check is optional: None, the values from
+    ``value_range``, never reaches here)."""
     vals = np.asarray(v, dtype=float).ravel()
     if vals.size == 0 or not np.all(np.isfinite(vals)):
         raise ParameterError(f"{n} must be a non-empty list of finite numbers, got {v!r}")
@@ -722,7 +721,7 @@ def _values(n: str, v: Any) -> np.ndarray | None:
         metavar="A,B",
         required=True,
         default=None,
-        check=Check(lambda n, v: None if v is None else check_range("range", v), "two numbers lo < hi", "str", True),
+        check=Check(lambda n, v: check_range("range", v), "two numbers lo < hi", "str", True),
     ),
     n_values=Arg("values over the range", "int", metavar="N", default=200, check=integer(1, config.MAX_GRID * 16)),
     points=Arg("section points per value", "int", default=200, check=integer(1, 1_000_000)),

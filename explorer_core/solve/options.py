@@ -41,9 +41,13 @@ class Check:
     #: How a command line's text becomes the value: "int", "float", "bool" (true/false); ``optional``: "none"
     #: is None.
     kind: str = "float"
+    #: None is accepted: it stands for ``none_is`` (checked by ``fn`` unless None itself), never reaches ``fn``.
     optional: bool = False
+    none_is: Any = None
 
     def __call__(self, name: str, value: Any) -> Any:
+        if self.optional and value is None:
+            return None if self.none_is is None else self.fn(name, self.none_is)
         return self.fn(name, value)
 
     def parse(self, name: str, text: str) -> Any:
@@ -64,9 +68,8 @@ class Check:
 
 
 def integer(lo: int, hi: int, optional: bool = False) -> Check:
-    fn = checks.check_optional_int if optional else checks.check_int
     text = f"an integer in [{lo}, {hi}]" + (" or none" if optional else "")
-    return Check(lambda n, v: fn(n, v, lo, hi), text, "int", optional)
+    return Check(lambda n, v: checks.check_int(n, v, lo, hi), text, "int", optional)
 
 
 POSITIVE = Check(checks.check_positive, "a positive number")
@@ -77,8 +80,7 @@ POSITIVE_OR_INF = Check(
 
 
 def positive_or_none() -> Check:
-    return Check(lambda n, v: None if v is None else checks.check_positive(n, v), "a positive number or none",
-                 optional=True)  # fmt: skip
+    return Check(checks.check_positive, "a positive number or none", optional=True)
 
 
 def instance(kind: type) -> Check:
@@ -93,11 +95,11 @@ def instance(kind: type) -> Check:
 def number(lo: float = -math.inf, hi: float = math.inf, optional: bool = False) -> Check:
     """A finite number in ``[lo, hi]`` (``optional``: or None)."""
     within = "" if (lo, hi) == (-math.inf, math.inf) else f" in [{lo:g}, {hi:g}]"
-
-    def fn(n: str, v: Any) -> Any:
-        return None if optional and v is None else checks.check_number(n, v, lo, hi)
-
-    return Check(fn, f"a finite number{within}" + (" or none" if optional else ""), optional=optional)
+    return Check(
+        lambda n, v: checks.check_number(n, v, lo, hi),
+        f"a finite number{within}" + (" or none" if optional else ""),
+        optional=optional,
+    )
 
 
 def fraction() -> Check:
@@ -111,54 +113,47 @@ def choice(choices: tuple[str, ...]) -> Check:
 def seed(optional: bool = False) -> Check:
     """A random draw's seed (``optional``: or None, a fresh draw)."""
     text = f"an integer in [0, {checks.MAX_SEED}]" + (" or none" if optional else "")
-    return Check(lambda n, v: None if optional and v is None else checks.check_seed(v, n), text, "int", optional)
+    return Check(lambda n, v: checks.check_seed(v, n), text, "int", optional)
 
 
 def span(increasing: bool = True, optional: bool = False, what: str = "lo,hi") -> Check:
     """Two finite numbers ``lo < hi`` (``increasing``) or two different ones (``optional``: or None)."""
-
-    def fn(n: str, v: Any) -> Any:
-        return None if optional and v is None else checks.check_range(n, v, increasing=increasing, what=what)
-
+    fn = functools.partial(checks.check_range, increasing=increasing, what=what)
     text = "two numbers " + ("lo < hi" if increasing else "A != B") + (" or none" if optional else "")
     return Check(fn, text, "str", optional)
 
 
 def box(optional: bool = False) -> Check:
     """``qmin,qmax,rmin,rmax`` with ``qmin < qmax``, ``rmin < rmax`` (``optional``: or None)."""
-
-    def fn(n: str, v: Any) -> Any:
-        return None if optional and v is None else checks.check_box(v, n)
-
-    return Check(fn, "four numbers qmin < qmax, rmin < rmax" + (" or none" if optional else ""), "str", optional)
+    return Check(
+        lambda n, v: checks.check_box(v, n),
+        "four numbers qmin < qmax, rmin < rmax" + (" or none" if optional else ""),
+        "str",
+        optional,
+    )
 
 
 def ints(count: int, lo: int, hi: int, what: str = "NX,NY", optional: bool = False) -> Check:
     """``count`` whole numbers each in ``[lo, hi]`` (``optional``: or None)."""
-
-    def fn(n: str, v: Any) -> Any:
-        return None if optional and v is None else checks.check_ints(n, v, count, lo, hi, what)
-
-    return Check(fn, f"{count} integers {what} in [{lo}, {hi}]" + (" or none" if optional else ""), "str", optional)
+    return Check(
+        lambda n, v: checks.check_ints(n, v, count, lo, hi, what),
+        f"{count} integers {what} in [{lo}, {hi}]" + (" or none" if optional else ""),
+        "str",
+        optional,
+    )
 
 
 def ics(optional: bool = False, none_is: Any = None) -> Check:
     """Initial conditions (or seeds) as a finite ``(n, 2)`` array (:func:`~explorer_core.solve.checks.check_ics`'
     messages); ``optional``: or None, which stands for ``none_is`` (the option's default; None: none given)."""
-
-    def fn(n: str, v: Any) -> Any:
-        if optional and v is None:
-            return None if none_is is None else checks.check_ics(none_is)
-        return checks.check_ics(v)
-
-    return Check(fn, "finite (q, r) pairs" + (" or none" if optional else ""), "str", optional)
+    text = "finite (q, r) pairs" + (" or none" if optional else "")
+    return Check(lambda n, v: checks.check_ics(v), text, "str", optional, none_is)
 
 
 def optional_of(kind: type, none_is: Any = None) -> Check:
     """An instance of ``kind``, or None: ``none_is`` (the option's default, e.g. an analysis' own numerics: a caller
     passing None asks for the default)."""
-    inner = instance(kind)
-    return Check(lambda n, v: none_is if v is None else inner(n, v), f"a {kind.__name__} or none", optional=True)
+    return Check(instance(kind).fn, f"a {kind.__name__} or none", optional=True, none_is=none_is)
 
 
 def option(default: Any, check: Check, help: str, *, flag: str | None = None, metavar: str | None = None) -> Any:

@@ -216,9 +216,7 @@ _BRANCH = {
         "also follow each fold / period doubling in (PARAM, PARAM2)",
         "str",
         default=None,
-        check=Check(
-            lambda n, v: None if v is None else SWEEP_PARAM(n, v), f"{SWEEP_PARAM.text} or none", "str", optional=True
-        ),
+        check=Check(SWEEP_PARAM.fn, f"{SWEEP_PARAM.text} or none", "str", optional=True),
     ),
     "range2": Arg(
         "the range of PARAM2",
