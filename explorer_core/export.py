@@ -69,7 +69,7 @@ def check_output(path: str, allowed_suffixes: Sequence[str], option: str = "--ou
         with open(text, "ab"):
             pass
         # The file is written beside its final name and renamed onto it: the folder must take a new file too.
-        os.remove(_reserve(text))
+        _release(_reserve(text), remove=True)
     except OSError as exc:
         raise OutputError(f"{option} cannot be written: {text} ({exc.strerror or exc})") from None
     finally:
@@ -85,18 +85,49 @@ def check_output(path: str, allowed_suffixes: Sequence[str], option: str = "--ou
 _WRITING: contextvars.ContextVar[frozenset[str]] = contextvars.ContextVar("export_writing", default=frozenset())
 
 
+#: The temporary files of this process not yet renamed or removed: what :func:`remove_temporaries` removes when
+#: the process must end at once (``os._exit``: a job abandoned by the worker, a lone command's second signal).
+_TEMPORARIES: set[str] = set()
+_TEMPORARIES_LOCK = threading.Lock()
+
+
 def _reserve(path: str) -> str:
     """A new empty file beside ``path``, named after it and ending in its suffix (matplotlib and numpy read the
-    format from it), created with the mode a plain ``open(path, "w")`` would give (0666 less the umask)."""
+    format from it), created with the mode a plain ``open(path, "w")`` would give (0666 less the umask); it is
+    one of :data:`_TEMPORARIES` until :func:`_release`."""
     folder, base = os.path.split(os.path.abspath(path))
     suffix = os.path.splitext(base)[1]
     while True:
         tmp = os.path.join(folder, f".{base}.{secrets.token_hex(4)}.part{suffix}")
         try:
-            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            with _TEMPORARIES_LOCK:
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+                _TEMPORARIES.add(tmp)
             return tmp
         except FileExistsError:
             continue
+
+
+def _release(tmp: str, remove: bool) -> None:
+    """``tmp`` is no longer a temporary of this process (renamed, or removed now if ``remove``)."""
+    with _TEMPORARIES_LOCK:
+        if remove:
+            with contextlib.suppress(OSError):
+                os.remove(tmp)
+        _TEMPORARIES.discard(tmp)
+
+
+def remove_temporaries() -> list[str]:
+    """Remove every temporary file this process still holds (a file being written, a streamed CSV's rows): for a
+    process about to end without unwinding (``os._exit``), so no ``.part`` file is left beside the results.
+    Returns the paths removed."""
+    with _TEMPORARIES_LOCK:
+        gone = sorted(_TEMPORARIES)
+        for tmp in gone:
+            with contextlib.suppress(OSError):
+                os.remove(tmp)
+        _TEMPORARIES.clear()
+    return gone
 
 
 def _sync(path: str) -> None:
@@ -126,10 +157,11 @@ def atomic(path: str) -> Iterator[str]:
     try:
         yield tmp
         _sync(tmp)
-        os.replace(tmp, final)
+        with _TEMPORARIES_LOCK:  # renamed and released at once: remove_temporaries never sees it half-done
+            os.replace(tmp, final)
+            _TEMPORARIES.discard(tmp)
     except BaseException as exc:
-        with contextlib.suppress(OSError):
-            os.remove(tmp)
+        _release(tmp, remove=True)
         if isinstance(exc, OSError) and exc.filename in (None, tmp):
             raise _named(exc, text) from exc
         raise
@@ -396,8 +428,7 @@ class StreamedCsv:
                 out.flush()
                 _copy(rows, out)
         finally:
-            with contextlib.suppress(OSError):
-                os.remove(self._rows_path)
+            _release(self._rows_path, remove=True)
         return self.rows
 
     def write_result(self, result: Any) -> dict[str, Any]:
@@ -409,8 +440,7 @@ class StreamedCsv:
         """Nothing written: the temporary rows file removed, ``path`` as it was."""
         with contextlib.suppress(OSError):
             self._stop_thread()
-        with contextlib.suppress(OSError):
-            os.remove(self._rows_path)
+        _release(self._rows_path, remove=True)
 
 
 def _copy(src: BinaryIO, dst: BinaryIO) -> None:

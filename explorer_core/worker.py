@@ -59,6 +59,14 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, NamedTuple
 
+
+def _remove_temporaries() -> list[str]:
+    """The temporary files of the writes under way, removed (``explorer_core.export``'s, if it is loaded: a
+    process that never imported it wrote nothing)."""
+    export = sys.modules.get("explorer_core.export")
+    return export.remove_temporaries() if export is not None else []
+
+
 #: Seconds without a request after which the worker exits.
 IDLE_S = float(os.environ.get("BILIMOVICH_WORKER_IDLE", "900"))
 #: Commands never sent to the worker: they exec another program, manage the worker or compile.
@@ -551,6 +559,7 @@ def run_here(run: Callable[[list[str]], int], argv: Sequence[str]) -> int:
     first: list[int] = []
 
     def abandon(why: str) -> None:
+        _remove_temporaries()  # the exit below unwinds nothing: no .part file left beside the results
         with contextlib.suppress(Exception):
             sys.stderr.flush()
         os.write(2, f"\nbilimovich: interrupted; {why}: stopped, nothing more written\n".encode())
@@ -787,7 +796,9 @@ def _run_one(
                     _send(conn, b"e", FINISHING.encode())
 
     def abandon(why: str) -> None:
-        _log(f"{job}: abandoned ({why}, still computing); the worker exits")
+        gone = _remove_temporaries()  # the exit below unwinds nothing: no .part file left behind
+        _log(f"{job}: abandoned ({why}, still computing); the worker exits"
+             + (f"; removed {len(gone)} temporary files" if gone else ""))  # fmt: skip
         leave()
         answer(f"\nbilimovich: interrupted; {why}: stopped, nothing more written\n", 130)
         os._exit(130)

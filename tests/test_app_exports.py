@@ -324,3 +324,18 @@ def test_the_basins_download_as_the_command_line_writes_them(tmp_path) -> None:
     assert page.commit("show_basins", False) is None
     jobs.drain()
     assert page.session.download("basins") is None and not page.ui.view["section"]["basins_file"]
+
+
+def test_the_section_downloads_as_the_command_line_writes_it(tmp_path) -> None:
+    """The page's section CSV is the command line's for the same settings, row for row: k-major (every
+    trajectory's point at k, then k + 1; the page once wrote trajectory by trajectory) and the same numbers
+    though the page's run came in chunks of its own pace (the engine's points do not depend on them)."""
+    page, _ = page_for({"n": "40", "periods": "80", "transient": "3"})
+    spec = page.state.section_request().spec
+    ics = [f"--ic={float(q)!r},{float(r)!r}" for q, r in np.asarray(spec.ics)]
+    out = str(tmp_path / "s.csv")
+    code, _, err = run_cli("section", *_system_flags(page.state.system()), *ics, "--periods", "80", "--transient",
+                           "3", *_numerics_flags(spec.numerics), "--out", out)  # fmt: skip
+    assert code == 0, err
+    table = _same_csv(page.session.csv("section"), out)
+    assert table.size > 40 * 40 and np.all(np.diff(table["k"]) >= 0) and list(table["k"][:40]) == [4] * 40

@@ -43,8 +43,9 @@ def test_fig5a_drift_is_no_attractor_and_every_set_has_a_basin(fig5a) -> None:
         _, escaped = ivp_fate(FIG5A.params, a.points[-1], 200, bound=bound)
         assert not escaped, a
     # the drift Fig. 5A's recurrences located is said to be a transient, and solve_ivp from its points escapes
+    # (after 150-300 periods from its last point, as where the run's recurrence test caught it varies)
     (drift,) = [t for t in b.transients if t.onto == ESCAPE]
-    _, escaped = ivp_fate(FIG5A.params, drift.points[-1], 200, bound=bound)
+    _, escaped = ivp_fate(FIG5A.params, drift.points[-1], 1000, bound=bound)
     assert escaped and drift.pixels > 0
     assert b.complete and any("transient" in w for w in b.warnings)
     s = b.summary()

@@ -162,17 +162,41 @@ def test_bad_input_named(call, needle: str) -> None:
 def test_a_section_does_not_depend_on_its_chunks() -> None:
     """The chunk schedule follows the machine's pace (no chunk much longer than CHUNK_SECONDS, so a stop waits
     little): the points must not depend on it. Metamorphic: fixed chunks of 7 periods, and the growing schedule,
-    give the same points and step counts bit for bit, for the adaptive methods and RK4."""
+    give the same points and step counts bit for bit, for the adaptive methods and RK4, on a regular scene and on
+    Fig. 1A's chaotic one with its 61 ICs (two lock-step blocks whose members trade places as the trajectories
+    move: the blocks were once re-formed at every chunk, and a chaotic trajectory's steps, so its points after a
+    few hundred periods, followed where the chunks ended)."""
     from explorer_core.scenes import get_scene
     from explorer_core.solve.numerics import Numerics
 
-    s = get_scene("fig8B")
-    ics = s.initial_conditions()[:12]
-    for num in (Numerics(), Numerics(method="dop853", rtol=1e-8, atol=1e-8), Numerics(method="rk4")):
-        a = section(s.params, ics, 120, transient=30, numerics=num)
-        b = section(s.params, ics, 120, transient=30, numerics=num, chunk_periods=7)
-        assert all(np.array_equal(x, y) for x, y in zip(a.long(), b.long(), strict=True)), num.method
-        assert np.array_equal(a.nsteps, b.nsteps) and np.array_equal(a.status, b.status)
+    for name, n_ics, periods in (("fig8B", 12, 120), ("fig1A", None, 150)):
+        s = get_scene(name)
+        ics = s.initial_conditions()[:n_ics]
+        for num in (Numerics(), Numerics(method="dop853", rtol=1e-8, atol=1e-8), Numerics(method="rk4")):
+            a = section(s.params, ics, periods, transient=30, numerics=num)
+            b = section(s.params, ics, periods, transient=30, numerics=num, chunk_periods=7)
+            assert all(np.array_equal(x, y) for x, y in zip(a.long(), b.long(), strict=True)), (name, num.method)
+            assert np.array_equal(a.nsteps, b.nsteps) and np.array_equal(a.status, b.status)
+
+
+def test_the_engine_gives_the_same_steps_however_a_run_is_cut_into_calls() -> None:
+    """``run`` keeps its lock-step blocks between calls (re-formed every REGROUP_PERIODS periods): 150
+    periods in one call, or in calls of 1, 5, 64 and the rest, give the same states, records and step counts."""
+    from explorer_core.scenes import get_scene
+    from explorer_core.solve.integrators import REGROUP_PERIODS, Batch, advance
+    from explorer_core.system.model import Model
+
+    s = get_scene("fig1A")
+    model = Model(s.params)
+    one = Batch.start(s.initial_conditions(), s.params.t0, s.params.period)
+    cut = Batch.start(s.initial_conditions(), s.params.t0, s.params.period)
+    rec1, n1 = advance(model, one, 150)
+    parts = [advance(model, cut, m) for m in (1, 5, REGROUP_PERIODS, 150 - 70)]
+    rec2 = np.concatenate([r for r, _ in parts], axis=1)
+    n2 = sum(n for _, n in parts)
+    assert np.array_equal(n1, n2) and np.array_equal(one.nsteps, cut.nsteps) and np.array_equal(one.y, cut.y)
+    for i in range(rec1.shape[0]):  # a member's records past its last point are unset
+        assert np.array_equal(rec1[i, : n1[i]], rec2[i, : n2[i]])
 
 
 def test_a_growing_chunk_is_kept_to_a_fraction_of_a_second_at_the_last_ones_pace() -> None:

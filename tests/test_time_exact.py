@@ -75,3 +75,66 @@ def test_the_tangent_system_at_a_large_t0_is_the_reduced_phases() -> None:
     a = lyapunov_spectrum(params, ICS[:2], 30, numerics=Numerics(method="rk4", steps_per_period=200))
     b = lyapunov_spectrum(reduced, ICS[:2], 30, numerics=Numerics(method="rk4", steps_per_period=200))
     np.testing.assert_array_equal(a.exponents, b.exponents)
+
+
+# --- The model evaluated at a user's time: T' map, equilibria (one time, tracks), the symmetry's field check ----
+
+FIG10ISH = Params(inertia=(1.0, 4.0, 2.0, 0.3, 0.0, 0.0), alpha=0.2, g1=1.1, g2=0.4, omega=0.8)
+BIG = [1e11, -3.7e10, 2.0**36 + 0.25]
+
+
+def test_reduce_times_equals_fifty_digit_arithmetic_on_a_grid() -> None:
+    from explorer_core.system.params import reduce_times
+
+    for t0 in [*BIG, 2.5]:
+        ts = t0 + FIG10ISH.period * np.linspace(0.0, 1.0, 9)
+        got = reduce_times(ts, FIG10ISH.omega)
+        m = int(mpmath.mpf(float(ts[0])) / (2 * mpmath.pi / FIG10ISH.omega))
+        with mpmath.workdps(50):
+            want = [float(mpmath.mpf(float(t)) - m * 2 * mpmath.pi / mpmath.mpf(FIG10ISH.omega)) for t in ts]
+        assert np.allclose(got, want, rtol=0, atol=4e-16 * FIG10ISH.period), (t0, got - want)
+
+
+@pytest.mark.parametrize("t", BIG)
+def test_the_tprime_map_at_a_large_t_is_the_reduced_phases(t: float) -> None:
+    """T' at t = 1e11 was evaluated with cos(omega t) of a double t: an error of ~1e-5 in g."""
+    from explorer_core.analyses.tprime import tprime_map
+
+    big = tprime_map(FIG10ISH, t, (-2, 2), (-2, 2), 40)
+    small = tprime_map(FIG10ISH, _mp_reduced(t, FIG10ISH.omega), (-2, 2), (-2, 2), 40)
+    scale = np.abs(small.values).max()
+    assert np.allclose(big.values, small.values, rtol=0, atol=1e-13 * scale)
+
+
+@pytest.mark.parametrize("t", BIG)
+def test_equilibria_at_a_large_t_are_the_reduced_phases(t: float) -> None:
+    from explorer_core.analyses.equilibria import equilibria, equilibrium_tracks
+
+    big, small = equilibria(FIG10ISH, t), equilibria(FIG10ISH, _mp_reduced(t, FIG10ISH.omega))
+    assert len(big) == len(small) > 0
+    assert np.allclose(big.q, small.q, rtol=0, atol=1e-11) and np.allclose(big.r, small.r, rtol=0, atol=1e-11)
+    # Tracked over the period from t: the same branches at the same phases; the rows say the user's times.
+    tb = equilibrium_tracks(FIG10ISH, 60, t)
+    ts = equilibrium_tracks(FIG10ISH, 60, _mp_reduced(t, FIG10ISH.omega))
+    assert tb.t_start == t and tb.rows_at(t).size == ts.rows_at(ts.t_start).size > 0
+    assert tb.q.size == ts.q.size and tb.n_branches == ts.n_branches
+    assert np.allclose(tb.q, ts.q, rtol=0, atol=1e-10) and np.allclose(tb.r, ts.r, rtol=0, atol=1e-10)
+    assert np.allclose(tb.t - t, ts.t - ts.t_start, rtol=0, atol=4 * np.spacing(abs(t)))
+
+
+def test_the_symmetry_checks_at_a_large_centre_are_those_at_its_phase() -> None:
+    """The field identities and g's evenness about s are properties of s's phase: at s = 1e11 (2 s - t once
+    rounded to 3e-5, sin(omega s) to 1e-5) they give what they give at the phase, for a centre of the
+    involution and for a time that is not one."""
+    from explorer_core.analyses.symmetry import field_residual, g_is_even_about
+
+    rev = Params(inertia=(1.0, 2.0, 4.0, 0.0, 0.0, 0.0), alpha=0.1, g1=1.0, g2=0.5, omega=1.0)
+    centre = math.atan2(rev.g2, rev.g1)  # g even about it
+    for m in (1.6e10, 3e9):
+        whole = float(mpmath.mpf(m) * 2 * mpmath.pi)  # ~m periods, as a double: its phase is ~ulp(whole)
+        for s in (whole, whole + 1.0):
+            phase = _mp_reduced(s, rev.omega)
+            assert field_residual(rev, s) == pytest.approx(field_residual(rev, phase), rel=1e-6, abs=1e-14)
+            assert g_is_even_about(rev, s) == g_is_even_about(rev, phase)
+    assert g_is_even_about(rev, centre) and field_residual(rev, centre) < 1e-13
+    assert not g_is_even_about(rev, centre + 1.0) and field_residual(rev, centre + 1.0) > 1e-3

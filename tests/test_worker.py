@@ -171,6 +171,9 @@ def run(argv):
         return 0
     flag = []
     signal.signal(signal.SIGINT, lambda *a: flag.append(1))
+    if mode == "ignores":  # a CSV streamed while it runs: its rows in a temporary file beside the result
+        from explorer_core import export
+        export.StreamedCsv(path + ".csv", ["x"], str, lambda piece: 1).feed("1\\n")
     with open(path, "a") as fh:
         for _ in range(3000):
             if flag and mode == "polls":
@@ -328,6 +331,7 @@ def test_a_job_that_does_not_stop_is_waited_for_then_left(env: dict[str, str], q
     while lines(side) < 5:
         assert time.time() < deadline and client.poll() is None, "the job did not start in the worker"
         time.sleep(0.05)
+    assert len(list(tmp_path.glob(".side.txt.csv.*.part.csv"))) == 1  # the streamed CSV's rows, under way
     client.send_signal(signal.SIGINT)  # the job never looks at its flag
     assert wait_for(err, "stopping: the current step ends first", 1.5) < 1.5
     assert client.poll() is None  # still waiting for its job
@@ -341,6 +345,7 @@ def test_a_job_that_does_not_stop_is_waited_for_then_left(env: dict[str, str], q
     time.sleep(0.5)
     assert lines(side) == stopped_at
     assert "listening" not in status_line(env)  # no stale socket left behind
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["side.txt"]  # nor a temporary file
 
 
 @pytest.mark.parametrize("how", [signal.SIGINT, signal.SIGTERM])

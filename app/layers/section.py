@@ -369,7 +369,9 @@ class SectionLayer(Layer):
         notes = () if self.density.counts is None else (
             f"a density view: only the trajectories drawn as points (clicked, selected); the image holds "
             f"{self.density.counts[0]} points",)  # fmt: skip
-        rows = zip(traj.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True)
+        # k-major, as the command line's CSV (every trajectory's point at k, then k + 1): one file order.
+        order = np.lexsort((traj, k))
+        rows = zip(*(a[order].tolist() for a in (traj, k, q, r)), strict=True)
         return Table("section", self.shown_query or self.host.state.to_query(), ("traj", "k", "q", "r"), rows, notes,
                      self.partial())  # fmt: skip
 

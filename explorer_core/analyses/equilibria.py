@@ -57,7 +57,7 @@ from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, run
 from explorer_core.solve.options import BOOL, Arg, declare, integer, number
 from explorer_core.system.model import Model
-from explorer_core.system.params import ParameterError, Params
+from explorer_core.system.params import ParameterError, Params, reduce_time, reduce_times
 
 #: Equilibrium types, as used in :attr:`Equilibria.types` and the CSV/JSON output.
 TYPES = ("saddle", "stable node", "unstable node", "stable focus", "unstable focus", "centre", "degenerate")
@@ -352,7 +352,9 @@ class _Samples:
             self._allocate(2 * (first + ts.size))
         m = self.model
         self.t[first : first + ts.size] = ts
-        ek.equilibria_at(m.num, m.gpc, m.den, self.forcing, ts, first, self.inf_norm, self.rtol,
+        # The kernel's g(t) at the times less whole periods taken exactly: the same phases, with their digits.
+        phases = reduce_times(ts, m.params.omega)
+        ek.equilibria_at(m.num, m.gpc, m.den, self.forcing, phases, first, self.inf_norm, self.rtol,
                          self.points, self.info, self.eig, self.kinds)  # fmt: skip
         self.n += ts.size
         failed = self.info[first : self.n, 0] == ek.EIG_FAILED
@@ -621,7 +623,15 @@ def iter_equilibrium_tracks(
         raise ParameterError(f"n_t must be an integer, got {n_t!r}")
     if not 2 <= n_t <= 1_000_000:
         raise ParameterError(f"n_t must be between 2 and 1000000, got {n_t!r}")
-    t_start = model.params.t0 if t_start is None else _check_t("t_start", t_start)
+    t_user = model.params.t0 if t_start is None else _check_t("t_start", t_start)
+    # Tracked at the phase (t less whole periods, exactly): the grid and the bisection keep their digits at any
+    # t (at t = 1e11 doubles are 1.5e-5 apart); the rows say the user's times.
+    t_start = reduce_time(t_user, model.params.omega)
+    shift = t_user - t_start
+
+    def user_t(t: np.ndarray) -> np.ndarray:
+        return np.where(t == t_start, t_user, t + shift)
+
     _check_positive("jump", jump)
     jump = float(jump)  # one kernel signature for the matching
     _check_positive("inf_norm", inf_norm)
@@ -664,7 +674,8 @@ def iter_equilibrium_tracks(
             yield Step(Progress(k, n_t - 1, "intervals", time.perf_counter() - start))
         done = k
         if cancel is not None and cancel():
-            why = f"cancelled: the tracks cover t in [{grid[0]:.6g}, {grid[k]:.6g}] of [{grid[0]:.6g}, {grid[-1]:.6g}]"
+            t_a, t_k, t_b = (t_user + (x - t_start) for x in (grid[0], grid[k], grid[-1]))
+            why = f"cancelled: the tracks cover t in [{t_a:.6g}, {t_k:.6g}] of [{t_a:.6g}, {t_b:.6g}]"
             lost = (Loss("grid intervals", n_t - 1 - k, why),)
             # The grid beyond the intervals done was solved ahead: those samples are not part of the tracks.
             row = {t: s for t, s in row.items() if k > 0 and t <= grid[k]}
@@ -707,15 +718,15 @@ def iter_equilibrium_tracks(
     s_of, i_of = s_of[rows], i_of[rows]
     tracks = Tracks(
         model=model,
-        t_start=float(t_start),
+        t_start=float(t_user),
         period=float(period),
         branch=b_of[rows],
-        t=t_of[rows],
+        t=user_t(t_of[rows]),
         q=samples.points[s_of, i_of, 0],
         r=samples.points[s_of, i_of, 1],
         types=tuple(TYPES[k] for k in samples.kinds[s_of, i_of].tolist()),
         eigenvalues=samples.eig[s_of, i_of],
-        sample_t=np.array(times),
+        sample_t=user_t(np.array(times)),
         sample_count=count,
         sample_degenerate=np.isin(samples.info[order, 0], list(_MESSAGES)),
         completed=not lost,

@@ -23,11 +23,12 @@ failed trajectory keeps its last good section state and is never advanced again.
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cache
 from typing import TYPE_CHECKING
 
@@ -61,6 +62,11 @@ __all__ = [
 #: Trajectories advanced together at fixed steps (lock-step costs nothing there: every member takes
 #: the same steps; the block only bounds the scratch arrays so they stay in cache).
 FIXED_BLOCK = 64
+#: Lock-step blocks are formed from the live trajectories (grouped by the size of their state) at a batch's
+#: first call and every this many periods after it, whatever the calls: so how a run is cut into calls (the
+#: chunks of a stream, which follow the machine's pace) does not change any trajectory's steps. (A batch
+#: taken anew for every short call, as the charts and basins do, forms its blocks at each: as before.)
+REGROUP_PERIODS = 64
 
 
 @dataclass
@@ -79,6 +85,9 @@ class Batch:
     k: int
     t0: float
     period: float
+    #: The lock-step blocks in use (block size, the section index they were first formed at, member indices of
+    #: each): kept between calls, re-formed every :data:`REGROUP_PERIODS` periods (see :meth:`blocks_at`).
+    blocks: tuple[int, int, list[np.ndarray]] | None = field(default=None, repr=False, compare=False)
 
     @classmethod
     def start(cls, ics: np.ndarray, t0: float, period: float, k: int = 0, dim: int = 2) -> Batch:
@@ -103,6 +112,25 @@ class Batch:
         """Write ``part`` (from :meth:`take`, advanced) back into members ``idx``; the batch is now at its section."""
         self.y[idx], self.h[idx], self.status[idx], self.nsteps[idx] = part.y, part.h, part.status, part.nsteps
         self.k = part.k
+        self.blocks = None  # its members moved on outside its blocks
+
+    def regroups(self, size: int) -> int:
+        """The section index of the first of the blocks' re-formings: its current index if it has no blocks of
+        ``size`` members yet; every :data:`REGROUP_PERIODS` after it are the others."""
+        return self.k if self.blocks is None or self.blocks[0] != size else self.blocks[1]
+
+    def blocks_at(self, size: int) -> list[np.ndarray]:
+        """The lock-step blocks of up to ``size`` members for the next period: the kept ones, or new ones at the
+        first call and every :data:`REGROUP_PERIODS` periods after: the live members sorted by the size of their
+        state (a proxy for how fast they rotate; ties by index), so that members of a block take similar steps."""
+        first = self.regroups(size)
+        if self.blocks is None or self.blocks[0] != size or (self.k - first) % REGROUP_PERIODS == 0:
+            alive = np.flatnonzero(self.status == Status.OK)
+            speed = np.max(np.abs(self.y[alive, :2]), axis=1)
+            order = alive[np.argsort(speed, kind="stable")]
+            self.blocks = (size, first, [np.ascontiguousarray(order[i : i + size], dtype=np.int64)
+                                         for i in range(0, order.size, size)])  # fmt: skip
+        return self.blocks[2]
 
 
 @cache
@@ -269,25 +297,26 @@ def run(
     parts = max(1, min(workers or config.N_WORKERS, n))
 
     if fixed == 0 and block > 1:
-        alive = np.flatnonzero(batch.status == Status.OK)
-        speed = np.max(np.abs(batch.y[alive, :2]), axis=1)
-        order = alive[np.argsort(speed, kind="stable")]
-        blocks = [np.ascontiguousarray(order[i : i + block], dtype=np.int64) for i in range(0, order.size, block)]
-        queue = iter(blocks[::-1])  # costly (large states) first
-        queue_lock = threading.Lock()
-
-        def work() -> None:
-            while True:
-                with queue_lock:
-                    b = next(queue, None)
-                if b is None:
-                    return
-                if is_taylor:
-                    taylor.advance_blocks(system, coefs, clock, ctl, arr, b, b.shape[0])
-                else:
-                    rk.advance_blocks(system, tab, coefs, clock, ctl, arr, b, b.shape[0])
-
-        run_threads(work, min(parts, len(blocks)))
+        # Cut where the blocks are re-formed (every REGROUP_PERIODS after the first time): a kernel call a part.
+        k0, k_end = int(batch.k), int(batch.k) + n_periods
+        first = batch.regroups(block)
+        after = first + ((k0 - first) // REGROUP_PERIODS + 1) * REGROUP_PERIODS
+        cuts = [k0, *range(after, k_end, REGROUP_PERIODS), k_end]
+        for ka, kb in itertools.pairwise(cuts):
+            one = len(cuts) == 2
+            part_rec = rec if one else np.empty((n, (kb - ka) * samples if store else 1, rec.shape[2]))
+            part_npts = npts if one else np.zeros(n, dtype=np.int64)
+            blocks = batch.blocks_at(block)
+            part_arr = rk.Arrays(batch.y, batch.h, batch.status, batch.nsteps, part_rec, part_npts)
+            part_clock = clock._replace(k_first=ka, n_periods=kb - ka)
+            _run_blocks(system, tab, coefs, part_clock, ctl, part_arr, blocks, parts, is_taylor)
+            if not one:
+                if store:
+                    off = (ka - k0) * samples
+                    rec[:, off : off + part_rec.shape[1]] = part_rec
+                npts += part_npts
+            batch.k = kb
+        return rec, npts
     else:
         size = 1 if block <= 1 else max(block, FIXED_BLOCK)
         # Interleaved shares balance cost (drifting, expensive trajectories tend to cluster);
@@ -306,6 +335,27 @@ def run(
         run_threads(work, parts)
     batch.k += n_periods
     return rec, npts
+
+
+def _run_blocks(system: int, tab, coefs: rk.Coefficients, clock: rk.Clock, ctl: rk.Control, arr: rk.Arrays,
+                blocks: list[np.ndarray], parts: int, is_taylor: bool) -> None:  # fmt: skip
+    """The lock-step ``blocks`` through one kernel call each; workers pull the next block when they finish one,
+    the costly (large states, last) first."""
+    queue = iter(blocks[::-1])
+    queue_lock = threading.Lock()
+
+    def work() -> None:
+        while True:
+            with queue_lock:
+                b = next(queue, None)
+            if b is None:
+                return
+            if is_taylor:
+                taylor.advance_blocks(system, coefs, clock, ctl, arr, b, b.shape[0])
+            else:
+                rk.advance_blocks(system, tab, coefs, clock, ctl, arr, b, b.shape[0])
+
+    run_threads(work, min(parts, len(blocks)))
 
 
 def advance(

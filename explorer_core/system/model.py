@@ -37,7 +37,7 @@ from typing import Any
 import numba as nb
 import numpy as np
 
-from explorer_core.system.params import Params
+from explorer_core.system.params import Params, reduce_time
 
 #: Monomial order of the coefficient tables.
 MONOMIALS = ("1", "q", "r", "q^2", "q r", "r^2")
@@ -283,8 +283,9 @@ class Model:
         return self.params.forcing
 
     def g(self, t: float) -> tuple[float, float]:
-        """``g(t), g'(t)``."""
-        return forcing_g(self.forcing, float(t))
+        """``g(t), g'(t)``, at ``t`` less whole forcing periods taken exactly (:func:`reduce_time`): the same
+        phase, with its digits at any ``t`` (``cos(omega t)`` at ``t = 1e11`` would carry an error of 1e-5)."""
+        return forcing_g(self.forcing, reduce_time(float(t), self.params.omega))
 
     def coefficients(self, t: float) -> np.ndarray:
         """(3, 6) monomial coefficients of ``Q, R, lambda`` at time ``t`` (order :data:`MONOMIALS`)."""

@@ -60,7 +60,31 @@ def reduce_time(t: float, omega: float) -> float:
     """
     if t == 0.0 or not (math.isfinite(t) and math.isfinite(omega) and omega > 0.0):
         return t  # (0.0 and -0.0 are one key of the cache)
+    if abs(t) * omega < _INSIDE:
+        return t  # inside the first period (the model evaluated at a user's time: no rational arithmetic)
     return _reduce_time(t, omega)
+
+
+#: ``|t| omega`` below this is inside the first period whatever the rounding of the product (2 pi less 1e-14).
+_INSIDE = 2.0 * math.pi * (1.0 - 1e-14)
+
+
+def reduce_times(ts: np.ndarray, omega: float) -> np.ndarray:
+    """:func:`reduce_time` for times near one another (a grid over a period): each less the whole periods of
+    the first, ``m T`` taken exactly (rational) and subtracted as a double-double, so each phase is exact to
+    its last bit or two however large ``t`` and one rational reduction serves the whole array. The phases may
+    reach past ``T`` (a grid over more than a period keeps its order)."""
+    ts = np.asarray(ts, dtype=float)
+    if ts.size == 0 or not (math.isfinite(omega) and omega > 0.0):
+        return ts
+    first = float(ts.flat[0])
+    if not math.isfinite(first) or abs(first) * omega < _INSIDE:
+        return ts
+    m = math.trunc(Fraction(first) * Fraction(omega) / (2 * _PI))
+    whole = m * 2 * _PI / Fraction(omega)
+    hi = float(whole)
+    lo = float(whole - Fraction(hi))
+    return (ts - hi) - lo
 
 
 @functools.lru_cache(maxsize=256)
