@@ -789,3 +789,46 @@ def naive_tracks(
         "sample_t": np.array(times),
         "sample_count": np.array([len(cache[t]) for t in times], dtype=np.int64),
     }
+
+
+def naive_basin_entropy(labels: Any, valid: Any, box: int) -> tuple[float | None, float | None, int, int, int]:
+    """Basin entropy S_b and boundary basin entropy S_bb (Daza et al., Sci. Rep. 6, 31416 (2016)) box by box, cell by
+    cell: whole ``box x box`` boxes from cell (0, 0), a box with an invalid cell skipped. Returns ``(S_b, S_bb, N,
+    N_b, skipped)``, None where there is no box (no boundary box)."""
+    ny, nx = len(labels), len(labels[0])
+    total, n, nb, skipped = 0.0, 0, 0, 0
+    for j0 in range(0, ny - box + 1, box):
+        for i0 in range(0, nx - box + 1, box):
+            cells = [(j, i) for j in range(j0, j0 + box) for i in range(i0, i0 + box)]
+            if not all(valid[j][i] for j, i in cells):
+                skipped += 1
+                continue
+            count: dict[int, int] = {}
+            for j, i in cells:
+                count[int(labels[j][i])] = count.get(int(labels[j][i]), 0) + 1
+            s = 0.0
+            for c in count.values():
+                p = c / len(cells)
+                s -= p * math.log(p)
+            total += s
+            n += 1
+            nb += len(count) > 1
+    return (total / n if n else None), (total / nb if nb else None), n, nb, skipped
+
+
+def naive_uncertain_fraction(labels: Any, valid: Any, eps: list[int]) -> list[tuple[int, int]]:
+    """``(judged, uncertain)`` at every distance ``k`` of ``eps``: a cell at least ``max(eps)`` from every edge, valid
+    with its four neighbours ``k`` cells away along the axes, is uncertain when one of them has another label."""
+    ny, nx, m = len(labels), len(labels[0]), max(eps)
+    out = []
+    for k in eps:
+        judged = uncertain = 0
+        for j in range(m, ny - m):
+            for i in range(m, nx - m):
+                near = [(j, i + k), (j, i - k), (j + k, i), (j - k, i)]
+                if not valid[j][i] or not all(valid[a][b] for a, b in near):
+                    continue
+                judged += 1
+                uncertain += any(labels[a][b] != labels[j][i] for a, b in near)
+        out.append((judged, uncertain))
+    return out

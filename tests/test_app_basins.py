@@ -77,3 +77,17 @@ def test_the_layers_are_not_redone_when_only_the_section_changes() -> None:
     assert page.commit("periods", "7") is None
     assert page.runner.busy("basins") and page.runner.busy("manifolds")
     jobs.drain()
+
+
+def test_the_status_beside_the_legend_gives_the_basin_entropy_and_the_boundary() -> None:
+    from explorer_core.analyses.basin_entropy import basin_entropy
+    from explorer_core.analyses.basins import ESCAPE
+
+    page, jobs = page_for({"basins": "1", "bas_n": "40"})
+    status = page.ui.view["section"]["basin_status"]
+    b = page.session.layer("basins").result
+    e = basin_entropy(b.label, b.label >= ESCAPE)  # computed again from the labels shown
+    words = f"basin entropy S_b = {e.s_b:.2f}, S_bb = {e.s_bb:.2f} ({e.boundary} boundary)"
+    assert words in status, status
+    assert e.boundary in ("fractal", "smooth")  # 40 x 40 pixels decide it (a 24 x 24 view is undecided)
+    assert status.index("attractor(s)") < status.index("basin entropy") < status.index(" s")

@@ -114,6 +114,8 @@ class BasinsLayer(Layer):
         for upd in iter_basins(spec, cancel=cancelled):
             if cancelled():
                 return
+            if upd.basins.completed:
+                upd.basins.entropy  # noqa: B018 (read here, on the runner's thread: cached for apply)
             yield upd.basins, f"{upd.done_pixels}/{upd.total_pixels}"
 
     def current(self, inputs: BasinInputs) -> bool:
@@ -151,6 +153,7 @@ class BasinsLayer(Layer):
                 followed = b.spec.confirm
                 checked = f"beyond the {followed} periods their seeds were followed" if followed else "unchecked"
                 head += f" ({unsure} chaotic or quasi-periodic: may be long transients, {checked})"
+            head += f"; basin entropy {b.entropy.words()}"  # Daza et al. 2016: how mixed the basins are
             said = [*b.warnings, *(loss.line() for loss in b.lost)]
             self.text = f"{head}, {b.elapsed_s:.2f} s" + "".join(f"; {w}" for w in said[:3])
             if self.ran_with:  # the numerics come last: the attractors are what the class looks at first

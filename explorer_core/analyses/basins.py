@@ -59,6 +59,7 @@ already runs each chunk on both cores.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -69,6 +70,7 @@ import numpy as np
 from numba import njit
 
 from explorer_core import config, export
+from explorer_core.analyses.basin_entropy import DEFAULT_BOX, MAX_BOX, BasinEntropy, basin_entropy
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
 from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
 from explorer_core.analyses.specs import spec_of
@@ -308,6 +310,13 @@ class BasinSpec:
         "periods a chaotic or quasi-periodic set's seed is continued (at the tolerances / "
         f"{CONFIRM_TIGHTEN:g}) to confirm it falls onto no other attractor and does not escape (0: no check)",
     )
+    #: The basin entropy's boxes (:attr:`Basins.entropy`): read from the labels, it changes no label.
+    entropy_box: int = option(
+        DEFAULT_BOX,
+        integer(2, MAX_BOX),
+        "pixels per side of the boxes of the basin entropy S_b and the boundary basin entropy S_bb (Daza et al. "
+        "2016: 5)",
+    )
 
     @property
     def q(self) -> np.ndarray:
@@ -346,6 +355,7 @@ class BasinSpec:
             "newton_numerics": self.newton_map()[0].as_dict(),
             "confirm": self.confirm,
             "confirm_numerics": self.confirm_numerics().as_dict(),
+            "entropy_box": self.entropy_box,
         }
 
     def newton_map(self) -> tuple[Numerics, float]:
@@ -384,6 +394,9 @@ class Basins(Drawable):
     undecided): no basin, so no attractor; their ids are not in ``label``. ``transients``: sets whose seed,
     continued ``spec.confirm`` periods (``Attractor.confirmed``), fell onto another attractor or escaped; the
     pixels the recurrences had given them are labelled with where they fell (:class:`Transient`).
+
+    ``entropy``: the basin entropy ``S_b``, the boundary basin entropy ``S_bb`` and the uncertainty exponent of
+    the labels (:mod:`explorer_core.analyses.basin_entropy`), computed when first asked.
     """
 
     spec: BasinSpec
@@ -412,6 +425,15 @@ class Basins(Drawable):
             if a.id == ident:
                 return a
         raise KeyError(f"no attractor with id {ident}")
+
+    @functools.cached_property
+    def entropy(self) -> BasinEntropy:
+        """Basin entropy and boundary basin entropy (Daza et al. 2016) over boxes of ``spec.entropy_box`` pixels,
+        and the uncertainty exponent read from the grid. Every final state is an outcome: an attractor, escape
+        (:data:`ESCAPE`, an exit as in the paper's open systems) and a conservative island's label; pixels with
+        none (failed, undecided, not computed, still locating) are excluded and counted, and a box holding one
+        is skipped."""
+        return basin_entropy(self.label, self.label >= ESCAPE, box=self.spec.entropy_box)
 
     def filled(self) -> np.ndarray:
         """(NY, NX) labels where every uncomputed pixel shows its nearest computed coarser-lattice pixel."""
@@ -449,6 +471,7 @@ class Basins(Drawable):
             "lost": [loss.as_dict() for loss in self.lost],
             "warnings": list(self.warnings),
             "elapsed_s": round(self.elapsed_s, 6),
+            "entropy": self.entropy.as_dict(),
             "periods": int(self.periods),
             "steps": int(self.steps),
             **self.spec.as_dict(),
@@ -471,6 +494,7 @@ class Basins(Drawable):
         for a in self.not_reached:
             at = f" at ({a.points[0, 0]:.6g}, {a.points[0, 1]:.6g})" if a.points.shape[0] else ""
             out.append(f"not reached {a.id}: a {a.kind} set{at} that no pixel ends on (no basin, no attractor)")
+        out.append(self.entropy.line())
         out.append(f"{s['computed']}/{s['pixels']} pixels ({describe(self.status[self.computed])}), "
                    f"{self.elapsed_s:.2f} s")  # fmt: skip
         return out + ([s["note"]] if "note" in s else [])
@@ -521,6 +545,7 @@ class BasinsUpdate:
 
 #: The confirmation horizon's declaration (default, check, help) on the spec's field: the builder's option reads it.
 _CONFIRM = BasinSpec.__dataclass_fields__["confirm"]
+_ENTROPY_BOX = BasinSpec.__dataclass_fields__["entropy_box"]
 
 
 def _grid(n: str, v: Any) -> tuple[int, int]:
@@ -583,6 +608,13 @@ def _cells(n: str, v: Any) -> tuple[int, int]:
     confirm=Arg(
         _CONFIRM.metadata["help"], "int", metavar="PERIODS", default=_CONFIRM.default, check=_CONFIRM.metadata["check"]
     ),
+    entropy_box=Arg(
+        _ENTROPY_BOX.metadata["help"],
+        "int",
+        metavar="PIXELS",
+        default=_ENTROPY_BOX.default,
+        check=_ENTROPY_BOX.metadata["check"],
+    ),
     # None: derived from the cell box (the body).
     numerics=Arg("integration", cli=False, default=None, check=optional_of(Numerics)),
     chunk=Arg("periods per engine call", cli=False, default=5, check=integer(1, 1000)),
@@ -621,6 +653,7 @@ def basin_spec(
     inflight: int,
     newton: NewtonOptions,
     confirm: int,
+    entropy_box: int,
 ) -> BasinSpec:
     """A validated :class:`BasinSpec`; every bad value raises :class:`ParameterError` naming it. The options are
     declared above (defaults, checks run before this body, flags); the body derives what depends on several.
@@ -652,6 +685,8 @@ def basin_spec(
     confirm : periods a chaotic or quasi-periodic set's seed is continued before the set is listed as an
         attractor (default :data:`CONFIRM_PERIODS`, declared on :attr:`BasinSpec.confirm`; 0: no check), see
         :meth:`_Run.confirm`.
+    entropy_box : pixels per side of the basin entropy's boxes (default 5, the paper's; declared on
+        :attr:`BasinSpec.entropy_box`): read from the labels afterwards (:attr:`Basins.entropy`), it changes none.
     """
     b = box
     if cell_box is None:
@@ -671,7 +706,7 @@ def basin_spec(
         numerics = Numerics(rtol=DEFAULT_BASIN_TOL, atol=DEFAULT_BASIN_TOL, bound=bound)
     return BasinSpec(params, b, *grid, numerics, cb, cl, chunk, max_periods, recurrences, locate, hit_attractor,
                      hit_basin, p_max, tol, lyap_threshold, inflight, cells is None and cell_box is None, newton,
-                     confirm)  # fmt: skip
+                     confirm, entropy_box)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------
