@@ -100,6 +100,8 @@ class Page:
         self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
         self.tabs: dict[str, AnalysisTab] = {}
         self.messages: dict[str, str] = {}
+        #: Tab -> why the figure asked for last was not sent (shown among the tab's errors until the next one).
+        self.figure_problems: dict[str, str] = {}
         #: While a message from the page is handled (else None): whether the view is to be rebuilt at its end, and
         #: whether even while a played frame is computed (``force``).
         self._view_due: dict[str, bool] | None = None
@@ -198,6 +200,8 @@ class Page:
             self.state.tab = tab
         elif action == "presentation" and "on" in msg:
             self.state.presentation = msg["on"]
+        elif action == "download" and msg.get("what") == "figure":
+            self._figure(tab, msg.get("value", ""))
         elif action == "download":
             self._download(msg.get("what", ""))
         elif action == "play":
@@ -255,6 +259,30 @@ class Page:
         file = tab.file(what) if tab is not None else self.session.download(what)
         if file is not None:
             self.ui.send_download(file.name, file.mime, file.data)
+
+    def _figure(self, tab: str, value: str) -> None:
+        """The figure of the tab's main plot (``value``: format, size and resolution, :func:`app.figures.parse_request`)
+        as the file :func:`app.figures.figure_file` writes, sent like the other downloads (no prompt); a refused
+        request or a tab with nothing drawn yet says why among the tab's errors."""
+        from app import figures  # HoloViews and matplotlib: loaded when the first figure is asked for
+
+        self.figure_problems.pop(tab, None)
+        try:
+            request = figures.parse_request(value)
+        except ParameterError as exc:
+            self.figure_problems[tab] = str(exc)
+            self._refresh_views()
+            return
+        if tab == "section":
+            picture = figures.section_picture(self.session)
+        else:
+            picture = figures.tab_picture(self.tabs[tab]) if tab in self.tabs else None
+        file = figures.figure_file(picture, tab, request, figures.settings_words(self.state))
+        if file is None:
+            self.figure_problems[tab] = "no figure yet: nothing is drawn on this tab (press Run first)"
+        else:
+            self.ui.send_download(file.name, file.mime, file.data)
+        self._refresh_views()
 
     # --- tours ----------------------------------------------------------------------------------------
 
@@ -423,7 +451,7 @@ class Page:
 
     def _section_view(self) -> dict[str, Any]:
         s, st = self.session, self.state
-        errors = [m for m in (s.error, *self._url_errors_of("section")) if m]
+        errors = [m for m in (s.error, *self._url_errors_of("section"), self.figure_problems.get("section")) if m]
         errors += [m for n, m in self.messages.items() if BY_NAME[n].area not in TAB_CLASSES]
         if st.scene == "custom":
             info = "Custom parameters."
@@ -466,7 +494,7 @@ class Page:
         errors = [v.pop("error", "")] + [m for n, m in self.messages.items() if BY_NAME[n].area == name]
         # The URL's refusals of this tab's settings are shown here, where they matter (with the value used
         # instead); those of the system it analyses too while the tab is the one open.
-        errors += self._url_errors_of(name)
+        errors += [*self._url_errors_of(name), self.figure_problems.get(name, "")]
         if self.state.tab == name:
             errors += self._url_errors_of("section")
         v["errors"] = [e for e in errors if e]
