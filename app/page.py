@@ -50,6 +50,7 @@ from app.state import (
 from app.tours import TOURS, Tour, TourError, nearest_step, parse_tours, read_tour_url
 from app.ui import ExplorerUI
 from app.views import SectionFigure, SeriesData
+from app.words import page_words
 from explorer_core.scenes import get_scene
 from explorer_core.system.params import ParameterError
 
@@ -473,6 +474,8 @@ class Page:
         elif sel in s.failed:
             caption += " (failed: its points before the failure)"
         view = {key: value for layer in s.every for key, value in layer.view().items()}
+        # The numerics' warnings in the page's words (they are written for the command line's options)
+        view["warnings"] = [{**w, "message": page_words(w["message"])} for w in view.get("warnings", [])]
         turning = f"Trajectory {sel}{who}: the rigid body turning" if sel != NO_SELECTION else \
             "No trajectory selected: no body to turn"  # fmt: skip
         return {
