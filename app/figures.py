@@ -41,6 +41,9 @@ FORMATS = {"png": "image/png", "svg": "image/svg+xml"}
 #: Bounds of a figure's size (pixels) and resolution (dots per inch).
 PIXELS = (200, 8000)
 DPI = (50, 600)
+#: Lines of the title at most, shared by its parts (what is shown, the settings; the whole title is in the file's
+#: metadata).
+TITLE_LINES = 4
 #: Font sizes in points: title, axis labels, tick labels, legend (>= 10 pt at every size and resolution).
 FONT_PT = {"title": 12, "labels": 12, "ticks": 10, "legend": 10}
 #: A screen pixel of the page (96 per inch) in points (72 per inch): marker sizes and line widths carry over.
@@ -134,7 +137,8 @@ def tab_picture(tab: AnalysisTab) -> tuple[Any, bool] | None:
     """An analysis tab's main plot as on screen and whether its run was stopped; None before it has a result."""
     if isinstance(tab, LyapunovTab) and tab.result is not None:
         res = tab.result
-        return holo.draw_lyapunov(res), not res.completed
+        # the y axis is both exponents' (the page's words), not the first curve's
+        return holo.draw_lyapunov(res).redim.label(**{"Λ1": "running estimate (per unit time)"}), not res.completed
     if isinstance(tab, BifurcationTab) and tab._data is not None:
         coord = tab.session.state.bif_coord
         d, cont = tab._data, tab._cont
@@ -146,10 +150,20 @@ def tab_picture(tab: AnalysisTab) -> tuple[Any, bool] | None:
         return hv.Overlay(layers).opts(title=title), stopped
     if isinstance(tab, ChartTab) and tab.chart is not None:
         chart = tab.chart
-        layers = [holo.draw_chart(chart), *(el for cont in tab.boundaries for el in _elements(holo.draw_curves(cont)))]
+        curves = [el for cont in tab.boundaries or [] for el in _elements(holo.draw_curves(cont))]
+        layers = [holo.draw_chart(chart), *curves, *_chart_key(chart)]
         title = _title_of(layers[0])
         return hv.Overlay(layers).opts(title=title), not chart.completed
     return None
+
+
+def _chart_key(chart: Any) -> list[Any]:
+    """The chart's colour key as legend entries (the page draws it beside the plot): one square per colour shown."""
+    shown = set(np.unique(holo.chart_index(chart)).astype(int).tolist())
+    words = ["not computed", *(f"period {p}" if p.isdigit() else p for p, _ in holo.CHART_LEGEND)]
+    return [hv.Points(([np.nan], [np.nan]), label=words[i]).opts(color=holo.CHART_PALETTE[i], marker="square", size=9,
+                                                                 line_color="black", line_width=0.5)
+            for i in sorted(shown)]  # fmt: skip
 
 
 def _title_of(obj: Any) -> str:
@@ -258,17 +272,26 @@ def _words(obj: Any) -> Any:
     return obj.redim.label(**labels) if labels else obj
 
 
+def _legend_entries(obj: Any) -> int:
+    return len({el.label for el in obj.traverse(lambda x: x, [hv.Element]) if el.label})
+
+
 def figure_bytes(obj: Any, request: FigureRequest, title: str, about: str = "") -> bytes:
     """``obj`` (a HoloViews drawing) as a PNG or SVG of exactly ``request``'s size, fonts in points
     (:data:`FONT_PT`), under ``title`` (wrapped to the width); ``about`` goes in the file's metadata."""
     w_in, h_in = request.inches
-    # Characters per title line: the width over an average glyph of the title's size (~0.55 em).
-    wrap = max(30, int(w_in * 72 / (0.55 * FONT_PT["title"])))
-    lines = "\n".join(textwrap.fill(line, wrap) for line in title.splitlines())
+    # Characters per title line: the figure's width over an average glyph of the title's size (~0.5 em); at most
+    # TITLE_LINES lines (the whole title is in the file's metadata).
+    wrap = max(30, int(0.9 * w_in * 72 / (0.55 * FONT_PT["title"])))
+    parts = title.splitlines() or [""]
+    each = max(1, TITLE_LINES // len(parts))
+    lines = [ln for part in parts for ln in textwrap.wrap(part, wrap, max_lines=each, placeholder=" …")]
     obj = obj if isinstance(obj, hv.Overlay) else hv.Overlay([obj])  # the figure's options are an overlay's
+    many = _legend_entries(obj) > 6
     look = _words(matplotlib_look(obj)).opts(
-        title=lines, fontsize=dict(FONT_PT), aspect="auto", fig_inches=(w_in, h_in),
-        legend_position="best", backend="matplotlib")  # fmt: skip
+        title="", fontsize=dict(FONT_PT), aspect="auto", fig_inches=(w_in, h_in),
+        legend_position="right" if many else "best", legend_cols=2 if _legend_entries(obj) > 14 else 1,
+        backend="matplotlib")  # fmt: skip
     with warnings.catch_warnings():
         # HoloViews' matplotlib points pass an edge colour to unfilled markers (the saddles' x), which it ignores.
         warnings.filterwarnings("ignore", message="You passed an edgecolor", category=UserWarning)
@@ -276,7 +299,10 @@ def figure_bytes(obj: Any, request: FigureRequest, title: str, about: str = "") 
     try:
         fig.set_size_inches(w_in, h_in)
         fig.set_dpi(request.dpi)
-        fig.tight_layout()
+        # The title over the whole figure (not the axes: a legend beside them would push it off the edge), and the
+        # layout that keeps the title, the axes' labels and the legend inside the size asked for.
+        fig.suptitle("\n".join(lines), fontsize=FONT_PT["title"])
+        fig.set_layout_engine("constrained")
         buf = io.BytesIO()
         fig.savefig(buf, format=request.fmt, dpi=request.dpi, metadata={"Title": title, "Description": about})
         return buf.getvalue()
