@@ -41,6 +41,8 @@ FORMATS = {"png": "image/png", "svg": "image/svg+xml"}
 #: Bounds of a figure's size (pixels) and resolution (dots per inch).
 PIXELS = (200, 8000)
 DPI = (50, 600)
+#: Pixels of a figure at most (20 megapixels: ~80 MB while drawn), whatever its sides.
+MAX_AREA = 20_000_000
 #: Lines of the title at most, shared by its parts (what is shown, the settings; the whole title is in the file's
 #: metadata).
 TITLE_LINES = 4
@@ -96,6 +98,9 @@ def parse_request(text: str) -> FigureRequest:
             unit = "" if name == "dpi" else " pixels"
             raise ParameterError(f"figure {name} must be a whole number from {lo} to {hi}{unit}, got {v[:20]!r}")
         out[name] = int(v)
+    if out["width"] * out["height"] > MAX_AREA:
+        raise ParameterError(f"figure: {out['width']}x{out['height']} pixels is more than {MAX_AREA:,} in all "
+                             "(choose a smaller size, or SVG: it scales to any size)")  # fmt: skip
     return FigureRequest(parts[0].lower(), **out)
 
 

@@ -267,6 +267,8 @@ class Page:
         request or a tab with nothing drawn yet says why among the tab's errors."""
         from app import figures  # HoloViews and matplotlib: loaded when the first figure is asked for
 
+        if tab not in TABS:  # not from our page
+            return
         self.figure_problems.pop(tab, None)
         try:
             request = figures.parse_request(value)

@@ -370,7 +370,9 @@ def test_the_section_figure_downloads_as_png_and_svg_at_the_chosen_size() -> Non
 
 def test_a_figure_request_out_of_bounds_is_refused_with_the_reason() -> None:
     page, _ = page_for({})
-    assert _figures(page, "section", "png 50x800 150", "gif 800x600 100", "png 800x600 5000") == []
+    assert _figures(page, "section", "png 8000x8000 100", "no tab", "png 50x800 150", "gif 800x600 100",
+                    "png 800x600 5000") == []  # fmt: skip
+    assert _figures(page, "nowhere", "png 800x600 100") == [] and "nowhere" not in page.figure_problems
     assert "figure dpi must be a whole number from 50 to 600" in page.ui.view["section"]["errors"][-1]
     assert _figures(page, "section", "png 800x600 100")[0][0] == "section.png"  # the next good one clears it
     assert not page.ui.view["section"]["errors"]
