@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import io
 import textwrap
+import threading
 import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -38,6 +39,9 @@ if TYPE_CHECKING:
 
 #: The file formats offered and their MIME types.
 FORMATS = {"png": "image/png", "svg": "image/svg+xml"}
+#: One figure drawn at a time in the server (HoloViews' option trees and matplotlib's font cache are shared by the
+#: runner's threads): held while a picture is built and drawn.
+DRAWING = threading.RLock()
 #: Bounds of a figure's size (pixels) and resolution (dots per inch).
 PIXELS = (200, 8000)
 DPI = (50, 600)
@@ -107,11 +111,12 @@ def parse_request(text: str) -> FigureRequest:
 # --- the pictures of the tabs -------------------------------------------------------------------------------
 
 
-def section_picture(session: ExplorerSession) -> tuple[Any, bool] | None:
+def section_picture(session: ExplorerSession, data: tuple[np.ndarray, ...] | None = None) -> tuple[Any, bool] | None:
     """The section plot's picture (its points coloured by trajectory, the basins under them, the manifolds and
-    the periodic orbits over them) and whether its run was stopped; None when no point is on screen."""
+    the periodic orbits over them) and whether its run was stopped; None when no point is on screen. ``data``: the
+    points ``(traj, k, q, r)`` as read on the document thread (default: read now)."""
     sec = session.section
-    traj, k, q, r = session.data()
+    traj, k, q, r = session.data() if data is None else data
     if not traj.size:
         return None
     done, total = sec.shown_periods or (0, 0)
@@ -292,15 +297,21 @@ def figure_bytes(obj: Any, request: FigureRequest, title: str, about: str = "") 
     each = max(1, TITLE_LINES // len(parts))
     lines = [ln for part in parts for ln in textwrap.wrap(part, wrap, max_lines=each, placeholder=" …")]
     obj = obj if isinstance(obj, hv.Overlay) else hv.Overlay([obj])  # the figure's options are an overlay's
-    many = _legend_entries(obj) > 6
-    look = _words(matplotlib_look(obj)).opts(
-        title="", fontsize=dict(FONT_PT), aspect="auto", fig_inches=(w_in, h_in),
-        legend_position="right" if many else "best", legend_cols=2 if _legend_entries(obj) > 14 else 1,
-        backend="matplotlib")  # fmt: skip
-    with warnings.catch_warnings():
+    entries = _legend_entries(obj)
+    with DRAWING, warnings.catch_warnings():
+        look = _words(matplotlib_look(obj)).opts(
+            title="", fontsize=dict(FONT_PT), aspect="auto", fig_inches=(w_in, h_in),
+            legend_position="right" if entries > 6 else "best", legend_cols=2 if entries > 14 else 1,
+            backend="matplotlib")  # fmt: skip
         # HoloViews' matplotlib points pass an edge colour to unfilled markers (the saddles' x), which it ignores.
         warnings.filterwarnings("ignore", message="You passed an edgecolor", category=UserWarning)
         fig = hv.render(look, backend="matplotlib")
+        return _saved(fig, request, lines, title, about)
+
+
+def _saved(fig: Any, request: FigureRequest, lines: list[str], title: str, about: str) -> bytes:
+    """A rendered figure at exactly the size asked for, as bytes of its format."""
+    w_in, h_in = request.inches
     try:
         fig.set_size_inches(w_in, h_in)
         fig.set_dpi(request.dpi)
@@ -327,5 +338,5 @@ def figure_file(picture: tuple[Any, bool] | None, stem: str, request: FigureRequ
     return Download(named(stem, f".{request.fmt}", stopped), FORMATS[request.fmt], data)
 
 
-__all__ = ["DPI", "FONT_PT", "FORMATS", "PIXELS", "FigureRequest", "figure_bytes", "figure_file", "matplotlib_look",
-           "parse_request", "section_picture", "settings_words", "tab_picture"]  # fmt: skip
+__all__ = ["DPI", "DRAWING", "FONT_PT", "FORMATS", "PIXELS", "FigureRequest", "figure_bytes", "figure_file",
+           "matplotlib_look", "parse_request", "section_picture", "settings_words", "tab_picture"]  # fmt: skip

@@ -62,6 +62,8 @@ TAB_CLASSES: dict[str, type[AnalysisTab]] = {
     "chart": ChartTab,
     "bench": BenchTab,
 }
+#: The runner's channel of the figures' drawing (a heavy job: a niced thread).
+FIGURE_CHANNEL = "figure"
 #: Scenes whose figure is an analysis tab's picture (scene.extra key -> tab), and the tabs' names as shown.
 SCENE_TABS = {"sweep": "bifurcation", "chart": "chart"}
 TAB_NAMES = {"bifurcation": "Bifurcation diagram", "chart": "Chart of regimes"}
@@ -101,8 +103,10 @@ class Page:
         self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
         self.tabs: dict[str, AnalysisTab] = {}
         self.messages: dict[str, str] = {}
-        #: Tab -> why the figure asked for last was not sent (shown among the tab's errors until the next one).
+        #: Tab -> why the figure asked for last was not sent (shown among the tab's errors until the next one), and
+        #: the tab of the figure asked for last.
         self.figure_problems: dict[str, str] = {}
+        self._figure_tab = "section"
         #: While a message from the page is handled (else None): whether the view is to be rebuilt at its end, and
         #: whether even while a played frame is computed (``force``).
         self._view_due: dict[str, bool] | None = None
@@ -264,27 +268,43 @@ class Page:
     def _figure(self, tab: str, value: str) -> None:
         """The figure of the tab's main plot (``value``: format, size and resolution, :func:`app.figures.parse_request`)
         as the file :func:`app.figures.figure_file` writes, sent like the other downloads (no prompt); a refused
-        request or a tab with nothing drawn yet says why among the tab's errors."""
-        from app import figures  # HoloViews and matplotlib: loaded when the first figure is asked for
-
+        request or a tab with nothing drawn yet says why among the tab's errors. It is drawn on the runner (channel
+        ``figure``: a niced thread), not on the document's thread: 1-2 s of drawing (the first: 3-6 s with the
+        imports) would hold up every page of the server."""
         if tab not in TABS:  # not from our page
             return
         self.figure_problems.pop(tab, None)
-        try:
-            request = figures.parse_request(value)
-        except ParameterError as exc:
-            self.figure_problems[tab] = str(exc)
-            self._refresh_views()
-            return
-        if tab == "section":
-            picture = figures.section_picture(self.session)
-        else:
-            picture = figures.tab_picture(self.tabs[tab]) if tab in self.tabs else None
-        file = figures.figure_file(picture, tab, request, figures.settings_words(self.state))
-        if file is None:
-            self.figure_problems[tab] = "no figure yet: nothing is drawn on this tab (press Run first)"
-        else:
-            self.ui.send_download(file.name, file.mime, file.data)
+        self._figure_tab = tab
+        # What the picture reads that the document thread changes in place: the section's points (a copy now). The
+        # rest (results, orbit and manifold lists, ranges) is replaced, never changed, on the document thread.
+        data = self.session.data() if tab == "section" else None
+        source = self.tabs.get(tab)
+        about_state = self.state
+
+        def job(cancelled: Callable[..., bool], emit: Callable[[Callable[[], None]], None]) -> None:
+            from app import figures  # HoloViews and matplotlib: loaded when the first figure is asked for
+
+            try:
+                request = figures.parse_request(value)
+            except ParameterError as exc:
+                emit(lambda msg=str(exc): self._figure_problem(tab, msg))
+                return
+            with figures.DRAWING:
+                if tab == "section":
+                    picture = figures.section_picture(self.session, data)
+                else:
+                    picture = figures.tab_picture(source) if source is not None else None
+                file = figures.figure_file(picture, tab, request, figures.settings_words(about_state))
+            if file is None:
+                emit(lambda: self._figure_problem(tab, "no figure yet: nothing is drawn on this tab (press Run first)"))
+            else:
+                emit(lambda: self.ui.send_download(file.name, file.mime, file.data))
+
+        self._refresh_views()
+        self.runner.start(FIGURE_CHANNEL, job, bump=False)  # every figure asked for is sent
+
+    def _figure_problem(self, tab: str, message: str) -> None:
+        self.figure_problems[tab] = message
         self._refresh_views()
 
     # --- tours ----------------------------------------------------------------------------------------
@@ -402,7 +422,9 @@ class Page:
 
     def _job_failed(self, channel: str, exc: BaseException) -> None:
         self._step_runs.pop(channel, None)
-        if channel == BODY_CHANNEL:
+        if channel == FIGURE_CHANNEL:
+            self._figure_problem(self._figure_tab, f"the figure could not be drawn: {exc}")
+        elif channel == BODY_CHANNEL:
             self.body.failed(exc)
         elif channel in self.tabs:
             self.tabs[channel].failed(exc)

@@ -346,19 +346,21 @@ def _svg_size(data: bytes) -> tuple[float, float]:
     return float(w[:-2]), float(h[:-2])
 
 
-def _figures(page: Page, tab: str, *values: str) -> list[tuple[str, str, bytes]]:
+def _figures(page: Page, jobs, tab: str, *values: str) -> list[tuple[str, str, bytes]]:
+    """The files the page sends for figure requests (drawn on the runner: ``jobs`` runs them)."""
     sent: list = []
     page.ui.send_download = lambda *a: sent.append(a)  # type: ignore[method-assign]
     for value in values:
         page.handle({"action": "download", "what": "figure", "tab": tab, "value": value})
+        jobs.drain()
     return sent
 
 
 def test_the_section_figure_downloads_as_png_and_svg_at_the_chosen_size() -> None:
     """Fails on the old code (no figure download: PNG only at screen size through Bokeh's save tool and a prompt)."""
-    page, _ = page_for({"orb": f"{FLIP[0]},{FLIP[1]}", "orb_n": "1", "man": f"{FLIP[0]},{FLIP[1]},1",
-                        "man_len": "2"})  # fmt: skip
-    (png, svg, small) = _figures(page, "section", "png 1200x800 150", "svg 1200x800 150", "png 640x400 80")
+    page, jobs = page_for({"orb": f"{FLIP[0]},{FLIP[1]}", "orb_n": "1", "man": f"{FLIP[0]},{FLIP[1]},1",
+                           "man_len": "2"})  # fmt: skip
+    (png, svg, small) = _figures(page, jobs, "section", "png 1200x800 150", "svg 1200x800 150", "png 640x400 80")
     assert (png[0], png[1]) == ("section.png", "image/png") and _png_size(png[2]) == (1200, 800)
     assert (svg[0], svg[1]) == ("section.svg", "image/svg+xml")
     assert _svg_size(svg[2]) == (1200 / 150 * 72, 800 / 150 * 72)  # 8 x 5.33 inches
@@ -369,15 +371,15 @@ def test_the_section_figure_downloads_as_png_and_svg_at_the_chosen_size() -> Non
 
 
 def test_a_figure_request_out_of_bounds_is_refused_with_the_reason() -> None:
-    page, _ = page_for({})
-    assert _figures(page, "section", "png 8000x8000 100", "no tab", "png 50x800 150", "gif 800x600 100",
+    page, jobs = page_for({})
+    assert _figures(page, jobs, "section", "png 8000x8000 100", "no tab", "png 50x800 150", "gif 800x600 100",
                     "png 800x600 5000") == []  # fmt: skip
-    assert _figures(page, "nowhere", "png 800x600 100") == [] and "nowhere" not in page.figure_problems
+    assert _figures(page, jobs, "nowhere", "png 800x600 100") == [] and "nowhere" not in page.figure_problems
     assert "figure dpi must be a whole number from 50 to 600" in page.ui.view["section"]["errors"][-1]
-    assert _figures(page, "section", "png 800x600 100")[0][0] == "section.png"  # the next good one clears it
+    assert _figures(page, jobs, "section", "png 800x600 100")[0][0] == "section.png"  # the next good one clears it
     assert not page.ui.view["section"]["errors"]
     page.handle({"action": "tab", "tab": "lyapunov"})
-    assert _figures(page, "lyapunov", "png 800x600 100") == []  # nothing drawn yet: said, not sent
+    assert _figures(page, jobs, "lyapunov", "png 800x600 100") == []  # nothing drawn yet: said, not sent
     assert "no figure yet" in page.ui.view["lyapunov"]["errors"][-1]
 
 
@@ -392,7 +394,7 @@ def test_a_stopped_section_figure_is_named_partial(monkeypatch) -> None:
     monkeypatch.setattr(SectionLayer, "apply_chunk", then_stop)
     assert page.commit("periods", "2000") is None
     jobs.drain()
-    ((name, _, data),) = _figures(page, "section", "svg 800x600 100")
+    ((name, _, data),) = _figures(page, jobs, "section", "svg 800x600 100")
     assert name == "section-partial.svg" and "stopped after" in data.decode()
 
 
@@ -403,7 +405,7 @@ def test_an_analysis_figure_downloads_at_the_chosen_size() -> None:
     page.handle({"action": "run", "tab": "lyapunov"})
     jobs.drain()
     assert page.tabs["lyapunov"].result is not None
-    png, svg = _figures(page, "lyapunov", "png 1000x700 100", "svg 1000x700 100")
+    png, svg = _figures(page, jobs, "lyapunov", "png 1000x700 100", "svg 1000x700 100")
     assert png[0] == "lyapunov.png" and _png_size(png[2]) == (1000, 700)
     assert svg[0] == "lyapunov.svg" and _svg_size(svg[2]) == (720.0, 504.0)
 
@@ -493,3 +495,16 @@ def test_stopped_manifolds_download_as_partial(monkeypatch) -> None:
     assert file.name == "manifolds-partial.csv", page.ui.view["section"]["manifold_status"]
     assert "\n# partial: the run was stopped before its end" in file.data.decode()
     assert _reads_as_it_comes(file.data).size > 0
+
+
+def test_a_figure_that_cannot_be_drawn_says_so(monkeypatch) -> None:
+    """Drawn on the runner: a failure is said among the tab's errors, never a traceback, nothing sent."""
+    from app import figures
+
+    def broken(*args, **kw):
+        raise RuntimeError("no fonts")
+
+    monkeypatch.setattr(figures, "figure_file", broken)
+    page, jobs = page_for({})
+    assert _figures(page, jobs, "section", "png 800x600 100") == []
+    assert "the figure could not be drawn: no fonts" in page.ui.view["section"]["errors"][-1]
