@@ -14,6 +14,8 @@ is empty, or whose members all failed, says so and reports no numbers.
 from __future__ import annotations
 
 import dataclasses
+import io
+import json
 import time
 from collections.abc import Callable
 from typing import Any, ClassVar
@@ -24,16 +26,18 @@ from bokeh.palettes import Category10, Category20
 from bokeh.plotting import figure
 
 from app.controller import ExplorerSession
-from app.layers.base import Download, result_file
+from app.layers.base import MIME, Download, named, result_file, written
 from app.layers.base import plain as _plain
 from app.state import plot_point
 from app.views import BACKEND
+from explorer_core import export
 from explorer_core.analyses.bifurcation import DIAGRAM_PLOT_BOUND, DIAGRAM_PLOT_RTOL, bifurcation_diagram
-from explorer_core.analyses.continuation import chart_boundaries, continue_from_seeds, seeds_spec
+from explorer_core.analyses.continuation import Boundaries, chart_boundaries, continue_from_seeds, seeds_spec
 from explorer_core.analyses.lyapunov import lyapunov_spec, lyapunov_spectrum
 from explorer_core.analyses.orbits import ORBIT_NUMERICS
 from explorer_core.analyses.regimes import REGIMES, chart_numerics, chart_spec, iter_chart
 from explorer_core.analyses.sweeps import sweep_values
+from explorer_core.losses import Loss
 from explorer_core.parallel.cluster import SchedulerError, executor_for, scheduler_from_env
 from explorer_core.status import Status, describe
 from explorer_core.system.params import ParameterError
@@ -473,6 +477,9 @@ class ChartTab(AnalysisTab):
         self.current = ColumnDataSource({"x": [], "y": []}, name="chart_current")
         self.curves = ColumnDataSource({"xs": [], "ys": [], "color": [], "kind": []}, name="chart_curves")
         self.chart = None  # the chart on screen: the pixels computed so far (those not computed: ``computed`` False)
+        #: The bifurcation curves drawn on it (None: none followed), and whether the run on screen was to follow them.
+        self.boundaries = None
+        self.follows = False
         session.state.param.watch(lambda *e: session.runner.ui(self._mark), list(_SWEPT))
 
     def _build(self) -> Plot:
@@ -513,6 +520,7 @@ class ChartTab(AnalysisTab):
         self.session.runner.ui(lambda: self._label(*labels))
         self.curves.data = {"xs": [], "ys": [], "color": [], "kind": []}
         curves = st.chart_curves
+        self.boundaries, self.follows = None, curves
 
         def job(cancelled, emit) -> None:
             last = [0.0]
@@ -585,6 +593,7 @@ class ChartTab(AnalysisTab):
         self.set_progress(done, total, f"{done}/{total} tiles" + ("" if not final or chart.completed else " (stopped)"))
 
     def _curves(self, parts) -> None:
+        self.boundaries = parts
         xs, ys, colours, kinds = [], [], [], []
         for c in [c for cont in parts for c in cont.curves]:
             if len(c.rows) < 2:
@@ -654,10 +663,25 @@ class ChartTab(AnalysisTab):
 
     def file(self, what: str, probe: bool = False) -> Download | None:
         """``chart``: the chart on screen as ``bilimovich chart --out x.npz`` writes it (``chart-partial.npz`` and
-        ``complete`` False, ``computed`` False where no pixel was computed, after a Stop)."""
+        ``complete`` False, ``computed`` False where no pixel was computed, after a Stop), with the bifurcation
+        curves drawn on it (:meth:`~explorer_core.analyses.continuation.Boundaries.npz_entries`; not followed:
+        none, ``curves_complete`` False and why in ``curves_lost``, the file ``-partial``)."""
         if self.chart is None or what != "chart":
             return None
-        return self.chart if probe else result_file(self.chart, "chart", ".npz")
+        if probe:
+            return self.chart
+        pixels = result_file(self.chart, "chart", ".npz")
+        with np.load(io.BytesIO(pixels.data)) as z:
+            entries = {name: z[name] for name in z.files}
+        curves = self.boundaries if self.boundaries is not None else Boundaries()
+        entries.update(curves.npz_entries())
+        if self.boundaries is None and self.follows:
+            why = "the chart was stopped" if not self.chart.completed else "stopped before their end"
+            entries.update(curves_complete=False, curves_lost=json.dumps(
+                [Loss("bifurcation curves", 1, f"not followed: {why}").as_dict()]))  # fmt: skip
+        partial = pixels.name.endswith("-partial.npz") or (not bool(entries["curves_complete"]) and self.follows)
+        data = written("chart.npz", lambda path: export.write_npz(path, **entries))
+        return Download(named("chart", ".npz", partial), MIME[".npz"], data)
 
 
 def _copy(chart):

@@ -50,6 +50,7 @@ from app.state import (
 from app.tours import TOURS, Tour, TourError, nearest_step, parse_tours, read_tour_url
 from app.ui import ExplorerUI
 from app.views import SectionFigure, SeriesData
+from app.words import page_words
 from explorer_core.scenes import get_scene
 from explorer_core.system.params import ParameterError
 
@@ -61,6 +62,8 @@ TAB_CLASSES: dict[str, type[AnalysisTab]] = {
     "chart": ChartTab,
     "bench": BenchTab,
 }
+#: The runner's channel of the figures' drawing (a heavy job: a niced thread).
+FIGURE_CHANNEL = "figure"
 #: Scenes whose figure is an analysis tab's picture (scene.extra key -> tab), and the tabs' names as shown.
 SCENE_TABS = {"sweep": "bifurcation", "chart": "chart"}
 TAB_NAMES = {"bifurcation": "Bifurcation diagram", "chart": "Chart of regimes"}
@@ -100,6 +103,10 @@ class Page:
         self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
         self.tabs: dict[str, AnalysisTab] = {}
         self.messages: dict[str, str] = {}
+        #: Tab -> why the figure asked for last was not sent (shown among the tab's errors until the next one), and
+        #: the tab of the figure asked for last.
+        self.figure_problems: dict[str, str] = {}
+        self._figure_tab = "section"
         #: While a message from the page is handled (else None): whether the view is to be rebuilt at its end, and
         #: whether even while a played frame is computed (``force``).
         self._view_due: dict[str, bool] | None = None
@@ -198,6 +205,8 @@ class Page:
             self.state.tab = tab
         elif action == "presentation" and "on" in msg:
             self.state.presentation = msg["on"]
+        elif action == "download" and msg.get("what") == "figure":
+            self._figure(tab, msg.get("value", ""))
         elif action == "download":
             self._download(msg.get("what", ""))
         elif action == "play":
@@ -255,6 +264,48 @@ class Page:
         file = tab.file(what) if tab is not None else self.session.download(what)
         if file is not None:
             self.ui.send_download(file.name, file.mime, file.data)
+
+    def _figure(self, tab: str, value: str) -> None:
+        """The figure of the tab's main plot (``value``: format, size and resolution, :func:`app.figures.parse_request`)
+        as the file :func:`app.figures.figure_file` writes, sent like the other downloads (no prompt); a refused
+        request or a tab with nothing drawn yet says why among the tab's errors. It is drawn on the runner (channel
+        ``figure``: a niced thread), not on the document's thread: 1-2 s of drawing (the first: 3-6 s with the
+        imports) would hold up every page of the server."""
+        if tab not in TABS:  # not from our page
+            return
+        self.figure_problems.pop(tab, None)
+        self._figure_tab = tab
+        # What the picture reads that the document thread changes in place: the section's points (a copy now). The
+        # rest (results, orbit and manifold lists, ranges) is replaced, never changed, on the document thread.
+        data = self.session.data() if tab == "section" else None
+        source = self.tabs.get(tab)
+        about_state = self.state
+
+        def job(cancelled: Callable[..., bool], emit: Callable[[Callable[[], None]], None]) -> None:
+            from app import figures  # HoloViews and matplotlib: loaded when the first figure is asked for
+
+            try:
+                request = figures.parse_request(value)
+            except ParameterError as exc:
+                emit(lambda msg=str(exc): self._figure_problem(tab, msg))
+                return
+            with figures.DRAWING:
+                if tab == "section":
+                    picture = figures.section_picture(self.session, data)
+                else:
+                    picture = figures.tab_picture(source) if source is not None else None
+                file = figures.figure_file(picture, tab, request, figures.settings_words(about_state))
+            if file is None:
+                emit(lambda: self._figure_problem(tab, "no figure yet: nothing is drawn on this tab (press Run first)"))
+            else:
+                emit(lambda: self.ui.send_download(file.name, file.mime, file.data))
+
+        self._refresh_views()
+        self.runner.start(FIGURE_CHANNEL, job, bump=False)  # every figure asked for is sent
+
+    def _figure_problem(self, tab: str, message: str) -> None:
+        self.figure_problems[tab] = message
+        self._refresh_views()
 
     # --- tours ----------------------------------------------------------------------------------------
 
@@ -371,7 +422,9 @@ class Page:
 
     def _job_failed(self, channel: str, exc: BaseException) -> None:
         self._step_runs.pop(channel, None)
-        if channel == BODY_CHANNEL:
+        if channel == FIGURE_CHANNEL:
+            self._figure_problem(self._figure_tab, f"the figure could not be drawn: {exc}")
+        elif channel == BODY_CHANNEL:
             self.body.failed(exc)
         elif channel in self.tabs:
             self.tabs[channel].failed(exc)
@@ -423,7 +476,7 @@ class Page:
 
     def _section_view(self) -> dict[str, Any]:
         s, st = self.session, self.state
-        errors = [m for m in (s.error, *self._url_errors_of("section")) if m]
+        errors = [m for m in (s.error, *self._url_errors_of("section"), self.figure_problems.get("section")) if m]
         errors += [m for n, m in self.messages.items() if BY_NAME[n].area not in TAB_CLASSES]
         if st.scene == "custom":
             info = "Custom parameters."
@@ -445,6 +498,8 @@ class Page:
         elif sel in s.failed:
             caption += " (failed: its points before the failure)"
         view = {key: value for layer in s.every for key, value in layer.view().items()}
+        # The numerics' warnings in the page's words (they are written for the command line's options)
+        view["warnings"] = [{**w, "message": page_words(w["message"])} for w in view.get("warnings", [])]
         turning = f"Trajectory {sel}{who}: the rigid body turning" if sel != NO_SELECTION else \
             "No trajectory selected: no body to turn"  # fmt: skip
         return {
@@ -466,7 +521,7 @@ class Page:
         errors = [v.pop("error", "")] + [m for n, m in self.messages.items() if BY_NAME[n].area == name]
         # The URL's refusals of this tab's settings are shown here, where they matter (with the value used
         # instead); those of the system it analyses too while the tab is the one open.
-        errors += self._url_errors_of(name)
+        errors += [*self._url_errors_of(name), self.figure_problems.get(name, "")]
         if self.state.tab == name:
             errors += self._url_errors_of("section")
         v["errors"] = [e for e in errors if e]

@@ -38,6 +38,7 @@ from explorer_core.analyses.density import DensitySpec, density_numerics, densit
 from explorer_core.analyses.sections import SectionSpec, section_spec
 from explorer_core.scenes import get_scene, list_scenes, plot_tolerance
 from explorer_core.solve.numerics import Numerics, check_box, chosen_numerics, random_ics
+from explorer_core.solve.stability import spectral_rate, stability_interval
 from explorer_core.system.params import INERTIA_NAMES, ParameterError, Params
 
 #: Per-session bounds: one browser tab cannot ask for unbounded work.
@@ -761,7 +762,7 @@ class ExplorerState(param.Parameterized):
     def check(self, name: str, value: Any) -> None:
         """Refuse (ParameterError) a parsed value that the rest of the state makes unusable."""
         if name in SYSTEM_FIELDS:
-            self.system(**{name: value})
+            self.check_runnable(name, value, self.system(**{name: value}))
         elif name in ("n_random", "periods"):
             n = len(self.clicked) + (value if name == "n_random" else self.n_random)
             self.check_work(max(1, n), value if name == "periods" else self.periods)
@@ -785,6 +786,32 @@ class ExplorerState(param.Parameterized):
                     self.system(**{p: end})
                 except ParameterError as exc:
                     raise ParameterError(f"{p} = {end:g} at an end of the range is not a valid system: {exc}") from None
+
+    def check_runnable(self, name: str, value: float, params: Params) -> None:
+        """Refuse (ParameterError) the value ``value`` of ``name`` when its system ``params`` is one no trajectory of
+        the page can run: the steps one period needs at every initial condition (the stability floor: the field's
+        fastest rate times the period over the method's stability limit, :mod:`explorer_core.solve.stability`)
+        exceed the step budget of the page's numerics, or the rates overflow double precision (alpha = 1e308).
+        Every trajectory would stop unfinished after seconds of work; the value is refused with that reason."""
+        lo, hi, _ = SLIDER_RANGES.get(name, (0.0, 0.0, 0.0))
+        if lo <= value <= hi:  # the sliders' values are the model's (a slider's move costs nothing here)
+            return
+        numerics = self.numerics_for(None)[0]
+        ics = self.initial_conditions()
+        if not ics.shape[0] or not numerics.adaptive:
+            return
+        with np.errstate(all="ignore"):
+            # 8 phases of the forcing: a lower floor than the 64 of the reliability check (never a refusal more)
+            rho = spectral_rate(params, ics[:, 0], ics[:, 1], n_t=8)
+            floor = float(np.min(rho)) * params.period / stability_interval(numerics.method)
+        if math.isfinite(floor) and floor <= numerics.max_steps:
+            return
+        need = f"at least {math.ceil(floor):,} steps" if math.isfinite(floor) else "more steps than doubles can count"
+        raise ParameterError(
+            f"{plain_label(name)} = {_fmt(value)} leaves the model nothing to compute: one period needs {need} at "
+            f"every starting point, more than the step budget of {numerics.max_steps:,} (every trajectory would stop "
+            f"unfinished). Choose a value nearer the slider's range"
+        )
 
     # The URL table's words for the layers (app/layers cannot import this module: it imports them).
 

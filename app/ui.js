@@ -45,6 +45,9 @@ header .spacer { flex: 1; }
 .bar { display: flex; flex-wrap: wrap; gap: 8px; align-items: flex-end; }
 .bar .ctl { margin: 0; }
 .bar .ctl.int input.num { width: 6em; }
+.figure-bar { display: inline-flex; gap: 3px; align-items: center; }
+.figure-bar input.num { width: 4.6em; }
+.figure-bar input.fig-dpi { width: 3.6em; }
 .bar .ctl-selected .btn-no-selection { margin-left: 4px; padding: 3px 8px; }
 /* The section's bar in few rows: each label beside its control, the buttons a little narrower. */
 .pane-section > .bar { gap: 4px 6px; align-items: center; }
@@ -200,6 +203,23 @@ function h(tag, attrs = {}, ...kids) {
   return e
 }
 
+// A figure of a tab's main plot, written by the server (app/figures.py) and sent as a download: the format, the
+// size in pixels and the resolution (dots per inch: the fonts are set in points).
+function figureBar(send, tabOf) {
+  const fmt = h("select", {class: "fig-format", "aria-label": "Figure format"},
+                h("option", {value: "png", text: "PNG"}), h("option", {value: "svg", text: "SVG"}))
+  const num = (cls, value, label) => h("input", {class: `num ${cls}`, type: "number", value, "aria-label": label})
+  const w = num("fig-width", 1600, "Figure width (pixels)")
+  const hgt = num("fig-height", 1000, "Figure height (pixels)")
+  const dpi = num("fig-dpi", 200, "Figure resolution (dots per inch)")
+  const btn = h("button", {class: "act light btn-figure", text: "Download figure",
+                           title: "The plot as a PNG or SVG file of this size (pixels) at this resolution (dpi)"})
+  btn.addEventListener("click", () => send({action: "download", what: "figure", tab: tabOf(),
+                                            value: `${fmt.value} ${w.value}x${hgt.value} ${dpi.value}`}))
+  return h("span", {class: "figure-bar"}, btn, fmt, w, h("span", {text: "×"}), hgt, h("span", {text: "px"}), dpi,
+           h("span", {text: "dpi"}))
+}
+
 export function render({model, el}) {
   const controls = {}          // name -> {spec, box, set(value), focusValue()}
   const send = (data) => model.send_msg(data)
@@ -336,7 +356,8 @@ export function render({model, el}) {
   if (controls.selected) controls.selected.inputs[0].after(noSelBtn)
   const basNpzBtn = h("button", {class: "act light btn-basins-npz", text: "Download basins NPZ", hidden: true})
   basNpzBtn.addEventListener("click", () => send({action: "download", what: "basins"}))
-  secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn, basNpzBtn)
+  secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn, basNpzBtn,
+                figureBar(send, () => "section"))
   // Play a parameter: its settings are controls (area "play"); Play/Pause and Step are actions.
   const playBtn = h("button", {class: "act btn-play", text: "▶ Play"})
   playBtn.addEventListener("click", () => send({action: playBtn.dataset.playing === "1" ? "pause" : "play"}))
@@ -451,7 +472,8 @@ export function render({model, el}) {
   loadBtn.addEventListener("click", () => send({action: "load_bench"}))
   const choice = h("select", {class: "bench-choice", "aria-label": "Diagram"})
   choice.addEventListener("change", () => send({action: "bench_choice", value: choice.value}))
-  const aBar = h("div", {class: "bar"}, runBtn, aStop, aDownloads, loadBtn, choice)
+  const aFigure = figureBar(send, () => currentTab)
+  const aBar = h("div", {class: "bar"}, runBtn, aStop, aDownloads, aFigure, loadBtn, choice)
   const aError = h("div", {class: "error-box analysis-error", role: "alert"})
   const progress = h("progress", {max: 100, hidden: true})
   const aMsg = h("div", {class: "status-line analysis-status", "aria-live": "polite"})
@@ -559,6 +581,7 @@ export function render({model, el}) {
     if (t !== "section") {
       aForm.replaceChildren(...(byArea[t] || []).map((s) => controls[s.name] ? controls[s.name].wrap : control(s)))
       loadBtn.hidden = choice.hidden = t !== "bench"
+      aFigure.hidden = t === "bench"  // its plot is drawn from the bench's files, not a result of the page
       runBtn.textContent = t === "bench" ? "Measure" : "Run"
       runBtn.className = `act btn-run ${t}-run`
     }

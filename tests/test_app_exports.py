@@ -339,3 +339,187 @@ def test_the_section_downloads_as_the_command_line_writes_it(tmp_path) -> None:
     assert code == 0, err
     table = _same_csv(page.session.csv("section"), out)
     assert table.size > 40 * 40 and np.all(np.diff(table["k"]) >= 0) and list(table["k"][:40]) == [4] * 40
+
+
+# --- figures: PNG and SVG at a chosen size, written on the server (issue 36, item 1) --------------------------------
+
+
+def _png_size(data: bytes) -> tuple[int, int]:
+    """Width and height from a PNG's header (its IHDR chunk), read without an image library."""
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR"
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+
+
+def _svg_size(data: bytes) -> tuple[float, float]:
+    """Width and height of an SVG in points, parsed as XML."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(data)
+    assert root.tag.endswith("svg")
+    w, h = root.get("width"), root.get("height")
+    assert w.endswith("pt") and h.endswith("pt"), (w, h)
+    return float(w[:-2]), float(h[:-2])
+
+
+def _figures(page: Page, jobs, tab: str, *values: str) -> list[tuple[str, str, bytes]]:
+    """The files the page sends for figure requests (drawn on the runner: ``jobs`` runs them)."""
+    sent: list = []
+    page.ui.send_download = lambda *a: sent.append(a)  # type: ignore[method-assign]
+    for value in values:
+        page.handle({"action": "download", "what": "figure", "tab": tab, "value": value})
+        jobs.drain()
+    return sent
+
+
+def test_the_section_figure_downloads_as_png_and_svg_at_the_chosen_size() -> None:
+    """Fails on the old code (no figure download: PNG only at screen size through Bokeh's save tool and a prompt)."""
+    page, jobs = page_for({"orb": f"{FLIP[0]},{FLIP[1]}", "orb_n": "1", "man": f"{FLIP[0]},{FLIP[1]},1",
+                           "man_len": "2"})  # fmt: skip
+    (png, svg, small) = _figures(page, jobs, "section", "png 1200x800 150", "svg 1200x800 150", "png 640x400 80")
+    assert (png[0], png[1]) == ("section.png", "image/png") and _png_size(png[2]) == (1200, 800)
+    assert (svg[0], svg[1]) == ("section.svg", "image/svg+xml")
+    assert _svg_size(svg[2]) == (1200 / 150 * 72, 800 / 150 * 72)  # 8 x 5.33 inches
+    assert _png_size(small[2]) == (640, 400)
+    # The file says what it shows: the scene and the system's parameters (title and metadata).
+    assert b"Fig. 8B" in png[2] and "Fig. 8B" in svg[2].decode() and "α = -0.45" in svg[2].decode()
+    assert not page.ui.view["section"]["errors"]
+
+
+def test_a_figure_request_out_of_bounds_is_refused_with_the_reason() -> None:
+    page, jobs = page_for({})
+    assert _figures(page, jobs, "section", "png 8000x8000 100", "no tab", "png 50x800 150", "gif 800x600 100",
+                    "png 800x600 5000") == []  # fmt: skip
+    assert _figures(page, jobs, "nowhere", "png 800x600 100") == [] and "nowhere" not in page.figure_problems
+    assert "figure dpi must be a whole number from 50 to 600" in page.ui.view["section"]["errors"][-1]
+    assert _figures(page, jobs, "section", "png 800x600 100")[0][0] == "section.png"  # the next good one clears it
+    assert not page.ui.view["section"]["errors"]
+    page.handle({"action": "tab", "tab": "lyapunov"})
+    assert _figures(page, jobs, "lyapunov", "png 800x600 100") == []  # nothing drawn yet: said, not sent
+    assert "no figure yet" in page.ui.view["lyapunov"]["errors"][-1]
+
+
+def test_a_stopped_section_figure_is_named_partial(monkeypatch) -> None:
+    page, jobs = page_for({})
+    real = SectionLayer.apply_chunk
+
+    def then_stop(self, *args, **kw):
+        real(self, *args, **kw)
+        page.handle({"action": "stop"})
+
+    monkeypatch.setattr(SectionLayer, "apply_chunk", then_stop)
+    assert page.commit("periods", "2000") is None
+    jobs.drain()
+    ((name, _, data),) = _figures(page, jobs, "section", "svg 800x600 100")
+    assert name == "section-partial.svg" and "stopped after" in data.decode()
+
+
+def test_an_analysis_figure_downloads_at_the_chosen_size() -> None:
+    """The Lyapunov tab's running estimates as SVG and PNG (the orbit diagram and the chart go the same way)."""
+    page, jobs = page_for({"lyap_ic": "-0.5,-1", "lyap_periods": "30", "lyap_transient": "20", "lyap_n": "2"})
+    page.handle({"action": "tab", "tab": "lyapunov"})
+    page.handle({"action": "run", "tab": "lyapunov"})
+    jobs.drain()
+    assert page.tabs["lyapunov"].result is not None
+    png, svg = _figures(page, jobs, "lyapunov", "png 1000x700 100", "svg 1000x700 100")
+    assert png[0] == "lyapunov.png" and _png_size(png[2]) == (1000, 700)
+    assert svg[0] == "lyapunov.svg" and _svg_size(svg[2]) == (720.0, 504.0)
+
+
+def test_the_chart_npz_carries_the_curves_drawn_on_it() -> None:
+    """Fails on the old code (the NPZ held the pixels only): every curve drawn, its kind and period, read back with
+    numpy, equal to the lines on the plot."""
+    sess = session("fig11")
+    sess.state.param.update(chart_grid=(8, 6), chart_periods=30, chart_transient=20, chart_curves=True)
+    tab = analyses.ChartTab(sess)
+    tab.figure()
+    tab.run()
+    assert tab.boundaries is not None
+    file = tab.file("chart")
+    with np.load(io.BytesIO(file.data)) as z:
+        start, points = z["curve_start"], z["curve_points"]
+        kinds, periods = z["curve_kind"].tolist(), z["curve_period"].tolist()
+        assert z["curve_columns"].tolist() == ["alpha", "I11", "q", "r"]
+        assert bool(z["curves_complete"]) == tab.boundaries.complete
+        assert json.loads(str(z["curves_lost"])) == [loss.as_dict() for loss in tab.boundaries.lost]
+        assert "regime" in z.files and bool(z["complete"])  # the pixels as before
+    assert file.name == ("chart.npz" if tab.boundaries.complete else "chart-partial.npz")
+    drawn = tab.curves.data
+    long = [i for i in range(len(kinds)) if start[i + 1] - start[i] >= 2]  # the plot draws curves of 2+ points
+    assert len(long) == len(drawn["xs"]) > 0
+    for n, i in enumerate(long):
+        np.testing.assert_array_equal(points[start[i] : start[i + 1], 0], drawn["xs"][n])
+        np.testing.assert_array_equal(points[start[i] : start[i + 1], 1], drawn["ys"][n])
+        assert drawn["kind"][n] == f"{analyses.CURVE_STYLE[kinds[i]][2]} of the period-{periods[i]} cycle"
+    # A chart whose curves were stopped: no curves, and the file says they were not followed.
+    tab.boundaries = None
+    with np.load(io.BytesIO(tab.file("chart").data)) as z:
+        assert z["curve_points"].shape == (0, 4) and not bool(z["curves_complete"])
+        assert "not followed" in json.loads(str(z["curves_lost"]))[0]["why"]
+    assert tab.file("chart").name == "chart-partial.npz"
+
+
+def _reads_as_it_comes(data: bytes) -> np.ndarray:
+    """A CSV download read by numpy and pandas as they come: the same rows."""
+    import pandas as pd
+
+    table = _table(data.decode())
+    frame = pd.read_csv(io.BytesIO(data), comment="#")
+    assert list(frame.columns) == list(table.dtype.names) and len(frame) == table.size
+    return table
+
+
+def test_a_stopped_orbit_search_downloads_as_partial() -> None:
+    """Fails on the old code: ``orbits.csv`` with nothing saying the search was stopped."""
+    page, jobs = page_for({"orb": f"{FLIP[0]},{FLIP[1]}", "orb_n": "1"})
+    whole = page.session.download("orbits")
+    assert whole.name == "orbits.csv" and b"partial" not in whole.data
+    _reads_as_it_comes(whole.data)
+    page.handle({"action": "find_orbits"})  # queued, then stopped before it ends
+    page.handle({"action": "stop"})
+    jobs.drain()
+    file = page.session.download("orbits")
+    assert file.name == "orbits-partial.csv"
+    text = file.data.decode()
+    assert "\n# partial: the run was stopped before its end" in text and "the search was stopped" in text
+    assert _reads_as_it_comes(file.data).size == len(page.session.orbits[0]["points"])
+    # The search redone to its end: whole again.
+    page.session.recompute()
+    jobs.drain()
+    assert page.session.download("orbits").name == "orbits.csv"
+
+
+def test_stopped_manifolds_download_as_partial(monkeypatch) -> None:
+    """Stop while the manifolds grow: ``manifolds-partial.csv`` whose head says so (fails on the old code)."""
+    from app.layers.manifolds import ManifoldsLayer
+
+    page, jobs = page_for({"man": f"{FLIP[0]},{FLIP[1]},1", "man_len": "2"})
+    whole = page.session.download("manifolds")
+    assert whole.name == "manifolds.csv" and b"# partial" not in whole.data
+    _reads_as_it_comes(whole.data)
+    real = ManifoldsLayer.apply
+
+    def then_stop(self, inputs, result):
+        real(self, inputs, result)
+        if result[0] and not all(m.completed for m in result[0]):
+            page.handle({"action": "stop"})
+
+    monkeypatch.setattr(ManifoldsLayer, "apply", then_stop)
+    assert page.commit("manifold_length", "3") is None
+    jobs.drain()
+    file = page.session.download("manifolds")
+    assert file.name == "manifolds-partial.csv", page.ui.view["section"]["manifold_status"]
+    assert "\n# partial: the run was stopped before its end" in file.data.decode()
+    assert _reads_as_it_comes(file.data).size > 0
+
+
+def test_a_figure_that_cannot_be_drawn_says_so(monkeypatch) -> None:
+    """Drawn on the runner: a failure is said among the tab's errors, never a traceback, nothing sent."""
+    from app import figures
+
+    def broken(*args, **kw):
+        raise RuntimeError("no fonts")
+
+    monkeypatch.setattr(figures, "figure_file", broken)
+    page, jobs = page_for({})
+    assert _figures(page, jobs, "section", "png 800x600 100") == []
+    assert "the figure could not be drawn: no fonts" in page.ui.view["section"]["errors"][-1]

@@ -128,3 +128,66 @@ def test_the_analysis_tabs_still_start_from_the_clicked_points_first() -> None:
     assert tuple(state.initial_conditions()[5]) == tuple(state.clicked[0])
     assert tuple(state.analysis_ics()[0]) == tuple(state.clicked[0])
     assert state.analysis_ics().shape == (6, 2) and state.selected == 5  # the scene's own point is shown
+
+
+# --- the numerics' messages in the page's words; values where the model is meaningless refused (issue 36, item 5) ---
+
+#: Words of the code and the command line that a student cannot act on here (the page has no max_steps).
+CODE_WORDS = ("rho*T/beta", "max_steps", "too_many_steps", "step_collapsed", "10*eps*|t|", "rho*h", "rtol")
+
+
+def _core_warnings() -> list[str]:
+    """The reliability messages of the core that name its options and formulas, as it writes them."""
+    from explorer_core.analyses.reliability import assess
+    from explorer_core.scenes import get_scene
+    from explorer_core.solve.numerics import Numerics
+
+    base = get_scene("fig8B").params
+    fast = base.with_(alpha=1e6)
+    out = []
+    out += [w.message for w in assess(fast, Numerics(), periods=10, ics=[(0.1, -1.0)])]
+    out += [w.message for w in assess(base, Numerics(), periods=10, ics=[(0.1, -1.0)],
+                                      status=["step_collapsed", "too_many_steps", "ok"])]  # fmt: skip
+    out += [w.message for w in assess(base, Numerics(method="rk4", steps_per_period=8), periods=1000,
+                                      ics=[(30.0, -40.0)], window=(-2, 2, -4, 1), pixel=0.01)]  # fmt: skip
+    out += [w.message for w in assess(base, Numerics(rtol=1e-3, atol=1e-3), periods=5000, ics=[(0.1, -1.0)],
+                                      window=(-2, 2, -4, 1), pixel=1e-4)]  # fmt: skip
+    return out
+
+
+def test_the_numerics_messages_are_in_the_pages_words() -> None:
+    """Fails on the old code: 'rho*T/beta', 'max_steps', 'too_many_steps', 'step_collapsed', '10*eps*|t|' and
+    'Raise max_steps' (a setting the page does not have) reached the page as the core wrote them."""
+    from app.words import page_words
+
+    messages = _core_warnings()
+    said = " ".join(messages)
+    assert all(w in said for w in ("rho*T/beta", "max_steps", "'too_many_steps'", "'step_collapsed'", "10*eps*|t|"))
+    for m in messages:
+        words = page_words(m)
+        assert not [w for w in CODE_WORDS if w in words], words
+    joined = " ".join(page_words(m) for m in messages)
+    assert "'step collapsed'" in joined and "step budget of" in joined and "Compute fewer periods" in joined
+    assert "'RK4 steps per period'" in joined and "Accuracy" in joined
+
+
+def test_the_section_shows_its_warnings_in_the_pages_words() -> None:
+    page, jobs = page_for({})
+    (message,) = [m for m in _core_warnings() if "max_steps =" in m and "ran out" in m]
+    page.session.section._warn([{"level": "error", "code": "too_many_steps", "message": message}])
+    page._refresh_views()
+    (shown,) = page.ui.view["section"]["warnings"]
+    assert "max_steps" not in shown["message"] and "the page's step budget is fixed" in shown["message"]
+
+
+@pytest.mark.parametrize(("name", "text"), [("alpha", "1e308"), ("alpha", "1e7"), ("g1", "1e200"), ("omega", "1e-300")])
+def test_a_value_that_leaves_nothing_to_compute_is_refused_with_the_reason(name: str, text: str) -> None:
+    """Fails on the old code: alpha = 1e308 was accepted and every trajectory failed after seconds of work."""
+    from app.state import commit, state_from_query
+
+    state, _ = state_from_query({"scene": "fig1C"})
+    before = getattr(state, name)
+    problem = commit(state, name, text)
+    assert problem is not None and getattr(state, name) == before
+    assert "leaves the model nothing to compute" in problem or "must" in problem, problem
+    assert commit(state, "alpha", "0.2") is None and commit(state, "alpha", "1000") is None  # slow, but it runs

@@ -100,6 +100,17 @@ def stopped_lines(lost: Sequence[Loss]) -> tuple[str, ...]:
     return tuple(export.partial(_Stopped(list(lost))))
 
 
+def loss_lines(lost: Sequence[Loss], stopped: bool) -> tuple[str, ...]:
+    """The head comments of a download that is not whole: a run stopped before its end (:func:`stopped_lines`), or
+    one that ended having lost some of what it was to compute (each loss in the core's words); () when whole."""
+    if stopped:
+        return stopped_lines(lost)
+    if not lost:
+        return ()
+    return ("partial: the run ended without some of what it was to compute; this file holds the rest "
+            "(complete: false)", *(loss.line() for loss in lost))  # fmt: skip
+
+
 def written(name: str, writer: Callable[[str], Any]) -> bytes:
     """The bytes a core writer (it takes a path, e.g. a result's ``write``) writes to the file ``name`` of a
     temporary folder."""
@@ -306,5 +317,6 @@ def _short(v: str | None, limit: int = 40) -> str:
     return v if len(v) <= limit else v[: limit - 1] + "…"
 
 
-__all__ = ["KEEP", "LAYER", "MIME", "Action", "Download", "Host", "Layer", "Table", "csv_bytes", "named", "plain",
+__all__ = ["KEEP", "LAYER", "MIME", "Action", "Download", "Host", "Layer", "Table", "csv_bytes", "loss_lines", "named",
+           "plain",
            "result_file", "stale_note", "stopped_lines", "written"]  # fmt: skip

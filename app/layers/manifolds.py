@@ -10,7 +10,7 @@ import numpy as np
 import param
 
 from app.controls import PLOT_PIXELS, SYSTEM_FIELDS, UrlKey, ints, places, points_text
-from app.layers.base import KEEP, Action, Layer, Table, plain
+from app.layers.base import KEEP, Action, Layer, Table, loss_lines, plain
 from app.layers.orbits import MAX_ORBIT_PERIOD
 from app.runner import LAYER
 from explorer_core.analyses.manifolds import MANIFOLD_NUMERICS, Manifolds, ManifoldSpec, iter_manifolds, manifold_spec
@@ -207,8 +207,11 @@ class ManifoldsLayer(Layer):
         if not self.manifolds:
             return None
         rows = ((i, *row) for i, m in enumerate(self.manifolds) for row in m.rows())
+        # Not whole: a growth stopped before its length (a Stop), or branches that ended short (escaped, budget).
+        stopped = not all(m.completed for m in self.manifolds)
+        lost = [loss for m in self.manifolds for loss in m.lost]
         return Table("manifolds", self.shown_query or self.host.state.to_query(),
-                     ("saddle", "branch", "kind", "s", "q", "r"), rows)  # fmt: skip
+                     ("saddle", "branch", "kind", "s", "q", "r"), rows, partial=loss_lines(lost, stopped))  # fmt: skip
 
 
 def _same_saddle(a: tuple, b: tuple, sq: float, sr: float) -> bool:

@@ -11,7 +11,7 @@ import numpy as np
 import param
 
 from app.controls import MAX_MAGNITUDE, SYSTEM_FIELDS, Control, UrlKey, choice, ints, places, points_text
-from app.layers.base import KEEP, Action, Layer, Table
+from app.layers.base import KEEP, Action, Layer, Table, loss_lines
 from app.runner import LAYER, POINTS
 from explorer_core.analyses.orbits import (
     ORBIT_NUMERICS,
@@ -27,6 +27,7 @@ from explorer_core.analyses.orbits import (
     same_orbit,
     settled_seeds,
 )
+from explorer_core.losses import Loss
 from explorer_core.solve.numerics import Numerics
 from explorer_core.system.params import Params
 
@@ -177,6 +178,8 @@ class OrbitsLayer(Layer):
     def __init__(self, host: Any) -> None:
         super().__init__(host)
         self.orbits: list[Orbit] = []
+        #: What the orbits on screen lack: a search stopped before its end (the download says so).
+        self.lost: list[Loss] = []
         self.rows: list[dict[str, Any]] = []
         self.text = ""
         self.ran_with = ""
@@ -290,9 +293,9 @@ class OrbitsLayer(Layer):
                               "birth_seeds": res.extra.get("birth_seeds", {}),
                               "partner_seeds": res.extra.get("partner_seeds", {})})  # fmt: skip
         if not inputs.where:
-            self.orbits = []
+            self.orbits, self.lost = [], []
         elif self.stale(self.shown_query, inputs.query, SYSTEM_FIELDS):
-            self.orbits = []  # those on screen are another system's (a Stop kept them): never mixed
+            self.orbits, self.lost = [], []  # those on screen are another system's (a Stop kept them): never mixed
         self.shown_query = inputs.query
         new = [o for o in res.orbits if not any(same_orbit(o, k) for k in self.orbits)]
         self.orbits = sorted([*self.orbits, *new], key=lambda o: (o.period, float(o.points[0, 0])))
@@ -323,7 +326,7 @@ class OrbitsLayer(Layer):
                              f"starting point and period, found none; {res.elapsed_s:.2f} s)")  # fmt: skip
 
     def clear(self) -> None:
-        self.orbits = []
+        self.orbits, self.lost = [], []
         self.shown_query = None
         self.text = ""
         self._draw()
@@ -356,6 +359,8 @@ class OrbitsLayer(Layer):
             self.text = f"stopped: the {len(self.orbits)} periodic orbits shown are for {note}"
         elif busy:
             self.text = f"stopped: {len(self.orbits)} periodic orbits shown (the search did not end)"
+            self.lost = [Loss("orbit search", 1, "not computed: the search was stopped before its end (orbits it "
+                              "would have found are not here)")]  # fmt: skip
 
     # --- what the user does -----------------------------------------------------------------
 
@@ -431,7 +436,8 @@ class OrbitsLayer(Layer):
                     yield (i, int(o.period), o.kind, int(o.stable), j, q, r, m[0].real, m[0].imag, m[1].real,
                            m[1].imag, o.det, o.liouville, o.residual)  # fmt: skip
 
-        return Table("periodic orbits", self.shown_query or self.host.state.to_query(), CSV_HEADER, rows())
+        return Table("periodic orbits", self.shown_query or self.host.state.to_query(), CSV_HEADER, rows(),
+                     partial=loss_lines(self.lost, bool(self.lost)))  # fmt: skip
 
 
 def _mu_text(mu: np.ndarray) -> str:

@@ -8,6 +8,7 @@ where it was meant to stop is a :class:`~explorer_core.losses.Loss` of the resul
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -256,6 +257,28 @@ class Boundaries(list):
     def summary(self) -> dict[str, Any]:
         return {"continuations": [c.summary() for c in self], "completed": self.completed,
                 "complete": self.complete, "lost": [loss.as_dict() for loss in self.lost]}  # fmt: skip
+
+    def npz_entries(self) -> dict[str, Any]:
+        """The curves of every continuation as NPZ entries beside a chart's pixels (``numpy.load`` reads them back):
+        ``curve_points`` (n, 4): the rows ``(p1, p2, q, r)`` of every curve one after another, named by
+        ``curve_columns``; curve ``i`` is ``curve_points[curve_start[i]:curve_start[i + 1]]``, of kind
+        ``curve_kind[i]`` (``fold``, ``period_doubling``, ...) of the period-``curve_period[i]`` cycle, ended as
+        ``curve_status[i]`` (a status name) because ``curve_stop[i]``; ``curves_complete`` and ``curves_lost``
+        (JSON, as the summary's) say what was not followed."""
+        curves = [(c, cv) for c in self for cv in c.curves]
+        rows = [np.asarray(cv.rows, dtype=float).reshape(-1, 4) for _, cv in curves]
+        names = next((c for c, _ in curves), None)
+        return {
+            "curve_points": np.concatenate(rows) if rows else np.zeros((0, 4)),
+            "curve_start": np.cumsum([0, *(r.shape[0] for r in rows)]),
+            "curve_columns": np.array([names.param, names.param2, "q", "r"] if names else ["p1", "p2", "q", "r"]),
+            "curve_kind": np.array([cv.kind for _, cv in curves], dtype=str),
+            "curve_period": np.array([cv.period for _, cv in curves], dtype=int),
+            "curve_status": np.array([cv.status.label for _, cv in curves], dtype=str),
+            "curve_stop": np.array([cv.stop for _, cv in curves], dtype=str),
+            "curves_complete": self.complete,
+            "curves_lost": json.dumps([loss.as_dict() for loss in self.lost]),
+        }
 
     def write(self, path: str) -> dict[str, Any]:
         """``.csv``: the continuations' points, a column ``continuation`` first; ``.json``: the summary."""
