@@ -111,7 +111,7 @@ def test_the_fold_flip_map_has_gpd_lppd_and_r2_at_their_closed_forms() -> None:
     for c, d, kinds in ((1.0, 1.0, {"GPD", "LPPD"}), (3.0, 0.0, {"LPPD", "R2"})):
         y0 = 0.2
         res = continue_map(FoldFlip(b=-(c * y0**2 + y0**3), c=c, d=d), "a", (0.5, -0.5), (0.0, y0), 1,
-                           param2="b", range2=(-3.0, 3.0), window1=(-3.0, 3.0))  # fmt: skip
+                           param2="b", range2=(-3.0, 3.0), window1=(-3.0, 3.0), codim2_nf=True)  # fmt: skip
         (curve,) = res.curves
         assert curve.kind == "period_doubling" and {p.kind for p in curve.codim2} == kinds
         # The flip curve: x = 0, y = a (multiplier y - (1 + a) = -1), b = -c y^2 - y^3; the other multiplier
@@ -134,7 +134,8 @@ def test_the_fold_flip_map_has_a_cusp_on_its_fold_curve() -> None:
     # Continued in b at c = 1 from the fixed point y0: the fold at y = 0, b = 0 for every c; its fold coefficient
     # (the x^2 .. y^2 coefficient of y's equation, the eigenvector e_2 both ways) is c: a cusp at c = 0.
     y0 = float(sp.nsolve(Y**2 + Y**3 - 0.1, Y, 0.3))
-    res = continue_map(FoldFlip(b=-0.1, c=1.0), "b", (-0.1, 0.1), (0.0, y0), 1, param2="c", range2=(-1.0, 1.0))
+    res = continue_map(FoldFlip(b=-0.1, c=1.0), "b", (-0.1, 0.1), (0.0, y0), 1, param2="c", range2=(-1.0, 1.0),
+                       codim2_nf=True)  # fmt: skip
     (curve,) = [cu for cu in res.curves if cu.kind == "fold"]
     cv = sp.symbols("c", real=True)
     fold_coefficient = sp.diff(Y + B + cv * Y**2 + Y**3, Y, 2).subs(Y, 0) / 2
@@ -153,6 +154,9 @@ def test_the_neimark_sacker_normal_form_has_its_chenciner_point_and_resonances()
     re_d = sp.simplify(sp.re(sp.conjugate(e) * g21 / 2) - sp.Abs(g02) ** 2 / 4)
     (c_star,) = sp.solve(re_d, cv)
     res = continue_map(NeimarkSacker(), "a", (-0.1, 0.1), (0.0, 0.0), 1, param2="c", range2=(0.0, 2.0))
+    assert not _points(res)  # the normal-form test functions only when asked
+    res = continue_map(NeimarkSacker(), "a", (-0.1, 0.1), (0.0, 0.0), 1, param2="c", range2=(0.0, 2.0),
+                       codim2_nf=True)  # fmt: skip
     (ch,) = _points(res)
     assert ch.kind == "CH"
     _check(ch, (0.0, float(c_star)))
@@ -192,7 +196,8 @@ def test_switching_at_the_henon_r2_follows_the_period_two_neimark_sacker_curve()
 def test_switching_at_lppd_and_gpd_follows_the_doubled_orbits_curves() -> None:
     y0 = 0.2
     res = continue_map(FoldFlip(b=-(y0**2 + y0**3), c=1.0, d=1.0), "a", (0.5, -0.5), (0.0, y0), 1, param2="b",
-                       range2=(-3.0, 3.0), window1=(-3.0, 3.0), switch=True, max_period=2)  # fmt: skip
+                       range2=(-3.0, 3.0), window1=(-3.0, 3.0), switch=True, max_period=2,
+                       codim2_nf=True)  # fmt: skip
     switched = [cu for cu in res.curves if cu.origin is not None]
     assert {(cu.origin.kind, cu.kind) for cu in switched} >= {("GPD", "fold"), ("LPPD", "neimark_sacker")}
     m = FoldFlip(c=1.0, d=1.0)

@@ -78,11 +78,12 @@ def _by_multipliers(kind: str, name: str, a: np.ndarray) -> float:
 
 class _Tests:
     """The test functions of one curve at its points: ``values(pt)`` maps each name to ``(value, error)``
-    (``None`` where a normal form could not be computed)."""
+    (``None`` where a normal form could not be computed). Those of ``A`` alone cost nothing; those a normal-form
+    coefficient gives (``nf``) a normal form at every point (about half the curve's own cost)."""
 
-    def __init__(self, prob: _CurveProblem) -> None:
+    def __init__(self, prob: _CurveProblem, nf: bool) -> None:
         self.prob = prob
-        self.names = ON_CURVE[prob.kind]
+        self.names = tuple(k for k in ON_CURVE[prob.kind] if nf or k not in BY_NORMAL_FORM)
 
     def one(self, name: str, pt: _Point) -> tuple[float, float] | None:
         kind = self.prob.kind

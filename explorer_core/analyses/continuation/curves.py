@@ -40,15 +40,16 @@ def _collapsed(pt: _Point, new: _Point, n: int, tol: float) -> int:
 
 
 def _follow_curve(eng: _Engine, branch: ContinuationMap, name2: str, bif: Bifurcation, rng1: tuple[float, float],
-                  rng2: tuple[float, float], codim2: bool = True,
+                  rng2: tuple[float, float], nf: bool = False,
                   messages: list[str] | None = None) -> tuple[Curve, list[Loss]]:  # fmt: skip
     """The curve of ``F = 0, phi = 0`` through ``bif`` (located on a branch of the map ``branch``) in
     ``(name1, name2)``, ``name1`` the branch's parameter, both ways, within ``rng1 x rng2``.
 
     Pseudo-arclength in ``(q, r, s1, s2)`` with each parameter scaled to its range (``rng1``: the window of the
     first parameter, ``rng2``), by the same engine as the branches; each half ends on the box's edge, or (a
-    Neimark-Sacker curve) at R1 or R2. With ``codim2``, the codimension-two points crossed are located
-    (:mod:`.codim2`) and are points of the curve; why a sign change was not kept goes to ``messages``.
+    Neimark-Sacker curve) at R1 or R2, or where its orbit collapses onto one of a divisor period. The
+    codimension-two points crossed are located (:mod:`.codim2`; those a normal-form coefficient gives, CP, GPD, CH,
+    only with ``nf``) and are points of the curve; why a sign change was not kept goes to ``messages``.
     """
     messages = [] if messages is None else messages
     name1 = branch.names[0]
@@ -74,8 +75,8 @@ def _follow_curve(eng: _Engine, branch: ContinuationMap, name2: str, bif: Bifurc
     halves: list[list[tuple[float, float, float, float]]] = []
     found: list[list[Codim2Point]] = []
     reasons, losses = [], []
-    tests = _Tests(prob) if codim2 else None
-    f0 = tests.values(pt0) if tests is not None else None
+    tests = _Tests(prob, nf)
+    f0 = tests.values(pt0)
     row = lambda Y: (float(Y[2]), float(Y[3]), float(Y[0]), float(Y[1]))  # noqa: E731
     for sgn, way in ((1.0, "one way"), (-1.0, "the other way")):
         rows: list[tuple[float, float, float, float]] = []
@@ -88,24 +89,21 @@ def _follow_curve(eng: _Engine, branch: ContinuationMap, name2: str, bif: Bifurc
                 if d < n:  # beyond, the curve is the period-d orbit's, traced as period n (and back)
                     w.stop = f"the period-{n} orbit collapsed onto a period-{d} orbit"
                     continue
-                if tests is not None:
-                    f_new = tests.values(w.new)
-                    located, why = _crossings(eng, prob, tests, w.pt, w.new, f_pt, f_new)
-                    messages += [f"{what} ({way}): {m}" for m in why]
-                    for c, at in located:
-                        points.append(c)
-                        rows.append(row(prob.unscaled(at.X)))
-                        if kind == "neimark_sacker" and c.kind in ENDS_NS:  # the pair turns real: the curve ends
-                            w.stop = f"{c.kind} ({CODIM2_NAMES[c.kind]}): the Neimark-Sacker pair turns real"
-                            break
-                    ended = [e for e in ENDS_NS if kind == "neimark_sacker" and _changed(e, f_pt[e], f_new[e])]
-                    if ended and w.stop is None:  # crossed, though not located
-                        w.stop = (
-                            f"{ended[0]} ({CODIM2_NAMES[ended[0]]}, not located): the Neimark-Sacker pair turns real"
-                        )
-                    f_pt = f_new
-                    if w.stop is not None:
-                        continue
+                f_new = tests.values(w.new)
+                located, why = _crossings(eng, prob, tests, w.pt, w.new, f_pt, f_new)
+                messages += [f"{what} ({way}): {m}" for m in why]
+                for c, at in located:
+                    points.append(c)
+                    rows.append(row(prob.unscaled(at.X)))
+                    if kind == "neimark_sacker" and c.kind in ENDS_NS:  # the pair turns real: the curve ends
+                        w.stop = f"{c.kind} ({CODIM2_NAMES[c.kind]}): the Neimark-Sacker pair turns real"
+                        break
+                ended = [e for e in ENDS_NS if kind == "neimark_sacker" and _changed(e, f_pt[e], f_new[e])]
+                if ended and w.stop is None:  # crossed, though not located
+                    w.stop = f"{ended[0]} ({CODIM2_NAMES[ended[0]]}, not located): the Neimark-Sacker pair turns real"
+                f_pt = f_new
+                if w.stop is not None:
+                    continue
                 rows.append(row(prob.unscaled(w.new.X)))
             reason, lost, status = walk.reason, walk.lost, walk.status
         except _Stop as exc:
@@ -174,7 +172,8 @@ class _Fixed:
 
 
 def _switch_codim2(eng: _Engine, sys2: ContinuationMap, c: Codim2Point, rng1: tuple[float, float],
-                   rng2: tuple[float, float], messages: list[str]) -> tuple[Curve | None, list[Loss]]:  # fmt: skip
+                   rng2: tuple[float, float], messages: list[str],
+                   nf: bool = False) -> tuple[Curve | None, list[Loss]]:  # fmt: skip
     """The curve of the doubled orbit that emanates from the codimension-two point ``c`` (R2, LPPD: its
     Neimark-Sacker curve; GPD: its fold curve) in the box ``rng1 x rng2`` of ``sys2``'s two parameters, or None.
 
@@ -214,7 +213,7 @@ def _switch_codim2(eng: _Engine, sys2: ContinuationMap, c: Codim2Point, rng1: tu
                 if target not in _crossed(w.pt, w.new):
                     continue
                 bif, _, _ = _located(eng, prob2, target, w.pt, w.new, 0)
-                curve, losses = _follow_curve(eng, fmap, sys2.names[k], bif, boxes[j], boxes[k], messages=messages)
+                curve, losses = _follow_curve(eng, fmap, sys2.names[k], bif, boxes[j], boxes[k], nf, messages)
                 if j == 1:  # followed in (p2, p1): back to (p1, p2)
                     curve.rows = [(b, a, q, r) for a, b, q, r in curve.rows]
                     curve.codim2 = [replace(p, values=p.values[::-1]) for p in curve.codim2]

@@ -168,7 +168,7 @@ class _OrbitRun:
                     stopped = True
                     res.lost.append(Loss(f"the {bif.kind} curve from {param} = {bif.value:.12g}", 1, "cancelled"))
                     continue
-                curve, losses = _follow_curve(eng, self.sys, res.param2, bif, w1, (c, d), messages=res.messages)
+                curve, losses = _follow_curve(eng, self.sys, res.param2, bif, w1, (c, d), spec.codim2_nf, res.messages)
                 res.curves.append(curve)
                 res.lost += losses
                 stopped = stopped or "cancelled" in curve.stop
@@ -190,7 +190,7 @@ class _OrbitRun:
                    and max(abs(u - v) for u, v in zip(o.origin.values, c.values, strict=True)) <= near
                    for o in res.curves):  # fmt: skip
                 continue
-            new, losses = _switch_codim2(self.eng, sys2, c, w1, w2, res.messages)
+            new, losses = _switch_codim2(self.eng, sys2, c, w1, w2, res.messages, spec.codim2_nf)
             if new is not None:
                 res.curves.append(new)
                 lost += losses
