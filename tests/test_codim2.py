@@ -223,3 +223,26 @@ def test_switching_at_lppd_and_gpd_follows_the_doubled_orbits_curves() -> None:
 def test_the_codimension_two_points_of_three_dimensional_maps_are_said_not_to_occur() -> None:
     assert NOT_IN_THE_PLANE == ("LPNS", "PDNS", "NSNS")
     assert not set(NOT_IN_THE_PLANE) & {k for names in ON_CURVE.values() for k in names}
+
+
+def test_the_codimension_two_points_are_written_and_printed(tmp_path) -> None:
+    import csv
+    import json
+
+    res = continue_map(Henon(a=1.0, b=-0.9), "b", (-0.9, -1.1), Henon.fixed_point(1.0, -0.9), 1, param2="a",
+                       range2=(-2.0, 5.0))  # fmt: skip
+    res.write(str(tmp_path / "c.codim2.csv"))
+    res.write(str(tmp_path / "c.json"))
+    res.write(str(tmp_path / "c.csv"))
+    with open(tmp_path / "c.codim2.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["type"] for r in rows] == ["R1", "R4", "R3", "R2"] and rows[2]["name"] == "1:3 resonance"
+    assert float(rows[2]["value2"]) == pytest.approx(1.25) and float(rows[2]["value"]) == pytest.approx(-1.0)
+    with open(tmp_path / "c.csv") as fh:
+        assert len(list(csv.DictReader(fh))) == res.n_points  # the branch table as it was
+    d = json.loads((tmp_path / "c.json").read_text())
+    assert [c["type"] for c in d["curves"][0]["codim2"]] == ["R1", "R4", "R3", "R2"]
+    lines = [ln for ln in res.report() if ln.startswith("R")]
+    assert lines[2].startswith(
+        "R3 (1:3 resonance) of the period-1 orbit on the neimark sacker curve at (b, a) = (-1, 1.25) +- "
+    )

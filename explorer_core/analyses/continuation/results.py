@@ -249,12 +249,29 @@ class Continuation(Drawable):
     CSV_HEADER = ("branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable",
                   "bifurcation", "coefficient", "coefficient_error", "criticality")  # fmt: skip
 
+    #: the codimension-two points' CSV's columns (:meth:`codim2_rows`): ``value``, ``value2`` of ``param``, ``param2``
+    CODIM2_CSV_HEADER = ("curve", "curve_type", "period", "type", "name", "value", "value2", "error", "q", "r",
+                         "mu1_re", "mu1_im", "mu2_re", "mu2_im", "switched_from")  # fmt: skip
+
     def write(self, path: str) -> dict[str, Any]:
-        """``.csv``: a row per point (:attr:`CSV_HEADER`); ``.json``: the summary."""
+        """``.csv``: a row per point (:attr:`CSV_HEADER`); ``.codim2.csv``: a row per codimension-two point of the
+        curves (:attr:`CODIM2_CSV_HEADER`); ``.json``: the summary."""
         csv_ = lambda p: export.write_csv(p, self.CSV_HEADER, self.csv_rows(), export.partial(self))  # noqa: E731
+        codim2 = lambda p: export.write_csv(p, self.CODIM2_CSV_HEADER, self.codim2_rows(), export.partial(self))  # noqa: E731
         return export.write_by_suffix(
-            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "continuation"
+            path,
+            {".codim2.csv": codim2, ".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())},
+            "continuation",
         )
+
+    def codim2_rows(self) -> list[tuple[Any, ...]]:
+        """A row per codimension-two point of the curves, in the curves' order: the curve's index, type and period,
+        the point's type and name, the two parameters' values, the error estimate, the state and the multipliers,
+        and the point the curve was switched onto from (empty for a curve of a branch's bifurcation)."""
+        return [(i, cu.kind, c.period, c.kind, CODIM2_NAMES[c.kind], *c.values, c.error, *c.point,
+                 c.multipliers[0].real, c.multipliers[0].imag, c.multipliers[1].real, c.multipliers[1].imag,
+                 None if cu.origin is None else cu.origin.kind)
+                for i, cu in enumerate(self.curves) for c in cu.codim2]  # fmt: skip
 
     def csv_rows(self) -> list[tuple[Any, ...]]:
         """``branch, period, value, q, r, mu1_re, mu1_im, mu2_re, mu2_im, stable`` per point, plain numbers; at a
