@@ -36,7 +36,7 @@ import numpy as np
 
 from explorer_core.analyses.continuation.engine import _Engine, _Point
 from explorer_core.analyses.continuation.events import _regula_falsi
-from explorer_core.analyses.continuation.normal_forms import normal_form
+from explorer_core.analyses.continuation.normal_forms import NF_FLOOR, normal_form
 from explorer_core.analyses.continuation.problems import _CurveProblem
 from explorer_core.analyses.continuation.results import Codim2Point
 from explorer_core.analyses.continuation.system import _Stop
@@ -54,10 +54,6 @@ NOT_IN_THE_PLANE = ("LPNS", "PDNS", "NSNS")
 ENDS_NS = ("R1", "R2")
 #: The located point's bracket in each parameter (relative to ``1 + |p|``).
 LOCATE_TOL = 1e-13
-#: The least error estimate of a normal-form coefficient as a test function, relative to ``1 + |DP^n|``: the
-#: rounding of its second differences of ``DP^n`` (``eps / NF_STEP^2``, with a margin), which the Richardson
-#: estimate misses where the map's third derivatives vanish.
-NF_FLOOR = 1e-9
 #: The test functions given by a normal-form coefficient (the others by ``A`` alone).
 BY_NORMAL_FORM = {"CP": "fold", "GPD": "period_doubling", "CH": "neimark_sacker"}
 
@@ -96,7 +92,8 @@ class _Tests:
             nf = normal_form(self.prob.sys, kind, Y[:2], [float(Y[2]), float(Y[3])], self.prob.n, pt.A)
         except (_Stop, np.linalg.LinAlgError):
             return None
-        # A coefficient that vanishes identically (an area-preserving map's Re d) is rounding: no sign to compare.
+        # A coefficient that vanishes identically (an area-preserving map's Re d) is rounding: no sign to compare
+        # (NF_FLOOR).
         return nf.coefficient, max(nf.error, NF_FLOOR * (1.0 + float(np.abs(pt.A).max())))
 
     def values(self, pt: _Point) -> dict[str, tuple[float, float] | None]:
