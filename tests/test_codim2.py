@@ -159,6 +159,7 @@ def test_the_neimark_sacker_normal_form_has_its_chenciner_point_and_resonances()
                        codim2_nf=True)  # fmt: skip
     (ch,) = _points(res)
     assert ch.kind == "CH"
+    np.testing.assert_allclose(np.array(res.curves[0].rows)[:, 0], 0.0, atol=1e-9)  # det DP = (1 + a)^2 = 1
     _check(ch, (0.0, float(c_star)))
     res = continue_map(NeimarkSacker(), "a", (-0.1, 0.1), (0.0, 0.0), 1, param2="theta", range2=(0.1, 3.0))
     assert [p.kind for p in _points(res)] == ["R4", "R3"]

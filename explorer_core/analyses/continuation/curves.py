@@ -223,6 +223,10 @@ def _switch_codim2(eng: _Engine, sys2: ContinuationMap, c: Codim2Point, rng1: tu
                 if gap > SWITCH_NEAR:
                     raise _Stop(f"the {target.replace('_', '-')} curve met does not pass by it ({gap:.2g} of the box)")
                 return replace(curve, origin=c), losses
+            last = prob2.p(walk.pt.X)
+            messages.append(f"{what}: no {target.replace('_', '-')} point of the period-{2 * n} orbit on the line "
+                            f"{sys2.names[k]} = {fixed:.12g}, {sys2.names[j]} from {ps:.12g} to {last:.12g} "
+                            f"({walk.reason})")  # fmt: skip
         except (_Stop, np.linalg.LinAlgError) as exc:
             messages.append(f"{what}: no switch on the line {sys2.names[k]} = {fixed:.12g} ({exc})")
     messages.append(f"{what}: no {target.replace('_', '-')} point of the period-{2 * n} orbit found nearby")
