@@ -159,6 +159,13 @@ def _crossings(eng: _Engine, prob: _CurveProblem, tests: _Tests, pt: _Point, new
                + LOCATE_TOL * (1.0 + float(np.abs(Y[2:]).max())))  # fmt: skip
         if name in BY_NORMAL_FORM and own is not None:
             err += own[1] / max(slope, 1e-300)
+        elif name not in BY_NORMAL_FORM:
+            # The map's own error, as for a bifurcation of a branch: the test function of the ten times less
+            # accurate map at the point, turned into a shift along the curve (0 on a map in closed form).
+            coarse = prob.sys.coarse()
+            if coarse is not prob.sys:
+                a2 = coarse.orbit(Y[:2], [float(Y[2]), float(Y[3])], prob.n)[1]
+                err += abs(_by_multipliers(prob.kind, name, a2) - val) / max(slope, 1e-300)
         along = float(pt.t @ (at.X - pt.X))
         found.append((along, Codim2Point(name, prob.kind, prob.n, (float(Y[2]), float(Y[3])), float(err),
                                          (float(Y[0]), float(Y[1])), tuple(complex(m) for m in multipliers(at.A))),
