@@ -163,3 +163,11 @@ def test_the_first_doubling_of_fig10_is_supercritical_as_brute_force_shows() -> 
     assert np.linalg.norm(x3 - x1) < 1e-8  # period 2 ...
     sep = np.linalg.norm(x2 - x1)
     assert abs(sep / (2 * np.sqrt(beta / nf.coefficient)) - 1) < 0.01, (sep, beta)  # ... born at the doubling
+
+
+def test_an_area_preserving_neimark_sacker_point_has_no_criticality() -> None:
+    # Henon at b = -1 has det DP = 1 everywhere: Re d = 0 identically (an invariant area), rounding only.
+    a = 1.0
+    x = Henon.fixed_point(a, -1.0)
+    nf = _numeric(Henon(["a"], b=-1.0), "neimark_sacker", x, a)
+    assert abs(nf.coefficient) < 1e-12 and nf.criticality == ""

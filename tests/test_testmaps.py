@@ -81,3 +81,25 @@ def test_a_map_continuation_refuses_bad_input_by_name() -> None:
         continue_map(Henon(b=0.3), "a", (-0.2, 0.0), (1.0, 0.3), 1)  # no fixed point below -(1 - b)^2 / 4
     with pytest.raises(ParameterError, match="range"):
         continue_map(Henon(), "a", (0.1, 0.1), (1.0, 0.3), 1)
+
+
+def test_map_spec_shares_continuation_specs_declarations_and_messages() -> None:
+    from explorer_core.analyses.continuation import continuation_spec, map_spec
+
+    for name in ("value_range", "period", "switch", "max_period", "options", "range2", "window1", "codim2_nf"):
+        assert map_spec.__options__[name] is continuation_spec.__options__[name], name
+    spec = map_spec(Henon(), "a", (0.1, 0.2), (1.0, 0.3), 1)
+    assert (spec.options, spec.switch, spec.codim2_nf, spec.window1) == (continuation_spec.__options__["options"]
+                                                                          .default, False, False, None)  # fmt: skip
+    for kw, match in (({"param2": "b"}, "param2 and range2 go together"),
+                      ({"param2": "a", "range2": (0.0, 1.0)}, "param2 must differ from param"),
+                      ({"range2": (1.0, 0.0), "param2": "b"}, "range2 must have C < D"),
+                      ({"max_period": 0}, "max_period"), ({"period": 0}, "period")):  # fmt: skip
+        with pytest.raises(ParameterError, match=match) as exc:
+            map_spec(Henon(), "a", (0.1, 0.2), (1.0, 0.3), **{"period": 1, **kw})
+        assert exc.value.option in kw
+    with pytest.raises(ParameterError, match="not finite") as exc:  # continuation_spec's message, tagged seed
+        map_spec(Henon(), "a", (0.1, 0.2), (np.inf, 0.3), 1)
+    assert exc.value.option == "seed"
+    with pytest.raises(ParameterError, match="cmap"):
+        map_spec(object(), "a", (0.1, 0.2), (1.0, 0.3), 1)

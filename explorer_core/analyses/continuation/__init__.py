@@ -3,10 +3,10 @@
 A period-``n`` orbit is a zero of ``F(x, p) = P^n(x; p) - x``; its points ``(x, p)`` form curves (branches),
 followed by pseudo-arclength continuation (Keller) through folds. Along a branch the folds, period doublings and
 Neimark-Sacker points are located where their test functions change sign; at a period doubling the doubled
-branch is switched onto (``switch=True``: the cascade ``1 -> 2 -> 4 -> 8 -> 16``); folds and doublings can be
-followed as curves in a second parameter. Nothing is lost in silence: a branch or curve that stopped other than
-at a range end or at a located bifurcation where it was meant to stop is a
-:class:`~explorer_core.losses.Loss` of the result.
+branch is switched onto (``switch=True``: the cascade ``1 -> 2 -> 4 -> 8 -> 16``); folds, doublings and
+Neimark-Sacker points can be followed as curves in a second parameter, with their codimension-two points. Nothing
+is lost in silence: a branch or curve that stopped other than at a range end or at a located bifurcation where it
+was meant to stop is a :class:`~explorer_core.losses.Loss` of the result.
 
 Continuation is an iterator, as BifurcationKit's ``ContIterable`` over a ``ContState``: the engine's
 :meth:`~.engine._Engine.follow` is a generator over an explicit state, the drivers are generators over it, and
@@ -27,7 +27,9 @@ The modules, bottom to top:
   :class:`_CurveProblem`);
 * :mod:`.events`: crossing, location and refinement of bifurcations on a branch;
 * :mod:`.switching`: births and switching at period doublings;
-* :mod:`.curves`: two-parameter curves of folds and doublings;
+* :mod:`.codim2`: the codimension-two points on the curves (test functions, location; CP, R1-R4, LPPD, GPD, CH);
+* :mod:`.curves`: two-parameter curves of folds, doublings and Neimark-Sacker points, and the switching at their
+  R2, LPPD and GPD points onto the doubled orbit's curves;
 * :mod:`.drivers`: :func:`continue_orbit` / :func:`iter_continue_orbit`, :func:`continue_from_seeds` /
   :func:`iter_continue_from_seeds`, :func:`chart_boundaries` / :func:`iter_chart_boundaries`, and
   :func:`continue_map` (the same on any :class:`~.system.ContinuationMap` with ``as_dict``);
@@ -64,6 +66,7 @@ from explorer_core.analyses.continuation.results import (
     Bifurcation,
     Boundaries,
     Branch,
+    Codim2Point,
     Continuation,
     Curve,
     classify_branch,
@@ -102,6 +105,7 @@ __all__ = [
     "Boundaries",
     "BoundariesSpec",
     "Branch",
+    "Codim2Point",
     "Continuation",
     "ContinuationMap",
     "ContinuationOptions",

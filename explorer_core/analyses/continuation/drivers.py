@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core.analyses.continuation.curves import _follow_curve
+from explorer_core.analyses.continuation.curves import SWITCHES, _follow_curve, _switch_codim2
 from explorer_core.analyses.continuation.engine import _Engine, _Point
 from explorer_core.analyses.continuation.events import _crossed, _located
 from explorer_core.analyses.continuation.options import (
@@ -35,7 +35,7 @@ from explorer_core.analyses.continuation.options import (
     seeds_spec,
 )
 from explorer_core.analyses.continuation.problems import _BranchProblem
-from explorer_core.analyses.continuation.results import Boundaries, Branch, Continuation
+from explorer_core.analyses.continuation.results import Boundaries, Branch, Continuation, Curve
 from explorer_core.analyses.continuation.switching import _birth, _switch
 from explorer_core.analyses.continuation.system import ContinuationMap, _Stop, _System
 from explorer_core.analyses.orbits import find_orbits, minimal_period, newton
@@ -160,21 +160,41 @@ class _OrbitRun:
         if spec.param2 is not None and not stopped:
             res.param2, res.range2 = spec.param2, spec.range2
             c, d = spec.range2  # type: ignore[misc]
-            todo = [bif for bif in res.bifurcations if bif.kind in ("fold", "period_doubling")]
-            for bif in list(res.bifurcations):
-                if bif.kind in ("fold", "period_doubling"):
-                    yield self._step(len(res.branches) + len(res.curves), len(res.branches) + len(todo), None)
-                    if self.stop():
-                        stopped = True
-                        res.lost.append(Loss(f"the {bif.kind} curve from {param} = {bif.value:.12g}", 1, "cancelled"))
-                        continue
-                    w1 = (a, b) if spec.window1 is None else spec.window1
-                    curve, losses = _follow_curve(eng, self.sys, res.param2, bif, w1, (c, d))
-                    res.curves.append(curve)
-                    res.lost += losses
-                    stopped = stopped or "cancelled" in curve.stop
+            todo = list(res.bifurcations)  # folds, doublings and Neimark-Sacker points alike
+            w1 = (a, b) if spec.window1 is None else spec.window1
+            for bif in todo:
+                yield self._step(len(res.branches) + len(res.curves), len(res.branches) + len(todo), None)
+                if self.stop():
+                    stopped = True
+                    res.lost.append(Loss(f"the {bif.kind} curve from {param} = {bif.value:.12g}", 1, "cancelled"))
+                    continue
+                curve, losses = _follow_curve(eng, self.sys, res.param2, bif, w1, (c, d), spec.codim2_nf, res.messages)
+                res.curves.append(curve)
+                res.lost += losses
+                stopped = stopped or "cancelled" in curve.stop
+                if spec.switch and not stopped:
+                    res.lost += self._switch_codim2(curve, w1, (c, d))
         res.elapsed_s = time.perf_counter() - self.start
         res.completed = not stopped
+
+    def _switch_codim2(self, curve: Curve, w1: tuple[float, float], w2: tuple[float, float]) -> list[Loss]:
+        """The curves switched onto at ``curve``'s R2, LPPD and GPD points (:func:`~.curves._switch_codim2`), each
+        once (an LPPD is on a fold and a flip curve), up to ``max_period``; their losses."""
+        res, spec, lost = self.result, self.spec, []
+        sys2 = self.sys.over([spec.param, res.param2])
+        for c in curve.codim2:
+            if c.kind not in SWITCHES or 2 * c.period > spec.max_period or self.stop():
+                continue
+            near = 1e-6 * (1.0 + max(abs(v) for v in c.values))
+            if any(o.origin is not None and o.origin.kind == c.kind and o.origin.period == c.period
+                   and max(abs(u - v) for u, v in zip(o.origin.values, c.values, strict=True)) <= near
+                   for o in res.curves):  # fmt: skip
+                continue
+            new, losses = _switch_codim2(self.eng, sys2, c, w1, w2, res.messages, spec.codim2_nf)
+            if new is not None:
+                res.curves.append(new)
+                lost += losses
+        return lost
 
     def _judge(self, prob: _BranchProblem, br: Branch, k: int, pt: _Point, new: _Point) -> tuple[float, str | None]:
         """The driver's word on ``new``, a point the engine accepted on branch ``k`` after ``pt``: it records the

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -53,20 +54,27 @@ def _crossed(p0: _Point, p1: _Point) -> list[str]:
     return out
 
 
-def _locate(eng: _Engine, prob: _BranchProblem, fn: Callable[[_Point], float], p0: _Point, p1: _Point,
-            sigma_tol: float = 0.0, ptol: float = LOCATE_TOL) -> tuple[_Point, float]:  # fmt: skip
-    """The zero of ``fn`` between ``p0`` and ``p1``: the point and its bracket in p.
-
-    Stops when the bracket is below ``ptol`` (relative) in the parameter or ``sigma_tol`` in the arclength (at a
-    turn of the parameter the parameter's bracket says nothing about the point's).
-    """
+def _regula_falsi(
+    eng: _Engine,
+    prob: Any,
+    fn: Callable[[_Point], float],
+    p0: _Point,
+    p1: _Point,
+    f0: float,
+    f1: float,
+    close: Callable[[_Point, _Point, float], bool],
+) -> tuple[_Point, float, _Point, _Point]:
+    """The zero of ``fn`` (``f0``, ``f1`` at ``p0``, ``p1``, of opposite signs) along the curve of ``prob`` between
+    ``p0`` and ``p1``: Illinois regula falsi in the arclength along ``p0.t``, each trial corrected onto the curve
+    (:meth:`~.engine._Engine.at`), until ``close(lo, hi, sigma_width)`` says the bracket is small enough (at most 60
+    steps). Returns the last trial point, its value and the bracket's two ends."""
     lo, hi = 0.0, float(p0.t @ (p1.X - p0.X))
-    flo, fhi = fn(p0), fn(p1)
-    plo, phi_ = prob.p(p0.X), prob.p(p1.X)
-    best = p1 if abs(fhi) < abs(flo) else p0
+    flo, fhi = f0, f1
+    plo, phi_ = p0, p1
+    best, fbest = (p1, f1) if abs(f1) < abs(f0) else (p0, f0)
     side = 0
     for _ in range(60):
-        if abs(phi_ - plo) <= ptol * (1.0 + abs(plo)) and abs(hi - lo) <= sigma_tol:
+        if close(plo, phi_, hi - lo):
             break
         # Illinois regula falsi: secant steps that keep the bracket
         s = hi - fhi * (hi - lo) / (fhi - flo) if fhi != flo else 0.5 * (lo + hi)
@@ -74,20 +82,36 @@ def _locate(eng: _Engine, prob: _BranchProblem, fn: Callable[[_Point], float], p
             s = 0.5 * (lo + hi)
         mid = eng.at(prob, p0, s, p1)
         fm = fn(mid)
-        best = mid
+        best, fbest = mid, fm
         if fm == 0.0:
-            return mid, 0.0
+            return mid, 0.0, mid, mid
         if (fm > 0) == (fhi > 0):
-            hi, fhi, phi_ = s, fm, prob.p(mid.X)
+            hi, fhi, phi_ = s, fm, mid
             if side == 1:
                 flo *= 0.5
             side = 1
         else:
-            lo, flo, plo = s, fm, prob.p(mid.X)
+            lo, flo, plo = s, fm, mid
             if side == -1:
                 fhi *= 0.5
             side = -1
-    return best, abs(phi_ - plo)
+    return best, fbest, plo, phi_
+
+
+def _locate(eng: _Engine, prob: _BranchProblem, fn: Callable[[_Point], float], p0: _Point, p1: _Point,
+            sigma_tol: float = 0.0, ptol: float = LOCATE_TOL) -> tuple[_Point, float]:  # fmt: skip
+    """The zero of ``fn`` between ``p0`` and ``p1``: the point and its bracket in p.
+
+    Stops when the bracket is below ``ptol`` (relative) in the parameter or ``sigma_tol`` in the arclength (at a
+    turn of the parameter the parameter's bracket says nothing about the point's).
+    """
+
+    def close(a: _Point, b: _Point, width: float) -> bool:
+        plo = prob.p(a.X)
+        return abs(prob.p(b.X) - plo) <= ptol * (1.0 + abs(plo)) and abs(width) <= sigma_tol
+
+    best, fbest, a, b = _regula_falsi(eng, prob, fn, p0, p1, fn(p0), fn(p1), close)
+    return best, (0.0 if fbest == 0.0 and a is b else abs(prob.p(b.X) - prob.p(a.X)))
 
 
 def _refine(

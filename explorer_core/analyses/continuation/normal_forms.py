@@ -41,6 +41,10 @@ from explorer_core.analyses.continuation.system import ContinuationMap
 #: The larger step of the differences, relative to ``1 + |x|`` and divided by ``sqrt(|DP^n|)`` (the map bends on a
 #: scale that shrinks with the orbit's instability, as for ``F_p``, :meth:`~.system._System.delta`).
 NF_STEP = 1e-3
+#: The least error of a coefficient, relative to ``1 + |DP^n|``: the rounding of its second differences of ``DP^n``
+#: (``eps / NF_STEP^2``, with a margin), which the Richardson estimate misses where the map's third derivatives
+#: vanish (an area-preserving map's ``Re d`` is 0 identically: rounding, no criticality).
+NF_FLOOR = 1e-9
 #: A Neimark-Sacker point is near the strong resonance 1:k when ``|k theta mod 2 pi| <`` this (radians).
 RESONANCE_TOL = 1e-2
 
@@ -164,7 +168,7 @@ def normal_form(sys: ContinuationMap, kind: str, x: np.ndarray, p: list[float], 
     value, error = c2 + (c2 - c1) / 3.0, abs(c2 - c1)
     res = resonance(eigenpair(a, kind)[2]) if kind == "neimark_sacker" else None
     crit = ""
-    if kind != "fold" and abs(value) > error and res is None:
+    if kind != "fold" and abs(value) > max(error, NF_FLOOR * (1.0 + float(np.abs(a).max()))) and res is None:
         sign = value if kind == "period_doubling" else -value
         crit = "supercritical" if sign > 0 else "subcritical"
     return NormalForm(value, error, crit, res)

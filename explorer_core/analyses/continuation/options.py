@@ -141,6 +141,8 @@ class ContinuationSpec:
     param2: str | None
     range2: tuple[float, float] | None
     window1: tuple[float, float] | None
+    #: on the curves, also the codimension-two points a normal-form coefficient gives (CP, GPD, CH)
+    codim2_nf: bool
 
     def as_dict(self) -> dict[str, Any]:
         """Every field in order, as plain data (``params``, ``options``, ``numerics`` by their ``as_dict``)."""
@@ -231,7 +233,34 @@ _BRANCH = {
         default=None,
         check=Check(_window, "two numbers A,B or none", "str", optional=True),
     ),
+    "codim2_nf": Arg(
+        "on the curves, also look for the codimension-two points a normal-form coefficient gives (cusp, generalised "
+        "flip, Chenciner): a normal form at every point of every curve, about 1.5 times the curves' time",
+        "switch",
+        default=False,
+        check=BOOL,
+    ),
 }
+#: The options continuation_spec and map_spec share by meaning (one declaration for both builders).
+_ORBIT = {
+    "period": Arg("the orbit's period", "int", positional=True, cli_default=1, check=integer(1, 1024)),
+    "switch": Arg(
+        "at each period doubling, follow the doubled orbit too (and at each R2, LPPD and GPD point of a curve, the "
+        "doubled orbit's curve that emanates)",
+        "switch",
+        default=False,
+        check=BOOL,
+    ),
+    "max_period": Arg("cap of a cascade", "int", default=DEFAULT_MAX_PERIOD, checked_with=("period",)),
+}
+
+
+def _check_param2(param: str, param2: str | None, range2: tuple[float, float] | None) -> None:
+    """``param2`` and ``range2`` go together, and ``param2`` is not ``param``."""
+    if (param2 is None) != (range2 is None):
+        raise ParameterError(f"param2 and range2 go together (both or neither), got {param2!r} and {range2!r}")
+    if param2 is not None and param2 == param:
+        raise ParameterError(f"param2 must differ from param, got {param2!r} twice")
 
 
 @declare(
@@ -245,9 +274,9 @@ _BRANCH = {
         positional=True,
         checked_with=("numerics",),
     ),
-    period=Arg("the orbit's period", "int", positional=True, cli_default=1, check=integer(1, 1024)),
-    switch=Arg("at each period doubling, follow the doubled orbit too", "switch", default=False, check=BOOL),
-    max_period=Arg("cap of a cascade", "int", default=DEFAULT_MAX_PERIOD, checked_with=("period",)),
+    period=_ORBIT["period"],
+    switch=_ORBIT["switch"],
+    max_period=_ORBIT["max_period"],
     max_points=Arg(
         f"points per branch {_options_default('max_points')}",
         "int",
@@ -270,6 +299,7 @@ _BRANCH = {
     options=_BRANCH["options"],
     numerics=_BRANCH["numerics"],
     window1=_BRANCH["window1"],
+    codim2_nf=_BRANCH["codim2_nf"],
     check_end=Arg("refuse a range's end that is no valid system", cli=False, default=False, check=BOOL),
 )
 def continuation_spec(
@@ -290,6 +320,7 @@ def continuation_spec(
     param2: str | None,
     range2: tuple[float, float] | None,
     window1: tuple[float, float] | None,
+    codim2_nf: bool,
     check_end: bool,
 ) -> ContinuationSpec:
     """A validated :class:`ContinuationSpec`; every bad value raises :class:`ParameterError` naming it (and
@@ -313,7 +344,8 @@ def continuation_spec(
     numerics : integration (default :data:`~explorer_core.analyses.orbits.ORBIT_NUMERICS`).
     param2, range2 : together or neither: also follow every fold and period doubling found as a curve in
         ``(param, param2)``, ``param2`` (not ``param``) over ``range2 = (C, D)``, ``C < D``, and ``param``
-        over ``window1`` (default: the range).
+        over ``window1`` (default: the range); their codimension-two points are located (:mod:`.codim2`), those a
+        normal-form coefficient gives (CP, GPD, CH) only with ``codim2_nf``.
     """
     with Checking() as at:
         at("value_range")
@@ -336,12 +368,9 @@ def continuation_spec(
         at("seed")
         q, r = check_point("seed", seed, numerics.bound)
         at("param2")
-        if (param2 is None) != (range2 is None):
-            raise ParameterError(f"param2 and range2 go together (both or neither), got {param2!r} and {range2!r}")
-        if param2 is not None and param2 == param:
-            raise ParameterError(f"param2 must differ from param, got {param2!r} twice")
+        _check_param2(param, param2, range2)
     return ContinuationSpec(params, param, (a, b), (q, r), period, switch, max_period, opts, numerics,
-                            param2, range2, window1)  # fmt: skip
+                            param2, range2, window1, codim2_nf)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -351,24 +380,71 @@ class MapSpec(ContinuationSpec):
     None (the map is exact). Made by :func:`map_spec`."""
 
 
-def map_spec(cmap: Any, param: str, value_range: tuple[float, float], seed: Sequence[float], period: int, *,
-             switch: bool = False, max_period: int = DEFAULT_MAX_PERIOD, options: ContinuationOptions | None = None,
-             param2: str | None = None, range2: tuple[float, float] | None = None,
-             window1: tuple[float, float] | None = None) -> MapSpec:  # fmt: skip
-    """A validated :class:`MapSpec` (the arguments as :func:`continuation_spec`'s; ``param`` and ``param2`` among
-    the map's ``values``); every bad value raises :class:`ParameterError` naming it."""
-    for name in (param, param2):
-        if name is not None and name not in cmap.values:
-            raise ParameterError(f"the map has no parameter {name!r} (it has {', '.join(cmap.values)})")
-    a, b = _value_range("range", value_range)
-    period = check_int("period", period, 1, 1024)
-    max_period = check_int("max_period", max_period, period, 1024)
-    q, r = check_point("seed", seed, math.inf)
-    if (param2 is None) != (range2 is None) or (param2 is not None and param2 == param):
-        raise ParameterError(f"param2 (not param) and range2 go together, got {param2!r} and {range2!r}")
-    return MapSpec(cmap, param, (a, b), (q, r), period, bool(switch), max_period,
-                   DEFAULT_OPTIONS if options is None else options, None, param2, _range2("range2", range2),
-                   _window("window1", window1))  # fmt: skip
+def _a_map(name: str, value: Any) -> Any:
+    if not isinstance(getattr(value, "values", None), dict) or not hasattr(value, "over"):
+        raise ParameterError(f"{name} must be a map with its parameters' values (a ClosedFormMap), got {value!r}")
+    return value
+
+
+def _any_point(name: str, value: Any) -> tuple[float, float]:
+    """One finite point (a map in closed form has no escape bound)."""
+    return check_point(name, value, math.inf)
+
+
+def _map_param(name: str, value: Any) -> str:
+    if not isinstance(value, str):
+        raise ParameterError(f"{name} must be the name of a parameter of the map, got {value!r}")
+    return value
+
+
+@declare(
+    cmap=Arg(
+        "the map (a ClosedFormMap, or any ContinuationMap with values and as_dict)",
+        cli=False,
+        check=Check(_a_map, "a map with its parameters' values", "str"),
+    ),
+    param=Arg("the parameter followed", "str", checked_with=("cmap",)),
+    value_range=_BRANCH["value_range"],
+    seed=Arg("a point near the period-N orbit at A", "point", check=Check(_any_point, "a finite point Q,R", "str")),
+    period=_ORBIT["period"],
+    switch=_ORBIT["switch"],
+    max_period=_ORBIT["max_period"],
+    options=_BRANCH["options"],
+    param2=Arg("the second parameter of the curves", "str", default=None, checked_with=("cmap",)),
+    range2=_BRANCH["range2"],
+    window1=_BRANCH["window1"],
+    codim2_nf=_BRANCH["codim2_nf"],
+)
+def map_spec(
+    cmap: Any,
+    param: str,
+    value_range: tuple[float, float],
+    seed: Sequence[float],
+    period: int,
+    *,
+    switch: bool,
+    max_period: int,
+    options: ContinuationOptions,
+    param2: str | None,
+    range2: tuple[float, float] | None,
+    window1: tuple[float, float] | None,
+    codim2_nf: bool,
+) -> MapSpec:
+    """A validated :class:`MapSpec`: the options declared above as :func:`continuation_spec`'s (the same
+    declarations where they mean the same: range, period, switching, the cap, the engine's settings, range2, the
+    window, codim2_nf); ``param`` and ``param2`` among the map's ``values``, ``seed`` any finite point (the map has no
+    escape bound). Every bad value raises :class:`ParameterError` naming it."""
+    with Checking() as at:
+        for key, name in (("param", param), ("param2", param2)):
+            at(key)
+            if name is not None and _map_param(key, name) not in cmap.values:
+                raise ParameterError(f"the map has no parameter {name!r} (it has {', '.join(cmap.values)})")
+        at("max_period")
+        max_period = check_int("max_period", max_period, period, 1024)
+        at("param2")
+        _check_param2(param, param2, range2)
+    return MapSpec(cmap, param, value_range, seed, period, switch, max_period, options, None, param2, range2,
+                   window1, codim2_nf)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -406,7 +482,8 @@ class SeedsSpec:
         b = self.branch
         return continuation_spec(b.params, b.param, b.range, point, period, switch=b.switch,
                                  max_period=max(self.max_period, period), options=b.options, numerics=b.numerics,
-                                 param2=b.param2, range2=b.range2, window1=b.window1)  # fmt: skip
+                                 param2=b.param2, range2=b.range2, window1=b.window1,
+                                 codim2_nf=b.codim2_nf)  # fmt: skip
 
     def as_dict(self) -> dict[str, Any]:
         own = {"seeds": self.seeds.tolist(), "periods": list(self.periods), "max_orbits": self.max_orbits,

@@ -62,8 +62,9 @@ class _CurveProblem:
         return self.o + self.w * Z
 
     def evaluate(self, Z: np.ndarray, chord: np.ndarray | None = None):
-        g, jac, a, _ = _defining(self.sys, self.kind, self.n, self.unscaled(Z))
-        return g, jac * self.w[None, :], a, None
+        Y = self.unscaled(Z)
+        g, jac, a, pts = _defining(self.sys, self.kind, self.n, Y)
+        return g, jac * self.w[None, :], a, np.vstack([Y[None, :2], pts[: self.n - 1]])
 
     def fresh(self, Z: np.ndarray, jac: np.ndarray) -> np.ndarray:
         return jac

@@ -121,16 +121,52 @@ def _normal_form_fields(nf: NormalForm | None) -> dict[str, Any]:
     return {**nf.as_dict(), "criticality": nf.criticality or None}
 
 
+#: The codimension-two points' names in words (:mod:`.codim2`).
+CODIM2_NAMES = {"CP": "cusp", "R1": "1:1 resonance", "R2": "1:2 resonance", "R3": "1:3 resonance",
+                "R4": "1:4 resonance", "LPPD": "fold-flip", "GPD": "generalised flip", "CH": "Chenciner"}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Codim2Point:
+    """A codimension-two point located on a curve of ``curve`` points (:mod:`.codim2`): ``kind`` (``CP``, ``R1``
+    .. ``R4``, ``LPPD``, ``GPD``, ``CH``), the two parameters' ``values``, their ``error`` estimate (the larger of
+    the two), the orbit's ``period``, its ``point`` ``(q, r)`` and ``multipliers`` there."""
+
+    kind: str
+    curve: str
+    period: int
+    values: tuple[float, float]
+    error: float
+    point: tuple[float, float]
+    multipliers: tuple[complex, complex]
+
+    def as_dict(self, name1: str, name2: str) -> dict[str, Any]:
+        return {"type": self.kind, "name": CODIM2_NAMES[self.kind], "curve": self.curve, "period": self.period,
+                name1: self.values[0], name2: self.values[1], "error": self.error,
+                "point": list(self.point), "multipliers": [[m.real, m.imag] for m in self.multipliers]}  # fmt: skip
+
+    def describe(self, name1: str, name2: str) -> str:
+        """The line the command line prints: "R2 (1:2 resonance) of the period-1 orbit on the period doubling curve at
+        (a, b) = (3, -1) +- 1e-13"."""
+        return (f"{self.kind} ({CODIM2_NAMES[self.kind]}) of the period-{self.period} orbit on the "
+                f"{self.curve.replace('_', ' ')} curve at ({name1}, {name2}) = ({self.values[0]:.12g}, "
+                f"{self.values[1]:.12g}) +- {self.error:.1g}")  # fmt: skip
+
+
 @dataclass
 class Curve:
-    """A fold or period-doubling point followed in two parameters: rows ``(p1, p2, q, r)``; ``status`` as a
-    branch's (the first half that did not end well decides), ``stop`` both halves' ends in words."""
+    """A fold, period-doubling or Neimark-Sacker point followed in two parameters: rows ``(p1, p2, q, r)``;
+    ``status`` as a branch's (the first half that did not end well decides), ``stop`` both halves' ends in words;
+    ``codim2`` the codimension-two points located on it, in the curve's order (:mod:`.codim2`); ``origin``: the
+    codimension-two point it was switched onto from (None: a bifurcation of a branch)."""
 
     kind: str
     period: int
     rows: list[tuple[float, float, float, float]] = field(default_factory=list)
     stop: str = ""
     status: Status = Status.OK
+    codim2: list[Codim2Point] = field(default_factory=list)
+    origin: Codim2Point | None = None
 
     def as_dict(self, name1: str, name2: str) -> dict[str, Any]:
         return {
@@ -139,6 +175,8 @@ class Curve:
             "status": self.status.label,
             "stop": self.stop,
             "points": [{name1: a, name2: b, "q": q, "r": r} for a, b, q, r in self.rows],
+            "codim2": [c.as_dict(name1, name2) for c in self.codim2],
+            "origin": None if self.origin is None else self.origin.as_dict(name1, name2),
         }
 
 
@@ -177,9 +215,10 @@ class Continuation(Drawable):
 
     def report(self) -> list[str]:
         """What the command line prints: the branches, the bifurcations with their errors, the messages."""
+        codim2 = [c.describe(self.param, self.param2 or "") for cu in self.curves for c in cu.codim2]
         return [*(f"branch {i}: period {br.period}, {len(br.values)} points, {self.param} {br.values[0]:.10g} .. "
                   f"{br.values[-1]:.10g} ({br.stop})" for i, br in enumerate(self.branches)),
-                *(b.describe(self.param) for b in self.bifurcations), *self.messages]  # fmt: skip
+                *(b.describe(self.param) for b in self.bifurcations), *codim2, *self.messages]  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -211,12 +250,29 @@ class Continuation(Drawable):
     CSV_HEADER = ("branch", "period", "value", "q", "r", "mu1_re", "mu1_im", "mu2_re", "mu2_im", "stable",
                   "bifurcation", "coefficient", "coefficient_error", "criticality")  # fmt: skip
 
+    #: the codimension-two points' CSV's columns (:meth:`codim2_rows`): ``value``, ``value2`` of ``param``, ``param2``
+    CODIM2_CSV_HEADER = ("curve", "curve_type", "period", "type", "name", "value", "value2", "error", "q", "r",
+                         "mu1_re", "mu1_im", "mu2_re", "mu2_im", "switched_from")  # fmt: skip
+
     def write(self, path: str) -> dict[str, Any]:
-        """``.csv``: a row per point (:attr:`CSV_HEADER`); ``.json``: the summary."""
+        """``.csv``: a row per point (:attr:`CSV_HEADER`); ``.codim2.csv``: a row per codimension-two point of the
+        curves (:attr:`CODIM2_CSV_HEADER`); ``.json``: the summary."""
         csv_ = lambda p: export.write_csv(p, self.CSV_HEADER, self.csv_rows(), export.partial(self))  # noqa: E731
+        codim2 = lambda p: export.write_csv(p, self.CODIM2_CSV_HEADER, self.codim2_rows(), export.partial(self))  # noqa: E731
         return export.write_by_suffix(
-            path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())}, "continuation"
+            path,
+            {".codim2.csv": codim2, ".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())},
+            "continuation",
         )
+
+    def codim2_rows(self) -> list[tuple[Any, ...]]:
+        """A row per codimension-two point of the curves, in the curves' order: the curve's index, type and period,
+        the point's type and name, the two parameters' values, the error estimate, the state and the multipliers,
+        and the point the curve was switched onto from (empty for a curve of a branch's bifurcation)."""
+        return [(i, cu.kind, c.period, c.kind, CODIM2_NAMES[c.kind], *c.values, c.error, *c.point,
+                 c.multipliers[0].real, c.multipliers[0].imag, c.multipliers[1].real, c.multipliers[1].imag,
+                 None if cu.origin is None else cu.origin.kind)
+                for i, cu in enumerate(self.curves) for c in cu.codim2]  # fmt: skip
 
     def csv_rows(self) -> list[tuple[Any, ...]]:
         """``branch, period, value, q, r, mu1_re, mu1_im, mu2_re, mu2_im, stable`` per point, plain numbers; at a
