@@ -128,9 +128,11 @@ def test_a_run_too_short_to_decide_says_undecided() -> None:
     # a shear with a power-law decay faster than max_power is not called regular
     shear = lambda x: x @ np.array([[1.0, 0.0], [1.0, 1.0]]).T  # noqa: E731
     twist = lambda x: np.broadcast_to(np.array([[1.0, 0.0], [1.0, 1.0]]), (x.shape[0], 2, 2)).copy()  # noqa: E731
-    a = ind.alignment(ind.closed_map(shear, twist), [(0.0, 1.0)], 64, max_power=0.5)  # it decays like 1/n
+    a = ind.alignment(ind.closed_map(shear, twist), [(0.0, 1.0)], 200, max_power=0.5)  # it decays like 1/n
     assert a.verdict[0] == ind.NO_VERDICT
-    assert ind.alignment(ind.closed_map(shear, twist), [(0.0, 1.0)], 64).verdict[0] == ind.REGULAR
+    assert ind.alignment(ind.closed_map(shear, twist), [(0.0, 1.0)], 200).verdict[0] == ind.REGULAR
+    # fewer periods than min_regular without alignment: a slowly aligning chaotic orbit could look the same
+    assert ind.alignment(ind.closed_map(shear, twist), [(0.0, 1.0)], ind.MIN_REGULAR_PERIODS - 1).verdict[0] == 0
 
 
 # ---------------------------------------------------------------------------

@@ -26,7 +26,8 @@ SALI and GALI_2 (Skokos 2001; Skokos, Bountis, Antonopoulos 2007)
     carried along, ``stretch``) tells the two apart. An orbit is *chaotic* once ``SALI < sali_tol`` with a
     mean stretch above ``stretch_tol`` per period, from period ``min_periods`` on (it stops there: no more periods
     are spent on it), *regular* when it aligned with no stretching, or when after all periods ``SALI`` decays no
-    faster than ``n^-max_power`` over the second half of the run, and *undecided* otherwise.
+    faster than ``n^-max_power`` over the second half of the run (of at least ``min_regular`` periods), and
+    *undecided* otherwise.
 
 Statuses, never NaN: an orbit whose integration escaped or failed keeps its engine status and the verdict
 ``undecided``; a run cancelled keeps what was computed (``completed`` False, a :class:`~explorer_core.losses.Loss`).
@@ -80,6 +81,9 @@ MAX_POWER = 3.0
 #: Fewest periods before an alignment is a verdict: one period from far out may align the vectors already (an
 #: orbit on its way out of the bound is not chaos).
 MIN_ALIGN_PERIODS = 10
+#: Fewest periods for a "regular" verdict without alignment: by then a chaotic orbit whose vectors align at the rate
+#: ln(1/SALI_TOL) / 100 ~ 0.18 per period or faster has aligned (a shorter run is undecided).
+MIN_REGULAR_PERIODS = 100
 _OK = int(Status.OK)
 _UNDECIDED_STATUS = int(Status.UNDECIDED)
 
@@ -205,9 +209,10 @@ def alignment_verdict(
     stretch_tol: float,
     max_power: float,
     min_periods: int = MIN_ALIGN_PERIODS,
+    min_regular: int = MIN_REGULAR_PERIODS,
 ) -> int:
     """The verdict on one orbit from its first ``n`` periods of SALI and stretch (see the module docstring); an
-    alignment counts from period ``min_periods`` on."""
+    alignment counts from period ``min_periods`` on, a decay no faster than a power law after ``min_regular``."""
     if n == 0:
         return NO_VERDICT
     s = sali[:n]
@@ -216,7 +221,7 @@ def alignment_verdict(
     if below.size:
         k = int(below[0]) + 1
         return CHAOTIC if float(np.mean(stretch[:k])) > stretch_tol else REGULAR
-    if n < 8:
+    if n < max(8, min_regular):
         return NO_VERDICT
     # Power-law exponent of the decay: mean log SALI over the last quarter against the quarter ending half way
     # (window centres a factor 2 apart); SALI oscillates along an invariant curve, the means smooth it.
@@ -235,6 +240,7 @@ def iter_alignment(
     stretch_tol: float = STRETCH_TOL,
     max_power: float = MAX_POWER,
     min_periods: int = MIN_ALIGN_PERIODS,
+    min_regular: int = MIN_REGULAR_PERIODS,
     u1: Any = (1.0, 0.0),
     u2: Any = (0.0, 1.0),
     chunk: int = 16,
@@ -254,7 +260,13 @@ def iter_alignment(
     live = status == _OK
     start = time.perf_counter()
     completed = True
-    kw = {"sali_tol": sali_tol, "stretch_tol": stretch_tol, "max_power": max_power, "min_periods": min_periods}
+    kw = {
+        "sali_tol": sali_tol,
+        "stretch_tol": stretch_tol,
+        "max_power": max_power,
+        "min_periods": min_periods,
+        "min_regular": min_regular,
+    }
 
     def snapshot(done: bool) -> Alignment:
         return Alignment(sali, gali, stretch, npts.copy(), status.copy(), verdict.copy(), x.copy(), done)
@@ -546,6 +558,7 @@ class SaliSpec:
     stretch_tol: float
     max_power: float
     min_periods: int
+    min_regular: int
     numerics: Numerics
 
     def as_dict(self) -> dict[str, Any]:
@@ -563,6 +576,8 @@ class SaliSpec:
     max_power=Arg("fastest power-law decay of SALI on a regular orbit", default=MAX_POWER, check=number(0.0, 100.0)),
     min_periods=Arg("fewest periods before an alignment is a verdict", "int", default=MIN_ALIGN_PERIODS,
                     check=integer(1, config.MAX_PERIODS)),
+    min_regular=Arg("fewest periods for a regular verdict without alignment (fewer: undecided)", "int",
+                    default=MIN_REGULAR_PERIODS, check=integer(1, config.MAX_PERIODS)),
     numerics=NUMERICS_ARG,
 )  # fmt: skip
 def sali_spec(
@@ -575,6 +590,7 @@ def sali_spec(
     stretch_tol: float,
     max_power: float,
     min_periods: int,
+    min_regular: int,
     numerics: Numerics,
 ) -> SaliSpec:
     """A validated :class:`SaliSpec` (a bad value raises ParameterError naming it; ``exc.option`` its keyword)."""
@@ -584,7 +600,7 @@ def sali_spec(
             raise ParameterError(f"{ics.shape[0]} orbits x {periods} periods exceeds the limit {config.MAX_POINTS}")
     ics_ = tuple((float(q), float(r)) for q, r in ics)
     return SaliSpec(params, ics_, periods, transient, float(sali_tol), float(stretch_tol), float(max_power),
-                    min_periods, numerics)  # fmt: skip
+                    min_periods, min_regular, numerics)  # fmt: skip
 
 
 def engine_map(pmap: PoincareMap) -> Advance:
@@ -689,6 +705,7 @@ def iter_sali(
             "stretch_tol": spec.stretch_tol,
             "max_power": spec.max_power,
             "min_periods": spec.min_periods,
+            "min_regular": spec.min_regular,
         }
         last = None
         for update in iter_alignment(engine_map(pmap), x0, spec.periods, cancel=stop, **kwargs):
