@@ -223,10 +223,11 @@ def alignment_verdict(
         return CHAOTIC if float(np.mean(stretch[:k])) > stretch_tol else REGULAR
     if n < max(8, min_regular):
         return NO_VERDICT
-    # Power-law exponent of the decay: mean log SALI over the last quarter against the quarter ending half way
-    # (window centres a factor 2 apart); SALI oscillates along an invariant curve, the means smooth it.
+    # Power-law exponent of the decay: the envelope (largest log SALI) of the last quarter against that of the quarter
+    # ending half way (a factor 2 apart). SALI oscillates along an invariant curve and dips near its folds; the
+    # envelope of an oscillating power law is that power law, where a window's mean follows the dips.
     logs = np.log(np.maximum(s, 1e-300))
-    late, early = logs[(3 * n) // 4 :].mean(), logs[(3 * n) // 8 : n // 2].mean()
+    late, early = logs[(3 * n) // 4 :].max(), logs[(3 * n) // 8 : n // 2].max()
     power = (early - late) / math.log(2.0)
     return REGULAR if power <= max_power else NO_VERDICT
 
@@ -318,14 +319,13 @@ def _verdict_status(verdict: np.ndarray, status: np.ndarray) -> np.ndarray:
     return np.where(status != _OK, status, np.where(verdict == NO_VERDICT, _UNDECIDED_STATUS, _OK))
 
 
-def _verdict_losses(status: np.ndarray, completed: bool, what: str) -> list[Loss]:
+def _verdict_losses(status: np.ndarray, what: str) -> list[Loss]:
+    """Orbits without a verdict for a reason other than "undecided": failed, escaped, cancelled (their statuses)."""
     lost = []
     for code in np.unique(status[(status != _OK) & (status != _UNDECIDED_STATUS)]):
         s = Status(int(code))
         why = f"{s.label}: {s.meaning}; no verdict" if s != Status.CANCELLED else "cancelled before a verdict"
         lost.append(Loss(what, int(np.count_nonzero(status == code)), why))
-    if not completed:
-        lost.append(Loss("periods not computed", 1, "cancelled"))
     return lost
 
 
@@ -429,7 +429,7 @@ class _Verdicts(Drawable):
 
     @property
     def lost(self) -> list[Loss]:
-        return _verdict_losses(self.status, self.completed, "orbits")
+        return _verdict_losses(self.status, "orbits")
 
     @property
     def complete(self) -> bool:
@@ -515,7 +515,8 @@ def iter_birkhoff(
         status = chunk.status.copy()
         done = chunk.done_periods
         yield Step(Progress(done, total, "periods", time.perf_counter() - start))
-    completed = bool(done >= total and not (cancel is not None and cancel() and done < total))
+    # Stopped early only by a cancel: the section ends early by itself only when no trajectory is left.
+    completed = not np.any((status == _OK) & (npts < total))
     ran = (npts == total) & (status == _OK)
     f = _observable(points, spec.observable)
     digits = np.where(ran, birkhoff_digits(f), 0.0)
