@@ -83,3 +83,19 @@ def test_a_cancelled_map_keeps_its_tiles_and_says_what_was_not_computed(monkeypa
     not_run = res.status_forward == Status.NOT_RUN
     assert not_run.any() and (res.status_forward == Status.OK).any()
     assert any(loss.why.startswith("cancelled") for loss in res.lost)
+
+
+def test_the_command_writes_the_map_and_says_what_it_lost(tmp_path) -> None:
+    from tests.clirun import run_cli
+
+    out = tmp_path / "f.npz"
+    code, stdout, err = run_cli("ftle", "--scene", "fig8B", "--box", "-0.2,1.0,-1.0,0.0", "--grid", "4,3",
+                                "--periods", "100", "--out", str(out), "--json")  # fmt: skip
+    assert code == 0, err
+    d = json.loads(stdout)
+    assert d["complete"] is False and d["forward"]["statuses"]["escaped"] == 3
+    assert "lost: 3 pixels (forward): escaped" in err and "warning" not in err
+    with np.load(out) as z:
+        assert z["forward"].shape == (3, 4) and np.all(np.isfinite(z["forward"]))
+    code, _, err = run_cli("ftle", "--scene", "fig8B", "--grid", "4,3")
+    assert code == 2 and "--out" in err  # nothing would be kept

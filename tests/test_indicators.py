@@ -221,3 +221,19 @@ def test_results_write_their_files(tmp_path) -> None:
         assert z["sali"].shape == (2, 50) and json.loads(str(z["summary"]))["verdicts"]["chaotic"] == 2
     s.write(str(tmp_path / "s.json"))
     assert json.loads((tmp_path / "s.json").read_text())["spec"]["periods"] == 50
+
+
+def test_the_commands_run_the_analyses_and_name_a_refused_flag(tmp_path) -> None:
+    from tests.clirun import run_cli
+
+    out = tmp_path / "b.csv"
+    code, stdout, err = run_cli("birkhoff", "--scene", "fig5A", "--ic", "0.4,0", "--periods", "300", "--out", str(out),
+                                "--json")  # fmt: skip
+    assert code == 0, err
+    d = json.loads(stdout)
+    assert d["orbits"][0]["verdict"] == "regular" and d["out"] == [{"path": str(out), "rows": 1}]
+    code, stdout, err = run_cli("sali", "--scene", "fig8B", "--ic", "-1,-2", "--transient", "50", "--json")
+    assert code == 0, err
+    assert json.loads(stdout)["orbits"][0]["verdict"] == "chaotic"
+    code, _, err = run_cli("birkhoff", "--scene", "fig5A", "--ic", "0.4,0", "--chaotic-digits", "9")
+    assert code == 2 and "--chaotic-digits" in err
