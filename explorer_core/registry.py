@@ -213,6 +213,18 @@ ANALYSES: dict[str, Analysis] = {
             "SymmetrySpec",
             command="symmetry",
         ),
+        Analysis(
+            "birkhoff",
+            _A + "indicators",
+            "birkhoff",
+            "Birkhoff",
+            "iter_birkhoff",
+            "birkhoff_spec",
+            "BirkhoffSpec",
+            command="birkhoff",
+        ),
+        Analysis("sali", _A + "indicators", "sali", "Sali", "iter_sali", "sali_spec", "SaliSpec", command="sali"),
+        Analysis("ftle", _A + "ftle", "ftle_map", "FtleMap", "iter_ftle", "ftle_spec", "FtleSpec", command="ftle"),
     )
 }
 

@@ -832,3 +832,69 @@ def naive_uncertain_fraction(labels: Any, valid: Any, eps: list[int]) -> list[tu
                 uncertain += any(labels[a][b] != labels[j][i] for a, b in near)
         out.append((judged, uncertain))
     return out
+
+
+# --- chaos indicators (explorer_core.analyses.indicators, ftle): plain loops, no numpy vector arithmetic ---------
+
+
+def naive_weighted_birkhoff(values) -> float:
+    """``sum w(n/N) f_n / sum w(n/N)`` with ``w(t) = exp(-1/(t(1-t)))`` (Das et al. 2017), term by term."""
+    n = len(values)
+    num = den = 0.0
+    for k in range(1, n):
+        t = k / n
+        w = math.exp(-1.0 / (t * (1.0 - t)))
+        num += w * float(values[k])
+        den += w
+    return num / den
+
+
+def naive_birkhoff_digits(values) -> float:
+    """``-log10 |WB_N(first half) - WB_N(second half)|`` (16 when they agree to the last bit)."""
+    n = len(values) // 2
+    d = abs(naive_weighted_birkhoff(values[:n]) - naive_weighted_birkhoff(values[n : 2 * n]))
+    return 16.0 if d == 0.0 else min(16.0, -math.log10(d))
+
+
+def naive_rotation_number(points) -> float:
+    """Rotation number in [0, 1) of points (n, 2) about their weighted average: the weighted average of the angle
+    increments, each brought into (-pi, pi] by adding or subtracting whole turns."""
+    cq = naive_weighted_birkhoff([p[0] for p in points])
+    cr = naive_weighted_birkhoff([p[1] for p in points])
+    incs = []
+    for a, b in itertools.pairwise(points):
+        d = math.atan2(b[1] - cr, b[0] - cq) - math.atan2(a[1] - cr, a[0] - cq)
+        while d > math.pi:
+            d -= 2.0 * math.pi
+        while d <= -math.pi:
+            d += 2.0 * math.pi
+        incs.append(d)
+    return (naive_weighted_birkhoff(incs) / (2.0 * math.pi)) % 1.0
+
+
+def naive_sali(jacobians, u1=(1.0, 0.0), u2=(0.0, 1.0)) -> tuple[list[float], list[float]]:
+    """SALI and GALI_2 after each of the 2x2 matrices ``jacobians`` applied in turn to two unit vectors, each
+    renormalised after every step (Skokos 2001; Skokos et al. 2007)."""
+    a, b = list(u1), list(u2)
+    sali, gali = [], []
+    for m in jacobians:
+        a = [m[0][0] * a[0] + m[0][1] * a[1], m[1][0] * a[0] + m[1][1] * a[1]]
+        b = [m[0][0] * b[0] + m[0][1] * b[1], m[1][0] * b[0] + m[1][1] * b[1]]
+        na, nb = math.hypot(a[0], a[1]), math.hypot(b[0], b[1])
+        a, b = [a[0] / na, a[1] / na], [b[0] / nb, b[1] / nb]
+        sali.append(min(math.hypot(a[0] + b[0], a[1] + b[1]), math.hypot(a[0] - b[0], a[1] - b[1])))
+        gali.append(abs(a[0] * b[1] - a[1] * b[0]))
+    return sali, gali
+
+
+def naive_ftle(jacobians, v=(1.0, 0.0)) -> float:
+    """Largest finite-time exponent per step of the product of ``jacobians``: the log growth of one vector,
+    renormalised after every step, averaged."""
+    x, y = v
+    total = 0.0
+    for m in jacobians:
+        x, y = m[0][0] * x + m[0][1] * y, m[1][0] * x + m[1][1] * y
+        n = math.hypot(x, y)
+        total += math.log(n)
+        x, y = x / n, y / n
+    return total / len(jacobians)

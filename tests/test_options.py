@@ -232,7 +232,8 @@ def test_every_analysis_is_in_the_registry_and_its_entry_points_exist() -> None:
         if a.command is not None:
             assert a.command in COMMANDS and by_command(a.command) is a
     analyses_commands = {"section", "density", "critical", "tprime", "lyapunov", "bifurcation", "orbits",
-                         "manifolds", "continue", "chart", "basins", "fit", "body", "symmetry"}  # fmt: skip
+                         "manifolds", "continue", "chart", "basins", "fit", "body", "symmetry", "birkhoff", "sali",
+                         "ftle"}  # fmt: skip
     assert {a.command for a in ANALYSES.values() if a.command} == analyses_commands
 
 

@@ -44,6 +44,9 @@ SMALL: dict[str, Any] = {
     "drift": lambda: ((get_scene("fig3").params, (200, 300)), {"degree": (0, 2), "m": 4, "box": get_scene("fig3").box}),
     "body": lambda: ((FIG8B, [(0.1, 0.1)], 2), {"samples": 4}),
     "symmetry": lambda: ((FIG8B,), {"periods": 3, "random": 2}),
+    "birkhoff": lambda: ((FIG8B, [(-1.0, -2.0)], 8), {"transient": 4}),
+    "sali": lambda: ((FIG8B, [(-1.0, -2.0)], 8), {"transient": 4}),
+    "ftle": lambda: ((FIG8B, (-1.5, 0.5, -3.0, -1.0)), {"grid": (2, 2), "periods": 3}),
 }
 
 
