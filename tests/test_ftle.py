@@ -59,19 +59,23 @@ def test_the_backward_ftle_is_the_growth_under_the_inverse_of_the_forward_deriva
         assert res.backward.ravel()[i] == pytest.approx(expect, rel=1e-6, abs=1e-9)
 
 
-def test_pixels_that_escape_are_lost_with_their_reason_never_nan(tmp_path) -> None:
+def test_pixels_that_escape_are_lost_with_their_reason_and_missing_values(tmp_path) -> None:
     # part of this box leaves along Fig. 8B's noncompact curve within 100 periods, part stays on the attractor
     res = ftle.ftle_map(FIG8B, (-0.2, 1.0, -1.0, 0.0), grid=(4, 3), periods=100)
     escaped = res.status_forward == Status.ESCAPED
     assert escaped.any() and (res.status_forward == Status.OK).any()
-    assert np.all(res.forward[escaped] == 0.0) and np.all(np.isfinite(res.forward))
+    # no value where there is none (a 0 would average silently): NaN beside the status that says why
+    assert np.all(np.isnan(res.forward[escaped])) and np.all(np.isfinite(res.forward[~escaped]))
     assert not res.complete and any("escaped" in loss.why and "forward" in loss.what for loss in res.lost)
     res.write(str(tmp_path / "f.npz"))
     with np.load(tmp_path / "f.npz") as z:
         names = z["status_names"]
         assert "escaped" in {names[c] for c in z["status_forward"].ravel()}
         assert json.loads(str(z["summary"]))["complete"] is False
+        assert np.array_equal(np.isnan(z["forward"]), escaped)
     assert res.write(str(tmp_path / "f.csv"))["rows"] == 12
+    table = np.genfromtxt(tmp_path / "f.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    assert np.array_equal(np.isnan(table["ftle_forward"]), escaped.ravel())
 
 
 def test_a_cancelled_map_keeps_its_tiles_and_says_what_was_not_computed(monkeypatch) -> None:
@@ -81,7 +85,7 @@ def test_a_cancelled_map_keeps_its_tiles_and_says_what_was_not_computed(monkeypa
                         cancel=lambda: len(seen) >= 2)  # fmt: skip
     assert not res.completed and not res.complete
     not_run = res.status_forward == Status.NOT_RUN
-    assert not_run.any() and (res.status_forward == Status.OK).any()
+    assert not_run.any() and (res.status_forward == Status.OK).any() and np.all(np.isnan(res.forward[not_run]))
     assert any(loss.why.startswith("cancelled") for loss in res.lost)
 
 
@@ -96,6 +100,7 @@ def test_the_command_writes_the_map_and_says_what_it_lost(tmp_path) -> None:
     assert d["complete"] is False and d["forward"]["statuses"]["escaped"] == 3
     assert "lost: 3 pixels (forward): escaped" in err and "warning" not in err
     with np.load(out) as z:
-        assert z["forward"].shape == (3, 4) and np.all(np.isfinite(z["forward"]))
+        ok = z["status_forward"] == Status.OK
+        assert z["forward"].shape == (3, 4) and np.all(np.isfinite(z["forward"]) == ok) and (~ok).sum() == 3
     code, _, err = run_cli("ftle", "--scene", "fig8B", "--grid", "4,3")
     assert code == 2 and "--out" in err  # nothing would be kept

@@ -11,8 +11,8 @@ the stable and unstable manifolds (transport barriers).
 **Backward.** ``P^-1`` is computable here by integrating the field backwards in time (the section at
 ``t0 - k T``; the field is smooth and defined for every ``t``), so the backward map is the same run with a
 negative period. Backward trajectories of a dissipative map leave attractors and may escape the bound: those
-pixels are lost with their reason, as forward ones that escape or fail are, never NaN (their value is 0 and their
-status says why).
+pixels are lost with their reason, as forward ones that escape or fail are: their value is missing (NaN in the
+arrays, ``nan`` in the CSV, never a number that would average silently) and their status says why.
 
 The pixels are tasks of an executor in tiles (:mod:`explorer_core.parallel.executor`: threads of this process by
 default, both cores; a Dask cluster if one is passed), each tile's trajectories one batch of the engine, each
@@ -114,12 +114,13 @@ def ftle_spec(
 
 def ftle_tile(params: Params, numerics: Numerics, ics: np.ndarray, periods: int, sign: int) -> tuple[np.ndarray, ...]:
     """One task: the FTLE per unit time of every row of ``ics`` over ``periods`` periods of ``P`` (``sign = 1``)
-    or ``P^-1`` (``-1``), its status and the periods done. A member that failed has FTLE 0 (its status says why)."""
+    or ``P^-1`` (``-1``), its status and the periods done. A member that failed has no FTLE (NaN; its status
+    says why)."""
     batch = tangent.start(ics, params.t0, sign * params.period)
     logs, _, _, npts = tangent.advance_lyapunov(coefficients(Model(params), n=ics.shape[0]), batch, periods,
                                                 numerics, workers=1)  # fmt: skip
     done = (batch.status == _OK) & (npts == periods)
-    ftle = np.zeros(ics.shape[0])
+    ftle = np.full(ics.shape[0], np.nan)
     # only the members that ran every period: a failed member's records past its failure are not data
     ftle[done] = logs[done, :, 0].sum(axis=1) / (periods * params.period)
     return ftle, batch.status.copy(), npts
@@ -130,8 +131,9 @@ class FtleMap(Drawable):
     """An FTLE map of a :class:`FtleSpec`.
 
     ``q`` (nx,), ``r`` (ny,): the pixels' centres; ``forward``, ``backward`` (ny, nx): FTLE per unit time (None
-    when not asked; 0 where the pixel failed); ``status_forward``, ``status_backward`` (ny, nx):
-    :class:`~explorer_core.status.Status` codes (``not_run``: not computed, the run was cancelled)."""
+    when not asked; NaN where the pixel has none: failed, escaped, not computed); ``status_forward``,
+    ``status_backward`` (ny, nx): :class:`~explorer_core.status.Status` codes (``not_run``: not computed, the run
+    was cancelled)."""
 
     spec: FtleSpec
     q: np.ndarray
@@ -231,7 +233,7 @@ def iter_ftle(
     q, r = spec.axes()
     ics = spec.ics()
     shape = (spec.grid[1], spec.grid[0])
-    values = {s: np.zeros(ics.shape[0]) for s in spec.signs}
+    values = {s: np.full(ics.shape[0], np.nan) for s in spec.signs}
     codes = {s: np.full(ics.shape[0], int(Status.NOT_RUN), dtype=np.int64) for s in spec.signs}
     tiles = _tiles(ics.shape[0])
     todo = deque(((s, t), ftle_tile, (spec.params, spec.numerics, ics[t], spec.periods, s))
