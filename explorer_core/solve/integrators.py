@@ -37,7 +37,7 @@ from explorer_core import config
 from explorer_core.solve import rk, taylor
 from explorer_core.solve.rk import FIELD, Status
 from explorer_core.solve.tableaus import METHODS, Method, get_method, resolve_method
-from explorer_core.system.model import Model
+from explorer_core.system.model import Model, field_form
 from explorer_core.system.params import Params, check_time, reduce_time
 
 if TYPE_CHECKING:
@@ -150,9 +150,10 @@ def coefficients(models: Model | Sequence[Model], rows: np.ndarray | None = None
 def tables(num, gpc, den, forcing, row: np.ndarray, stacked: bool = False, alpha=None) -> rk.Coefficients:
     """Coefficient tables in the model's format (``num`` (3, 6, 5) etc., or stacked) as the engine reads them.
 
-    Any quadratic field in this format works (e.g. a linear test field). The arrays are fresh, contiguous
-    and writable, so every call meets the one compiled kernel. ``alpha`` (one per parameter set) is read by the
-    body's system only (``p = alpha + g q``); without it the tables serve the other systems.
+    Any quadratic field in this format works (e.g. a linear test field); its form (the monomials the kernels
+    compute, :func:`~explorer_core.system.model.field_form`) is read off the tables' exact zeros. The arrays are
+    fresh, contiguous and writable, so every call meets the one compiled kernel. ``alpha`` (one per parameter set) is
+    read by the body's system only (``p = alpha + g q``); without it the tables serve the other systems.
     """
 
     if stacked and np.unique(np.asarray(forcing, dtype=float)[:, 3]).size > 1:
@@ -165,8 +166,10 @@ def tables(num, gpc, den, forcing, row: np.ndarray, stacked: bool = False, alpha
         return np.array(a[:, :rows] if rows else a, dtype=float, order="C", copy=True)
 
     alphas = np.zeros(0) if alpha is None else np.array(alpha, dtype=float, copy=True).reshape(-1)
-    return rk.Coefficients(fresh(num, 2), fresh(gpc, 2), fresh(den, None), fresh(forcing, None),
-                           np.array(row, dtype=np.int64, copy=True), alphas)  # fmt: skip
+    num, gpc = fresh(num, 2), fresh(gpc, 2)
+    # The kernels compute and evaluate only the monomials of the tables' form (their structural zeros skipped).
+    return rk.Coefficients(num, gpc, fresh(den, None), fresh(forcing, None), np.array(row, dtype=np.int64, copy=True),
+                           alphas, field_form(num, gpc))  # fmt: skip
 
 
 _executor_lock = threading.Lock()

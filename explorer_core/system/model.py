@@ -166,6 +166,35 @@ def _tables_of(inertia: tuple[float, ...], alpha: float) -> tuple[np.ndarray, np
 
 
 # ---------------------------------------------------------------------------
+# The field's structure: the monomials a scene's tables hold.
+
+#: Forms of the field: ``FORM_MASKS[form][row]`` has bit ``m`` set for each monomial (:data:`MONOMIALS`) of
+#: ``Q`` (row 0) or ``R`` (row 1) that the form keeps. A diagonal tensor has ``Q`` in ``{q, r, q r}`` and ``R``
+#: in ``{q, q^2}``; ``alpha = 0`` drops the monomials of ``alpha`` (1 and ``r``, :data:`ALPHA_POWER`), not the
+#: ``g'`` term on ``q``. The kernels evaluate a scene's smallest form (:func:`field_form`): the general sums
+#: without their zero terms, so the same numbers (``x + 0 y == x`` for finite ``y``) from fewer operations.
+GENERAL, HOMOGENEOUS, DIAGONAL, DIAGONAL_HOMOGENEOUS = 0, 1, 2, 3
+FORM_MASKS = ((0b111111, 0b111111), (0b111010, 0b111010), (0b010110, 0b001010), (0b010010, 0b001000))
+
+
+def field_form(num: np.ndarray, gpc: np.ndarray) -> int:
+    """The smallest form (:data:`FORM_MASKS`) that holds every nonzero entry of coefficient tables.
+
+    ``num`` (..., rows, 6, 5) and ``gpc`` (..., rows, 2), one model's or stacked; rows ``Q`` and ``R`` are
+    read. An entry counts as zero only if it is exactly 0.0 (1e-300 is a term like any other); NaN is not
+    zero. The smallest form covering the tables, or :data:`GENERAL`.
+    """
+    num = np.asarray(num, dtype=float)
+    gpc = np.asarray(gpc, dtype=float)
+    nonzero = np.any(num[..., :2, :, :] != 0.0, axis=-1)  # (..., 2, 6)
+    nonzero[..., 1] |= np.any(gpc[..., :2, :] != 0.0, axis=-1)  # the g' term sits on the q monomial
+    nonzero = nonzero.reshape(-1, 2, 6).any(axis=0)
+    used = [sum(1 << m for m in range(6) if nonzero[row, m]) for row in range(2)]
+    fits = [f for f, masks in enumerate(FORM_MASKS) if all(used[row] & ~masks[row] == 0 for row in range(2))]
+    return min(fits, key=lambda f: bin(FORM_MASKS[f][0]).count("1") + bin(FORM_MASKS[f][1]).count("1"))
+
+
+# ---------------------------------------------------------------------------
 # numba primitives shared by every kernel.
 
 _jit = nb.njit(nogil=True, cache=True, fastmath=False, error_model="numpy")
@@ -200,19 +229,29 @@ def _horner4(num, s: int, row: int, m: int, g: float) -> float:
 
 
 @_leaf
-def coefficients_of(num, gpc, den, s: int, g: float, gp: float, out, o: int) -> None:
+def form_coefficients(form: int, num, gpc, den, s: int, g: float, gp: float, out, o: int) -> None:
     """``out[o, row, m]``: the monomial coefficients of row ``row`` (Q, R, lambda) at ``(g, g')`` from set ``s``.
 
-    Stacked tables: ``num`` (P, rows, 6, 5), ``gpc`` (P, rows, 2), ``den`` (P, 3); ``out`` (., rows', 6)
-    with ``rows' <= rows`` (the kernels need only Q and R). ``[N(g) + g' G(g)] / D(g)``, Horner in ``g``.
+    Stacked tables: ``num`` (P, rows, 6, 5), ``gpc`` (P, rows, 2), ``den`` (P, 3); ``out`` (., rows', 6) with
+    ``rows' <= rows`` (the kernels need only Q and R). ``[N(g) + g' G(g)] / D(g)``, Horner in ``g``. Rows Q and R
+    get only the monomials of ``form`` (:data:`FORM_MASKS`; the others are not written: the form's evaluation
+    never reads them), with the same numbers.
     """
     dinv = 1.0 / (den[s, 0] + g * (den[s, 1] + g * den[s, 2]))
+    if form == GENERAL:
+        for row in range(out.shape[1]):
+            # The q-monomial (m = 1) apart, so the loop over the others has no branch (~25% faster).
+            out[o, row, 0] = _horner4(num, s, row, 0, g) * dinv
+            out[o, row, 1] = (_horner4(num, s, row, 1, g) + gp * (gpc[s, row, 0] + g * gpc[s, row, 1])) * dinv
+            for m in range(2, 6):
+                out[o, row, m] = _horner4(num, s, row, m, g) * dinv
+        return
     for row in range(out.shape[1]):
-        # The q-monomial (m = 1) apart, so the loop over the others has no branch (~25% faster).
-        out[o, row, 0] = _horner4(num, s, row, 0, g) * dinv
+        mask = FORM_MASKS[form][row] if row < 2 else 0b111111
         out[o, row, 1] = (_horner4(num, s, row, 1, g) + gp * (gpc[s, row, 0] + g * gpc[s, row, 1])) * dinv
-        for m in range(2, 6):
-            out[o, row, m] = _horner4(num, s, row, m, g) * dinv
+        for m in (0, 2, 3, 4, 5):
+            if (mask >> m) & 1:
+                out[o, row, m] = _horner4(num, s, row, m, g) * dinv
 
 
 @_jit
@@ -224,14 +263,38 @@ def forcing_g(forcing: np.ndarray, t: float) -> tuple[float, float]:
 @_jit
 def coefficients_at(num: np.ndarray, gpc: np.ndarray, den: np.ndarray, g: float, gp: float, out: np.ndarray) -> None:
     """Fill ``out[row, m]`` with the monomial coefficients of Q, R, lambda at (g, g') (one model's tables)."""
-    coefficients_of(num.reshape((1, *num.shape)), gpc.reshape((1, *gpc.shape)), den.reshape((1, 3)), 0, g, gp,
-                    out.reshape((1, *out.shape)), 0)  # fmt: skip
+    form_coefficients(GENERAL, num.reshape((1, *num.shape)), gpc.reshape((1, *gpc.shape)), den.reshape((1, 3)), 0, g,
+                      gp, out.reshape((1, *out.shape)), 0)  # fmt: skip
 
 
 @_leaf
 def quadratic(c0: float, c1: float, c2: float, c3: float, c4: float, c5: float, q: float, r: float) -> float:
     """``c0 + c1 q + c2 r + c3 q^2 + c4 q r + c5 r^2`` (:data:`MONOMIALS`): every kernel evaluates the field so."""
     return c0 + q * (c1 + c3 * q + c4 * r) + r * (c2 + c5 * r)
+
+
+@_leaf
+def form_value(form: int, row: int, c0, c1, c2, c3, c4, c5, q: float, r: float) -> float:
+    """Row ``row`` (0: ``Q``, 1: ``R``) of the field in ``form``: :func:`quadratic` without the form's zero terms."""
+    if form == DIAGONAL:
+        return q * (c1 + c4 * r) + c2 * r if row == 0 else q * (c1 + c3 * q)
+    if form == DIAGONAL_HOMOGENEOUS:
+        return q * (c1 + c4 * r) if row == 0 else q * (c3 * q)
+    if form == HOMOGENEOUS:
+        return q * (c1 + c3 * q + c4 * r) + r * (c5 * r)
+    return quadratic(c0, c1, c2, c3, c4, c5, q, r)
+
+
+@_leaf
+def form_gradient(form: int, row: int, c0, c1, c2, c3, c4, c5, q: float, r: float) -> tuple[float, float]:
+    """``(d/dq, d/dr)`` of :func:`form_value` (affine in ``(q, r)``); ``R`` of a diagonal form has no ``r``."""
+    if form == GENERAL:
+        return c1 + 2.0 * c3 * q + c4 * r, c2 + c4 * q + 2.0 * c5 * r
+    if form == HOMOGENEOUS:
+        return c1 + 2.0 * c3 * q + c4 * r, c4 * q + 2.0 * c5 * r
+    if row == 0:
+        return c1 + c4 * r, (c2 + c4 * q if form == DIAGONAL else c4 * q)
+    return (c1 + 2.0 * c3 * q if form == DIAGONAL else 2.0 * c3 * q), 0.0
 
 
 @_jit
