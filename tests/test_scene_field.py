@@ -183,16 +183,24 @@ def test_specialised_kernels_equal_the_general_one(system: int, alpha: float) ->
 @pytest.mark.parametrize("system", [rk.FIELD, rk.TANGENT])
 def test_members_own_tables_equal_each_model_alone(system: int) -> None:
     """A block with a parameter set per member (the members' tables copied into the block, coefficients computed
-    over the members at once) against each model run alone: fixed steps, so the same steps, the same numbers."""
+    over the members at once) against each model run alone: fixed steps, so the same steps, the same numbers.
+    Blocks of one member with a parameter set each (charts, Newton) take each member's set straight from the
+    tables, as a model alone does: the same numbers bit for bit, adaptive steps too."""
     ics = np.array([[0.3, -0.2], [-0.5, 0.4], [0.1, 0.8], [0.6, 0.1], [-0.2, -0.7], [0.2, 0.2]])
     params = [Params(inertia=(1.0, 2.0, 4.0, 0.0, 0.5, 0.3), alpha=a, g0=0.1 * i, g2=0.05 * i)
               for i, a in enumerate(np.linspace(-0.42, -0.35, ics.shape[0]))]  # fmt: skip
     models = [Model(p) for p in params]
+    own = coefficients(models, np.arange(len(models)))
     kw = dict(method="dop853", adaptive=False, steps_per_period=64)
-    together = _run(system, coefficients(models, np.arange(len(models))), ics, 3, 8, **kw)
+    adaptive = dict(method="dop853", rtol=1e-10, atol=1e-10)
+    together = _run(system, own, ics, 3, 8, **kw)
+    ones = _run(system, own, ics, 3, 1, **adaptive)
     for i, m in enumerate(models):
         alone = _run(system, coefficients(m, n=1), ics[i : i + 1], 3, 1, **kw)
         np.testing.assert_allclose(together.y[i], alone.y[0], rtol=1e-14, atol=1e-15)
+        alone = _run(system, coefficients(m, n=1), ics[i : i + 1], 3, 1, **adaptive)
+        np.testing.assert_array_equal(ones.y[i], alone.y[0])
+        assert ones.nsteps[i] == alone.nsteps[0]
 
 
 @pytest.mark.parametrize(

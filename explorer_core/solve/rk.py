@@ -192,13 +192,14 @@ class Work(NamedTuple):
     err3: np.ndarray  # (m,) DOP853's 3rd-order estimate
     lg: np.ndarray  # (2, m) log R_ii of the re-orthonormalisations inside a period
     slot: np.ndarray  # (m,) int64: the batch row of each packed member
-    c: np.ndarray  # the coefficients: shared (1, 2, COEF_COLUMNS), or each member's (2, COEF_COLUMNS, m)
+    c: np.ndarray  # the coefficients: the block's one set (1, 2, COEF_COLUMNS), or each member's (2, COEF_COLUMNS, m)
     cw: np.ndarray  # (1, 2, COEF_COLUMNS) the coefficients of a starting-step trial
-    tb: np.ndarray  # (TB_ROWS, 1 or m) the packed members' tables (unused when shared)
+    tb: np.ndarray  # (TB_ROWS, 1 or m) the packed members' tables (unused with one set)
 
 
 def work_arrays(stages: int, dim: int, m: int, shared: bool, columns: int = 6) -> Work:
-    """Scratch space for blocks of up to ``m`` members of a system with ``dim`` state components."""
+    """Scratch space for blocks of up to ``m`` members of a system with ``dim`` state components; ``shared``: each
+    block has one parameter set (one set in the tables, or blocks of one member)."""
     each = 1 if shared else m
     return Work(
         np.empty((stages + 1, dim, m)),
@@ -342,11 +343,17 @@ def _block_coefficients(form, tb, cw, sw, w, n, c) -> None:
 
 
 @_leaf
+def _block_set(num, row, slot, n) -> int:
+    """The parameter set of a block with one: the tables' only set, or that of its one live member."""
+    return row[slot[0]] if num.shape[0] > 1 and n > 0 else 0
+
+
+@_leaf
 def _coefs(form, num, gpc, den, forcing, row, shared, t, slot, n, c, tb) -> None:
-    """The coefficients at time ``t`` into ``c``: once for the block, or for each of the ``n`` live members (from
-    their tables in ``tb``)."""
+    """The coefficients at time ``t`` into ``c``: once for the block (its one parameter set: the tables' only one,
+    or its one member's), or for each of the ``n`` live members (from their tables in ``tb``)."""
     if shared:
-        _coefs_set(form, num, gpc, den, forcing, 0, t, c, 0)
+        _coefs_set(form, num, gpc, den, forcing, _block_set(num, row, slot, n), t, c, 0)
     elif n > 0:
         # A block's members share omega (the section times): cos and sin once, not once per member.
         w = forcing[row[slot[0]], 3]
@@ -376,7 +383,7 @@ def _coefs_body(form, num, gpc, den, forcing, alpha, row, shared, t, slot, n, c,
     """:func:`_coefs` for BODY: the same coefficients, and ``g(t)``, ``alpha`` in columns ``_G``, ``_ALPHA``."""
     _coefs(form, num, gpc, den, forcing, row, shared, t, slot, n, c, tb)
     for p in range(1 if shared else n):
-        s = 0 if shared else row[slot[p]]
+        s = _block_set(num, row, slot, n) if shared else row[slot[p]]
         _body_columns(forcing, alpha[s], s, t, c, p, shared)
 
 
@@ -593,7 +600,10 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
         members = idx[b0 : b0 + block]
         s = b_row.shape[1]
         m = members.shape[0]
-        shared = num.shape[0] == 1
+        # One parameter set for the block (the tables' only one, or a block of one member's): its coefficients once per
+        # stage into c[0], straight from the tables (a copy of one member's tables cost blocks of one ~25%); else each
+        # member's, from their tables copied into mtab (members last: the stage's coefficients vectorise).
+        shared = one or num.shape[0] == 1
         c_time = math.nan  # the time of the coefficients in c (stages at equal times share them)
         for p in range(m):
             lg[0, p] = 0.0
@@ -844,6 +854,6 @@ def advance_blocks(system: int, tab, co, clock, ctl, arr, idx, block) -> None:
     nothing in accuracy (every member takes the same steps anyway). The kernels release the GIL:
     callers run disjoint index sets in threads (each touches only its own rows).
     """
-    work = work_arrays(tab.b.shape[1], STATE_SIZE[system], min(block, idx.shape[0]), co.num.shape[0] == 1,
+    work = work_arrays(tab.b.shape[1], STATE_SIZE[system], min(block, idx.shape[0]), co.num.shape[0] == 1 or block == 1,
                        COEF_COLUMNS[system])  # fmt: skip
     KERNELS[system][block == 1](tab, co, clock, ctl, arr, idx, block, work)
