@@ -55,7 +55,14 @@ def _form(params: Params) -> int:
     ],
 )
 def test_form_of_a_structure(inertia: tuple[float, ...], alpha: float, form: int) -> None:
-    assert _form(Params(inertia=inertia, alpha=alpha)) == form
+    params = Params(inertia=inertia, alpha=alpha)
+    assert _form(params) == form
+    # the engine's tables take the form the model caches with its tables: the same
+    assert coefficients(Model(params), n=1).form == form
+    other = Model(Params(inertia=inertia, alpha=0.0))
+    assert coefficients([Model(params), other], np.array([0, 1])).form == field_form(
+        np.stack([Model(params).num, other.num]), np.stack([Model(params).gpc, other.gpc])
+    )
 
 
 def test_form_of_stacked_tables_holds_every_row() -> None:

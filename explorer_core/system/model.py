@@ -175,23 +175,43 @@ def _tables_of(inertia: tuple[float, ...], alpha: float) -> tuple[np.ndarray, np
 #: without their zero terms, so the same numbers (``x + 0 y == x`` for finite ``y``) from fewer operations.
 GENERAL, HOMOGENEOUS, DIAGONAL, DIAGONAL_HOMOGENEOUS = 0, 1, 2, 3
 FORM_MASKS = ((0b111111, 0b111111), (0b111010, 0b111010), (0b010110, 0b001010), (0b010010, 0b001000))
+#: The forms from the fewest monomials to the most (GENERAL, which holds every table, last).
+_FORMS_BY_SIZE = tuple(sorted(range(len(FORM_MASKS)), key=lambda f: sum(bin(m).count("1") for m in FORM_MASKS[f])))
+_MONOMIAL_BITS = 1 << np.arange(6)
 
 
-def field_form(num: np.ndarray, gpc: np.ndarray) -> int:
-    """The smallest form (:data:`FORM_MASKS`) that holds every nonzero entry of coefficient tables.
+def used_monomials(num: np.ndarray, gpc: np.ndarray) -> tuple[int, int]:
+    """Bits (``1 << m``, :data:`MONOMIALS`) of the monomials ``Q`` and ``R`` hold: their nonzero table entries.
 
-    ``num`` (..., rows, 6, 5) and ``gpc`` (..., rows, 2), one model's or stacked; rows ``Q`` and ``R`` are
-    read. An entry counts as zero only if it is exactly 0.0 (1e-300 is a term like any other); NaN is not
-    zero. The smallest form covering the tables, or :data:`GENERAL`.
+    ``num`` (..., rows, 6, 5) and ``gpc`` (..., rows, 2), one model's or stacked (a monomial any set holds); rows
+    ``Q`` and ``R`` are read. An entry counts as zero only if it is exactly 0.0 (1e-300 is a term like any other);
+    NaN is not zero.
     """
     num = np.asarray(num, dtype=float)
     gpc = np.asarray(gpc, dtype=float)
-    nonzero = np.any(num[..., :2, :, :] != 0.0, axis=-1)  # (..., 2, 6)
-    nonzero[..., 1] |= np.any(gpc[..., :2, :] != 0.0, axis=-1)  # the g' term sits on the q monomial
-    nonzero = nonzero.reshape(-1, 2, 6).any(axis=0)
-    used = [sum(1 << m for m in range(6) if nonzero[row, m]) for row in range(2)]
-    fits = [f for f, masks in enumerate(FORM_MASKS) if all(used[row] & ~masks[row] == 0 for row in range(2))]
-    return min(fits, key=lambda f: bin(FORM_MASKS[f][0]).count("1") + bin(FORM_MASKS[f][1]).count("1"))
+    nonzero = (num[..., :2, :, :] != 0.0).reshape(-1, 2, 6, num.shape[-1]).any(axis=(0, 3))  # (2, 6)
+    nonzero[:, 1] |= (gpc[..., :2, :] != 0.0).reshape(-1, 2, gpc.shape[-1]).any(axis=(0, 2))  # g' sits on q
+    used_q, used_r = (int(u) for u in nonzero @ _MONOMIAL_BITS)
+    return used_q, used_r
+
+
+def form_of(used_q: int, used_r: int) -> int:
+    """The smallest form (:data:`FORM_MASKS`) that holds the monomials ``used_q``, ``used_r``
+    (:func:`used_monomials`), or :data:`GENERAL`."""
+    return next(f for f in _FORMS_BY_SIZE if not (used_q & ~FORM_MASKS[f][0] or used_r & ~FORM_MASKS[f][1]))
+
+
+def field_form(num: np.ndarray, gpc: np.ndarray) -> int:
+    """The smallest form (:data:`FORM_MASKS`) that holds every nonzero entry of coefficient tables (one model's or
+    stacked, see :func:`used_monomials`)."""
+    return form_of(*used_monomials(num, gpc))
+
+
+@functools.lru_cache(maxsize=256)
+def _used_of(inertia: tuple[float, ...], alpha: float) -> tuple[int, int]:
+    # With the tables (cached the same way): every engine call reads its form, and Newton makes hundreds.
+    num, gpc, _ = _tables_of(inertia, alpha)
+    return used_monomials(num, gpc)
 
 
 # ---------------------------------------------------------------------------
@@ -229,29 +249,40 @@ def _horner4(num, s: int, row: int, m: int, g: float) -> float:
 
 
 @_leaf
-def form_coefficients(form: int, num, gpc, den, s: int, g: float, gp: float, out, o: int) -> None:
+def _put(out, last: bool, o: int, row: int, m: int, v: float) -> None:
+    # member o's coefficient: out[o, row, m], or out[row, m, o] with the members last (lock-step blocks)
+    if last:
+        out[row, m, o] = v
+    else:
+        out[o, row, m] = v
+
+
+@_leaf
+def form_coefficients(form: int, num, gpc, den, s: int, g: float, gp: float, out, o: int, last: bool = False) -> None:
     """``out[o, row, m]``: the monomial coefficients of row ``row`` (Q, R, lambda) at ``(g, g')`` from set ``s``.
 
     Stacked tables: ``num`` (P, rows, 6, 5), ``gpc`` (P, rows, 2), ``den`` (P, 3); ``out`` (., rows', 6) with
-    ``rows' <= rows`` (the kernels need only Q and R). ``[N(g) + g' G(g)] / D(g)``, Horner in ``g``. Rows Q and R
-    get only the monomials of ``form`` (:data:`FORM_MASKS`; the others are not written: the form's evaluation
-    never reads them), with the same numbers.
+    ``rows' <= rows`` (the kernels need only Q and R), or with ``last`` ``out[row, m, o]`` (rows', columns, .).
+    ``[N(g) + g' G(g)] / D(g)``, Horner in ``g``. Rows Q and R get only the monomials of ``form``
+    (:data:`FORM_MASKS`; the others are not written: the form's evaluation never reads them), with the same numbers.
     """
     dinv = 1.0 / (den[s, 0] + g * (den[s, 1] + g * den[s, 2]))
+    rows = out.shape[0] if last else out.shape[1]
     if form == GENERAL:
-        for row in range(out.shape[1]):
+        for row in range(rows):
             # The q-monomial (m = 1) apart, so the loop over the others has no branch (~25% faster).
-            out[o, row, 0] = _horner4(num, s, row, 0, g) * dinv
-            out[o, row, 1] = (_horner4(num, s, row, 1, g) + gp * (gpc[s, row, 0] + g * gpc[s, row, 1])) * dinv
+            _put(out, last, o, row, 0, _horner4(num, s, row, 0, g) * dinv)
+            vq = _horner4(num, s, row, 1, g) + gp * (gpc[s, row, 0] + g * gpc[s, row, 1])
+            _put(out, last, o, row, 1, vq * dinv)
             for m in range(2, 6):
-                out[o, row, m] = _horner4(num, s, row, m, g) * dinv
+                _put(out, last, o, row, m, _horner4(num, s, row, m, g) * dinv)
         return
-    for row in range(out.shape[1]):
+    for row in range(rows):
         mask = FORM_MASKS[form][row] if row < 2 else 0b111111
-        out[o, row, 1] = (_horner4(num, s, row, 1, g) + gp * (gpc[s, row, 0] + g * gpc[s, row, 1])) * dinv
+        _put(out, last, o, row, 1, (_horner4(num, s, row, 1, g) + gp * (gpc[s, row, 0] + g * gpc[s, row, 1])) * dinv)
         for m in (0, 2, 3, 4, 5):
             if (mask >> m) & 1:
-                out[o, row, m] = _horner4(num, s, row, m, g) * dinv
+                _put(out, last, o, row, m, _horner4(num, s, row, m, g) * dinv)
 
 
 @_jit
@@ -340,6 +371,11 @@ class Model:
         num, gpc, den = _tables(self.params)
         for name, arr in (("num", num), ("gpc", gpc), ("den", den)):
             object.__setattr__(self, name, arr)
+
+    @property
+    def used(self) -> tuple[int, int]:
+        """The monomials ``Q`` and ``R`` hold (:func:`used_monomials` of its tables), cached with the tables."""
+        return _used_of(self.params.inertia, self.params.alpha)
 
     @property
     def forcing(self) -> np.ndarray:
