@@ -38,7 +38,7 @@ from explorer_core import config
 from explorer_core.solve import rk, taylor
 from explorer_core.solve.rk import FIELD, Status
 from explorer_core.solve.tableaus import METHODS, Method, get_method, resolve_method
-from explorer_core.system.model import Model
+from explorer_core.system.model import Model, field_form, form_of
 from explorer_core.system.params import Params, check_time, reduce_time
 
 if TYPE_CHECKING:
@@ -157,7 +157,7 @@ def coefficients(models: Model | Sequence[Model], rows: np.ndarray | None = None
     """
     if isinstance(models, Model):
         return tables(models.num, models.gpc, models.den, models.forcing, np.zeros(n, dtype=np.int64),
-                      alpha=[models.params.alpha])  # fmt: skip
+                      alpha=[models.params.alpha], form=form_of(*models.used))  # fmt: skip
     ms = list(models)
     if rows is None:
         raise ValueError("several models need rows (the model of each trajectory)")
@@ -171,16 +171,23 @@ def coefficients(models: Model | Sequence[Model], rows: np.ndarray | None = None
     row = np.asarray(rows, dtype=np.int64)
     if row.size and (row.min() < 0 or row.max() >= len(ms)):
         raise ValueError(f"rows must index the {len(ms)} models")
+    used_q = used_r = 0  # the monomials any of the models holds
+    for m in ms:
+        used_q, used_r = used_q | m.used[0], used_r | m.used[1]
+    form = form_of(used_q, used_r)
     return tables(*(np.stack([getattr(m, name) for m in ms], axis=0) for name in ("num", "gpc", "den", "forcing")), row,
-                  stacked=True, alpha=[m.params.alpha for m in ms])  # fmt: skip
+                  stacked=True, alpha=[m.params.alpha for m in ms], form=form)  # fmt: skip
 
 
-def tables(num, gpc, den, forcing, row: np.ndarray, stacked: bool = False, alpha=None) -> rk.Coefficients:
+def tables(num, gpc, den, forcing, row: np.ndarray, stacked: bool = False, alpha=None, form: int | None = None
+           ) -> rk.Coefficients:  # fmt: skip
     """Coefficient tables in the model's format (``num`` (3, 6, 5) etc., or stacked) as the engine reads them.
 
-    Any quadratic field in this format works (e.g. a linear test field). The arrays are fresh, contiguous
-    and writable, so every call meets the one compiled kernel. ``alpha`` (one per parameter set) is read by the
-    body's system only (``p = alpha + g q``); without it the tables serve the other systems.
+    Any quadratic field in this format works (e.g. a linear test field); its form (the monomials the kernels
+    compute, :func:`~explorer_core.system.model.field_form`) is read off the tables' exact zeros unless given
+    (``form``: one that holds them, e.g. the models' own). The arrays are
+    fresh, contiguous and writable, so every call meets the one compiled kernel. ``alpha`` (one per parameter set) is
+    read by the body's system only (``p = alpha + g q``); without it the tables serve the other systems.
     """
 
     if stacked and np.unique(np.asarray(forcing, dtype=float)[:, 3]).size > 1:
@@ -193,8 +200,10 @@ def tables(num, gpc, den, forcing, row: np.ndarray, stacked: bool = False, alpha
         return np.array(a[:, :rows] if rows else a, dtype=float, order="C", copy=True)
 
     alphas = np.zeros(0) if alpha is None else np.array(alpha, dtype=float, copy=True).reshape(-1)
-    return rk.Coefficients(fresh(num, 2), fresh(gpc, 2), fresh(den, None), fresh(forcing, None),
-                           np.array(row, dtype=np.int64, copy=True), alphas)  # fmt: skip
+    num, gpc = fresh(num, 2), fresh(gpc, 2)
+    # The kernels compute and evaluate only the monomials of the tables' form (their structural zeros skipped).
+    return rk.Coefficients(num, gpc, fresh(den, None), fresh(forcing, None), np.array(row, dtype=np.int64, copy=True),
+                           alphas, field_form(num, gpc) if form is None else form)  # fmt: skip
 
 
 _executor_lock = threading.Lock()

@@ -51,7 +51,18 @@ import numpy as np
 
 from explorer_core import config
 from explorer_core.status import Status  # the one vocabulary; the kernels write its codes 0-4
-from explorer_core.system.model import coefficients_of, forcing_at, forcing_of, quadratic
+from explorer_core.system.model import (
+    DIAGONAL,
+    DIAGONAL_HOMOGENEOUS,
+    FORM_MASKS,
+    GENERAL,
+    HOMOGENEOUS,
+    forcing_at,
+    forcing_of,
+    form_coefficients,
+    form_gradient,
+    form_value,
+)
 
 _OK, _ESCAPED, _COLLAPSED, _TOO_MANY, _NONFINITE = (int(s) for s in Status if s.engine)
 
@@ -66,6 +77,16 @@ RECORD_SIZE = (2, 7, 5, 6)
 #: ``g(t)`` and ``alpha`` beside them in row 0 (columns 6 and 7), for ``p = alpha + g q``.
 COEF_COLUMNS = (6, 6, 6, 8)
 _G, _ALPHA = 6, 7
+#: Rows of a block's own copy of its members' tables (``Work.tb``, one column per packed member; blocks with a
+#: parameter set per member): ``num`` by (row, monomial, power), ``gpc``, ``den``, ``(g0, g1, g2)``, then scratch
+#: ``g``, ``g'`` and ``1 / D(g)`` of the last stage. A stage's coefficients are then one loop over the members
+#: per monomial, contiguous and vectorised, with ``cos, sin`` once for the block (the forcings share omega).
+_TB_NUM, _TB_GPC, _TB_DEN, _TB_FORCING, _TB_G, _TB_GP, _TB_DINV = 0, 60, 64, 67, 70, 71, 72
+TB_ROWS = 73
+#: Up to this many live members, a block with a parameter set per member computes each member's coefficients
+#: straight from the tables instead (loops over so few members vectorise nothing: continuation's blocks of 2 were
+#: ~15% slower over the copied tables).
+FEW_MEMBERS = 4
 #: Inside a period the Lyapunov basis is re-orthonormalised when the sine of the angle between the
 #: tangent vectors drops below this: the perpendicular part of ``v2`` carries ``Lambda_2``, and below
 #: it its relative accuracy (about ``rtol / REORTHONORMALISE``) falls.
@@ -105,8 +126,9 @@ class Coefficients(NamedTuple):
 
     ``num`` (P, 2, 6, 5), ``gpc`` (P, 2, 2), ``den`` (P, 3), ``forcing`` (P, 4); ``row`` (n,) the parameter
     set of each trajectory; ``alpha`` (P,) the constraint's inhomogeneity of each set, read by BODY only (for
-    ``p = alpha + g q``; the field's tables hold alpha already). All rows share the section times (``t0`` and
-    the forcing period).
+    ``p = alpha + g q``; the field's tables hold alpha already); ``form`` the field's structure
+    (:data:`explorer_core.system.model.FORM_MASKS`): the kernels compute and evaluate only its monomials, so it
+    must hold every nonzero entry of every row. All rows share the section times (``t0`` and the forcing period).
     """
 
     num: np.ndarray
@@ -115,6 +137,7 @@ class Coefficients(NamedTuple):
     forcing: np.ndarray
     row: np.ndarray
     alpha: np.ndarray = np.zeros(0)  # none: only BODY reads it (integrators.run checks it has a row per set)
+    form: int = GENERAL  # the smallest form that holds every row's tables (model.field_form)
 
 
 class Control(NamedTuple):
@@ -174,12 +197,15 @@ class Work(NamedTuple):
     err3: np.ndarray  # (m,) DOP853's 3rd-order estimate
     lg: np.ndarray  # (2, m) log R_ii of the re-orthonormalisations inside a period
     slot: np.ndarray  # (m,) int64: the batch row of each packed member
-    c: np.ndarray  # (1 or m, 2, COEF_COLUMNS) the coefficients: shared, or each member's
+    c: np.ndarray  # the coefficients: the block's one set (1, 2, COEF_COLUMNS), or each member's (2, COEF_COLUMNS, m)
     cw: np.ndarray  # (1, 2, COEF_COLUMNS) the coefficients of a starting-step trial
+    tb: np.ndarray  # (TB_ROWS, 1 or m) the packed members' tables (unused with one set)
 
 
 def work_arrays(stages: int, dim: int, m: int, shared: bool, columns: int = 6) -> Work:
-    """Scratch space for blocks of up to ``m`` members of a system with ``dim`` state components."""
+    """Scratch space for blocks of up to ``m`` members of a system with ``dim`` state components; ``shared``: each
+    block has one parameter set (one set in the tables, or blocks of one member)."""
+    each = 1 if shared else m
     return Work(
         np.empty((stages + 1, dim, m)),
         np.empty((dim, m)),
@@ -189,25 +215,26 @@ def work_arrays(stages: int, dim: int, m: int, shared: bool, columns: int = 6) -
         np.empty(m),
         np.zeros((2, m)),
         np.empty(m, dtype=np.int64),
-        np.empty((1 if shared else m, 2, columns)),
+        np.empty((1, 2, columns)) if shared else np.empty((2, columns, m)),
         np.empty((1, 2, columns)),
+        np.empty((TB_ROWS, each)),
     )
 
 
 # ---------------------------------------------------------------------------
-# The field and its tangent at one member (the field's polynomial is the model's own `quadratic`).
+# The field and its tangent at one member, in the scene's form (the model's `form_value`, `form_gradient`).
 # No array views in the loops: a view costs two atomic reference-count updates, which in a block of
 # one trajectory was most of the time.
 
 
 @_leaf
-def _point(system, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, g, al, ys, acc, p, k, st) -> None:
-    """``k[st, :, p] = f(ys[:, p] + acc[:, p])`` with the coefficients ``a`` (row Q) and ``b`` (row R); BODY also
-    reads ``g`` and ``al`` (alpha), the other systems ignore them."""
+def _point(system, form, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, g, al, ys, acc, p, k, st) -> None:
+    """``k[st, :, p] = f(ys[:, p] + acc[:, p])`` with the coefficients ``a`` (row Q) and ``b`` (row R) in ``form``;
+    BODY also reads ``g`` and ``al`` (alpha), the other systems ignore them."""
     q = ys[0, p] + acc[0, p]
     r = ys[1, p] + acc[1, p]
-    k[st, 0, p] = quadratic(a0, a1, a2, a3, a4, a5, q, r)
-    k[st, 1, p] = quadratic(b0, b1, b2, b3, b4, b5, q, r)
+    k[st, 0, p] = form_value(form, 0, a0, a1, a2, a3, a4, a5, q, r)
+    k[st, 1, p] = form_value(form, 1, b0, b1, b2, b3, b4, b5, q, r)
     if system == BODY:
         # Q' = 1/2 Q (x) (0, omega), omega = (p, q, r) in the body frame: R(Q)' = R(Q) [omega]_x.
         pb = al + g * q
@@ -221,92 +248,164 @@ def _point(system, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, g, al, ys, ac
         k[st, 5, p] = 0.5 * (w * r + x * q - y * pb)
     elif system != FIELD:
         # The exact Jacobian: the field is quadratic, so J is affine in (q, r).
-        j00 = a1 + 2.0 * a3 * q + a4 * r
-        j01 = a2 + a4 * q + 2.0 * a5 * r
-        j10 = b1 + 2.0 * b3 * q + b4 * r
-        j11 = b2 + b4 * q + 2.0 * b5 * r
+        j00, j01 = form_gradient(form, 0, a0, a1, a2, a3, a4, a5, q, r)
+        j10, j11 = form_gradient(form, 1, b0, b1, b2, b3, b4, b5, q, r)
         v1x = ys[2, p] + acc[2, p]
         v1y = ys[3, p] + acc[3, p]
         v2x = ys[4, p] + acc[4, p]
         v2y = ys[5, p] + acc[5, p]
+        no_r = form == DIAGONAL or form == DIAGONAL_HOMOGENEOUS  # dR/dr = 0: the same sums without its terms
         k[st, 2, p] = j00 * v1x + j01 * v1y
-        k[st, 3, p] = j10 * v1x + j11 * v1y
+        k[st, 3, p] = j10 * v1x if no_r else j10 * v1x + j11 * v1y
         k[st, 4, p] = j00 * v2x + j01 * v2y
-        k[st, 5, p] = j10 * v2x + j11 * v2y
-        k[st, 6, p] = j00 + j11
+        k[st, 5, p] = j10 * v2x if no_r else j10 * v2x + j11 * v2y
+        k[st, 6, p] = j00 if no_r else j00 + j11
 
 
 @_leaf
-def _eval(system, shared, c, ys, acc, lo, hi, k, st) -> None:
-    """Stage ``st`` of the members ``lo <= p < hi``: coefficients ``c[0]`` shared, or ``c[p]`` each member's."""
+def _eval_form(system, form, shared, c, ys, acc, lo, hi, k, st) -> None:
+    """Stage ``st`` of the members ``lo <= p < hi``: coefficients ``c[0]`` shared, or ``c[:, :, p]`` each member's
+    (members last, so the coefficients of a stage are written and read contiguously, see :class:`Work`)."""
     if shared:
         a0, a1, a2, a3, a4, a5 = c[0, 0, 0], c[0, 0, 1], c[0, 0, 2], c[0, 0, 3], c[0, 0, 4], c[0, 0, 5]
         b0, b1, b2, b3, b4, b5 = c[0, 1, 0], c[0, 1, 1], c[0, 1, 2], c[0, 1, 3], c[0, 1, 4], c[0, 1, 5]
         g = c[0, 0, _G] if system == BODY else 0.0  # (only BODY's rows have these columns)
         al = c[0, 0, _ALPHA] if system == BODY else 0.0
         for p in range(lo, hi):
-            _point(system, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, g, al, ys, acc, p, k, st)
+            _point(system, form, a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5, g, al, ys, acc, p, k, st)
     else:
         for p in range(lo, hi):
-            q0, q1, q2, q3, q4, q5 = c[p, 0, 0], c[p, 0, 1], c[p, 0, 2], c[p, 0, 3], c[p, 0, 4], c[p, 0, 5]
-            r0, r1, r2, r3, r4, r5 = c[p, 1, 0], c[p, 1, 1], c[p, 1, 2], c[p, 1, 3], c[p, 1, 4], c[p, 1, 5]
-            g = c[p, 0, _G] if system == BODY else 0.0
-            al = c[p, 0, _ALPHA] if system == BODY else 0.0
-            _point(system, q0, q1, q2, q3, q4, q5, r0, r1, r2, r3, r4, r5, g, al, ys, acc, p, k, st)
-
-
-@_leaf
-def _coefs_set(num, gpc, den, forcing, s, t, c, o) -> None:
-    g, gp = forcing_of(forcing, s, t)
-    coefficients_of(num, gpc, den, s, g, gp, c, o)
-
-
-@_leaf
-def _coefs(num, gpc, den, forcing, row, shared, t, slot, n, c) -> None:
-    """The coefficients at time ``t`` into ``c``: once for the block, or for each of the ``n`` live members."""
-    if shared:
-        _coefs_set(num, gpc, den, forcing, 0, t, c, 0)
-    elif n > 0:
-        # A block's members share omega (the section times): cos and sin once, not once per member.
-        w = forcing[row[slot[0]], 3]
-        cw = math.cos(w * t)
-        sw = math.sin(w * t)
-        for p in range(n):
-            s = row[slot[p]]
-            g, gp = forcing_at(forcing, s, cw, sw)
-            coefficients_of(num, gpc, den, s, g, gp, c, p)
-
-
-@_leaf
-def _body_columns(forcing, al, s, t, c, o) -> None:
-    """BODY's row ``o`` also holds ``g(t)`` and alpha (``p = alpha + g q``) beside the field's coefficients."""
-    g, _ = forcing_of(forcing, s, t)  # bit for bit the g of the coefficients (forcing_at on the same cos, sin)
-    c[o, 0, _G] = g
-    c[o, 0, _ALPHA] = al
-
-
-@_leaf
-def _coefs_set_body(num, gpc, den, forcing, al, s, t, c, o) -> None:
-    _coefs_set(num, gpc, den, forcing, s, t, c, o)
-    _body_columns(forcing, al, s, t, c, o)
-
-
-@_leaf
-def _coefs_body(num, gpc, den, forcing, alpha, row, shared, t, slot, n, c) -> None:
-    """:func:`_coefs` for BODY: the same coefficients, and ``g(t)``, ``alpha`` in columns ``_G``, ``_ALPHA``."""
-    _coefs(num, gpc, den, forcing, row, shared, t, slot, n, c)
-    for p in range(1 if shared else n):
-        s = 0 if shared else row[slot[p]]
-        _body_columns(forcing, alpha[s], s, t, c, p)
+            q0, q1, q2, q3, q4, q5 = c[0, 0, p], c[0, 1, p], c[0, 2, p], c[0, 3, p], c[0, 4, p], c[0, 5, p]
+            r0, r1, r2, r3, r4, r5 = c[1, 0, p], c[1, 1, p], c[1, 2, p], c[1, 3, p], c[1, 4, p], c[1, 5, p]
+            g = c[0, _G, p] if system == BODY else 0.0
+            al = c[0, _ALPHA, p] if system == BODY else 0.0
+            _point(system, form, q0, q1, q2, q3, q4, q5, r0, r1, r2, r3, r4, r5, g, al, ys, acc, p, k, st)
 
 
 @_jit_inline
-def _coefs_of(system, num, gpc, den, forcing, alpha, row, shared, t, slot, n, c) -> None:
+def _eval(system, form, shared, c, ys, acc, lo, hi, k, st) -> None:
+    """:func:`_eval_form` with the form a constant in each branch (one test per stage, none per member: the member
+    loops stay branch-free and vectorise). Entries outside the form are never read (they may be unset)."""
+    if form == DIAGONAL:
+        _eval_form(system, DIAGONAL, shared, c, ys, acc, lo, hi, k, st)
+    elif form == DIAGONAL_HOMOGENEOUS:
+        _eval_form(system, DIAGONAL_HOMOGENEOUS, shared, c, ys, acc, lo, hi, k, st)
+    elif form == HOMOGENEOUS:
+        _eval_form(system, HOMOGENEOUS, shared, c, ys, acc, lo, hi, k, st)
+    else:
+        _eval_form(system, GENERAL, shared, c, ys, acc, lo, hi, k, st)
+
+
+@_leaf
+def _coefs_set(form, num, gpc, den, forcing, s, t, c, o) -> None:
+    g, gp = forcing_of(forcing, s, t)
+    form_coefficients(form, num, gpc, den, s, g, gp, c, o)
+
+
+@_leaf
+def _load_tables(num, gpc, den, forcing, row, slot, n, tb) -> None:
+    """Copy the tables of the ``n`` packed members (parameter set ``row[slot[p]]``) into their columns of ``tb``."""
+    for p in range(n):
+        s = row[slot[p]]
+        for rr in range(2):
+            for m in range(6):
+                for j in range(5):
+                    tb[_TB_NUM + 5 * (6 * rr + m) + j, p] = num[s, rr, m, j]
+            for j in range(2):
+                tb[_TB_GPC + 2 * rr + j, p] = gpc[s, rr, j]
+        for j in range(3):
+            tb[_TB_DEN + j, p] = den[s, j]
+            tb[_TB_FORCING + j, p] = forcing[s, j]
+
+
+@_leaf
+def _block_coefficients(form, tb, cw, sw, w, n, c) -> None:
+    """``c[row, m, p]`` for the ``n`` packed members from their tables in ``tb``, at ``cos(w t) = cw``, ``sin = sw``.
+
+    The arithmetic of :func:`~explorer_core.system.model.forcing_at` and
+    :func:`~explorer_core.system.model.form_coefficients` (the same numbers), one monomial at a time over the members.
+    """
+    for p in range(n):
+        g = tb[_TB_FORCING, p] + tb[_TB_FORCING + 1, p] * cw + tb[_TB_FORCING + 2, p] * sw
+        tb[_TB_G, p] = g
+        tb[_TB_GP, p] = w * (tb[_TB_FORCING + 2, p] * cw - tb[_TB_FORCING + 1, p] * sw)
+        tb[_TB_DINV, p] = 1.0 / (tb[_TB_DEN, p] + g * (tb[_TB_DEN + 1, p] + g * tb[_TB_DEN + 2, p]))
+    for rr in range(2):
+        mask = FORM_MASKS[form][rr]
+        e = _TB_NUM + 5 * (6 * rr + 1)
+        x = _TB_GPC + 2 * rr
+        for p in range(n):  # q: every form has it, with the g' term
+            g = tb[_TB_G, p]
+            v = tb[e, p] + g * (tb[e + 1, p] + g * (tb[e + 2, p] + g * (tb[e + 3, p] + g * tb[e + 4, p])))
+            c[rr, 1, p] = (v + tb[_TB_GP, p] * (tb[x, p] + g * tb[x + 1, p])) * tb[_TB_DINV, p]
+        for m in (0, 2, 3, 4, 5):
+            if (mask >> m) & 1:
+                e = _TB_NUM + 5 * (6 * rr + m)
+                for p in range(n):
+                    g = tb[_TB_G, p]
+                    v = tb[e, p] + g * (tb[e + 1, p] + g * (tb[e + 2, p] + g * (tb[e + 3, p] + g * tb[e + 4, p])))
+                    c[rr, m, p] = v * tb[_TB_DINV, p]
+
+
+@_leaf
+def _block_set(num, row, slot, n) -> int:
+    """The parameter set of a block with one: the tables' only set, or that of its one live member."""
+    return row[slot[0]] if num.shape[0] > 1 and n > 0 else 0
+
+
+@_leaf
+def _coefs(form, num, gpc, den, forcing, row, shared, t, slot, n, c, tb) -> None:
+    """The coefficients at time ``t`` into ``c``: once for the block (its one parameter set: the tables' only one,
+    or its one member's), or for each of the ``n`` live members (from their tables in ``tb``)."""
+    if shared:
+        _coefs_set(form, num, gpc, den, forcing, _block_set(num, row, slot, n), t, c, 0)
+    elif n > 0:
+        # A block's members share omega (the section times): cos and sin once, not once per member.
+        w = forcing[row[slot[0]], 3]
+        cw, sw = math.cos(w * t), math.sin(w * t)
+        if n <= FEW_MEMBERS:
+            for p in range(n):
+                s = row[slot[p]]
+                g, gp = forcing_at(forcing, s, cw, sw)
+                form_coefficients(form, num, gpc, den, s, g, gp, c, p, True)
+        else:
+            _block_coefficients(form, tb, cw, sw, w, n, c)
+
+
+@_leaf
+def _body_columns(forcing, al, s, t, c, o, shared) -> None:
+    """BODY's row ``o`` also holds ``g(t)`` and alpha (``p = alpha + g q``) beside the field's coefficients."""
+    g, _ = forcing_of(forcing, s, t)  # bit for bit the g of the coefficients (forcing_at on the same cos, sin)
+    if shared:
+        c[o, 0, _G] = g
+        c[o, 0, _ALPHA] = al
+    else:
+        c[0, _G, o] = g
+        c[0, _ALPHA, o] = al
+
+
+@_leaf
+def _coefs_set_body(form, num, gpc, den, forcing, al, s, t, c, o) -> None:
+    _coefs_set(form, num, gpc, den, forcing, s, t, c, o)
+    _body_columns(forcing, al, s, t, c, o, True)
+
+
+@_leaf
+def _coefs_body(form, num, gpc, den, forcing, alpha, row, shared, t, slot, n, c, tb) -> None:
+    """:func:`_coefs` for BODY: the same coefficients, and ``g(t)``, ``alpha`` in columns ``_G``, ``_ALPHA``."""
+    _coefs(form, num, gpc, den, forcing, row, shared, t, slot, n, c, tb)
+    for p in range(1 if shared else n):
+        s = _block_set(num, row, slot, n) if shared else row[slot[p]]
+        _body_columns(forcing, alpha[s], s, t, c, p, shared)
+
+
+@_jit_inline
+def _coefs_of(system, form, num, gpc, den, forcing, alpha, row, shared, t, slot, n, c, tb) -> None:
     # The system is a constant where this is inlined: the other systems call _coefs as before.
     if system == BODY:
-        _coefs_body(num, gpc, den, forcing, alpha, row, shared, t, slot, n, c)
+        _coefs_body(form, num, gpc, den, forcing, alpha, row, shared, t, slot, n, c, tb)
     else:
-        _coefs(num, gpc, den, forcing, row, shared, t, slot, n, c)
+        _coefs(form, num, gpc, den, forcing, row, shared, t, slot, n, c, tb)
 
 
 # ---------------------------------------------------------------------------
@@ -379,7 +478,8 @@ def _rms(v, row, p, ys, rtol, atol, dim) -> float:
 
 
 @_leaf
-def _initial_step(system, dim, order, num, gpc, den, forcing, al, r, t, d, span, ys, k, s, p, rtol, atol, cw) -> float:
+def _initial_step(system, form, dim, order, num, gpc, den, forcing, al, r, t, d, span, ys, k, s, p, rtol, atol,
+                  cw) -> float:  # fmt: skip
     """Hairer's starting step for member ``p`` (``k[0, :, p]`` holds ``f`` at ``t``; parameter set ``r``, whose alpha
     is ``al``: BODY reads it).
 
@@ -394,10 +494,10 @@ def _initial_step(system, dim, order, num, gpc, den, forcing, al, r, t, d, span,
     for comp in range(dim):
         k[s - 1, comp, p] = d * h0 * k[0, comp, p]  # the offset of the trial point from ys
     if system == BODY:
-        _coefs_set_body(num, gpc, den, forcing, al, r, t + d * h0, cw, 0)
+        _coefs_set_body(form, num, gpc, den, forcing, al, r, t + d * h0, cw, 0)
     else:
-        _coefs_set(num, gpc, den, forcing, r, t + d * h0, cw, 0)
-    _eval(system, True, cw, ys, k[s - 1], p, p + 1, k, s)
+        _coefs_set(form, num, gpc, den, forcing, r, t + d * h0, cw, 0)
+    _eval(system, form, True, cw, ys, k[s - 1], p, p + 1, k, s)
     for comp in range(dim):
         k[s, comp, p] -= k[0, comp, p]
     d2 = _rms(k, s, p, ys, rtol, atol, dim) / h0
@@ -457,7 +557,7 @@ def _ill_conditioned(ys, p) -> bool:
 
 
 @_leaf
-def _swap(p, last, slot, ys, yn, k, lg, c, shared) -> None:
+def _swap(p, last, slot, ys, yn, k, lg, c, tb, shared) -> None:
     # Move member p out of the packed live range [0, last): exchange it with the last live one.
     slot[p], slot[last] = slot[last], slot[p]
     for comp in range(ys.shape[0]):
@@ -469,8 +569,10 @@ def _swap(p, last, slot, ys, yn, k, lg, c, shared) -> None:
     lg[1, p], lg[1, last] = lg[1, last], lg[1, p]
     if not shared:
         for a in range(2):
-            for b in range(c.shape[2]):
-                c[p, a, b], c[last, a, b] = c[last, a, b], c[p, a, b]
+            for b in range(c.shape[1]):
+                c[a, b, p], c[a, b, last] = c[a, b, last], c[a, b, p]
+        for a in range(TB_ROWS):
+            tb[a, p], tb[a, last] = tb[a, last], tb[a, p]
 
 
 @_leaf
@@ -499,18 +601,21 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
     """Advance the trajectories ``idx`` by ``clock.n_periods`` periods, ``block`` of them at a time in lock-step."""
     # Everything out of the structures once: the loops see plain arrays and scalars.
     a_mat, b_row, c_vec, e_mat, dop853 = tab.a, tab.b, tab.c, tab.e, tab.dop853
-    num, gpc, den, forcing, row, alpha = co.num, co.gpc, co.den, co.forcing, co.row, co.alpha
+    num, gpc, den, forcing, row, alpha, form = co.num, co.gpc, co.den, co.forcing, co.row, co.alpha, co.form
     y, h, status, nsteps, rec, npts = arr.y, arr.h, arr.status, arr.nsteps, arr.rec, arr.npts
     rtol, atol, bound, fixed = ctl.rtol, ctl.atol, ctl.bound, ctl.fixed_steps
     lim = min(bound, _BIG)  # inf is never inside, whatever the bound
     t_base, period, k_first, store = clock.t_base, clock.period, clock.k_first, clock.store
     samples = clock.samples
-    k, ys, yn, acc, err, err3, lg, slot, c, cw = work
+    k, ys, yn, acc, err, err3, lg, slot, c, cw, mtab = work
     for b0 in range(0, idx.shape[0], block):
         members = idx[b0 : b0 + block]
         s = b_row.shape[1]
         m = members.shape[0]
-        shared = num.shape[0] == 1
+        # One parameter set for the block (the tables' only one, or a block of one member's): its coefficients once per
+        # stage into c[0], straight from the tables (a copy of one member's tables cost blocks of one ~25%); else each
+        # member's, from their tables copied into mtab (members last: the stage's coefficients vectorise).
+        shared = one or num.shape[0] == 1
         c_time = math.nan  # the time of the coefficients in c (stages at equal times share them)
         for p in range(m):
             lg[0, p] = 0.0
@@ -530,6 +635,8 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                 n_live += 1
                 if h[i] > 0.0 and (habs == 0.0 or h[i] < habs):
                     habs = h[i]
+        if not shared:
+            _load_tables(num, gpc, den, forcing, row, slot, n_live, mtab)
         for j in range(clock.n_periods):
             if n_live == 0:
                 break
@@ -547,12 +654,12 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                     lg[0, p] = 0.0
                     lg[1, p] = 0.0
             if t != c_time:
-                _coefs_of(system, num, gpc, den, forcing, alpha, row, shared, t_base + t, slot, n_live, c)
+                _coefs_of(system, form, num, gpc, den, forcing, alpha, row, shared, t_base + t, slot, n_live, c, mtab)
                 c_time = t
             for p in range(n_live):
                 for comp in range(dim):
                     acc[comp, p] = 0.0
-            _eval(system, shared, c, ys, acc, 0, n_live, k, 0)
+            _eval(system, form, shared, c, ys, acc, 0, n_live, k, 0)
             p = 0
             while p < n_live:
                 if math.isfinite(k[0, 0, p]) and math.isfinite(k[0, 1, p]):
@@ -560,7 +667,7 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                 else:
                     status[slot[p]] = _NONFINITE
                     n_live -= 1
-                    _swap(p, n_live, slot, ys, yn, k, lg, c, shared)
+                    _swap(p, n_live, slot, ys, yn, k, lg, c, mtab, shared)
             if n_live == 0:
                 break
             if habs <= 0.0 and fixed <= 0:
@@ -568,8 +675,8 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                 for p in range(n_live):
                     r = row[slot[p]]
                     al = alpha[r] if system == BODY else 0.0  # (only BODY's coefficients carry alpha)
-                    hp = _initial_step(system, dim, tab.order, num, gpc, den, forcing, al, r, t_base + t, d, span, ys,
-                                       k, s, p, rtol, atol, cw)  # fmt: skip
+                    hp = _initial_step(system, form, dim, tab.order, num, gpc, den, forcing, al, r, t_base + t, d, span,
+                                       ys, k, s, p, rtol, atol, cw)  # fmt: skip
                     habs = min(habs, hp)
             steps = 0
             saw_nonfinite = False
@@ -596,20 +703,22 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                 for st in range(1, s):
                     ts = t + c_vec[st] * hs
                     if ts != c_time:
-                        _coefs_of(system, num, gpc, den, forcing, alpha, row, shared, t_base + ts, slot, n, c)
+                        _coefs_of(
+                            system, form, num, gpc, den, forcing, alpha, row, shared, t_base + ts, slot, n, c, mtab
+                        )
                         c_time = ts
                     _combine(a_mat, st, hs, st, k, dim, n, acc)
-                    _eval(system, shared, c, ys, acc, 0, n, k, st)
+                    _eval(system, form, shared, c, ys, acc, 0, n, k, st)
                 tn = tb if last else t + hs
                 if tn != c_time:
-                    _coefs_of(system, num, gpc, den, forcing, alpha, row, shared, t_base + tn, slot, n, c)
+                    _coefs_of(system, form, num, gpc, den, forcing, alpha, row, shared, t_base + tn, slot, n, c, mtab)
                     c_time = tn
                 _combine(b_row, 0, hs, s, k, dim, n, acc)
                 if fixed <= 0:  # the error estimate needs the new state beside the old one
                     for p in range(n):
                         for comp in range(dim):
                             yn[comp, p] = ys[comp, p] + acc[comp, p]
-                _eval(system, shared, c, ys, acc, 0, n, k, s)  # FSAL: f at the new state
+                _eval(system, form, shared, c, ys, acc, 0, n, k, s)  # FSAL: f at the new state
                 steps += 1
                 worst = -1
                 e_max = 0.0
@@ -645,7 +754,7 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                         status[slot[p]] = _ESCAPED if _finite(ys, p, dim) else _NONFINITE
                         nsteps[slot[p]] += steps
                         n_live -= 1
-                        _swap(p, n_live, slot, ys, yn, k, lg, c, shared)
+                        _swap(p, n_live, slot, ys, yn, k, lg, c, mtab, shared)
                     if fixed <= 0:
                         # A clipped last step says little about the step size: keep the larger proposal.
                         factor = _factor(e_max, expo)
@@ -674,13 +783,13 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                                     status[slot[p]] = _NONFINITE
                                     nsteps[slot[p]] += steps
                                     n_live -= 1
-                                    _swap(p, n_live, slot, ys, yn, k, lg, c, shared)
+                                    _swap(p, n_live, slot, ys, yn, k, lg, c, mtab, shared)
                                     continue
                                 lg[0, p] += math.log(r11)
                                 lg[1, p] += math.log(r22)
                                 for comp in range(dim):
                                     acc[comp, p] = 0.0
-                                _eval(system, shared, c, ys, acc, p, p + 1, k, 0)
+                                _eval(system, form, shared, c, ys, acc, p, p + 1, k, 0)
                             p += 1
                 else:
                     if any_nonfinite:
@@ -693,7 +802,7 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                         status[slot[worst]] = _NONFINITE if saw_nonfinite else _COLLAPSED
                         nsteps[slot[worst]] += steps
                         n_live -= 1
-                        _swap(worst, n_live, slot, ys, yn, k, lg, c, shared)
+                        _swap(worst, n_live, slot, ys, yn, k, lg, c, mtab, shared)
                         saw_nonfinite = False
                         habs = hstep
                 if fixed <= 0 and steps >= ctl.max_steps:
@@ -710,7 +819,7 @@ def _run_block(system, dim, one, tab, co, clock, ctl, arr, idx, block, work) -> 
                         status[i] = _NONFINITE
                         nsteps[i] += steps
                         n_live -= 1
-                        _swap(p, n_live, slot, ys, yn, k, lg, c, shared)
+                        _swap(p, n_live, slot, ys, yn, k, lg, c, mtab, shared)
                         continue
                     if store:
                         rec[i, j, 0] = ys[0, p]
@@ -757,6 +866,6 @@ def advance_blocks(system: int, tab, co, clock, ctl, arr, idx, block) -> None:
     nothing in accuracy (every member takes the same steps anyway). The kernels release the GIL:
     callers run disjoint index sets in threads (each touches only its own rows).
     """
-    work = work_arrays(tab.b.shape[1], STATE_SIZE[system], min(block, idx.shape[0]), co.num.shape[0] == 1,
+    work = work_arrays(tab.b.shape[1], STATE_SIZE[system], min(block, idx.shape[0]), co.num.shape[0] == 1 or block == 1,
                        COEF_COLUMNS[system])  # fmt: skip
     KERNELS[system][block == 1](tab, co, clock, ctl, arr, idx, block, work)

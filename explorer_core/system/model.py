@@ -166,6 +166,55 @@ def _tables_of(inertia: tuple[float, ...], alpha: float) -> tuple[np.ndarray, np
 
 
 # ---------------------------------------------------------------------------
+# The field's structure: the monomials a scene's tables hold.
+
+#: Forms of the field: ``FORM_MASKS[form][row]`` has bit ``m`` set for each monomial (:data:`MONOMIALS`) of
+#: ``Q`` (row 0) or ``R`` (row 1) that the form keeps. A diagonal tensor has ``Q`` in ``{q, r, q r}`` and ``R``
+#: in ``{q, q^2}``; ``alpha = 0`` drops the monomials of ``alpha`` (1 and ``r``, :data:`ALPHA_POWER`), not the
+#: ``g'`` term on ``q``. The kernels evaluate a scene's smallest form (:func:`field_form`): the general sums
+#: without their zero terms, so the same numbers (``x + 0 y == x`` for finite ``y``) from fewer operations.
+GENERAL, HOMOGENEOUS, DIAGONAL, DIAGONAL_HOMOGENEOUS = 0, 1, 2, 3
+FORM_MASKS = ((0b111111, 0b111111), (0b111010, 0b111010), (0b010110, 0b001010), (0b010010, 0b001000))
+#: The forms from the fewest monomials to the most (GENERAL, which holds every table, last).
+_FORMS_BY_SIZE = tuple(sorted(range(len(FORM_MASKS)), key=lambda f: sum(bin(m).count("1") for m in FORM_MASKS[f])))
+_MONOMIAL_BITS = 1 << np.arange(6)
+
+
+def used_monomials(num: np.ndarray, gpc: np.ndarray) -> tuple[int, int]:
+    """Bits (``1 << m``, :data:`MONOMIALS`) of the monomials ``Q`` and ``R`` hold: their nonzero table entries.
+
+    ``num`` (..., rows, 6, 5) and ``gpc`` (..., rows, 2), one model's or stacked (a monomial any set holds); rows
+    ``Q`` and ``R`` are read. An entry counts as zero only if it is exactly 0.0 (1e-300 is a term like any other);
+    NaN is not zero.
+    """
+    num = np.asarray(num, dtype=float)
+    gpc = np.asarray(gpc, dtype=float)
+    nonzero = (num[..., :2, :, :] != 0.0).reshape(-1, 2, 6, num.shape[-1]).any(axis=(0, 3))  # (2, 6)
+    nonzero[:, 1] |= (gpc[..., :2, :] != 0.0).reshape(-1, 2, gpc.shape[-1]).any(axis=(0, 2))  # g' sits on q
+    used_q, used_r = (int(u) for u in nonzero @ _MONOMIAL_BITS)
+    return used_q, used_r
+
+
+def form_of(used_q: int, used_r: int) -> int:
+    """The smallest form (:data:`FORM_MASKS`) that holds the monomials ``used_q``, ``used_r``
+    (:func:`used_monomials`), or :data:`GENERAL`."""
+    return next(f for f in _FORMS_BY_SIZE if not (used_q & ~FORM_MASKS[f][0] or used_r & ~FORM_MASKS[f][1]))
+
+
+def field_form(num: np.ndarray, gpc: np.ndarray) -> int:
+    """The smallest form (:data:`FORM_MASKS`) that holds every nonzero entry of coefficient tables (one model's or
+    stacked, see :func:`used_monomials`)."""
+    return form_of(*used_monomials(num, gpc))
+
+
+@functools.lru_cache(maxsize=256)
+def _used_of(inertia: tuple[float, ...], alpha: float) -> tuple[int, int]:
+    # With the tables (cached the same way): every engine call reads its form, and Newton makes hundreds.
+    num, gpc, _ = _tables_of(inertia, alpha)
+    return used_monomials(num, gpc)
+
+
+# ---------------------------------------------------------------------------
 # numba primitives shared by every kernel.
 
 _jit = nb.njit(nogil=True, cache=True, fastmath=False, error_model="numpy")
@@ -200,19 +249,40 @@ def _horner4(num, s: int, row: int, m: int, g: float) -> float:
 
 
 @_leaf
-def coefficients_of(num, gpc, den, s: int, g: float, gp: float, out, o: int) -> None:
+def _put(out, last: bool, o: int, row: int, m: int, v: float) -> None:
+    # member o's coefficient: out[o, row, m], or out[row, m, o] with the members last (lock-step blocks)
+    if last:
+        out[row, m, o] = v
+    else:
+        out[o, row, m] = v
+
+
+@_leaf
+def form_coefficients(form: int, num, gpc, den, s: int, g: float, gp: float, out, o: int, last: bool = False) -> None:
     """``out[o, row, m]``: the monomial coefficients of row ``row`` (Q, R, lambda) at ``(g, g')`` from set ``s``.
 
-    Stacked tables: ``num`` (P, rows, 6, 5), ``gpc`` (P, rows, 2), ``den`` (P, 3); ``out`` (., rows', 6)
-    with ``rows' <= rows`` (the kernels need only Q and R). ``[N(g) + g' G(g)] / D(g)``, Horner in ``g``.
+    Stacked tables: ``num`` (P, rows, 6, 5), ``gpc`` (P, rows, 2), ``den`` (P, 3); ``out`` (., rows', 6) with
+    ``rows' <= rows`` (the kernels need only Q and R), or with ``last`` ``out[row, m, o]`` (rows', columns, .).
+    ``[N(g) + g' G(g)] / D(g)``, Horner in ``g``. Rows Q and R get only the monomials of ``form``
+    (:data:`FORM_MASKS`; the others are not written: the form's evaluation never reads them), with the same numbers.
     """
     dinv = 1.0 / (den[s, 0] + g * (den[s, 1] + g * den[s, 2]))
-    for row in range(out.shape[1]):
-        # The q-monomial (m = 1) apart, so the loop over the others has no branch (~25% faster).
-        out[o, row, 0] = _horner4(num, s, row, 0, g) * dinv
-        out[o, row, 1] = (_horner4(num, s, row, 1, g) + gp * (gpc[s, row, 0] + g * gpc[s, row, 1])) * dinv
-        for m in range(2, 6):
-            out[o, row, m] = _horner4(num, s, row, m, g) * dinv
+    rows = out.shape[0] if last else out.shape[1]
+    if form == GENERAL:
+        for row in range(rows):
+            # The q-monomial (m = 1) apart, so the loop over the others has no branch (~25% faster).
+            _put(out, last, o, row, 0, _horner4(num, s, row, 0, g) * dinv)
+            vq = _horner4(num, s, row, 1, g) + gp * (gpc[s, row, 0] + g * gpc[s, row, 1])
+            _put(out, last, o, row, 1, vq * dinv)
+            for m in range(2, 6):
+                _put(out, last, o, row, m, _horner4(num, s, row, m, g) * dinv)
+        return
+    for row in range(rows):
+        mask = FORM_MASKS[form][row] if row < 2 else 0b111111
+        _put(out, last, o, row, 1, (_horner4(num, s, row, 1, g) + gp * (gpc[s, row, 0] + g * gpc[s, row, 1])) * dinv)
+        for m in (0, 2, 3, 4, 5):
+            if (mask >> m) & 1:
+                _put(out, last, o, row, m, _horner4(num, s, row, m, g) * dinv)
 
 
 @_jit
@@ -224,14 +294,38 @@ def forcing_g(forcing: np.ndarray, t: float) -> tuple[float, float]:
 @_jit
 def coefficients_at(num: np.ndarray, gpc: np.ndarray, den: np.ndarray, g: float, gp: float, out: np.ndarray) -> None:
     """Fill ``out[row, m]`` with the monomial coefficients of Q, R, lambda at (g, g') (one model's tables)."""
-    coefficients_of(num.reshape((1, *num.shape)), gpc.reshape((1, *gpc.shape)), den.reshape((1, 3)), 0, g, gp,
-                    out.reshape((1, *out.shape)), 0)  # fmt: skip
+    form_coefficients(GENERAL, num.reshape((1, *num.shape)), gpc.reshape((1, *gpc.shape)), den.reshape((1, 3)), 0, g,
+                      gp, out.reshape((1, *out.shape)), 0)  # fmt: skip
 
 
 @_leaf
 def quadratic(c0: float, c1: float, c2: float, c3: float, c4: float, c5: float, q: float, r: float) -> float:
     """``c0 + c1 q + c2 r + c3 q^2 + c4 q r + c5 r^2`` (:data:`MONOMIALS`): every kernel evaluates the field so."""
     return c0 + q * (c1 + c3 * q + c4 * r) + r * (c2 + c5 * r)
+
+
+@_leaf
+def form_value(form: int, row: int, c0, c1, c2, c3, c4, c5, q: float, r: float) -> float:
+    """Row ``row`` (0: ``Q``, 1: ``R``) of the field in ``form``: :func:`quadratic` without the form's zero terms."""
+    if form == DIAGONAL:
+        return q * (c1 + c4 * r) + c2 * r if row == 0 else q * (c1 + c3 * q)
+    if form == DIAGONAL_HOMOGENEOUS:
+        return q * (c1 + c4 * r) if row == 0 else q * (c3 * q)
+    if form == HOMOGENEOUS:
+        return q * (c1 + c3 * q + c4 * r) + r * (c5 * r)
+    return quadratic(c0, c1, c2, c3, c4, c5, q, r)
+
+
+@_leaf
+def form_gradient(form: int, row: int, c0, c1, c2, c3, c4, c5, q: float, r: float) -> tuple[float, float]:
+    """``(d/dq, d/dr)`` of :func:`form_value` (affine in ``(q, r)``); ``R`` of a diagonal form has no ``r``."""
+    if form == GENERAL:
+        return c1 + 2.0 * c3 * q + c4 * r, c2 + c4 * q + 2.0 * c5 * r
+    if form == HOMOGENEOUS:
+        return c1 + 2.0 * c3 * q + c4 * r, c4 * q + 2.0 * c5 * r
+    if row == 0:
+        return c1 + c4 * r, (c2 + c4 * q if form == DIAGONAL else c4 * q)
+    return (c1 + 2.0 * c3 * q if form == DIAGONAL else 2.0 * c3 * q), 0.0
 
 
 @_jit
@@ -277,6 +371,11 @@ class Model:
         num, gpc, den = _tables(self.params)
         for name, arr in (("num", num), ("gpc", gpc), ("den", den)):
             object.__setattr__(self, name, arr)
+
+    @property
+    def used(self) -> tuple[int, int]:
+        """The monomials ``Q`` and ``R`` hold (:func:`used_monomials` of its tables), cached with the tables."""
+        return _used_of(self.params.inertia, self.params.alpha)
 
     @property
     def forcing(self) -> np.ndarray:
