@@ -275,7 +275,9 @@ class SectionFigure:
 
     def _build_ftle(self) -> list[GlyphRenderer]:
         # An FTLE map: a colour scale (its key the colour bar), under the points; failed pixels transparent.
-        self._ftle_mapper = LinearColorMapper(palette=FTLE_PALETTE, low=0, high=1, nan_color=(0, 0, 0, 0))
+        self._ftle_mapper = LinearColorMapper(
+            palette=FTLE_PALETTE, low=0, high=1, nan_color=(0, 0, 0, 0), name="ftle_mapper"
+        )
         self._ftle = self._source(_image_data(), "ftle_source")
         shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self._ftle_mapper)
         return [_renderer(self._ftle, shade, level="image", name="ftle_image")]
