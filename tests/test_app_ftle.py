@@ -172,3 +172,11 @@ def test_no_verdict_for_an_escaped_trajectory_or_none_selected_and_none_before_t
     assert page.commit("selected", "none") is None
     jobs.drain()
     assert page.ui.view["section"]["series_verdict"] == ""
+
+
+def test_no_verdict_is_computed_for_the_frames_of_a_played_parameter() -> None:
+    page, _ = page_for({"n": "0", "periods": "5", "ics": "0.4,0"})
+    layer = page.session.layer("rotation")
+    assert layer.inputs() is not None
+    page.session.frame_periods = 5  # as app/play.py sets it while it plays: each frame drawn whole, at its pace
+    assert layer.inputs() is None

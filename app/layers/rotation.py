@@ -83,8 +83,8 @@ class RotationLayer(Layer):
         if params is None:
             return KEEP
         ics = st.initial_conditions()
-        if not 0 <= st.selected < ics.shape[0]:
-            return None  # no trajectory selected
+        if not 0 <= st.selected < ics.shape[0] or getattr(self.host, "frame_periods", None) is not None:
+            return None  # no trajectory selected, or a parameter played (its frames are drawn whole, at a pace)
         numerics, _ = st.numerics_for(NUMERICS_ARG.default)
         q, r = (float(v) for v in ics[st.selected])
         return VerdictInputs(params, st.selected, (q, r), st.transient, numerics)
