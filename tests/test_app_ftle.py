@@ -151,11 +151,13 @@ def test_a_regular_trajectory_gets_its_rotation_number_and_a_chaotic_one_its_ver
 
 
 def test_the_verdicts_spec_is_the_command_lines(monkeypatch) -> None:
-    page, _ = page_for({"n": "3", "seed": "7", "transient": "4", "sel": "1", "method": "dop853", "accuracy": "high"})
+    page, _ = page_for({"n": "3", "seed": "7", "transient": "4", "ics": "0.3,0.1;0.2,-0.1", "sel": "4",
+                        "method": "dop853", "accuracy": "high"})  # fmt: skip
     layer = page.session.layer("rotation")
     inputs = layer.inputs()
     app = layer.spec(inputs)
-    q, r = (float(v) for v in page.state.initial_conditions()[1])
+    q, r = (float(v) for v in page.state.initial_conditions()[4])
+    assert (q, r) == (0.2, -0.1)
     assert inputs.ic == (q, r)
     cli = _cli_spec(monkeypatch, "birkhoff", *_system_flags(page.state.system()), f"--ic={q!r},{r!r}", "--periods",
                     "500", "--transient", "4", *_numerics_flags(app.numerics), run=False)  # fmt: skip
@@ -174,9 +176,13 @@ def test_no_verdict_for_an_escaped_trajectory_or_none_selected_and_none_before_t
     assert page.ui.view["section"]["series_verdict"] == ""
 
 
-def test_no_verdict_is_computed_for_the_frames_of_a_played_parameter() -> None:
-    page, _ = page_for({"n": "0", "periods": "5", "ics": "0.4,0"})
+def test_no_verdict_is_computed_for_a_random_trajectory_or_the_frames_of_a_played_parameter() -> None:
+    page, jobs = page_for({"n": "2", "periods": "5", "ics": "0.4,0", "sel": "0"})
     layer = page.session.layer("rotation")
+    assert layer.inputs() is None and page.ui.view["section"]["series_verdict"] == ""  # a new page's selection
+    assert page.commit("selected", "2") is None  # the scene's (clicked) point
+    jobs.drain()
+    assert page.ui.view["section"]["series_verdict"].startswith("regular")
     assert layer.inputs() is not None
     page.session.frame_periods = 5  # as app/play.py sets it while it plays: each frame drawn whole, at its pace
     assert layer.inputs() is None

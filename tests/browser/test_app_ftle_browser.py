@@ -20,7 +20,7 @@ JS_SHADOW = ("(css) => Array.from(document.querySelectorAll('*')).map((e) => e.s
 def test_the_ftle_layer_is_drawn_under_the_points_from_its_control(browser, app_url) -> None:
     page = new_page(browser, 1280, 720)
     try:
-        open_app(page, app_url, "?scene=fig8B&n=20&periods=200&transient=50")
+        open_app(page, app_url, "?scene=fig8B&n=20&periods=200&transient=50&ics=-1,-2&sel=20")
         wait_finished(page, timeout=120)
         assert "ftle_image" not in page.evaluate(JS_RENDERERS) and "ftle" not in query_of(page)  # off at first
         page.locator(".ctl-ftle select").first.select_option("forward")
@@ -36,7 +36,7 @@ def test_the_ftle_layer_is_drawn_under_the_points_from_its_control(browser, app_
                                   " return [m.low, m.high] }")  # fmt: skip
         words = page.evaluate(JS_SHADOW, ".ftle-status").split("pixels: ")[1].split(" per unit time")[0]
         assert [f"{v:.3g}" for v in (low, high)] == words.split(" to "), (low, high, words)
-        # the selected trajectory's verdict after its caption (the attractor: chaotic)
+        # the verdict on the selected trajectory (the clicked one, on the attractor: chaotic) after its caption
         page.wait_for_function(f"() => /chaotic \\(Birkhoff/.test(({JS_SHADOW})('.series-caption'))",
                                timeout=120_000)  # fmt: skip
         page.wait_for_timeout(500)  # the image painted
