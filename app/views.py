@@ -401,12 +401,16 @@ class SectionFigure:
         if traj.size:
             self.points.stream({"q": q, "r": r, "traj": traj, "k": k, "c": traj % N_COLORS})
 
+    def _clear_image(self, layer: str) -> None:
+        """No image of ``layer`` (one built on first use) on screen, and the colour bar of what is seen then."""
+        if self._has_image(layer):
+            getattr(self, f"_{layer}").data = _image_data()
+            self._refresh_colours()
+
     def set_density(self, counts: np.ndarray | None, view: tuple[float, ...] | None = None) -> None:
         """The density image (counts per pixel, row 0 at the bottom of ``view``), or none."""
         if counts is None or counts.size == 0:
-            if "density" in self._built and self._density.data["image"]:
-                self._density.data = _image_data()
-                self._refresh_colours()
+            self._clear_image("density")
             return
         self._activate("density")
         image = np.where(counts > 0, counts, np.nan).astype(np.float32)
@@ -418,9 +422,7 @@ class SectionFigure:
                    colours: dict[int, str] | None = None) -> None:  # fmt: skip
         """Basin labels (NY, NX), row 0 at the bottom of ``view``, as colours (``colours[label]``; others clear)."""
         if labels is None or labels.size == 0:
-            if "basins" in self._built and self._basins.data["image"]:
-                self._basins.data = _image_data()
-                self._refresh_colours()
+            self._clear_image("basins")
             return
         self._activate("basins")
         rgba = np.zeros(labels.shape, dtype=np.uint32)
@@ -437,9 +439,7 @@ class SectionFigure:
         """An FTLE map (NY, NX), row 0 at the bottom of ``view``, NaN where a pixel has no value (drawn
         transparent), its colour bar titled ``title``; or none."""
         if values is None or values.size == 0:
-            if "ftle" in self._built and self._ftle.data["image"]:
-                self._ftle.data = _image_data()
-                self._refresh_colours()
+            self._clear_image("ftle")
             return
         self._activate("ftle")
         ok = values[np.isfinite(values)]
