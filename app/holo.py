@@ -28,10 +28,12 @@ from bokeh.palettes import Category10
 from app.analyses import CHART_LEGEND, CURVE_STYLE
 from app.layers.basins import BASIN_COLOURS, OUTCOME_COLOURS, OUTCOME_NAMES, attractor_words
 from app.layers.frozen import segments_by_type
+from app.layers.ftle import ftle_shown
 from app.layers.orbits import orbit_row
 from app.views import (
     BASIN_ALPHA,
     DENSITY_PALETTE,
+    FTLE_PALETTE,
     MANIFOLD_COLOURS,
     N_COLORS,
     ORBIT_COLOUR,
@@ -48,6 +50,8 @@ from explorer_core.analyses.bifurcation import OrbitDiagram
 from explorer_core.analyses.continuation import Continuation
 from explorer_core.analyses.density import Density
 from explorer_core.analyses.equilibria import Equilibria, Tracks
+from explorer_core.analyses.ftle import FtleMap
+from explorer_core.analyses.indicators import VERDICTS, Birkhoff, Sali
 from explorer_core.analyses.lyapunov import LyapunovResult
 from explorer_core.analyses.manifolds import Manifolds
 from explorer_core.analyses.orbits import Orbit, OrbitSearch
@@ -70,6 +74,8 @@ CHART_PALETTE = (CHART_NOT_DONE, *(c for _, c in CHART_LEGEND))
 CHART_OTHER = ("quasi_periodic", "chaotic", "escaped", "failed", "invalid")
 N_PERIOD_COLOURS = len(CHART_LEGEND) - len(CHART_OTHER)
 SIZE = {"width": 640, "height": 480}
+#: The indicators' verdicts: undecided grey, regular blue, chaotic red (indexed by the core's verdict codes).
+VERDICT_COLOURS = ("#7f7f7f", "#1f77b4", "#d62728")
 
 
 # ---------------------------------------------------------------------------
@@ -223,6 +229,69 @@ def draw_tprime(m: TPrimeMap, **opts: Any) -> hv.Image:
     img = img.opts(cmap=list(TPRIME_PALETTE), clim=(-lim, lim), alpha=0.55, colorbar=True, clabel=tprime_title(m),
                    tools=["hover"], title=title, **SIZE)  # fmt: skip
     return _finish(img, opts)
+
+
+def draw_ftle(m: FtleMap, **opts: Any) -> hv.Element:
+    """The FTLE map (the app's palette: dark islands, light chaotic sea), pixels without an exponent (escaped,
+    failed, not computed) transparent and counted in the title; forward and backward side by side when both ran."""
+    images = []
+    for d, values, status in m.maps():
+        shown, missing = ftle_shown(values, status)
+        img = hv.Image(np.flipud(shown), bounds=_image_bounds(m.q, m.r), kdims=["q", "r"],
+                       vdims=[hv.Dimension("ftle", label="FTLE (per unit time)")])  # fmt: skip
+        title = f"FTLE {d} over {m.spec.periods} periods ({m.q.size} x {m.r.size} pixels)"
+        title += f"; no exponent: {missing}" if missing else ""
+        title += "" if m.completed else " (stopped)"
+        images.append(img.opts(cmap=list(FTLE_PALETTE), colorbar=True, clabel=f"FTLE {d} (per unit time)",
+                               tools=["hover"], title=title, **SIZE))  # fmt: skip
+    return _finish(images[0] if len(images) == 1 else hv.Layout(images).cols(2), opts)
+
+
+def _verdict_points(ics: Any, verdict: np.ndarray, extra: dict[str, Any], title: str) -> hv.Overlay:
+    """Initial conditions coloured by verdict (one layer per verdict, for the legend), hover: ``extra``'s columns."""
+    ics = np.asarray(ics, dtype=float).reshape(-1, 2)
+    layers: list[Any] = []
+    for code, name in enumerate(VERDICTS):
+        sel = verdict == code
+        if not sel.any():
+            continue
+        data = {"q": ics[sel, 0], "r": ics[sel, 1], **{k: np.asarray(v)[sel] for k, v in extra.items()}}
+        pts = hv.Points(data, kdims=["q", "r"], vdims=list(extra), label=f"{name} ({int(sel.sum())})")
+        layers.append(pts.opts(color=VERDICT_COLOURS[code], size=7, line_color="black", tools=["hover"], **SIZE))
+    return hv.Overlay(layers).opts(title=title, legend_position="top_left")
+
+
+def draw_birkhoff(b: Birkhoff, **opts: Any) -> hv.Overlay:
+    """Each orbit's initial condition coloured by its verdict; hover: the digits of convergence, the rotation number
+    of a regular orbit (-1: none) and the status."""
+    rotation = np.where(b.has_rotation, b.rotation, -1.0)
+    labels = np.array([str(lab) for lab in (row[7] for row in b.rows())])
+    title = f"Weighted Birkhoff averages over 2 x {b.spec.periods} periods: " + ", ".join(
+        f"{v} {n}" for v, n in b.summary()["verdicts"].items() if n)  # fmt: skip
+    out = _verdict_points(b.spec.ics, b.verdict, {"digits": b.digits, "rotation": rotation, "status": labels}, title)
+    return _finish(out, opts)
+
+
+def draw_sali(s: Sali, **opts: Any) -> hv.Overlay:
+    """SALI against the periods (log scale) along each orbit, coloured by its verdict: falling to 0 on chaos,
+    staying finite or decaying by a power law on a regular orbit."""
+    a = s.alignment
+    layers: list[Any] = []
+    shown: set[int] = set()
+    for i in range(a.npts.size):
+        n = int(a.npts[i])
+        if not n:
+            continue
+        code = int(a.verdict[i])
+        k = np.arange(1, n + 1)
+        curve = hv.Curve({"k": k, "SALI": np.maximum(a.sali[i, :n], 1e-300), "orbit": np.full(n, i)}, kdims=["k"],
+                         vdims=["SALI", "orbit"], label=VERDICTS[code] if code not in shown else "")  # fmt: skip
+        layers.append(curve.opts(color=VERDICT_COLOURS[code], logy=True, show_legend=code not in shown,
+                                 tools=["hover"], **SIZE))  # fmt: skip
+        shown.add(code)
+    counts = ", ".join(f"{v} {n}" for v, n in s.summary()["verdicts"].items() if n)
+    out = hv.Overlay(layers).opts(title=f"SALI along {a.npts.size} orbits: {counts}")
+    return _finish(out.redim.label(k="periods k"), opts)
 
 
 # ---------------------------------------------------------------------------
@@ -542,6 +611,9 @@ DRAWERS = {
     OrbitSearch: draw_orbit_search,
     Manifolds: draw_manifolds,
     Basins: draw_basins,
+    FtleMap: draw_ftle,
+    Birkhoff: draw_birkhoff,
+    Sali: draw_sali,
 }
 
 

@@ -59,7 +59,7 @@ Job = Callable[[Callable[[], bool], Emit], None]
 #: the scheduler; a session's layers declare their own channels' kinds (:meth:`Runner.declare`).
 POINTS, LAYER, HEAVY = "points", "layer", "heavy"
 POINT_CHANNELS = frozenset({"section", "orbit"})  # an orbit found from a click: waited for like points
-LAYER_CHANNELS = frozenset({"tracks", "tprime", "reliability", "orbits", "manifolds", "basins"})
+LAYER_CHANNELS = frozenset({"tracks", "tprime", "reliability", "orbits", "manifolds", "basins", "ftle", "rotation"})
 
 
 def job_kind(channel: str) -> str:

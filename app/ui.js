@@ -356,7 +356,10 @@ export function render({model, el}) {
   if (controls.selected) controls.selected.inputs[0].after(noSelBtn)
   const basNpzBtn = h("button", {class: "act light btn-basins-npz", text: "Download basins NPZ", hidden: true})
   basNpzBtn.addEventListener("click", () => send({action: "download", what: "basins"}))
+  const ftleNpzBtn = h("button", {class: "act light btn-ftle-npz", text: "Download FTLE NPZ", hidden: true})
+  ftleNpzBtn.addEventListener("click", () => send({action: "download", what: "ftle"}))
   secBar.append(stopBtn, clearBtn, csvBtn, findBtn, clearOrbBtn, orbCsvBtn, clearManBtn, manCsvBtn, basNpzBtn,
+                ftleNpzBtn,
                 figureBar(send, () => "section"))
   // Play a parameter: its settings are controls (area "play"); Play/Pause and Step are actions.
   const playBtn = h("button", {class: "act btn-play", text: "▶ Play"})
@@ -443,6 +446,7 @@ export function render({model, el}) {
     h("span", {text: "◆"}), document.createTextNode(" homoclinic points."))
   const manStatus = h("div", {class: "orbit-status manifold-status", "aria-live": "polite"})
   const basStatus = h("div", {class: "orbit-status basin-status", "aria-live": "polite"})
+  const ftleStatus = h("div", {class: "orbit-status ftle-status", "aria-live": "polite"})
   const densLegend = h("div", {class: "legend density-legend", hidden: true,
     text: "Density image: section points per pixel of the view, log scale from light (a few) to dark (many; " +
           "the colour bar right of the plot); recomputed for the view when you pan or zoom."})
@@ -452,7 +456,7 @@ export function render({model, el}) {
   const orbTable = h("div", {class: "orbits", hidden: true})
   // The plot first and large: its key (basins' colours, density) right under it; beside it a column with the k-series
   // and, under them, the orbit table, the layers' statuses and the long legends (scrolled in their box).
-  const notes = h("div", {class: "notes"}, orbTable, orbStatus, basStatus, manStatus, colourNote, eqLegend, orbLegend,
+  const notes = h("div", {class: "notes"}, orbTable, orbStatus, basStatus, ftleStatus, manStatus, colourNote, eqLegend, orbLegend,
                   manLegend)
   const plotKey = h("div", {class: "plot-key"}, basLegend, densLegend)
   const paneSection = h("section", {class: "pane pane-section"}, secBar, playBar, secErrors, warnings, status,
@@ -654,6 +658,8 @@ export function render({model, el}) {
     manStatus.textContent = s.manifold_status || ""
     basStatus.textContent = s.basin_status || ""
     basNpzBtn.hidden = !s.basins_file
+    ftleStatus.textContent = s.ftle_status || ""
+    ftleNpzBtn.hidden = !s.ftle_file
     densLegend.hidden = !s.density
     colourNote.textContent = s.colour_note || ""
     colourNote.hidden = !s.colour_note
@@ -702,7 +708,9 @@ export function render({model, el}) {
     placeTourChoice()
     sceneInfo.textContent = s.scene_info || ""
     const b = s.body || {}
-    seriesCap.textContent = (b.open ? b.caption : s.series_caption) || ""
+    // The selected trajectory's verdict (regular with its rotation number, chaotic, undecided) after its caption.
+    seriesCap.textContent = (b.open ? b.caption : [s.series_caption, s.series_verdict].filter(Boolean).join(" · ")) ||
+      ""
     if ((s.series_note || "") !== seriesNote) {
       seriesNote = s.series_note || ""
       requestAnimationFrame(drawSeries)

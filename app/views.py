@@ -49,7 +49,7 @@ from bokeh.models import (
     UnionRenderers,
     WheelZoomTool,
 )
-from bokeh.palettes import Category20, Inferno256, RdBu11, interp_palette
+from bokeh.palettes import Category20, Inferno256, RdBu11, Viridis256, interp_palette
 
 #: One colour per equilibrium type (shared by the tracks and the markers).
 TYPE_COLORS = {
@@ -93,6 +93,8 @@ TPRIME_PALETTE = interp_palette(RdBu11, 255)  # blue (loss) .. white .. red (gai
 TRAJ_PALETTE = Category20[N_COLORS]
 #: Density images: light (few points) to dark (many), empty pixels transparent over the T' map.
 DENSITY_PALETTE = tuple(reversed(Inferno256))
+#: FTLE maps: dark (islands, FTLE near 0) to light (the chaotic sea); pixels without a value transparent.
+FTLE_PALETTE = Viridis256
 #: Opacity of the basins image (over the page's white: the T' map is hidden under it).
 BASIN_ALPHA = 0.5
 #: Font sizes (points) of axis labels and ticks: normal and presentation mode.
@@ -202,6 +204,7 @@ class SectionFigure:
         )
         fig.add_layout(self.colorbar, "right")
         self._tprime_title, self._presentation = self.colorbar.title, False
+        self._ftle_title = ""
         self.tracks = source({"xs": [], "ys": [], "color": [], "type": []}, "tracks_source")
         tracks = _renderer(self.tracks, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6, line_alpha=0.7,
                                                   line_dash="dashed"))  # fmt: skip
@@ -225,8 +228,8 @@ class SectionFigure:
         # The layers a new page does not show (basins, density, manifolds, periodic orbits) are built
         # when first used and join the plot then, in their place (a string here): a new page builds
         # ~55 models fewer and sends ~30 fewer (Bokeh spends ~0.4 ms a model: docs/load.md).
-        self._order: list[Any] = [tp, "basins", "density", tracks, pts, sel, eq, ics, "manifolds", "orbits", "body",
-                                 "marks"]  # fmt: skip
+        self._order: list[Any] = [tp, "basins", "ftle", "density", tracks, pts, sel, eq, ics, "manifolds", "orbits",
+                                 "body", "marks"]  # fmt: skip
         self._built: dict[str, list[GlyphRenderer]] = {}
         self._shown: set[str] = set()
         fig.renderers.extend([r for r in self._order if not isinstance(r, str)])
@@ -269,6 +272,15 @@ class SectionFigure:
         self._basins = self._source(_image_data(), "basins_source")
         rgba = ImageRGBA(image="image", x="x", y="y", dw="dw", dh="dh", global_alpha=BASIN_ALPHA)
         return [_renderer(self._basins, rgba, level="image", name="basins_image")]
+
+    def _build_ftle(self) -> list[GlyphRenderer]:
+        # An FTLE map: a colour scale (its key the colour bar), under the points; failed pixels transparent.
+        self._ftle_mapper = LinearColorMapper(
+            palette=FTLE_PALETTE, low=0, high=1, nan_color=(0, 0, 0, 0), name="ftle_mapper"
+        )
+        self._ftle = self._source(_image_data(), "ftle_source")
+        shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self._ftle_mapper)
+        return [_renderer(self._ftle, shade, level="image", name="ftle_image")]
 
     def _build_manifolds(self) -> list[GlyphRenderer]:
         # Stable and unstable manifolds of saddles over the points, their crossings (homoclinic points) on them.
@@ -345,6 +357,8 @@ class SectionFigure:
     density = _OfLayer("density")
     density_mapper = _OfLayer("density")
     basins = _OfLayer("basins")
+    ftle = _OfLayer("ftle")
+    ftle_mapper = _OfLayer("ftle")
     manifolds = _OfLayer("manifolds")
     crossings = _OfLayer("manifolds")
     orbit_sources = _OfLayer("orbits")
@@ -387,12 +401,16 @@ class SectionFigure:
         if traj.size:
             self.points.stream({"q": q, "r": r, "traj": traj, "k": k, "c": traj % N_COLORS})
 
+    def _clear_image(self, layer: str) -> None:
+        """No image of ``layer`` (one built on first use) on screen, and the colour bar of what is seen then."""
+        if self._has_image(layer):
+            getattr(self, f"_{layer}").data = _image_data()
+            self._refresh_colours()
+
     def set_density(self, counts: np.ndarray | None, view: tuple[float, ...] | None = None) -> None:
         """The density image (counts per pixel, row 0 at the bottom of ``view``), or none."""
         if counts is None or counts.size == 0:
-            if "density" in self._built and self._density.data["image"]:
-                self._density.data = _image_data()
-                self._refresh_colours()
+            self._clear_image("density")
             return
         self._activate("density")
         image = np.where(counts > 0, counts, np.nan).astype(np.float32)
@@ -404,9 +422,7 @@ class SectionFigure:
                    colours: dict[int, str] | None = None) -> None:  # fmt: skip
         """Basin labels (NY, NX), row 0 at the bottom of ``view``, as colours (``colours[label]``; others clear)."""
         if labels is None or labels.size == 0:
-            if "basins" in self._built and self._basins.data["image"]:
-                self._basins.data = _image_data()
-                self._refresh_colours()
+            self._clear_image("basins")
             return
         self._activate("basins")
         rgba = np.zeros(labels.shape, dtype=np.uint32)
@@ -416,6 +432,21 @@ class SectionFigure:
             if m.any():
                 view8[m] = (int(hex_[1:3], 16), int(hex_[3:5], 16), int(hex_[5:7], 16), 255)
         self.basins.data = _image_data(rgba, *view)  # type: ignore[misc]
+        self._refresh_colours()
+
+    def set_ftle(self, values: np.ndarray | None, view: tuple[float, ...] | None = None,
+                 title: str = "") -> None:  # fmt: skip
+        """An FTLE map (NY, NX), row 0 at the bottom of ``view``, NaN where a pixel has no value (drawn
+        transparent), its colour bar titled ``title``; or none."""
+        if values is None or values.size == 0:
+            self._clear_image("ftle")
+            return
+        self._activate("ftle")
+        ok = values[np.isfinite(values)]
+        low, high = (float(ok.min()), float(ok.max())) if ok.size else (0.0, 1.0)
+        self.ftle_mapper.update(low=low, high=high if high > low else low + 1e-12)
+        self._ftle_title = title
+        self.ftle.data = _image_data(values.astype(np.float32), *view)  # type: ignore[misc]
         self._refresh_colours()
 
     def set_selected(self, q: np.ndarray, r: np.ndarray) -> None:
@@ -524,14 +555,18 @@ class SectionFigure:
         would tint (their legends and scale would no longer match what is drawn)."""
         if not self.tprime.data["image"]:
             return ""
-        return "the density image" if self._has_image("density") else "the basins" if self._has_image("basins") else ""
+        for layer, words in (("density", "the density image"), ("ftle", "the FTLE map"), ("basins", "the basins")):
+            if self._has_image(layer):
+                return words
+        return ""
 
     def _refresh_colours(self) -> None:
         """One colour layer seen at a time under the points, and the colour bar of the one seen (or none)."""
         tprime = bool(self.tprime.data["image"]) and not self.tprime_hidden_by
         if self._tprime_renderer.visible != tprime:
             self._tprime_renderer.visible = tprime
-        mapper = self.density_mapper if self._has_image("density") else self.tprime_mapper if tprime else None
+        mapper = self.density_mapper if self._has_image("density") else self.ftle_mapper if self._has_image("ftle") \
+            else self.tprime_mapper if tprime else None  # fmt: skip
         if mapper is not None and self.colorbar.color_mapper is not mapper:
             self.colorbar.color_mapper = mapper
         self.colorbar.update(visible=mapper is not None, title=self._colorbar_title())
@@ -539,6 +574,8 @@ class SectionFigure:
     def _colorbar_title(self) -> str:
         if self._has_image("density"):
             return "points per pixel (log)" if self._presentation else "section points per pixel (log scale)"
+        if self._has_image("ftle"):
+            return self._ftle_title
         # At presentation size the long title runs past the plot's height (seen at 1280x720).
         title = self._tprime_title
         if self._presentation:

@@ -281,7 +281,8 @@ def test_every_url_key_is_in_one_table_and_round_trips() -> None:
     s = ExplorerState(scene="fig1C")
     s.param.update(manifold_saddles=[(0.5, 0.25, 2)], orbit_seeds=[(0.1, 0.2)], orbit_view=True, tab="chart",
                    presentation=True, bif_orbits=False, show_basins=True, basin_grid=30, render="points",
-                   click_mode="orbit", tprime_kind="per-period", lyap_ic=(0.1, 0.2))  # fmt: skip
+                   click_mode="orbit", tprime_kind="per-period", lyap_ic=(0.1, 0.2), ftle="backward", ftle_grid=30,
+                   ftle_periods=12)  # fmt: skip
     s.param.update(play_param="g1", play_from=(0.5,), play_to=(1.5,), play_frames=30, play_fps=12, play_dir="bounce",
                    tour="fig8B", tour_step=2, tour_url="/tours/class.json", show_body=True, body_speed="2",
                    body_axis="1", body_shape="ellipsoid")  # fmt: skip

@@ -441,3 +441,51 @@ def test_an_installed_entry_point_is_found_without_importing_app_holo(tmp_path: 
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, env=env, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == ["Overlay", "True", "[0.5]"]
+
+
+def test_an_ftle_map_draws_its_values_with_the_pixels_without_one_blank() -> None:
+    from app.views import FTLE_PALETTE
+    from explorer_core.analyses.ftle import ftle_map
+    from explorer_core.status import Status
+
+    m = ftle_map(FIG8B.params, (-1.5, 0.5, -3.0, -1.0), grid=(8, 6), periods=3, direction="both")
+    status = m.status_backward.copy()
+    status[2, 5] = Status.ESCAPED  # as a pixel that left the bound: no value, said in the title
+    m = dataclasses.replace(m, status_backward=status)
+    lay = m.to_holoviews()
+    fwd, bwd = list(lay)
+    for img, values, st, d in ((fwd, m.forward, m.status_forward, "forward"), (bwd, m.backward, status, "backward")):
+        drawn = img.dimension_values("ftle", flat=False)
+        np.testing.assert_array_equal(drawn[st == Status.OK], values[st == Status.OK])  # rows: r ascending
+        assert np.isnan(drawn[st != Status.OK]).all()
+        for j, i in [(0, 0), (4, 6)]:  # row 0 at the bottom, at the pixels' centres
+            assert img[m.q[i], m.r[j]] == pytest.approx(values[j, i])
+        opts = img.opts.get().kwargs
+        assert opts["cmap"] == list(FTLE_PALETTE) and opts["title"].startswith(f"FTLE {d} over 3 periods (8 x 6")
+    assert "no exponent: 1 escaped" in bwd.opts.get().kwargs["title"]
+    assert "no exponent" not in fwd.opts.get().kwargs["title"]
+    render(lay)
+
+
+def test_the_indicators_verdicts_draw_in_their_colours() -> None:
+    from explorer_core.analyses.indicators import VERDICTS, birkhoff, sali
+
+    fig5a = get_scene("fig5A").params
+    ics = [(0.4, 0.0), (0.05, 0.02)]
+    b = birkhoff(fig5a, ics, 100, regular_digits=5.0)
+    ov = b.to_holoviews()
+    for el in elements(ov):
+        code = VERDICTS.index(el.label.split(" (")[0])
+        assert el.opts.get().kwargs["color"] == holo.VERDICT_COLOURS[code]
+        mine = b.verdict == code
+        np.testing.assert_array_equal(el.dimension_values("q"), np.asarray(ics)[mine, 0])
+        np.testing.assert_array_equal(el.dimension_values("digits"), b.digits[mine])
+    assert sum(len(el) for el in elements(ov)) == 2
+    s = sali(FIG8B.params, [(-1.0, -2.0)], 50, transient=100)
+    (curve,) = elements(s.to_holoviews())
+    n = int(s.npts[0])
+    np.testing.assert_array_equal(curve.dimension_values("SALI"), s.alignment.sali[0, :n])
+    assert curve.label == VERDICTS[int(s.verdict[0])]
+    assert curve.opts.get().kwargs["color"] == holo.VERDICT_COLOURS[int(s.verdict[0])]
+    render(ov)
+    render(curve)

@@ -9,12 +9,15 @@ from __future__ import annotations
 from app.layers.base import KEEP, Host, Layer
 from app.layers.basins import BasinsLayer
 from app.layers.frozen import TPrimeLayer
+from app.layers.ftle import FtleLayer
 from app.layers.manifolds import ManifoldsLayer
 from app.layers.orbits import OrbitsLayer
+from app.layers.rotation import RotationLayer
 from app.layers.tracks import TracksLayer
 
 #: The phase-plane layers over the section, in the order they start (the section itself comes first).
-LAYERS: tuple[type[Layer], ...] = (OrbitsLayer, ManifoldsLayer, BasinsLayer, TracksLayer, TPrimeLayer)
+LAYERS: tuple[type[Layer], ...] = (OrbitsLayer, ManifoldsLayer, BasinsLayer, FtleLayer, TracksLayer, TPrimeLayer,
+                                   RotationLayer)  # fmt: skip
 
-__all__ = ["KEEP", "LAYERS", "BasinsLayer", "Host", "Layer", "ManifoldsLayer", "OrbitsLayer", "TPrimeLayer",
-           "TracksLayer"]  # fmt: skip
+__all__ = ["KEEP", "LAYERS", "BasinsLayer", "FtleLayer", "Host", "Layer", "ManifoldsLayer", "OrbitsLayer",
+           "RotationLayer", "TPrimeLayer", "TracksLayer"]  # fmt: skip
