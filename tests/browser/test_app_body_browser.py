@@ -117,8 +117,8 @@ JS_RATE = """(secs) => new Promise((done) => {
 
 def test_the_body_runs_at_30_fps_at_every_offered_speed_beside_a_full_section(page, app_url) -> None:
     # Issue 36, item 4. The highlighted section point moves each period; it was on the section's glyph level, so
-    # each move repainted the plot's 30,000 points (0.3-1 s in headless Chromium): 2-3 frames/s at 2 and 4
-    # periods/s (16 at 1) on the code before, 55-60 with the point on the overlay level (load 7-10 on 2 cores).
+    # each move repainted the plot's 30,000 points (0.5-1.2 s in headless Chromium): 2-3 frames/s at 2 and 4
+    # periods/s (13-16 at 1) on the code before, 55-60 with the point on the overlay level (load 7-10 on 2 cores).
     # The machine is shared: a speed under 30 frames/s is measured once more (a neighbour's burst can stall the
     # browser for a second; the old code's stall comes every period, and fails both times).
     open_body(page, app_url, FULL)
