@@ -502,7 +502,8 @@ function createBodyView(host, {onPoint = null, onFrame = null, onSetting = null}
   // --- the animation ---------------------------------------------------------------------------------------
 
   function highlight() {
-    // The section point of the period shown (the k-th point of the map: the start of period k).
+    // The section point of the period shown (the k-th point of the map: the start of period k). Once a period: the
+    // point is drawn on the section plot's overlay level (app/views.py), so a move repaints no section point.
     if (!data || !onPoint) return
     const k = Math.min(Math.floor(pos / data.samples), Math.floor((data.frames - 1) / data.samples))
     if (k === period) return

@@ -1,5 +1,5 @@
-"""A projector's 1280x720 screen (issue 36, item 3): on every tab, in normal and presentation mode, the main plot and
-its key are in the viewport without scrolling, and the plot is large.
+"""A projector's 1280x720 screen and a 1920x1080 one (issue 36, item 3): on every tab, in normal and presentation mode,
+the main plot and its key are in the viewport without scrolling, and the plot is large.
 
 Measured on the code before this layout (boxes x, y, w, h): the section plot 552x300 (18 % of the screen; 750x300 in
 presentation mode), the orbit diagram's plot at y = 564 (709 in presentation mode: its result lines came first), the
@@ -16,7 +16,8 @@ from test_app_browser import open_app
 
 pytestmark = pytest.mark.browser
 
-WIDTH, HEIGHT = 1280, 720
+#: The screens (width, height): a projector's and a full-HD one.
+SCREENS = [(1280, 720), (1920, 1080)]
 #: Small runs (the scene is Fig. 11's with its two stable cycles, as its tour's basins step: the basins have a key).
 QUERY = ("?scene=fig11&alpha=-0.5&I11=1.6&orbits=1&orb_all=1&orb_n=3&n=20&periods=200&ly_n=200&ly_tr=50&ly_m=2"
          "&bif_n=12&bif_pts=30&bif_tr=50&ch_grid=8,6&ch_n=40&ch_tr=40&ch_curves=0&be_n=10")  # fmt: skip
@@ -59,7 +60,8 @@ def check(page, where: str, plot_sel: str, key_sels: list[str], fraction: float)
     inside the unscrolled viewport, the plot at least ``fraction`` of the screen, the header on one row."""
     page.wait_for_timeout(600)  # a few frames: the figure laid out in its box
     got = page.evaluate(JS_BOXES, [plot_sel, key_sels])
-    screen = {"x": 0, "y": 0, "w": WIDTH, "h": HEIGHT}
+    width, height = page.viewport_size["width"], page.viewport_size["height"]
+    screen = {"x": 0, "y": 0, "w": width, "h": height}
     plot, canvas = got["plot"], got["canvas"]
     box = ", ".join(f"{plot[k]:.0f}" for k in "xywh")
     problems = []
@@ -67,8 +69,8 @@ def check(page, where: str, plot_sel: str, key_sels: list[str], fraction: float)
         problems.append(f"the main area scrolls ({got['overflow']:.0f} px)")
     if not inside(plot, screen):
         problems.append(f"the plot ({box}) is out of view")
-    if plot["w"] * plot["h"] < fraction * WIDTH * HEIGHT:
-        problems.append(f"the plot ({box}) is {plot['w'] * plot['h'] / (WIDTH * HEIGHT):.0%} of the screen")
+    if plot["w"] * plot["h"] < fraction * width * height:
+        problems.append(f"the plot ({box}) is {plot['w'] * plot['h'] / (width * height):.0%} of the screen")
     # The figure fills its box (it sizes itself to it), not a fixed size in a corner of it.
     if not canvas or canvas["w"] * canvas["h"] < 0.95 * plot["w"] * plot["h"]:
         problems.append(f"the figure ({canvas}) does not fill its box ({box})")
@@ -83,7 +85,7 @@ def check(page, where: str, plot_sel: str, key_sels: list[str], fraction: float)
                 problems.append("the legend is out of the plot")
     if got["header"] >= 50:
         problems.append(f"the header takes {got['header']:.0f} px (more than one row)")
-    return [f"{where}: {p}" for p in problems]
+    return [f"{where} at {width}x{height}: {p}" for p in problems]
 
 
 def wait_analysis(page, tab: str) -> None:
@@ -98,11 +100,12 @@ def wait_analysis(page, tab: str) -> None:
     )
 
 
+@pytest.mark.parametrize("screen", SCREENS, ids=[f"{w}x{h}" for w, h in SCREENS])
 @pytest.mark.parametrize("present", [False, True], ids=["normal", "presentation"])
-def test_every_tabs_plot_and_key_in_view_and_large_at_1280x720(browser, app_url, present: bool) -> None:
+def test_every_tabs_plot_and_key_in_view_and_large(browser, app_url, present: bool, screen: tuple[int, int]) -> None:
     """The section (with its legend, then with the basins and their colour key), then every analysis tab after Run:
     the plot and its key in the viewport, nothing to scroll, the plot above its share of the screen."""
-    page = new_page(browser, WIDTH, HEIGHT)
+    page = new_page(browser, *screen)
     mode = int(present)
     problems = []
     try:
