@@ -174,6 +174,9 @@ header .tabs { display: flex; gap: 4px; }
    plot gets the room of the tab's help (and in presentation mode of its form; both back outside the tour). */
 .app.touring .pane-analysis .analysis-help, .app.present.touring .pane-analysis .form { display: none; }
 .app.present .play-bar { display: none; }
+/* The figure download (a file for a paper, not for the room) is left out of the projected section's bar: at
+   1280x720 it took the bar to a third row and the plot under half the screen. */
+.app.present .pane-section .figure-bar { display: none; }
 /* Presentation: the side columns' words a little smaller than the page's (the plot is what the room reads), and the
    section's bar in two rows, each label beside its control, in the header's size. */
 .app.present .side-col { font-size: 15px; }
