@@ -50,12 +50,13 @@ def _code(c: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def test_off_boundaries_the_sali_chart_is_the_lyapunov_chart_in_fewer_periods() -> None:
-    """Metamorphic: every pixel-IC whose 8 neighbours share its regime in either chart has the same regime, period and
-    status with either chaos test; the members that differ lie on boundaries and are chaotic by the SALI (a chaotic
-    transient the longer run saw settle or escape). Chaotic members cost fewer periods with the SALI."""
+    """Metamorphic: every pixel-IC whose 8 neighbours share its regime (and period) in the chart of the Lyapunov test
+    (the reference, as ``benchmarks/chart_speed.py`` judges early stops) has the same regime, period and status with
+    the SALI; the members that differ are chaotic by the SALI (a chaotic transient the whole run saw settle or escape).
+    Chaotic members cost fewer periods with the SALI."""
     lyap, sali = _chart("lyapunov", (24, 24)), _chart("sali", (24, 24))
     a, b = _code(lyap), _code(sali)
-    inside = off_boundaries(a) | off_boundaries(b)
+    inside = off_boundaries(a)
     assert inside.sum() >= 400 and (inside & (lyap["regime"] == CHAOTIC)).sum() >= 30
     for k in ("regime", "period", "status"):
         assert np.array_equal(lyap[k][inside], sali[k][inside]), k

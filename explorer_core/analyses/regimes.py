@@ -8,7 +8,8 @@ section points are computed together with the largest Lyapunov exponent
 * ``periodic`` with period ``p`` (``1 <= p <= p_max``): the section point
   returns to itself after ``p`` iterations within ``tol`` over the last part of
   the measurement -- a stable cycle;
-* ``chaotic``: no period and largest exponent ``> lyap_threshold`` (per unit time);
+* ``chaotic``: no period and largest exponent ``> lyap_threshold`` (per unit time) -- or, decided early, two
+  deviation vectors that align while stretching (SALI, ``chaos_test="sali"``, the default; see :func:`compute_tile`);
 * ``quasi-periodic``: no period and largest exponent ``<= lyap_threshold``
   (an invariant curve, or a cycle longer than ``p_max``);
 * ``escaped``: the trajectory left the bound (noncompact motion);
@@ -462,7 +463,9 @@ def compute_tile(spec: ChartSpec, tile: TileSpec, stop: Callable[[], bool] | Non
       :data:`CHAOS_MARGIN` times the threshold; its exponent is the mean so far. A strongly chaotic member
       is decided from :data:`CHAOS_EARLY_PERIODS` periods on, in the transient, by a stricter bound over the
       second half of its periods so far (its exponent is their mean): above :data:`CHAOS_EARLY_MARGIN`
-      times the threshold, or :data:`CHAOS_LATER_MARGIN` times from :data:`CHAOS_LATER_PERIODS` on.
+      times the threshold, or :data:`CHAOS_LATER_MARGIN` times from :data:`CHAOS_LATER_PERIODS` on. With
+      ``spec.chaos_test == "sali"`` (the default) the SALI decides first, at :data:`SALI_START` periods, in at most
+      :data:`SALI_PERIODS` more (its exponent: the mean ``log R_11`` over the second half of its periods so far).
 
     Every other member runs the whole transient and measurement and is classified exactly as
     :func:`compute_tile_each` does (to the last bit: chunked runs continue each step sequence
@@ -591,7 +594,8 @@ CHAOS_LATER_MARGIN = 2.0
 #: second half of its run so far (the value shown) is above CHAOS_MARGIN times the threshold too; any other member
 #: goes on as with the Lyapunov test alone. (Fig. 11 window, 40x40 x 2 ICs, against chaos_test="lyapunov": from 200
 #: periods 5 of 3200 members differ, from 150 10, from 100 22, every one on a boundary between regimes and called
-#: chaotic where a longer run settles on a cycle or escapes; time 0.73, 0.75 and 0.65 of the Lyapunov test's.)
+#: chaotic where the whole run settles on a cycle, escapes or stays below the threshold; time 0.73, 0.75 and 0.65 of
+#: the Lyapunov test's, one run each at load ~10; work at 200: 0.88 of the periods. docs/indicators.md.)
 SALI_START = CHAOS_EARLY_PERIODS
 SALI_PERIODS = 25
 
@@ -765,7 +769,8 @@ def _classify_members(
             shown = None  # the exponents (per period) of members the SALI called chaotic
             if spec.chaos_test == "sali" and done == SALI_START:
                 found_cycle = np.array([a in cycles and cycles[a][0] is not None for a in range(live.size)], dtype=bool)
-                shown = _sali_chaos(spec, pmap, batch, live, every, done, (back == 0) & ~found_cycle & ~chaotic, ran)
+                shown = _sali_chaos(spec, pmap, batch, live, every, done, (back == 0) & ~found_cycle & ~chaotic, ran,
+                                    stop)  # fmt: skip
                 chaotic = chaotic | ~np.isnan(shown)
             keep = []
             for a, m in enumerate(live):
@@ -811,10 +816,12 @@ def _sali_chaos(
     done: int,
     asked: np.ndarray,
     ran: np.ndarray,
+    stop: Callable[[], bool] | None = None,
 ) -> np.ndarray:
     """Per member ``live[a]``: its finite-time exponent per period (the mean ``log R_11`` over the second half of its
     run so far) where the SALI test (see :data:`SALI_START`) calls it chaotic, NaN elsewhere; only the members
-    ``asked`` are tested. Their periods of the alignment are added to ``ran``."""
+    ``asked`` are tested. Their periods of the alignment are added to ``ran``; ``stop`` is polled every 16 of them
+    (a stopped alignment calls no member chaotic, and the tile stops at its next look)."""
     # Deferred: indicators imports the Lyapunov analysis, which the chart does not otherwise need at import.
     from explorer_core.analyses.indicators import CHAOTIC as ALIGNED_CHAOS
     from explorer_core.analyses.indicators import alignment
@@ -834,7 +841,9 @@ def _sali_chaos(
         mono = pmap.derivative(x, 1, members=rows[sub])
         return mono.end, mono.matrix, mono.status
 
-    a = alignment(advance, batch.y[rows, :2], SALI_PERIODS, stretch_tol=CHAOS_MARGIN * per_period)
+    a = alignment(advance, batch.y[rows, :2], SALI_PERIODS, stretch_tol=CHAOS_MARGIN * per_period, cancel=stop)
+    if not a.completed:
+        return shown
     ran[rows] += a.npts
     yes = a.verdict == ALIGNED_CHAOS
     shown[cand[yes]] = finite[yes]
