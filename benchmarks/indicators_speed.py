@@ -18,133 +18,30 @@ runs each, in this process, one after the other). The indicators:
 * FTLE: the finite-time exponent over ``N`` periods (:func:`~explorer_core.analyses.ftle.ftle_tile`), chaotic when
   above ``LYAP_TOL`` per period, as the reference.
 
-The machine's load (``uptime``) is printed before and after: it is shared.
+The machine's load (``uptime``) is printed before and after: it is shared. The comparison itself is
+:mod:`explorer_core.studies.indicator_bench` (``bilimovich bench`` runs a small one).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import subprocess
-import time
 
-import numpy as np
-
-from explorer_core.analyses import indicators as ind
-from explorer_core.analyses.ftle import ftle_tile
-from explorer_core.analyses.lyapunov import LYAPUNOV_NUMERICS, lyapunov_spectrum
-from explorer_core.scenes import get_scene
-from explorer_core.solve.section import section
+from explorer_core.studies.indicator_bench import measure as _measure
+from explorer_core.studies.indicator_bench import table
 from explorer_core.warm import warm_all
-
-#: Largest exponent per period (lambda_1 T) above which the reference calls an orbit chaotic.
-LYAP_TOL = 0.01
-LADDERS = {
-    "birkhoff": (50, 100, 200, 400, 800, 1600),  # N: 2 N periods
-    "sali": (25, 50, 100, 200, 500, 1000, 2000),
-    "ftle": (25, 50, 100, 200, 500, 1000, 2000),
-}
 
 
 def uptime() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
-def sets(n: int) -> dict[str, tuple]:
-    """``name -> (params, ics (n, 2))``: the island's grid and points of the attractor."""
-    island = get_scene("fig5A").params
-    side = int(np.ceil(np.sqrt(n)))
-    g = np.linspace(-0.45, 0.45, side)
-    qq, rr = np.meshgrid(g, g * 0.8)
-    regular = np.column_stack([qq.ravel(), rr.ravel()])[:n]
-    strange = get_scene("fig8B").params
-    orbit = section(strange, [(-1.0, -2.0)], 100 + 7 * n).points[0]
-    chaotic = orbit[100::7][:n]
-    return {"regular": (island, regular), "chaotic": (strange, chaotic)}
-
-
-def verdicts(name: str, params, ics: np.ndarray, n: int, repeat: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """The indicator's verdicts (1 chaotic, 0 regular, -1 undecided) on ``ics`` at rung ``n``, the periods each
-    used, and the batch's median seconds over ``repeat`` runs."""
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        v, used = _run(name, params, ics, n)
-        times.append(time.perf_counter() - t)
-    out = np.where(v == ind.CHAOTIC, 1, np.where(v == ind.REGULAR, 0, -1))
-    return out, used, statistics.median(times)
-
-
-def _run(name: str, params, ics: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    if name == "birkhoff":
-        res = ind.birkhoff(params, ics, n)
-        v, used = res.verdict, np.full(len(ics), 2 * n)
-    elif name == "sali":
-        res = ind.sali(params, ics, n)
-        v, used = res.verdict, res.npts.copy()
-    else:
-        ftle, status, _ = ftle_tile(params, LYAPUNOV_NUMERICS, ics, n, 1)
-        v = np.where(status != 0, ind.NO_VERDICT, np.where(ftle * params.period > LYAP_TOL, ind.CHAOTIC, ind.REGULAR))
-        used = np.full(len(ics), n)
-    return v, used
-
-
 def measure(n: int, reference: int, repeat: int) -> dict:
-    report: dict = {"load_before": uptime(), "n": n, "reference_periods": reference, "lyap_tol": LYAP_TOL,
-                    "repeat": repeat, "sets": {}}  # fmt: skip
-    for set_name, (params, ics) in sets(n).items():
-        times = []
-        for _ in range(repeat):
-            t = time.perf_counter()
-            ly = lyapunov_spectrum(params, ics, reference)
-            times.append(time.perf_counter() - t)
-        ref_s = statistics.median(times)
-        ref = (ly.exponents[:, 0] * params.period > LYAP_TOL).astype(int)
-        entry = {"reference_s": round(ref_s, 3), "reference_chaotic": int(ref.sum()), "reference_ok": int(ly.ok.sum()),
-                 "indicators": {}}  # fmt: skip
-        for name, ladder in LADDERS.items():
-            rungs = [verdicts(name, params, ics, k, repeat) for k in ladder]
-            agree = np.array([v == ref for v, _, _ in rungs])  # (rungs, n)
-            # the first rung from which every longer rung agrees
-            settled = np.array([np.all(agree[j:], axis=0) for j in range(len(ladder))])
-            first = np.where(settled.any(axis=0), settled.argmax(axis=0), -1)
-            used = np.array([rungs[j][1][i] if j >= 0 else -1 for i, j in enumerate(first)])
-            best = int(np.argmax(agree.sum(axis=1) == n)) if (agree.sum(axis=1) == n).any() else int(
-                np.argmax(agree.sum(axis=1)))  # fmt: skip
-            entry["indicators"][name] = {
-                "agree_at_longest": int(agree[-1].sum()),
-                "periods_median": float(np.median(used[used >= 0])) if (used >= 0).any() else None,
-                "periods_max": int(used.max()) if (used >= 0).all() else None,
-                "never": int((used < 0).sum()),
-                "all_agree_at": ladder[best] if agree[best].all() else None,
-                "seconds_at_that_rung": round(rungs[best][2], 3),
-                "speedup": round(ref_s / max(rungs[best][2], 1e-9), 1),
-                # per rung: (length, verdicts opposite to the reference's, undecided)
-                "rungs": [(k, int(((v >= 0) & (v != ref)).sum()), int((v < 0).sum()))
-                          for k, (v, _, _) in zip(ladder, rungs, strict=True)],
-                "disagree_at_longest": [
-                    {"ic": ics[i].round(4).tolist(), "lambda1_T": round(float(ly.exponents[i, 0] * params.period), 5),
-                     "verdict": int(rungs[-1][0][i])}
-                    for i in np.flatnonzero(~agree[-1])
-                ],
-            }  # fmt: skip
-        report["sets"][set_name] = entry
-    report["load_after"] = uptime()
-    return report
-
-
-def table(report: dict) -> str:
-    lines = [f"reference: Lyapunov over {report['reference_periods']} periods, chaotic when lambda_1 T > "
-             f"{report['lyap_tol']}; {report['n']} ICs a set",
-             "| set | indicator | agree (longest rung) | periods needed: median / max | all agree at | s at that rung "
-             "| Lyapunov s | speed-up |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
-    for set_name, e in report["sets"].items():
-        for name, d in e["indicators"].items():
-            lines.append(f"| {set_name} | {name} | {d['agree_at_longest']}/{report['n']} | {d['periods_median']} / "
-                         f"{d['periods_max']} | {d['all_agree_at']} | {d['seconds_at_that_rung']} | "
-                         f"{e['reference_s']} | {d['speedup']}x |")  # fmt: skip
-    return "\n".join(lines)
+    """:func:`explorer_core.studies.indicator_bench.measure` with the full ladders, and the load before and after."""
+    before = uptime()
+    report = _measure(n, reference, repeat)
+    return {"load_before": before, **report, "load_after": uptime()}
 
 
 def main() -> None:

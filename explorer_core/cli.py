@@ -791,6 +791,12 @@ def _bench_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--repeat", type=_count("repeat", 1, 100), help="timing repeats (median; default 3, quick 1)")
     p.add_argument("--no-peers", action="store_true", help="only this project's methods")
     p.add_argument("--no-throughput", action="store_true", help="skip the throughput and target measurements")
+    p.add_argument(
+        "--indicators",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="the chaos indicators against a long Lyapunov run (~20 s; default: on, off with --quick)",
+    )
     p.add_argument("--cache-dir", metavar="DIR", help="reference cache (default $BILIMOVICH_CACHE_DIR/bench)")
 
 
@@ -809,6 +815,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         changes["peers"] = ()
     if args.no_throughput:
         changes["throughput"] = False
+    if args.indicators is not None:
+        changes["indicators"] = args.indicators
     cfg = dataclasses.replace(cfg, **changes)
     cfg.validate()
     out = _out_dir(args)
@@ -830,7 +838,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     bench.save_latest(data, args.cache_dir)  # the app's speed-vs-accuracy tab shows the latest run
     summary = {"out": files, "completed": res.completed, "elapsed_s": round(res.elapsed_s, 1),
                "horizons": {k: c.horizon for k, c in res.cases.items()}, "peers": res.peers,
-               "ratios": data["ratios"], "throughput": data["throughput"]}  # fmt: skip
+               "ratios": data["ratios"], "throughput": data["throughput"],
+               "indicators": data["indicators"]}  # fmt: skip
     lines = [res.headline(), f"{len(res.rows)} rows; {', '.join(os.path.basename(f) for f in files)} in {out}"]
     return _finish(args, summary, lambda: lines, result=res, what="measurements")
 

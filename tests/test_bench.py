@@ -255,6 +255,34 @@ def test_cli_bench_quick_writes_every_file(tmp_path, cache: str, quick: bench.Be
     assert os.path.exists(bench.latest_path(cache))
 
 
+def test_cli_bench_indicators_prints_and_writes_the_comparison(tmp_path, cache: str) -> None:
+    """Issue 34: ``bench --indicators`` compares the chaos indicators with a long Lyapunov run: a table printed and
+    in bench.json / bench.md (structure; the agreement on the attractor, whose answer does not depend on the load)."""
+    out = tmp_path / "bench"
+    rc, stdout, err = run_cli("bench", "--quick", "--cases", "regular", "--no-peers", "--no-throughput",
+                              "--indicators", "--out", str(out), "--cache-dir", cache)  # fmt: skip
+    assert rc == 0, err
+    assert "| chaotic | sali |" in stdout and "Lyapunov over 1000 periods" in stdout
+    data = bench.load_result(str(out / "bench.json"))
+    ind = data["indicators"]
+    assert ind["n"] == 6 and ind["reference_periods"] == 1000 and set(ind["sets"]) == {"regular", "chaotic"}
+    keys = {"agree_at_longest", "periods_median", "periods_max", "never", "all_agree_at", "seconds_at_that_rung",
+            "speedup", "rungs", "disagree_at_longest"}  # fmt: skip
+    for entry in ind["sets"].values():
+        assert entry["reference_s"] > 0 and entry["reference_ok"] == 6
+        assert set(entry["indicators"]) == set(bench.INDICATOR_LADDERS)
+        for ind_name, d in entry["indicators"].items():
+            assert set(d) == keys
+            assert [r[0] for r in d["rungs"]] == list(bench.INDICATOR_LADDERS[ind_name])
+            assert all(0 <= wrong + undecided <= 6 for _, wrong, undecided in d["rungs"])
+    assert ind["sets"]["chaotic"]["reference_chaotic"] == 6
+    sali = ind["sets"]["chaotic"]["indicators"]["sali"]
+    assert sali["agree_at_longest"] == 6 and sali["periods_max"] <= 25  # decided in tens of periods, not 1000
+    assert "## Chaos indicators" in (out / "bench.md").read_text()
+    # Off by default in a quick run (the tests' and the app's): no indicators in its JSON.
+    assert bench.quick_config().indicators is False and bench.full_config().indicators is True
+
+
 def test_cli_bench_bad_input_is_one_line(tmp_path) -> None:
     rc, _, err = run_cli("bench", "--quick", "--out", str(tmp_path / "b"), "--cases", "regular,bogus")
     assert rc == 2 and err.count("\n") == 1 and "bogus" in err

@@ -95,7 +95,9 @@ def test_tiles_cover_every_pixel_once_coarse_first(ny: int, nx: int, coarse: int
 def test_line_of_the_chart_agrees_with_the_bifurcation_diagram_and_lyapunov() -> None:
     """Along I11 = 1 the chart sees chaos, period 4, 2, 1 (as Fig. 10's diagram does, computed independently)."""
     alphas = [-0.42, -0.409, -0.39, -0.36]
-    spec = chart_spec(FIG11, "alpha", (-0.42, -0.36), "I11", (1.0, 2.0), (4, 1), ics=[IC], transient=400, periods=128)
+    # The Lyapunov bound's early decision is what this test pins (the SALI's: tests/test_regimes_chaos_test.py).
+    spec = chart_spec(FIG11, "alpha", (-0.42, -0.36), "I11", (1.0, 2.0), (4, 1), ics=[IC], transient=400, periods=128,
+                      chaos_test="lyapunov")  # fmt: skip
     spec = spec.__class__(**{**spec.__dict__, "x_values": np.array(alphas)})
     chart = regime_chart(spec, workers=1)
     assert chart.completed and chart.computed.all()
@@ -261,7 +263,7 @@ def _same_or_confirmed(spec, a, b) -> np.ndarray:
 
 def _settle_spec():
     return chart_spec(FIG11, "alpha", (-0.6, -0.36), "I11", (1.0, 2.0), (8, 5), ics=[IC, (-0.5, -1.0)],
-                      transient=150, periods=100)  # fmt: skip
+                      transient=150, periods=100, chaos_test="lyapunov")  # fmt: skip
 
 
 def test_members_on_an_attracting_cycle_stop_early_the_others_are_the_per_pixel_chart(monkeypatch) -> None:
@@ -343,7 +345,8 @@ def test_early_escape_agrees_with_an_independent_integration() -> None:
 
 
 def _chaos_spec():
-    return chart_spec(FIG11, "alpha", (-0.6, -0.42), "I11", (1.0, 1.5), (6, 3), ics=[IC], transient=100, periods=250)
+    return chart_spec(FIG11, "alpha", (-0.6, -0.42), "I11", (1.0, 1.5), (6, 3), ics=[IC], transient=100, periods=250,
+                      chaos_test="lyapunov")  # fmt: skip
 
 
 def _early_chaos(spec) -> list[tuple[int, int, int, float, float]]:

@@ -8,7 +8,8 @@ section points are computed together with the largest Lyapunov exponent
 * ``periodic`` with period ``p`` (``1 <= p <= p_max``): the section point
   returns to itself after ``p`` iterations within ``tol`` over the last part of
   the measurement -- a stable cycle;
-* ``chaotic``: no period and largest exponent ``> lyap_threshold`` (per unit time);
+* ``chaotic``: no period and largest exponent ``> lyap_threshold`` (per unit time) -- or, decided early, two
+  deviation vectors that align while stretching (SALI, ``chaos_test="sali"``, the default; see :func:`compute_tile`);
 * ``quasi-periodic``: no period and largest exponent ``<= lyap_threshold``
   (an invariant curve, or a cycle longer than ``p_max``);
 * ``escaped``: the trajectory left the bound (noncompact motion);
@@ -69,6 +70,7 @@ from explorer_core.solve.options import (
     Arg,
     Check,
     NewtonOptions,
+    choice,
     declare,
     fraction,
     ics,
@@ -92,6 +94,8 @@ NOT_COMPUTED, PERIODIC, QUASI_PERIODIC, CHAOTIC, ESCAPED, FAILED, INVALID = rang
 REGIMES = ("not_computed", "periodic", "quasi_periodic", "chaotic", "escaped", "failed", "invalid")
 #: Defaults: charts need the regime, not 1e-10 accuracy; cycles attract integration errors anyway.
 DEFAULT_CHART_TOL = 1e-8
+#: Early chaos tests of :attr:`ChartSpec.chaos_test` (:func:`compute_tile`).
+CHAOS_TESTS = ("sali", "lyapunov")
 
 
 def classify(
@@ -142,6 +146,8 @@ class ChartSpec:
     numerics: Numerics
     #: Newton on a member's settled cycle (:func:`settled_cycles`).
     newton: NewtonOptions
+    #: How a member with no cycle is called chaotic early (:data:`CHAOS_TESTS`; :func:`compute_tile`).
+    chaos_test: str
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -172,6 +178,7 @@ class ChartSpec:
             "numerics": self.numerics.as_dict(),
             "newton": self.newton.as_dict(),
             "newton_numerics": self.newton.at(self.numerics, DEFAULT_CHART_TOL)[0].as_dict(),
+            "chaos_test": self.chaos_test,
         }
 
 
@@ -231,7 +238,9 @@ def _grid(name: str, grid: Any) -> tuple[int, int]:
         "the chart's integration", cli=False, default=CHART_NUMERICS, check=optional_of(Numerics, CHART_NUMERICS)
     ),
     newton=Arg("Newton on a member's settled cycle", cli=False, default=SETTLING, check=instance(NewtonOptions)),
-)
+    chaos_test=Arg("early chaos test: sali (alignment of two tangent vectors) or lyapunov (a bound on the exponent)",
+                   "str", default="sali", check=choice(CHAOS_TESTS)),
+)  # fmt: skip
 def chart_spec(
     params: Params,
     x_param: str,
@@ -248,14 +257,17 @@ def chart_spec(
     lyap_threshold: float,
     numerics: Numerics,
     newton: NewtonOptions,
+    chaos_test: str,
 ) -> ChartSpec:
     """Validated :class:`ChartSpec` over ``x_range x y_range`` with ``grid = (nx, ny)`` pixels (default 40 x 40).
 
     Pixel centres include both ends of each range. ``ics`` are used at every pixel
     (several: multistability is seen per pixel). ``numerics``: default :data:`CHART_NUMERICS`. ``newton``: Newton
     on a member's settled cycle (its map follows ``numerics``' tolerance:
-    :meth:`~explorer_core.solve.options.NewtonOptions.at`). The options are declared above: defaults, checks (run
-    before this body), flags.
+    :meth:`~explorer_core.solve.options.NewtonOptions.at`). ``chaos_test``: ``"sali"`` (default) lets the alignment
+    index call a member chaotic from :data:`SALI_START` periods on, ``"lyapunov"`` only the bound on its exponent
+    (the chart as it was before issue 34). The options are declared above: defaults, checks (run before this
+    body), flags.
     """
     nx, ny = grid
     with Checking() as at:
@@ -281,6 +293,7 @@ def chart_spec(
         lyap_threshold=lyap_threshold,
         numerics=numerics,
         newton=newton,
+        chaos_test=chaos_test,
     )
 
 
@@ -450,7 +463,9 @@ def compute_tile(spec: ChartSpec, tile: TileSpec, stop: Callable[[], bool] | Non
       :data:`CHAOS_MARGIN` times the threshold; its exponent is the mean so far. A strongly chaotic member
       is decided from :data:`CHAOS_EARLY_PERIODS` periods on, in the transient, by a stricter bound over the
       second half of its periods so far (its exponent is their mean): above :data:`CHAOS_EARLY_MARGIN`
-      times the threshold, or :data:`CHAOS_LATER_MARGIN` times from :data:`CHAOS_LATER_PERIODS` on.
+      times the threshold, or :data:`CHAOS_LATER_MARGIN` times from :data:`CHAOS_LATER_PERIODS` on. With
+      ``spec.chaos_test == "sali"`` (the default) the SALI decides first, at :data:`SALI_START` periods, in at most
+      :data:`SALI_PERIODS` more (its exponent: the mean ``log R_11`` over the second half of its periods so far).
 
     Every other member runs the whole transient and measurement and is classified exactly as
     :func:`compute_tile_each` does (to the last bit: chunked runs continue each step sequence
@@ -571,6 +586,18 @@ CHAOS_EARLY_MARGIN = 8.0
 #: fewer again and no other member; margin 3 from 250 periods instead: 1 and 3 more members.)
 CHAOS_LATER_PERIODS = 300
 CHAOS_LATER_MARGIN = 2.0
+#: ``chaos_test="sali"``: at SALI_START periods (the Lyapunov bound's own guard against chaotic transients that
+#: settle), every member with no return within ``tol`` carries two deviation vectors by the tangent map for at most
+#: SALI_PERIODS periods (:func:`~explorer_core.analyses.indicators.alignment`; SALI decided Fig. 8B's attractor in
+#: 10-13 periods, docs/indicators.md). It is chaotic when they align (SALI < SALI_TOL from MIN_ALIGN_PERIODS on)
+#: while stretching by more than CHAOS_MARGIN times the threshold per period, and its finite-time exponent over the
+#: second half of its run so far (the value shown) is above CHAOS_MARGIN times the threshold too; any other member
+#: goes on as with the Lyapunov test alone. (Fig. 11 window, 40x40 x 2 ICs, against chaos_test="lyapunov": from 200
+#: periods 5 of 3200 members differ, from 150 10, from 100 22, every one on a boundary between regimes and called
+#: chaotic where the whole run settles on a cycle, escapes or stays below the threshold; time 0.73, 0.75 and 0.65 of
+#: the Lyapunov test's, one run each at load ~10; work at 200: 0.88 of the periods. docs/indicators.md.)
+SALI_START = CHAOS_EARLY_PERIODS
+SALI_PERIODS = 25
 
 
 def settle_window(p_max: int) -> int:
@@ -739,6 +766,12 @@ def _classify_members(
                     margin = CHAOS_LATER_MARGIN
                 mean, err = chaos_bounds(spans)
                 chaotic = (back == 0) & (mean - z * err > margin * spec.lyap_threshold * abs(batch.period))
+            shown = None  # the exponents (per period) of members the SALI called chaotic
+            if spec.chaos_test == "sali" and done == SALI_START:
+                found_cycle = np.array([a in cycles and cycles[a][0] is not None for a in range(live.size)], dtype=bool)
+                shown = _sali_chaos(spec, pmap, batch, live, every, done, (back == 0) & ~found_cycle & ~chaotic, ran,
+                                    stop)  # fmt: skip
+                chaotic = chaotic | ~np.isnan(shown)
             keep = []
             for a, m in enumerate(live):
                 if a in cycles:
@@ -756,7 +789,8 @@ def _classify_members(
                 if chaotic[a]:
                     pix, k = at[idx[m]]
                     regime[pix, k], status[pix, k], period[pix, k] = CHAOTIC, Status.OK, 0
-                    lyap[pix, k] = spans[a].mean() / params[idx[m]].period
+                    by_sali = shown is not None and not np.isnan(shown[a])
+                    lyap[pix, k] = (shown[a] if by_sali else spans[a].mean()) / params[idx[m]].period
                     stopped[m] = True
                     continue
                 keep.append(m)
@@ -771,6 +805,49 @@ def _classify_members(
             regime[pix, k], period[pix, k] = classify(points[row], got, s, lyap[pix, k], p_max=spec.p_max,
                                                       tol=spec.tol, lyap_threshold=spec.lyap_threshold)  # fmt: skip
             status[pix, k] = _pixel_status(regime[pix, k], s)
+
+
+def _sali_chaos(
+    spec: ChartSpec,
+    pmap: PoincareMap,
+    batch: Any,
+    live: np.ndarray,
+    every: np.ndarray,
+    done: int,
+    asked: np.ndarray,
+    ran: np.ndarray,
+    stop: Callable[[], bool] | None = None,
+) -> np.ndarray:
+    """Per member ``live[a]``: its finite-time exponent per period (the mean ``log R_11`` over the second half of its
+    run so far) where the SALI test (see :data:`SALI_START`) calls it chaotic, NaN elsewhere; only the members
+    ``asked`` are tested. Their periods of the alignment are added to ``ran``; ``stop`` is polled every 16 of them
+    (a stopped alignment calls no member chaotic, and the tile stops at its next look)."""
+    # Deferred: indicators imports the Lyapunov analysis, which the chart does not otherwise need at import.
+    from explorer_core.analyses.indicators import CHAOTIC as ALIGNED_CHAOS
+    from explorer_core.analyses.indicators import alignment
+
+    shown = np.full(live.size, np.nan)
+    cand = np.flatnonzero(asked)
+    rows = live[cand]
+    per_period = spec.lyap_threshold * abs(batch.period)
+    half = (done // 2) // CHAOS_BLOCK * CHAOS_BLOCK
+    finite = every[rows, half:done].mean(axis=1)  # the finite-time exponent shown, per period
+    big = finite > CHAOS_MARGIN * per_period
+    cand, rows, finite = cand[big], rows[big], finite[big]
+    if not cand.size:
+        return shown
+
+    def advance(x: np.ndarray, sub: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        mono = pmap.derivative(x, 1, members=rows[sub])
+        return mono.end, mono.matrix, mono.status
+
+    a = alignment(advance, batch.y[rows, :2], SALI_PERIODS, stretch_tol=CHAOS_MARGIN * per_period, cancel=stop)
+    if not a.completed:
+        return shown
+    ran[rows] += a.npts
+    yes = a.verdict == ALIGNED_CHAOS
+    shown[cand[yes]] = finite[yes]
+    return shown
 
 
 def _cycles(

@@ -217,6 +217,11 @@ class BenchConfig:
     table_periods: int = 1000
     table_tols: tuple[float, ...] = (1e-6, 1e-8, 1e-10, 1e-12, 1e-14)
     table_methods: tuple[str, ...] = ("dop853", "vern9", "taylor")
+    #: The chaos indicators against a long Lyapunov run (issue 34, :mod:`explorer_core.studies.indicator_bench`'s
+    #: small comparison: ``indicator_ics`` ICs a set, ``indicator_reference`` periods of reference).
+    indicators: bool = True
+    indicator_ics: int = 6
+    indicator_reference: int = 1000
     label: str = "full"
 
     def as_dict(self) -> dict[str, Any]:
@@ -248,6 +253,9 @@ class BenchConfig:
         bad = [m for m in self.table_methods if m not in OUR_METHODS or m == "rk4"]
         if bad:
             raise ParameterError(f"table_methods must be adaptive methods of ours, got {', '.join(bad)}")
+        if not (1 <= self.indicator_ics <= 100 and 100 <= self.indicator_reference <= 100_000):
+            raise ParameterError(f"need 1 <= indicator_ics <= 100 and 100 <= indicator_reference <= 100000, got "
+                                 f"{self.indicator_ics}, {self.indicator_reference}")  # fmt: skip
         if not (1 <= self.table_ics <= 100_000 and 1 <= self.table_periods <= 100_000):
             raise ParameterError(f"need 1 <= table_ics, table_periods <= 100000, got {self.table_ics}, "
                                  f"{self.table_periods}")  # fmt: skip
@@ -279,6 +287,7 @@ def quick_config() -> BenchConfig:
         table_ics=16,
         table_periods=20,
         table_tols=(1e-6, 1e-10),
+        indicators=False,
         label="quick",
     )
 
@@ -300,6 +309,7 @@ def app_config() -> BenchConfig:
         repeat=1,
         throughput=False,
         table=False,
+        indicators=False,
         label="app",
     )
 
@@ -858,6 +868,8 @@ class BenchResult:
     ratios: dict[str, Any] = field(default_factory=dict)
     peers: dict[str, str] = field(default_factory=dict)
     machine: dict[str, Any] = field(default_factory=dict)
+    #: The chaos indicators' comparison (:func:`explorer_core.studies.indicator_bench.measure`), if it ran.
+    indicators: dict[str, Any] = field(default_factory=dict)
     elapsed_s: float = 0.0
     completed: bool = True
 
@@ -881,6 +893,7 @@ class BenchResult:
             "rows": [r.as_dict() for r in self.rows],
             "throughput": _jsonable(self.throughput),
             "ratios": _jsonable(self.ratios),
+            "indicators": _jsonable(self.indicators),
             "elapsed_s": round(self.elapsed_s, 2),
             "completed": self.completed,
         }
@@ -905,6 +918,10 @@ class BenchResult:
                 out.append(f"{k} at the same error: {'n/a' if v is None else f'{v:g}x'}")
         if "heyoka_table" in self.throughput:
             out.append(heyoka_table_markdown(self.throughput["heyoka_table"]).rstrip("\n"))
+        if self.indicators:
+            from explorer_core.studies.indicator_bench import table
+
+            out.append(table(self.indicators))
         return "\n".join(out)
 
     def csv_text(self) -> str:
@@ -983,6 +1000,10 @@ def markdown_report(data: dict[str, Any], rows: bool = True) -> str:
             "",
             heyoka_table_markdown(data["throughput"]["heyoka_table"]),
         ]
+    if data.get("indicators"):
+        from explorer_core.studies.indicator_bench import table
+
+        out += ["## Chaos indicators against a long Lyapunov run (issue 34)", "", table(data["indicators"]), ""]
     if rows:
         out += ["## Rows", "",
                 "| case | implementation | method | setting | mode | n | periods | error | time / traj (s) | "
@@ -1110,6 +1131,7 @@ def run_bench(
     total = len(cases) * (1 + n_ours + len(peers) * len(cfg.peer_tols)) + (3 if cfg.throughput else 0)
     table = cfg.table and any(p.startswith("heyoka") for p in cfg.peers)  # --no-peers: no table either
     total += (1 + len(cfg.table_tols)) if table and hy is not None else 0
+    total += 2 * (1 + len(INDICATOR_LADDERS)) if cfg.indicators else 0
     done = [0]
 
     def tick(text: str) -> None:
@@ -1129,12 +1151,26 @@ def run_bench(
             _run_throughput(res, cfg, cache_dir_, tick)
         if table:
             res.throughput["heyoka_table"] = heyoka_table(cfg, tick)
+        if cfg.indicators:
+            res.indicators = _run_indicators(cfg, tick)
     except _Cancelled:
         res.completed = False
     res.ratios = _ratios(res, cfg, nbs is not None, hy is not None) if res.completed or res.rows else {}
     res.machine["load_end"] = _load()
     res.elapsed_s = time.perf_counter() - start
     return res
+
+
+#: The ladders of lengths of bench's indicator comparison (the small one: the full one is
+#: ``benchmarks/indicators_speed.py``'s).
+INDICATOR_LADDERS = {"birkhoff": (50, 100, 200), "sali": (25, 50, 100, 200, 500), "ftle": (25, 50, 100, 200, 500)}
+
+
+def _run_indicators(cfg: BenchConfig, tick: Callable[[str], None]) -> dict[str, Any]:
+    """The small comparison of the chaos indicators (:func:`explorer_core.studies.indicator_bench.measure`)."""
+    from explorer_core.studies.indicator_bench import measure  # the analyses only when asked for
+
+    return measure(cfg.indicator_ics, cfg.indicator_reference, cfg.repeat, INDICATOR_LADDERS, tick)
 
 
 def _load() -> list[float] | None:
