@@ -328,22 +328,24 @@ def _saved(fig: Any, request: FigureRequest, lines: list[str], title: str, about
         # layout that keeps the title, the axes' labels and the legend inside the size asked for.
         fig.suptitle("\n".join(lines), fontsize=FONT_PT["title"])
         fig.set_layout_engine("constrained")
-        _fewer_ticks(fig)
+        meta = {"Title": title, "Description": about}
         buf = io.BytesIO()
-        fig.savefig(buf, format=request.fmt, dpi=request.dpi, metadata={"Title": title, "Description": about})
+        fig.savefig(buf, format=request.fmt, dpi=request.dpi, metadata=meta)
+        if _fewer_ticks(fig):  # drawn again only then (a layout costs as much as the drawing)
+            buf = io.BytesIO()
+            fig.savefig(buf, format=request.fmt, dpi=request.dpi, metadata=meta)
         return buf.getvalue()
     finally:
         fig.clear()  # HoloViews' figure is not kept by pyplot; its artists are freed now
 
 
-def _fewer_ticks(fig: Any) -> None:
-    """Fewer ticks on a linear x axis whose labels would run together ("-0.600-0.575-0.550" on a chart narrowed by
-    its legend): as many as fit with a gap of half the widest label between them (the layout is done once without
-    drawing to measure them). The axis' own locator is told fewer bins (matplotlib's automatic one, HoloViews'
-    fixed ticks); another kind of locator is left as it is."""
-    fig.draw_without_rendering()
+def _fewer_ticks(fig: Any) -> bool:
+    """Fewer ticks on a linear x axis of the figure as last drawn whose labels ran together ("-0.600-0.575-0.550" on
+    a chart narrowed by its legend): as many as fit with a gap of half the widest label between them. The axis' own
+    locator is told fewer bins (matplotlib's automatic one, HoloViews' fixed ticks); another kind of locator is left
+    as it is. Returns whether any axis changed (the figure must be drawn again)."""
+    changed = False
     for ax in fig.axes:
-        locator = ax.xaxis.get_major_locator()
         if ax.get_xscale() != "linear":
             continue
         lo, hi = sorted(ax.get_xlim())
@@ -356,9 +358,11 @@ def _fewer_ticks(fig: Any) -> None:
         fit = int(ax.get_window_extent().width // (1.5 * widest))
         if fit < len(labels):
             try:
-                locator.set_params(nbins=max(1, fit - 1))
+                ax.xaxis.get_major_locator().set_params(nbins=max(1, fit - 1))
             except TypeError:  # a locator without bins (matplotlib's MultipleLocator, ...)
                 continue
+            changed = True
+    return changed
 
 
 def figure_file(picture: tuple[Any, bool] | None, stem: str, request: FigureRequest, about: str) -> Download | None:
