@@ -71,11 +71,11 @@ CURVE_STYLE = {
     "neimark_sacker": ("#17becf", "cyan", "Neimark–Sacker"),
 }
 CHART_HELP = CHART_HELP.format(curves=", ".join(f"{w} ({c})" for _, c, w in CURVE_STYLE.values()))
-#: A curve's dash by the period of its cycle, in turn (Bokeh's patterns, in screen pixels, and in words): the
-#: curves of one kind differ.
-CURVE_DASHES = (("solid", "solid"), ("8 4", "dashed"), ("2 3", "dotted"), ("8 3 2 3", "dash-dotted"),
-                ("8 3 2 3 2 3", "dash-dot-dotted"), ("14 4", "long-dashed"), ("14 3 2 3", "long-dash-dotted"),
-                ("4 4", "short-dashed"))  # fmt: skip
+#: A curve's dash by the period of its cycle (Bokeh's patterns, in screen pixels, and in words): the curves of one
+#: kind differ; the periods of a doubling cascade (1, 2, 4, 8, 16) and of the chart's cycles (1-6) each their own.
+CURVE_DASHES = {1: ("solid", "solid"), 2: ("8 4", "dashed"), 3: ("2 3", "dotted"), 4: ("8 3 2 3", "dash-dotted"),
+                5: ("8 3 2 3 2 3", "dash-dot-dotted"), 6: ("14 4", "long-dashed"), 8: ("4 4", "short-dashed"),
+                16: ("14 3 2 3", "long-dash-dotted")}  # fmt: skip
 #: Codimension-two points on the curves: Bokeh's marker and the fill colour per kind (the legend and the hover).
 CODIM2_STYLE = {
     "R1": ("square", "#d62728"),
@@ -90,8 +90,10 @@ CODIM2_STYLE = {
 
 
 def curve_dash(period: int) -> str:
-    """The dash of a bifurcation curve of the period-``period`` cycle (:data:`CURVE_DASHES`, in turn)."""
-    return CURVE_DASHES[(int(period) - 1) % len(CURVE_DASHES)][0]
+    """The dash of a bifurcation curve of the period-``period`` cycle (:data:`CURVE_DASHES`; another period: those
+    in turn)."""
+    dashes = list(CURVE_DASHES.values())
+    return CURVE_DASHES.get(int(period), dashes[(int(period) - 1) % len(dashes)])[0]
 
 
 def codim2_style(kind: str) -> tuple[str, str]:
@@ -103,10 +105,11 @@ def codim2_points(parts: Any) -> list[Any]:
     """The codimension-two points of the curves of ``parts`` (continuations), each once: a point found on two curves
     (an R2 on a flip curve where a Neimark-Sacker curve ends, an LPPD on a fold and a flip curve) or by two
     continuations is listed and drawn once (the same kind and period within the larger error estimate, at least
-    1e-9 of the values)."""
+    1e-7 of the values: the two locations of one point can differ by more than their estimates, e.g. 7e-9 for the
+    Henon 8-cycle's R2 on its flip and its NS curve)."""
     out: list[Any] = []
     for c in (c for cont in parts for cu in cont.curves for c in cu.codim2):
-        tol = [max(c.error, 1e-9 * (1.0 + abs(v))) for v in c.values]
+        tol = [max(c.error, 1e-7 * (1.0 + abs(v))) for v in c.values]
         if not any(o.kind == c.kind and o.period == c.period
                    and all(abs(a - b) <= max(t, o.error) for a, b, t in zip(o.values, c.values, tol, strict=True))
                    for o in out):  # fmt: skip
@@ -704,7 +707,7 @@ class ChartTab(AnalysisTab):
         key = ", ".join(f"{CURVE_STYLE[k][2]}: {CURVE_STYLE[k][1]}" for k in drawn)
         periods = sorted({c.period for cont in parts for c in cont.curves if len(c.rows) >= 2})
         if len(periods) > 1:  # the curves of one kind differ by their dash
-            key += "; by period: " + ", ".join(f"{p} {dict(CURVE_DASHES)[curve_dash(p)]}" for p in periods)
+            key += "; by period: " + ", ".join(f"{p} {dict(CURVE_DASHES.values())[curve_dash(p)]}" for p in periods)
         lines.append(f"boundaries: {len(xs)} curves" + (f" ({key})" if key else "") + f" from {n_bif} "
                      "bifurcations of the stable cycles of periods 1-3 of the chart")  # fmt: skip
         if xs:

@@ -445,7 +445,7 @@ def test_an_installed_entry_point_is_found_without_importing_app_holo(tmp_path: 
 
 def test_curves_are_dashed_by_period_and_their_codimension_two_points_marked() -> None:
     """Fails on the old code (every period-doubling curve the same black line, no marks): the Henon map's flip
-    curves of the period-1, 2, 4 orbits (switched at R2 onto the doubled orbits), each period its dash, and their
+    curves of its cascade's orbits (switched onto the doubled orbits), each period its dash, and their
     points a marker per kind, each once, hover with the kind, period, values and error."""
     from app.analyses import CODIM2_STYLE, codim2_points, curve_dash
     from explorer_core.analyses.continuation import Boundaries, continue_map
@@ -457,8 +457,10 @@ def test_curves_are_dashed_by_period_and_their_codimension_two_points_marked() -
     ov = holo.draw_curves(Boundaries([res, res]))  # twice: each point drawn once still
     lines = [el for el in elements(ov) if isinstance(el, hv.Curve) and el.label]
     dash = {el.label: el.opts.get().kwargs["line_dash"] for el in lines}
-    flips = {p: holo.curve_words("period_doubling", p) for p in (1, 2, 4)}
-    assert {dash[w] for w in flips.values()} == {curve_dash(p) for p in (1, 2, 4)} and len(set(dash.values())) >= 3
+    cascade = sorted({cu.period for cu in res.curves if cu.kind == "period_doubling"})
+    assert cascade == [1, 2, 4, 8, 16]  # each its own dash
+    assert len({dash[holo.curve_words("period_doubling", p)] for p in cascade}) == len(cascade)
+    assert all(dash[holo.curve_words("period_doubling", p)] == curve_dash(p) for p in cascade)
     marks = {el.label: el for el in elements(ov) if isinstance(el, hv.Points)}
     kinds = {c.kind for cu in res.curves for c in cu.codim2}
     assert set(marks) == {f"{k} ({CODIM2_NAMES[k]})" for k in kinds} and {"R2", "R3", "R4"} <= kinds
@@ -469,6 +471,7 @@ def test_curves_are_dashed_by_period_and_their_codimension_two_points_marked() -
     once = [c for c in codim2_points([res]) if c.kind == "R2"]  # an R2 on a flip curve where a NS curve ends: once
     periods = [int(p.split("period-")[1].split()[0]) for p in r2.dimension_values("point")]
     assert len(r2) == len(once) < len(located) and periods == [c.period for c in once]
+    assert sorted(periods) == sorted(set(periods))  # the Henon map has one R2 per period on b = -1
     assert (3.0, -1.0) == pytest.approx((r2.dimension_values("a")[0], r2.dimension_values("b")[0]), abs=1e-6)
     tips = [h.tooltips for h in hovers(render(ov)) if "@{point}" in str(h.tooltips)]
     assert tips and ("error estimate", "@{error}") in tips[0]
