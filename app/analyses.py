@@ -33,6 +33,7 @@ from app.views import BACKEND
 from explorer_core import export
 from explorer_core.analyses.bifurcation import DIAGRAM_PLOT_BOUND, DIAGRAM_PLOT_RTOL, bifurcation_diagram
 from explorer_core.analyses.continuation import Boundaries, chart_boundaries, continue_from_seeds, seeds_spec
+from explorer_core.analyses.continuation.results import CODIM2_NAMES
 from explorer_core.analyses.lyapunov import lyapunov_spec, lyapunov_spectrum
 from explorer_core.analyses.orbits import ORBIT_NUMERICS
 from explorer_core.analyses.regimes import REGIMES, chart_numerics, chart_spec, iter_chart
@@ -58,7 +59,10 @@ CHART_HELP = (
     "of periods 1-3, followed in both parameters by continuation: the boundaries of the chart's regions as "
     "curves (hover one for its kind). Each pixel follows one initial condition (the first clicked or scene "
     "point, else the first random one): where attractors coexist it shows the one that point reaches, so a "
-    "curve of a coexisting cycle can run through a region of another colour."
+    "curve of a coexisting cycle can run through a region of another colour. A curve's dash is its cycle's period "
+    "(1 solid, 2 dashed, 3 dotted, 4 dash-dotted: the legend in the plot). The marks on the curves are their "
+    "codimension-two points (strong resonances R1-R4, fold-flip LPPD, generalised flip GPD, Chenciner CH, cusp "
+    "CP; hover one, and the list under the plot)."
 )
 #: Bifurcation curves on the chart: colour and words per kind (the help, the result line and the hover use these).
 CURVE_STYLE = {
@@ -67,6 +71,62 @@ CURVE_STYLE = {
     "neimark_sacker": ("#17becf", "cyan", "Neimark–Sacker"),
 }
 CHART_HELP = CHART_HELP.format(curves=", ".join(f"{w} ({c})" for _, c, w in CURVE_STYLE.values()))
+#: A curve's dash by the period of its cycle (Bokeh's patterns, in screen pixels, and in words): the curves of one
+#: kind differ; the periods of a doubling cascade (1, 2, 4, 8, 16) and of the chart's cycles (1-6) each their own.
+CURVE_DASHES = {1: ("solid", "solid"), 2: ("8 4", "dashed"), 3: ("2 3", "dotted"), 4: ("8 3 2 3", "dash-dotted"),
+                5: ("8 3 2 3 2 3", "dash-dot-dotted"), 6: ("14 4", "long-dashed"), 8: ("4 4", "short-dashed"),
+                16: ("14 3 2 3", "long-dash-dotted")}  # fmt: skip
+#: Codimension-two points on the curves: Bokeh's marker and the fill colour per kind (the legend and the hover).
+CODIM2_STYLE = {
+    "R1": ("square", "#d62728"),
+    "R2": ("triangle", "#ff7f0e"),
+    "R3": ("inverted_triangle", "#2ca02c"),
+    "R4": ("diamond", "#1f77b4"),
+    "LPPD": ("hex", "#9467bd"),
+    "GPD": ("star", "#ffd21f"),
+    "CH": ("circle", "#8c564b"),
+    "CP": ("plus", "#bcbd22"),
+}
+
+
+def curve_dash(period: int) -> str:
+    """The dash of a bifurcation curve of the period-``period`` cycle (:data:`CURVE_DASHES`; another period: those
+    in turn)."""
+    dashes = list(CURVE_DASHES.values())
+    return CURVE_DASHES.get(int(period), dashes[(int(period) - 1) % len(dashes)])[0]
+
+
+def codim2_style(kind: str) -> tuple[str, str]:
+    """Marker and colour of a codimension-two point of ``kind`` (one not in :data:`CODIM2_STYLE`: a grey x)."""
+    return CODIM2_STYLE.get(kind, ("x", "#7f7f7f"))
+
+
+def codim2_points(parts: Any) -> list[Any]:
+    """The codimension-two points of the curves of ``parts`` (continuations), each once: a point found on two curves
+    (an R2 on a flip curve where a Neimark-Sacker curve ends, an LPPD on a fold and a flip curve) or by two
+    continuations is listed and drawn once (the same kind and period within the larger error estimate, at least
+    1e-7 of the values: the two locations of one point can differ by more than their estimates, e.g. 7e-9 for the
+    Henon 8-cycle's R2 on its flip and its NS curve)."""
+    out: list[Any] = []
+    for c in (c for cont in parts for cu in cont.curves for c in cu.codim2):
+        tol = [max(c.error, 1e-7 * (1.0 + abs(v))) for v in c.values]
+        if not any(o.kind == c.kind and o.period == c.period
+                   and all(abs(a - b) <= max(t, o.error) for a, b, t in zip(o.values, c.values, tol, strict=True))
+                   for o in out):  # fmt: skip
+            out.append(c)
+    return out
+
+
+def codim2_lines(parts: Any, names: tuple[str, str]) -> list[str]:
+    """The chart's list of codimension-two points in the command line's words ("R2 (1:2 resonance) of the period-1
+    orbit on the period doubling curve at (alpha, I11) = (..., ...) ± ..."), or that there are none."""
+    points = codim2_points(parts)
+    if not points:
+        return ["codimension-two points: none in this window"]
+    return [f"codimension-two points: {len(points)}",
+            *(c.describe(*names).replace(" +- ", " ± ") for c in points)]  # fmt: skip
+
+
 LYAPUNOV_HELP = (
     "Exponents of the (q, r) flow from the variational equations with the exact Jacobian, re-orthonormalised "
     "at each section time; Λ3 = 0 is the time direction. The check Λ1 + Λ2 = ⟨dQ/dq + dR/dr⟩ must hold."
@@ -465,6 +525,15 @@ CHART_LEGEND = [*((str(p), c) for p, c in zip(range(1, 17), _PERIOD_COLORS, stri
 _CLASSIFIED = ("periodic", "quasi_periodic", "chaotic", "escaped")
 
 
+#: The columns of the chart's sources of curves and of codimension-two points.
+_CURVE_COLUMNS = ("xs", "ys", "color", "kind", "dash")
+_CODIM2_COLUMNS = ("x", "y", "marker", "color", "label", "name", "values")
+
+
+def _empty(columns: tuple[str, ...]) -> dict[str, list]:
+    return {k: [] for k in columns}
+
+
 class ChartTab(AnalysisTab):
     channel = "chart"
     help = CHART_HELP
@@ -475,7 +544,9 @@ class ChartTab(AnalysisTab):
         self.view.update(legend=CHART_LEGEND, legend_title="period of the cycle:")
         self.source = ColumnDataSource({"image": [], "x": [], "y": [], "dw": [], "dh": []}, name="chart_source")
         self.current = ColumnDataSource({"x": [], "y": []}, name="chart_current")
-        self.curves = ColumnDataSource({"xs": [], "ys": [], "color": [], "kind": []}, name="chart_curves")
+        self.curves = ColumnDataSource(_empty(_CURVE_COLUMNS), name="chart_curves")
+        #: The codimension-two points on the curves: a mark per point (marker and colour of its kind).
+        self.codim2 = ColumnDataSource(_empty(_CODIM2_COLUMNS), name="chart_codim2")
         self.chart = None  # the chart on screen: the pixels computed so far (those not computed: ``computed`` False)
         #: The bifurcation curves drawn on it (None: none followed), and whether the run on screen was to follow them.
         self.boundaries = None
@@ -492,9 +563,18 @@ class ChartTab(AnalysisTab):
         f.image(image="image", x="x", y="y", dw="dw", dh="dh", source=self.source, color_mapper=self.mapper)
         # Bifurcation curves from two-parameter continuation, with a white halo to show on any colour.
         f.multi_line("xs", "ys", source=self.curves, line_color="white", line_width=5, line_alpha=0.8)
-        lines = f.multi_line("xs", "ys", source=self.curves, line_color="color", line_width=2.2,
-                             name="chart_curve_lines")  # fmt: skip
+        # Dashed by the cycle's period: the curves of one kind (three black period doublings) differ.
+        lines = f.multi_line("xs", "ys", source=self.curves, line_color="color", line_dash="dash", line_width=2.2,
+                             legend_field="kind", name="chart_curve_lines")  # fmt: skip
         f.add_tools(HoverTool(renderers=[lines], tooltips=[("curve", "@kind")], line_policy="interp"))
+        marks = f.scatter("x", "y", source=self.codim2, marker="marker", fill_color="color", line_color="black",
+                          line_width=1.2, size=13, legend_field="label", name="chart_codim2_marks")  # fmt: skip
+        f.add_tools(HoverTool(renderers=[marks], tooltips=[("", "@name"), ("", "@values")]))
+        f.legend.location = "top_right"
+        f.legend.label_text_font_size = "8pt"
+        f.legend.background_fill_alpha = 0.75
+        f.legend.spacing, f.legend.padding, f.legend.margin = 0, 4, 4
+        f.legend.visible = False  # until there are curves
         # The current parameters: a cross with a white halo, visible on every colour.
         f.scatter("x", "y", source=self.current, marker="cross", size=18, line_color="white", line_width=5)
         f.scatter("x", "y", source=self.current, marker="cross", size=18, line_color="black", line_width=2,
@@ -518,7 +598,9 @@ class ChartTab(AnalysisTab):
             return
         labels = (st.chart_x, st.chart_y)
         self.session.runner.ui(lambda: self._label(*labels))
-        self.curves.data = {"xs": [], "ys": [], "color": [], "kind": []}
+        self.curves.data, self.codim2.data = _empty(_CURVE_COLUMNS), _empty(_CODIM2_COLUMNS)
+        if self._fig is not None:
+            self._fig.legend.visible = False
         curves = st.chart_curves
         self.boundaries, self.follows = None, curves
 
@@ -594,7 +676,7 @@ class ChartTab(AnalysisTab):
 
     def _curves(self, parts) -> None:
         self.boundaries = parts
-        xs, ys, colours, kinds = [], [], [], []
+        xs, ys, colours, kinds, dashes = [], [], [], [], []
         for c in [c for cont in parts for c in cont.curves]:
             if len(c.rows) < 2:
                 continue
@@ -604,14 +686,32 @@ class ChartTab(AnalysisTab):
             colour, _, words = CURVE_STYLE.get(c.kind, ("#7f7f7f", "grey", c.kind.replace("_", " ")))
             colours.append(colour)
             kinds.append(f"{words} of the period-{c.period} cycle")
-        self.curves.data = {"xs": xs, "ys": ys, "color": colours, "kind": kinds}
+            dashes.append(curve_dash(c.period))
+        self.curves.data = {"xs": xs, "ys": ys, "color": colours, "kind": kinds, "dash": dashes}
+        names = (self.chart.spec.x_param, self.chart.spec.y_param) if self.chart is not None else ("x", "y")
+        points = codim2_points(parts)
+        self.codim2.data = {
+            "x": [c.values[0] for c in points], "y": [c.values[1] for c in points],
+            "marker": [codim2_style(c.kind)[0] for c in points], "color": [codim2_style(c.kind)[1] for c in points],
+            "label": [f"{c.kind} ({CODIM2_NAMES.get(c.kind, c.kind)})" for c in points],
+            "name": [f"{c.kind} ({CODIM2_NAMES.get(c.kind, c.kind)}) of the period-{c.period} orbit" for c in points],
+            "values": [f"({names[0]}, {names[1]}) = ({c.values[0]:.10g}, {c.values[1]:.10g}) ± {c.error:.1g}"
+                       for c in points],
+        }  # fmt: skip
+        if self._fig is not None:
+            self._fig.legend.visible = bool(xs or points)
         lines = list(self.view["result"])
         n_bif = sum(len(cont.bifurcations) for cont in parts)
         # The colours of the curves drawn, and only those (the help promised magenta folds on charts without any).
         drawn = [k for k in CURVE_STYLE if any(c.kind == k and len(c.rows) >= 2 for cont in parts for c in cont.curves)]
         key = ", ".join(f"{CURVE_STYLE[k][2]}: {CURVE_STYLE[k][1]}" for k in drawn)
+        periods = sorted({c.period for cont in parts for c in cont.curves if len(c.rows) >= 2})
+        if len(periods) > 1:  # the curves of one kind differ by their dash
+            key += "; by period: " + ", ".join(f"{p} {dict(CURVE_DASHES.values())[curve_dash(p)]}" for p in periods)
         lines.append(f"boundaries: {len(xs)} curves" + (f" ({key})" if key else "") + f" from {n_bif} "
                      "bifurcations of the stable cycles of periods 1-3 of the chart")  # fmt: skip
+        if xs:
+            lines += codim2_lines(parts, names)
         lines += [m for cont in parts for m in cont.messages][:2]
         lines += [loss.line() for cont in parts for loss in cont.lost][:3]
         self.set_view(result=lines, message=self.view["message"].replace("; following the boundaries…", ""))

@@ -160,7 +160,7 @@ def tab_picture(tab: AnalysisTab) -> tuple[Any, bool] | None:
         return hv.Overlay(layers).opts(title=title), stopped
     if isinstance(tab, ChartTab) and tab.chart is not None:
         chart = tab.chart
-        curves = [el for cont in tab.boundaries or [] for el in _elements(holo.draw_curves(cont))]
+        curves = _elements(holo.draw_curves(tab.boundaries)) if tab.boundaries else []
         layers = [holo.draw_chart(chart), *curves, *_chart_key(chart)]
         title = _title_of(layers[0])
         return hv.Overlay(layers).opts(title=title), not chart.completed
@@ -270,8 +270,17 @@ def _style(el: Any, style: dict[str, Any]) -> dict[str, Any]:
         if "line_width" in style:
             out["linewidth"] = PT_PER_PX * float(style["line_width"])
         if "line_dash" in style:
-            out["linestyle"] = _DASHES.get(style["line_dash"], "-")
+            out["linestyle"] = _dash(style["line_dash"], out.get("linewidth", PT_PER_PX))
     return out
+
+
+def _dash(dash: str, width_pt: float) -> Any:
+    """A Bokeh dash (a name, or a pattern in screen pixels: ``"8 3 2 3"``) as matplotlib's linestyle (a pattern in
+    line widths)."""
+    if dash in _DASHES:
+        return _DASHES[dash]
+    pattern = [PT_PER_PX * float(n) / max(width_pt, 1e-3) for n in str(dash).split()]
+    return (0, tuple(pattern)) if len(pattern) >= 2 and len(pattern) % 2 == 0 else "-"
 
 
 def _words(obj: Any) -> Any:
@@ -319,11 +328,41 @@ def _saved(fig: Any, request: FigureRequest, lines: list[str], title: str, about
         # layout that keeps the title, the axes' labels and the legend inside the size asked for.
         fig.suptitle("\n".join(lines), fontsize=FONT_PT["title"])
         fig.set_layout_engine("constrained")
+        meta = {"Title": title, "Description": about}
         buf = io.BytesIO()
-        fig.savefig(buf, format=request.fmt, dpi=request.dpi, metadata={"Title": title, "Description": about})
+        fig.savefig(buf, format=request.fmt, dpi=request.dpi, metadata=meta)
+        if _fewer_ticks(fig):  # drawn again only then (a layout costs as much as the drawing)
+            buf = io.BytesIO()
+            fig.savefig(buf, format=request.fmt, dpi=request.dpi, metadata=meta)
         return buf.getvalue()
     finally:
         fig.clear()  # HoloViews' figure is not kept by pyplot; its artists are freed now
+
+
+def _fewer_ticks(fig: Any) -> bool:
+    """Fewer ticks on a linear x axis of the figure as last drawn whose labels ran together ("-0.600-0.575-0.550" on
+    a chart narrowed by its legend): as many as fit with a gap of half the widest label between them. The axis' own
+    locator is told fewer bins (matplotlib's automatic one, HoloViews' fixed ticks); another kind of locator is left
+    as it is. Returns whether any axis changed (the figure must be drawn again)."""
+    changed = False
+    for ax in fig.axes:
+        if ax.get_xscale() != "linear":
+            continue
+        lo, hi = sorted(ax.get_xlim())
+        labels = [
+            t for t, x in zip(ax.get_xticklabels(), ax.get_xticks(), strict=True) if t.get_text() and lo <= x <= hi
+        ]
+        if len(labels) < 2:
+            continue
+        widest = max(t.get_window_extent().width for t in labels)
+        fit = int(ax.get_window_extent().width // (1.5 * widest))
+        if fit < len(labels):
+            try:
+                ax.xaxis.get_major_locator().set_params(nbins=max(1, fit - 1))
+            except TypeError:  # a locator without bins (matplotlib's MultipleLocator, ...)
+                continue
+            changed = True
+    return changed
 
 
 def figure_file(picture: tuple[Any, bool] | None, stem: str, request: FigureRequest, about: str) -> Download | None:

@@ -25,7 +25,7 @@ import holoviews.plotting.bokeh  # the bokeh backend's options, without a notebo
 import numpy as np
 from bokeh.palettes import Category10
 
-from app.analyses import CHART_LEGEND, CURVE_STYLE
+from app.analyses import CHART_LEGEND, CURVE_STYLE, codim2_points, codim2_style, curve_dash
 from app.layers.basins import BASIN_COLOURS, OUTCOME_COLOURS, OUTCOME_NAMES, attractor_words
 from app.layers.frozen import segments_by_type
 from app.layers.ftle import ftle_shown
@@ -48,6 +48,7 @@ from explorer_core import drawing
 from explorer_core.analyses.basins import Basins
 from explorer_core.analyses.bifurcation import OrbitDiagram
 from explorer_core.analyses.continuation import Continuation
+from explorer_core.analyses.continuation.results import CODIM2_NAMES
 from explorer_core.analyses.density import Density
 from explorer_core.analyses.equilibria import Equilibria, Tracks
 from explorer_core.analyses.ftle import FtleMap
@@ -536,29 +537,53 @@ def curve_words(kind: str, period: int) -> str:
     return f"{words} of the period-{period} cycle"
 
 
-def draw_curves(c: Continuation) -> hv.Overlay:
-    """Fold / period-doubling / Neimark-Sacker curves in the plane of the two parameters (a white halo under each)."""
+def draw_curves(c: Continuation | Sequence[Continuation]) -> hv.Overlay:
+    """Fold / period-doubling / Neimark-Sacker curves in the plane of the two parameters (a white halo under each;
+    dashed by the cycle's period, :func:`app.analyses.curve_dash`) and their codimension-two points (a marker and
+    colour per kind, :data:`app.analyses.CODIM2_STYLE`; each point once, :func:`app.analyses.codim2_points`); ``c``
+    a two-parameter continuation or several (a chart's :class:`~explorer_core.analyses.continuation.Boundaries`)."""
+    parts = [c] if isinstance(c, Continuation) else list(c)
+    names = next(((p.param, p.param2) for p in parts if p.param2 is not None), ("p1", "p2"))
     layers: list[Any] = []
-    for curve in c.curves:
+    curves = [curve for p in parts for curve in p.curves]
+    for curve in curves:
         if len(curve.rows) < 2:
             continue
         rows = np.array(curve.rows)
         colour = CURVE_STYLE.get(curve.kind, ("#7f7f7f",))[0]
         words = curve_words(curve.kind, curve.period)
-        data = {c.param: rows[:, 0], c.param2: rows[:, 1], "curve": [words] * rows.shape[0]}
+        data = {names[0]: rows[:, 0], names[1]: rows[:, 1], "curve": [words] * rows.shape[0]}
         layers.append(
-            hv.Curve(data, kdims=[c.param], vdims=[c.param2, "curve"]).opts(
+            hv.Curve(data, kdims=[names[0]], vdims=[names[1], "curve"]).opts(
                 color="white", line_width=5, alpha=0.8, show_legend=False, **SIZE
             )
         )
         layers.append(
-            hv.Curve(data, kdims=[c.param], vdims=[c.param2, "curve"], label=words).opts(
-                color=colour, line_width=2.2, tools=["hover"], hover_tooltips=[("curve", "@curve")], **SIZE
+            hv.Curve(data, kdims=[names[0]], vdims=[names[1], "curve"], label=words).opts(
+                color=colour,
+                line_width=2.2,
+                line_dash=curve_dash(curve.period),
+                tools=["hover"],
+                hover_tooltips=[("curve", "@curve")],
+                **SIZE,
             )
         )
-    title = f"Bifurcation curves in ({c.param}, {c.param2}): {len(c.curves)}"
-    if c.lost:
-        title += "; " + "; ".join(loss.line() for loss in c.lost)
+    points = codim2_points(parts)
+    for kind in dict.fromkeys(pt.kind for pt in points):
+        these = [pt for pt in points if pt.kind == kind]
+        marker, colour = codim2_style(kind)
+        name = f"{kind} ({CODIM2_NAMES.get(kind, kind)})"
+        data = {names[0]: [pt.values[0] for pt in these], names[1]: [pt.values[1] for pt in these],
+                "point": [f"{name} of the period-{pt.period} orbit" for pt in these],
+                "error": [pt.error for pt in these]}  # fmt: skip
+        layers.append(hv.Points(data, kdims=list(names), vdims=["point", "error"], label=name).opts(
+            marker=marker, size=13, color=colour, line_color="black", line_width=1.2, tools=["hover"],
+            hover_tooltips=[("", "@point"), (names[0], f"@{{{names[0]}}}"), (names[1], f"@{{{names[1]}}}"),
+                            ("error estimate", "@error")], **SIZE))  # fmt: skip
+    title = f"Bifurcation curves in ({names[0]}, {names[1]}): {len(curves)}, {len(points)} codimension-two points"
+    lost = [loss for p in parts for loss in p.lost]
+    if lost:
+        title += "; " + "; ".join(loss.line() for loss in lost)
     return hv.Overlay(layers).opts(title=title)
 
 

@@ -950,7 +950,11 @@ COMMANDS: dict[str, Command] = {
                          CSV, "CSV branch,kind,s,q,r (s: arc length from the saddle)", analysis=True,
                          what="manifolds' points"),
     "continue": Command("follow a periodic orbit in a parameter through folds and period doublings", None,
-                        cmd_analysis, CSV, "branch,period,value,q,r,mu1_re,mu1_im,mu2_re,mu2_im,stable",
+                        cmd_analysis, CSV, "FILE.csv: a row per point: branch,period,value,q,r,mu1_re,mu1_im,"
+                        "mu2_re,mu2_im,stable,bifurcation,coefficient,coefficient_error,criticality; FILE.codim2.csv "
+                        "(with --param2): a row per codimension-two point of the curves instead: curve,curve_type,"
+                        "period,type,name,value,value2,error,q,r,mu1_re,mu1_im,mu2_re,mu2_im,switched_from "
+                        "(docs/continuation.md)",
                         analysis=True, what="branches", fixed={"check_end": True}),
     "chart": Command("chart of dynamical regimes on a plane of two parameters", None, cmd_analysis,
                      (".npz", ".csv", ".png", ".json"), ".npz, .csv, .json or .png (repeatable)", analysis=True,

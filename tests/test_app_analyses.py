@@ -142,3 +142,100 @@ def test_bifurcation_tab_says_whether_a_doubling_is_supercritical() -> None:
     line = next(x for x in tab.view["result"] if "orbit at alpha = -0.3753448" in x)
     assert line.startswith("supercritical period doubling of the period-1 orbit") and "(b = 7.4" in line, line
     assert "supercritical period doubling" in tab.bifs.data["kind"]
+
+
+# --- codimension-two points and the curves on the chart (Henon's map: closed forms, well under a second) --------
+
+
+@pytest.fixture(scope="module")
+def henon_curves():
+    """Henon's flip curve ``a = 3 (1 - b)^2 / 4`` with R2 at (3, -1) and fold curve ``a = -(1 - b)^2 / 4`` with R1 at
+    (-1, -1) (tests/test_codim2.py checks both against their closed forms), in (a, b)."""
+    from explorer_core.analyses.continuation import continue_map
+    from explorer_core.analyses.continuation.testmaps import Henon
+
+    flip = continue_map(Henon(b=0.3), "a", (0.2, 1.0), Henon.fixed_point(0.2, 0.3), 1, param2="b",
+                        range2=(-1.5, 0.6), window1=(-2.0, 5.0))  # fmt: skip
+    fold = continue_map(Henon(b=0.3), "a", (-0.1, -0.2), Henon.fixed_point(-0.1, 0.3), 1, param2="b",
+                        range2=(-1.5, 0.6), window1=(-2.0, 1.0))  # fmt: skip
+    return flip, fold
+
+
+def _chart_tab_with(parts) -> ChartTab:
+    tab = ChartTab(session("fig11"))
+    tab.figure()
+    tab.chart = SimpleNamespace(spec=SimpleNamespace(x_param="a", y_param="b"))
+    tab._curves(parts)
+    return tab
+
+
+def test_the_chart_marks_and_lists_the_codimension_two_points_once(henon_curves) -> None:
+    """Fails on the old code (no mark, no list): R1 and R2 marked where they are, each with its kind's marker and
+    colour, named in the hover and listed under the plot in the command line's words; the flip curve followed twice
+    (two continuations of one orbit) still gives one R2."""
+    from app.analyses import CODIM2_STYLE
+
+    flip, fold = henon_curves
+    tab = _chart_tab_with([flip, fold, flip])
+    d = tab.codim2.data
+    assert d["label"] == ["R2 (1:2 resonance)", "R1 (1:1 resonance)"]
+    np.testing.assert_allclose(np.c_[d["x"], d["y"]], [[3.0, -1.0], [-1.0, -1.0]], atol=1e-6)
+    assert [d["marker"], d["color"]] == [[CODIM2_STYLE[k][0] for k in ("R2", "R1")],
+                                         [CODIM2_STYLE[k][1] for k in ("R2", "R1")]]  # fmt: skip
+    assert d["name"][0] == "R2 (1:2 resonance) of the period-1 orbit" and d["values"][0].startswith("(a, b) = (3")
+    assert " ± " in d["values"][0]
+    lines = tab.view["result"]
+    i = lines.index("codimension-two points: 2")
+    assert lines[i + 1].startswith(
+        "R2 (1:2 resonance) of the period-1 orbit on the period doubling curve at (a, b) = (3"
+    )
+    assert lines[i + 2].startswith("R1 (1:1 resonance) of the period-1 orbit on the fold curve at (a, b) = (-1")
+    # a legend in the plot (curves and marks), and a hover on the marks
+    assert tab.figure().legend[0].visible
+    from bokeh.models import HoverTool
+
+    hovers = [t for t in tab.figure().toolbar.tools if isinstance(t, HoverTool)]
+    assert any(r.name == "chart_codim2_marks" for h in hovers for r in h.renderers)
+    # every kind its own marker and colour
+    assert len({m for m, _ in CODIM2_STYLE.values()}) == len({c for _, c in CODIM2_STYLE.values()}) == 8
+
+
+def test_a_chart_without_codimension_two_points_says_so(henon_curves) -> None:
+    from explorer_core.analyses.continuation import Curve
+
+    flip, _ = henon_curves
+    plain = SimpleNamespace(curves=[Curve("period_doubling", 1, list(flip.curves[0].rows))], bifurcations=[1],
+                            messages=[], lost=[])  # fmt: skip
+    tab = _chart_tab_with([plain])
+    assert tab.view["result"][-1] == "codimension-two points: none in this window"
+    assert tab.codim2.data["x"] == []
+
+
+def test_the_curves_of_one_kind_differ_by_their_period_dash() -> None:
+    """Fails on the old code: three period-doubling curves, three identical black lines."""
+    from app.analyses import curve_dash
+    from explorer_core.analyses.continuation import Curve
+
+    rows = [(0.0, 1.0, 0.0, 0.0), (0.1, 1.1, 0.0, 0.0)]
+    curves = [Curve("period_doubling", p, rows) for p in (1, 2, 3, 4)]
+    tab = _chart_tab_with([SimpleNamespace(curves=curves, bifurcations=[1], messages=[], lost=[])])
+    dashes = tab.curves.data["dash"]
+    assert len(set(dashes)) == 4 and dashes == [curve_dash(p) for p in (1, 2, 3, 4)] and dashes[0] == "solid"
+    assert "by period: 1 solid, 2 dashed, 3 dotted, 4 dash-dotted" in tab.view["result"][-2]
+    assert tab.curves.data["color"] == ["#000000"] * 4
+
+
+def test_the_boundaries_npz_entries_carry_the_codimension_two_points(henon_curves) -> None:
+    """Fails on the old code (the curves only): each point's kind, period, values, error and the curve it lies on."""
+    from explorer_core.analyses.continuation import Boundaries
+
+    flip, fold = henon_curves
+    entries = Boundaries([flip, fold]).npz_entries()
+    assert entries["codim2_kind"].tolist() == ["R2", "R1"] and entries["codim2_period"].tolist() == [1, 1]
+    np.testing.assert_allclose(entries["codim2_values"], [[3.0, -1.0], [-1.0, -1.0]], atol=1e-6)
+    points = [flip.curves[0].codim2[0], fold.curves[0].codim2[0]]
+    np.testing.assert_array_equal(entries["codim2_values"], [p.values for p in points])
+    np.testing.assert_array_equal(entries["codim2_error"], [p.error for p in points])
+    assert entries["curve_kind"][entries["codim2_curve"]].tolist() == ["period_doubling", "fold"]
+    empty = Boundaries().npz_entries()
+    assert empty["codim2_values"].shape == (0, 2) and empty["codim2_kind"].size == 0

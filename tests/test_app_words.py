@@ -109,12 +109,12 @@ def test_the_chart_says_the_colours_of_the_curves_it_draws() -> None:
     tab = page.tabs["chart"]
     pd = Curve("period_doubling", 1, [(0.0, 1.0, 0.0, 0.0), (0.1, 1.1, 0.0, 0.0)])
     tab._curves([SimpleNamespace(curves=[pd], bifurcations=[1], messages=[], lost=[])])
-    line = tab.view["result"][-1]
+    line = next(x for x in tab.view["result"] if x.startswith("boundaries:"))  # then the codimension-two points
     assert "period doubling: black" in line and "magenta" not in line, line
     assert tab.curves.data["kind"] == ["period doubling of the period-1 cycle"]
     fold = Curve("fold", 2, [(0.0, 1.0, 0.0, 0.0), (0.1, 1.1, 0.0, 0.0)])
     tab._curves([SimpleNamespace(curves=[pd, fold], bifurcations=[1, 2], messages=[], lost=[])])
-    assert "fold: magenta" in tab.view["result"][-1] and tab.curves.data["color"] == ["#000000", "#e377c2"]
+    assert "fold: magenta" in tab.view["result"][-2] and tab.curves.data["color"] == ["#000000", "#e377c2"]
     hovers = [t for t in tab.figure().toolbar.tools if isinstance(t, HoverTool)]
     assert any(r.name == "chart_curve_lines" for h in hovers for r in h.renderers)
 

@@ -432,3 +432,14 @@ def test_the_words_on_stderr_match_the_exit_status() -> None:
     assert rc == 0
     assert "unreliable [rk4_unstable]" in err and "error" not in err.lower()
     assert [w["level"] for w in json.loads(out)["reliability"] if w["code"] == "rk4_unstable"] == ["error"]
+
+
+def test_continue_help_names_both_files_out_writes() -> None:
+    """Fails on the old code (the .csv's first ten columns only): the help names the columns of the .csv and of the
+    .codim2.csv as the writers write them."""
+    from explorer_core.analyses.continuation import Continuation
+    from explorer_core.cli import COMMANDS
+
+    words = COMMANDS["continue"].out_help
+    assert ",".join(Continuation.CSV_HEADER) in words and ",".join(Continuation.CODIM2_CSV_HEADER) in words
+    assert "FILE.codim2.csv" in words

@@ -489,3 +489,94 @@ def test_the_indicators_verdicts_draw_in_their_colours() -> None:
     assert curve.opts.get().kwargs["color"] == holo.VERDICT_COLOURS[int(s.verdict[0])]
     render(ov)
     render(curve)
+
+
+def test_curves_are_dashed_by_period_and_their_codimension_two_points_marked() -> None:
+    """Fails on the old code (every period-doubling curve the same black line, no marks): the Henon map's flip
+    curves of its cascade's orbits (switched onto the doubled orbits), each period its dash, and their
+    points a marker per kind, each once, hover with the kind, period, values and error."""
+    from app.analyses import CODIM2_STYLE, codim2_points, curve_dash
+    from explorer_core.analyses.continuation import Boundaries, continue_map
+    from explorer_core.analyses.continuation.results import CODIM2_NAMES
+    from explorer_core.analyses.continuation.testmaps import Henon
+
+    res = continue_map(Henon(b=0.3), "a", (0.2, 1.5), Henon.fixed_point(0.2, 0.3), 1, param2="b",
+                       range2=(-1.5, 0.6), window1=(-2.0, 5.0), switch=True)  # fmt: skip
+    ov = holo.draw_curves(Boundaries([res, res]))  # twice: each point drawn once still
+    lines = [el for el in elements(ov) if isinstance(el, hv.Curve) and el.label]
+    dash = {el.label: el.opts.get().kwargs["line_dash"] for el in lines}
+    cascade = sorted({cu.period for cu in res.curves if cu.kind == "period_doubling"})
+    assert cascade == [1, 2, 4, 8, 16]  # each its own dash
+    assert len({dash[holo.curve_words("period_doubling", p)] for p in cascade}) == len(cascade)
+    assert all(dash[holo.curve_words("period_doubling", p)] == curve_dash(p) for p in cascade)
+    marks = {el.label: el for el in elements(ov) if isinstance(el, hv.Points)}
+    kinds = {c.kind for cu in res.curves for c in cu.codim2}
+    assert set(marks) == {f"{k} ({CODIM2_NAMES[k]})" for k in kinds} and {"R2", "R3", "R4"} <= kinds
+    r2 = marks["R2 (1:2 resonance)"]
+    o = r2.opts.get().kwargs
+    assert (o["marker"], o["color"]) == CODIM2_STYLE["R2"]
+    located = [c for cu in res.curves for c in cu.codim2 if c.kind == "R2"]
+    once = [c for c in codim2_points([res]) if c.kind == "R2"]  # an R2 on a flip curve where a NS curve ends: once
+    periods = [int(p.split("period-")[1].split()[0]) for p in r2.dimension_values("point")]
+    assert len(r2) == len(once) < len(located) and periods == [c.period for c in once]
+    assert sorted(periods) == sorted(set(periods))  # the Henon map has one R2 per period on b = -1
+    assert (3.0, -1.0) == pytest.approx((r2.dimension_values("a")[0], r2.dimension_values("b")[0]), abs=1e-6)
+    tips = [h.tooltips for h in hovers(render(ov)) if "@{point}" in str(h.tooltips)]
+    assert tips and ("error estimate", "@{error}") in tips[0]
+    title = hv.Store.lookup_options("bokeh", ov, "plot").kwargs["title"]
+    assert title.endswith(f"{2 * len(res.curves)}, {sum(len(m) for m in marks.values())} codimension-two points")
+
+
+def test_a_figure_thins_x_ticks_that_would_run_together() -> None:
+    """Fails on the old code: the chart figure at 1600x1000 (200 dpi) beside its legend wrote -0.600-0.575-0.550...
+    run together. Here a narrow axes: after the thinning no two labels overlap, and a wide one keeps its ticks."""
+    import itertools
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator, MultipleLocator
+
+    from app.figures import _fewer_ticks
+
+    def labels_apart(fig) -> bool:
+        fig.draw_without_rendering()
+        ax = fig.axes[0]
+        lo, hi = sorted(ax.get_xlim())
+        boxes = sorted((t.get_window_extent() for t, x in zip(ax.get_xticklabels(), ax.get_xticks(), strict=True)
+                        if t.get_text() and lo <= x <= hi), key=lambda b: b.x0)  # fmt: skip
+        return len(boxes) >= 2 and all(a.x1 < b.x0 for a, b in itertools.pairwise(boxes))
+
+    narrow = Figure(figsize=(6, 4), dpi=200, layout="constrained")
+    ax = narrow.add_gridspec(1, 3)[0, 0]
+    ax = narrow.add_subplot(ax)
+    ax.plot([-0.6, -0.4], [1, 2])
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=8, steps=[1, 2.5, 5, 10]))  # the chart's -0.600, -0.575, ...
+    ax.tick_params(labelsize=10)
+    narrow.add_subplot(narrow.add_gridspec(1, 3)[0, 1:]).axis("off")
+    assert not labels_apart(narrow)
+    assert _fewer_ticks(narrow)
+    assert labels_apart(narrow)
+    other = Figure(figsize=(8, 5), dpi=200, layout="constrained")  # a locator without bins: left as it is
+    ax = other.add_subplot(other.add_gridspec(1, 3)[0, 0])
+    ax.plot([-0.6, -0.4], [1, 2])
+    ax.xaxis.set_major_locator(MultipleLocator(0.025))
+    other.draw_without_rendering()
+    assert not _fewer_ticks(other)
+    assert isinstance(ax.xaxis.get_major_locator(), MultipleLocator)
+    wide = Figure(figsize=(8, 5), dpi=100, layout="constrained")
+    wide.add_subplot().plot([-0.6, -0.4], [1, 2])
+    wide.draw_without_rendering()
+    before = list(wide.axes[0].get_xticks())
+    assert not _fewer_ticks(wide)
+    wide.draw_without_rendering()
+    assert list(wide.axes[0].get_xticks()) == before
+
+
+def test_a_figure_draws_bokeh_dash_patterns() -> None:
+    from app.figures import _dash
+
+    assert _dash("dashed", 1.65) == "--" and _dash("solid", 1.0) == "-"
+    assert _dash("8 4", 1.5) == (0, (4.0, 2.0))  # 8 px = 6 pt = 4 line widths of 1.5 pt
+    assert _dash("8 3 2", 1.5) == "-"  # not a pattern of pairs

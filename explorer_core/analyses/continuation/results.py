@@ -320,10 +320,14 @@ class Boundaries(list):
         ``curve_columns``; curve ``i`` is ``curve_points[curve_start[i]:curve_start[i + 1]]``, of kind
         ``curve_kind[i]`` (``fold``, ``period_doubling``, ...) of the period-``curve_period[i]`` cycle, ended as
         ``curve_status[i]`` (a status name) because ``curve_stop[i]``; ``curves_complete`` and ``curves_lost``
-        (JSON, as the summary's) say what was not followed."""
+        (JSON, as the summary's) say what was not followed. The codimension-two points located on the curves
+        (:class:`Codim2Point`), a row each in the curves' order: ``codim2_values`` (n, 2) in ``curve_columns[:2]``,
+        ``codim2_error`` their error estimate, ``codim2_kind`` (``R2``, ``LPPD``, ...), ``codim2_period`` the
+        orbit's period, ``codim2_curve`` the index of the curve it lies on."""
         curves = [(c, cv) for c in self for cv in c.curves]
         rows = [np.asarray(cv.rows, dtype=float).reshape(-1, 4) for _, cv in curves]
         names = next((c for c, _ in curves), None)
+        points = [(i, p) for i, (_, cv) in enumerate(curves) for p in cv.codim2]
         return {
             "curve_points": np.concatenate(rows) if rows else np.zeros((0, 4)),
             "curve_start": np.cumsum([0, *(r.shape[0] for r in rows)]),
@@ -332,6 +336,11 @@ class Boundaries(list):
             "curve_period": np.array([cv.period for _, cv in curves], dtype=int),
             "curve_status": np.array([cv.status.label for _, cv in curves], dtype=str),
             "curve_stop": np.array([cv.stop for _, cv in curves], dtype=str),
+            "codim2_values": np.array([p.values for _, p in points], dtype=float).reshape(-1, 2),
+            "codim2_error": np.array([p.error for _, p in points], dtype=float),
+            "codim2_kind": np.array([p.kind for _, p in points], dtype=str),
+            "codim2_period": np.array([p.period for _, p in points], dtype=int),
+            "codim2_curve": np.array([i for i, _ in points], dtype=int),
             "curves_complete": self.complete,
             "curves_lost": json.dumps([loss.as_dict() for loss in self.lost]),
         }
