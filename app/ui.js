@@ -45,7 +45,7 @@ header .spacer { flex: 1; }
 .bar { display: flex; flex-wrap: wrap; gap: 8px; align-items: flex-end; }
 .bar .ctl { margin: 0; }
 .bar .ctl.int input.num { width: 6em; }
-.figure-bar { display: inline-flex; gap: 3px; align-items: center; }
+.figure-bar { display: inline-flex; flex-wrap: wrap; gap: 3px; align-items: center; max-width: 100%; }
 .figure-bar input.num { width: 4.6em; }
 .figure-bar input.fig-dpi { width: 3.6em; }
 .bar .ctl-selected .btn-no-selection { margin-left: 4px; padding: 3px 8px; }
