@@ -78,6 +78,8 @@ NOT_STATUSES = {
     ("solve/rk.py", "FIELD"): "the systems the engine integrates",
     ("system/model.py", "ROW_Q"): "rows of the coefficient tables",
     ("analyses/equilibria_kernels.py", "SADDLE"): "the types of an equilibrium (indices into equilibria.TYPES)",
+    ("system/model.py", "GENERAL"): "the forms of the field (which monomials its tables hold: model.FORM_MASKS)",
+    ("solve/rk.py", "_TB_NUM"): "offsets of a lock-step block's copied tables (rows of its scratch array)",
 }
 
 
