@@ -34,9 +34,15 @@ def _collapsed(pt: _Point, new: _Point, n: int, tol: float) -> int:
     for d in (d for d in range(1, n) if n % d == 0):
         if minimal_period(new.pts, new.pts[0], n, tol) <= d:
             return d
-        if float((pt.pts[d] - pt.pts[0]) @ (new.pts[d] - new.pts[0])) < 0.0:
+        # not a return distance (the one rule is minimal_period's): the sign of P^d(x) - x between the two points
+        if float(_displacement(pt.pts, d) @ _displacement(new.pts, d)) < 0.0:
             return d
     return n
+
+
+def _displacement(pts: np.ndarray, d: int) -> np.ndarray:
+    """``P^d(x) - x`` of the orbit's points ``pts`` (``x = pts[0]``)."""
+    return pts[d] - pts[0]
 
 
 def _follow_curve(eng: _Engine, branch: ContinuationMap, name2: str, bif: Bifurcation, rng1: tuple[float, float],
