@@ -72,7 +72,7 @@ from numba import njit
 from explorer_core import config, export
 from explorer_core.analyses.basin_entropy import DEFAULT_BOX, MAX_BOX, BasinEntropy, basin_entropy
 from explorer_core.analyses.lyapunov import lyapunov_spectrum
-from explorer_core.analyses.orbits import Orbit, find_orbits, same_orbit
+from explorer_core.analyses.orbits import Orbit, find_orbits, pixel_centres, same_orbit
 from explorer_core.analyses.specs import spec_of
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -321,12 +321,12 @@ class BasinSpec:
     @property
     def q(self) -> np.ndarray:
         """(NX,) pixel centres in ``q``."""
-        return self.box[0] + (np.arange(self.nx) + 0.5) * (self.box[1] - self.box[0]) / self.nx
+        return pixel_centres(self.box, self.nx, self.ny)[0]
 
     @property
     def r(self) -> np.ndarray:
         """(NY,) pixel centres in ``r``."""
-        return self.box[2] + (np.arange(self.ny) + 0.5) * (self.box[3] - self.box[2]) / self.ny
+        return pixel_centres(self.box, self.nx, self.ny)[1]
 
     @property
     def cell_size(self) -> tuple[float, float]:

@@ -32,6 +32,7 @@ import numpy as np
 
 from explorer_core import config, export
 from explorer_core.analyses.indicators import NUMERICS_ARG, spec_dict
+from explorer_core.analyses.orbits import grid_seeds, pixel_centres
 from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.drawing import Drawable
 from explorer_core.losses import Loss
@@ -73,14 +74,11 @@ class FtleSpec:
 
     def axes(self) -> tuple[np.ndarray, np.ndarray]:
         """The pixels' centres: ``q`` (nx,), ``r`` (ny,)."""
-        (q0, q1, r0, r1), (nx, ny) = self.box, self.grid
-        return q0 + (np.arange(nx) + 0.5) * (q1 - q0) / nx, r0 + (np.arange(ny) + 0.5) * (r1 - r0) / ny
+        return pixel_centres(self.box, *self.grid)
 
     def ics(self) -> np.ndarray:
         """(ny * nx, 2) initial conditions, row-major (row ``j`` at ``r[j]``)."""
-        q, r = self.axes()
-        qq, rr = np.meshgrid(q, r)
-        return np.column_stack([qq.ravel(), rr.ravel()])
+        return grid_seeds(self.box, *self.grid)
 
     def as_dict(self) -> dict[str, Any]:
         return spec_dict(self)

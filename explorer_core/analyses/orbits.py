@@ -435,13 +435,18 @@ def ladder_seeds(x: np.ndarray, v: np.ndarray, *, both: bool = False,
     return [x + s * h * scale * v for h in ladder for s in ((1.0, -1.0) if both else (1.0,))]
 
 
+def pixel_centres(box: Sequence[float], nx: int, ny: int) -> tuple[np.ndarray, np.ndarray]:
+    """The centres ``q`` (nx,) and ``r`` (ny,) of an ``nx`` x ``ny`` grid of pixels over ``box = (q0, q1, r0, r1)``
+    (validated by the caller)."""
+    q0, q1, r0, r1 = box
+    return q0 + (np.arange(nx) + 0.5) * (q1 - q0) / nx, r0 + (np.arange(ny) + 0.5) * (r1 - r0) / ny
+
+
 def grid_seeds(box: Sequence[float], nx: int, ny: int) -> np.ndarray:
-    """Pixel centres of an ``nx`` x ``ny`` grid over ``box = (q0, q1, r0, r1)``."""
-    q0, q1, r0, r1 = check_box(box)
-    nx = check_int("nx", nx, 1, config.MAX_GRID)
-    ny = check_int("ny", ny, 1, config.MAX_GRID)
-    q = q0 + (np.arange(nx) + 0.5) * (q1 - q0) / nx
-    r = r0 + (np.arange(ny) + 0.5) * (r1 - r0) / ny
+    """Pixel centres of an ``nx`` x ``ny`` grid over ``box = (q0, q1, r0, r1)``, row-major (row ``j`` at ``r[j]``)."""
+    q, r = pixel_centres(
+        check_box(box), check_int("nx", nx, 1, config.MAX_GRID), check_int("ny", ny, 1, config.MAX_GRID)
+    )
     qq, rr = np.meshgrid(q, r)
     return np.column_stack([qq.ravel(), rr.ravel()])
 

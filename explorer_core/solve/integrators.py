@@ -311,8 +311,8 @@ def run(
         first = batch.regroups(block)
         after = first + ((k0 - first) // REGROUP_PERIODS + 1) * REGROUP_PERIODS
         cuts = [k0, *range(after, k_end, REGROUP_PERIODS), k_end]
+        one = len(cuts) == 2  # one part: the kernel writes straight into the call's records
         for ka, kb in itertools.pairwise(cuts):
-            one = len(cuts) == 2
             part_rec = rec if one else np.empty((n, (kb - ka) * samples if store else 1, rec.shape[2]))
             part_npts = npts if one else np.zeros(n, dtype=np.int64)
             blocks = batch.blocks_at(block)
