@@ -24,6 +24,11 @@ leaves at once without waiting).
 
 from __future__ import annotations
 
+if __name__ == "__main__":  # run as a program (the worker, tests): stop signals handled before the imports below
+    from explorer_core.launch import early
+
+    early()
+
 import argparse
 import contextlib
 import importlib
@@ -43,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from explorer_core import __version__, config, export
+from explorer_core.launch import STOP_SIGNALS
 from explorer_core.scenes import Scene, get_scene, list_scenes
 from explorer_core.solve.numerics import Numerics
 from explorer_core.status import Status
@@ -203,9 +209,6 @@ def _numerics(args: argparse.Namespace, base: Numerics) -> Numerics:
 # --- running and reporting ---------------------------------------------------------------------------------
 
 
-#: Signals that stop a command: Ctrl-C, SIGTERM (a process manager, ``kill``) and SIGHUP (a closed terminal). The
-#: exit status is 128 plus the first one's number: 130, 143, 129.
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 #: Exit status of a run in which every member (trajectory, pixel, value, seed) failed: nothing usable was computed.
 FAILED_STATUS = 3
 

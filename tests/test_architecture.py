@@ -16,7 +16,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 FLOORS = (
-    ("config", "losses", "progress", "export", "status", "drawing", "registry"),
+    ("config", "losses", "progress", "export", "status", "drawing", "registry", "launch"),
     ("system",),
     ("solve",),
     ("scenes",),
@@ -24,7 +24,7 @@ FLOORS = (
     ("analyses",),
     ("studies",),
     ("reports",),
-    ("warm", "worker", "cli"),
+    ("warm", "worker", "cli", "__main__"),
 )
 
 

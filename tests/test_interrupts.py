@@ -348,3 +348,47 @@ def test_a_stopped_chart_diagram_and_continuation_say_so_in_their_csv(tmp_path: 
             lines = path.read_text().splitlines()
             assert lines[1].startswith("# partial: the run was stopped") is partial, (name, lines[:3])
             np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")  # reads back
+
+
+# --- a signal while the command line is still importing --------------------------------------------------
+
+#: The console script's code (pip writes ``from explorer_core.__main__ import entry; sys.exit(entry())``) and the
+#: module run as a program (the warm worker, the tests' runner).
+STARTS = {"script": ["-c", "import sys; from explorer_core.__main__ import entry; sys.exit(entry())"],
+          "module": ["-m", "explorer_core.cli"]}  # fmt: skip
+
+
+def _catches_sigterm(pid: int) -> bool:
+    with open(f"/proc/{pid}/status") as f:
+        caught = next(int(line.split()[1], 16) for line in f if line.startswith("SigCgt:"))
+    return bool(caught >> (signal.SIGTERM - 1) & 1)
+
+
+def _numpy_loaded(pid: int) -> bool:
+    with open(f"/proc/{pid}/maps") as f:
+        return "_multiarray_umath" in f.read()
+
+
+@pytest.mark.parametrize("start", STARTS)
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_during_the_imports_ends_the_command_in_one_line(start: str, sig: int, tmp_path: Path) -> None:
+    """The handlers hold from the first lines of the program, before numpy is loaded (they came ~0.3 s later,
+    after the command line's imports: a Ctrl-C then printed a traceback, a SIGTERM killed the process)."""
+    import subprocess
+    import sys
+    import time
+
+    env = {**os.environ, "BILIMOVICH_WORKER": "0"}
+    argv = [sys.executable, *STARTS[start], "section", "--scene", "fig1A", "--out", str(tmp_path / "s.csv")]
+    proc = subprocess.Popen(argv, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 30
+    while not _catches_sigterm(proc.pid):  # the first handler installed: from here no signal is Python's default
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.0005)
+    early = not _numpy_loaded(proc.pid)
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=30)
+    assert early, "the first stop-signal handler came after numpy was loaded"
+    assert proc.returncode == 128 + sig, (proc.returncode, err)
+    assert err == "bilimovich section: interrupted\n", err
+    assert os.listdir(tmp_path) == []

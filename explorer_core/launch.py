@@ -1,0 +1,31 @@
+"""The stop signals handled from a program's first lines, before the heavy imports (the console script,
+:mod:`explorer_core.__main__`, and ``python -m explorer_core.cli``: the warm worker, the tests).
+
+The command line's own handlers (:func:`explorer_core.cli.entry`) are installed once ``explorer_core.cli`` and
+numpy are imported, ~0.2-0.3 s after the start; a Ctrl-C or SIGTERM before then got Python's defaults (a
+``KeyboardInterrupt`` traceback, a death by the signal). Here a signal in that window ends the process at once with
+one line and ``128 + signal``, as :func:`explorer_core.cli.entry` does for a signal before the work begins:
+nothing has run and no file is open. Only the interpreter's own start (~20 ms) comes before this module.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+
+#: Signals that stop a command: Ctrl-C, SIGTERM (a process manager, ``kill``) and SIGHUP (a closed terminal). The
+#: exit status is 128 plus the first one's number: 130, 143, 129 (the command line's handlers take the same).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def _before_the_command(signum: int, frame: object) -> None:
+    args = [a for a in sys.argv[1:] if not a.startswith("-")]
+    os.write(2, f"bilimovich{f' {args[0]}' if args else ''}: interrupted\n".encode())
+    os._exit(128 + signum)  # no file is written yet, and no exit handler has anything to do
+
+
+def early() -> None:
+    """Install the stop-signal handlers that hold until the command line's own replace them."""
+    for s in STOP_SIGNALS:
+        signal.signal(s, _before_the_command)
