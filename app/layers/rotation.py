@@ -59,6 +59,8 @@ def verdict_words(b: Birkhoff) -> str:
         return f"regular (Birkhoff, {digits:.0f} digits): rotation number {float(b.rotation[0]):.7f}"
     if verdict == CHAOTIC:
         return f"chaotic (Birkhoff, {digits:.1f} digits after {periods} periods)"
+    if b.drifting[0]:
+        return f"no Birkhoff verdict: it drifts off within {periods} periods (no invariant measure to average)"
     if status in (Status.OK, Status.UNDECIDED):
         return f"undecided after {periods} periods (Birkhoff, {digits:.1f} digits)"
     return f"no Birkhoff verdict: {status.label} within {periods} periods"
