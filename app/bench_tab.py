@@ -118,6 +118,10 @@ INDICATORS = "chaos indicators"
 INDICATOR_COLOURS = {"birkhoff": "#1f77b4", "sali": "#d62728", "ftle": "#2ca02c"}
 #: Dash per set of orbits: regular (Fig. 5A's island) solid, chaotic (Fig. 8B's attractor) dashed.
 SET_DASH = {"regular": "solid", "chaotic": "dashed"}
+INDICATOR_FOOTNOTE = (
+    "Each indicator's verdicts (regular, chaotic or undecided) on the same initial conditions as the reference, at "
+    "each length it was given; an undecided verdict counts as no agreement. Hover a point for the batch's seconds."
+)
 
 
 def indicator_periods(name: str, length: int) -> int:
@@ -184,7 +188,8 @@ def indicator_text(report: dict[str, Any]) -> list[str]:
 def indicator_figure(lines: ColumnDataSource, points: ColumnDataSource) -> Plot:
     """The indicators' chart: agreement (%) against periods given (log), in the work-precision diagram's style."""
     f = figure(x_axis_type="log", sizing_mode="stretch_both", min_height=260, y_range=Range1d(-5, 105),
-               tools="pan,wheel_zoom,box_zoom,reset,save", x_axis_label="periods given to each orbit",
+               name="bench_indicators", tools="pan,wheel_zoom,box_zoom,reset,save",
+               x_axis_label="periods given to each orbit",
                y_axis_label="ICs classified as the long Lyapunov run (%)")  # fmt: skip
     f.toolbar.logo = None
     f.toolbar.active_scroll = None
@@ -252,6 +257,7 @@ class BenchTab(AnalysisTab):
                                                           ("error", "@y{0.00e}"), ("time / traj", "@x{0.000e} s"),
                                                           ("status", "@status")]))  # fmt: skip
         f.add_layout(self.floor)
+        f.name = "bench_work_precision"
         self.work_precision, self.indicators = f, indicator_figure(self.indicator_lines, self.indicator_points)
         return column(f, self.indicators, sizing_mode="stretch_both")
 
@@ -360,8 +366,9 @@ class BenchTab(AnalysisTab):
             self.work_precision.visible, self.indicators.visible = case != INDICATORS, case == INDICATORS
         if case == INDICATORS:
             self.indicator_lines.data, self.indicator_points.data = indicator_columns(data["indicators"])
-            self.set_view(result=indicator_text(data["indicators"]))
+            self.set_view(result=indicator_text(data["indicators"]), footnote=INDICATOR_FOOTNOTE)
             return
+        self.set_view(footnote=FOOTNOTE)
         solid, dashed, pts = _lines(data, case)
         self.solid.data = solid
         self.dashed.data = dashed

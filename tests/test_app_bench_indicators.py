@@ -9,7 +9,16 @@ import json
 
 import pytest
 
-from app.bench_tab import INDICATOR_COLOURS, INDICATORS, LATEST, MEASURED, SET_DASH, BenchTab
+from app.bench_tab import (
+    FOOTNOTE,
+    INDICATOR_COLOURS,
+    INDICATOR_FOOTNOTE,
+    INDICATORS,
+    LATEST,
+    MEASURED,
+    SET_DASH,
+    BenchTab,
+)
 from app.controller import ExplorerSession
 from app.runner import WARM, InlineExecutor, Runner
 from app.state import ExplorerState
@@ -40,6 +49,7 @@ def test_the_chart_is_drawn_from_the_comparisons_numbers(tmp_path, report: dict)
     assert labels == [f"{LATEST}: {INDICATORS}"]
     assert tab.choose(labels[0]) is None
     assert tab.indicators.visible and not tab.work_precision.visible
+    assert tab.view["footnote"] == INDICATOR_FOOTNOTE  # not the work-precision diagram's line styles
     lines, pts = tab.indicator_lines.data, tab.indicator_points.data
     n = report["n"]
     assert len(lines["xs"]) == len(report["sets"]) * len(LADDERS)
@@ -75,7 +85,7 @@ def test_the_work_precision_diagram_comes_back_and_a_run_without_indicators_offe
     assert labels == [f"{LATEST}: regular", f"{LATEST}: {INDICATORS}"]
     tab.choose(labels[1])
     tab.choose(labels[0])
-    assert tab.work_precision.visible and not tab.indicators.visible
+    assert tab.work_precision.visible and not tab.indicators.visible and tab.view["footnote"] == FOOTNOTE
     assert tab.view["result"][0].startswith("regular (custom), IC (0.1, 0.2)")
     assert tab.add_dataset({**data, "indicators": {}}, MEASURED) == [MEASURED]
     assert bench.app_config().indicators is False  # the tab's own Measure never runs the comparison
