@@ -6,7 +6,9 @@ Two sources of data, both produced by :mod:`explorer_core.bench` (no numerics he
   methods and tolerances, a short horizon; a reference from ``solve_ivp`` at 3e-14, cached) on the
   session's :class:`~app.runner.Runner`, with progress and Stop.
 * The latest full ``bilimovich bench`` run, read from ``$BILIMOVICH_BENCH_RESULTS`` or the file
-  the command leaves in the cache (:func:`explorer_core.bench.latest_path`): one diagram per case.
+  the command leaves in the cache (:func:`explorer_core.bench.latest_path`): one diagram per case, and
+  when the run compared the chaos indicators (issue 34, :mod:`explorer_core.studies.indicator_bench`) their
+  chart: each indicator's agreement with a long Lyapunov run against the periods it was given.
 
 Timings measured in a shared server are indicative; the command line's are the measured ones.
 """
@@ -20,7 +22,8 @@ from typing import Any
 
 import numpy as np
 from bokeh.core.properties import field
-from bokeh.models import ColumnDataSource, HoverTool, Legend, LegendItem, Plot, Span
+from bokeh.layouts import column
+from bokeh.models import ColumnDataSource, HoverTool, Legend, LegendItem, Plot, Range1d, Span
 from bokeh.plotting import figure
 
 from app.analyses import REFRESH, AnalysisTab, Publish
@@ -108,6 +111,99 @@ def summary_text(data: dict[str, Any], case: str, target: float = 1e-6) -> list[
     return lines
 
 
+# --- the chaos indicators' chart (issue 34) ---------------------------------------------------------------------
+
+#: The diagram selector's word for the indicators' chart of a bench run that compared them.
+INDICATORS = "chaos indicators"
+INDICATOR_COLOURS = {"birkhoff": "#1f77b4", "sali": "#d62728", "ftle": "#2ca02c"}
+#: Dash per set of orbits: regular (Fig. 5A's island) solid, chaotic (Fig. 8B's attractor) dashed.
+SET_DASH = {"regular": "solid", "chaotic": "dashed"}
+INDICATOR_FOOTNOTE = (
+    "Each indicator's verdicts (regular, chaotic or undecided) on the same initial conditions as the reference, at "
+    "each length it was given; an undecided verdict counts as no agreement. Hover a point for the batch's seconds."
+)
+
+
+def indicator_periods(name: str, length: int) -> int:
+    """Periods an orbit is given at a rung of ``length``: Birkhoff averages two halves of ``length``."""
+    return 2 * int(length) if name == "birkhoff" else int(length)
+
+
+def indicator_columns(report: dict[str, Any]) -> tuple[dict[str, list], dict[str, list]]:
+    """Bokeh columns (lines, points) of an indicator comparison (``bench.json``'s ``indicators``): per set and
+    indicator, the percentage of ICs classified as the reference classifies them (neither the opposite verdict nor
+    undecided) against the periods given, the batch's seconds beside; the reference itself is a point at its periods
+    and 100 %."""
+    n = int(report["n"])
+    lines: dict[str, list] = {"xs": [], "ys": [], "color": [], "dash": [], "label": []}
+    pts: dict[str, list] = {"x": [], "y": [], "color": [], "label": [], "seconds": [], "wrong": [], "undecided": []}
+    for set_name, e in report["sets"].items():
+        for name, d in e["indicators"].items():
+            label = f"{name} ({set_name})"
+            secs = e.get("seconds", {}).get(name) or [float("nan")] * len(d["rungs"])
+            xs = [indicator_periods(name, k) for k, _, _ in d["rungs"]]
+            ys = [100.0 * (n - wrong - undecided) / n for _, wrong, undecided in d["rungs"]]
+            lines["xs"].append(xs)
+            lines["ys"].append(ys)
+            lines["color"].append(INDICATOR_COLOURS.get(name, "#000000"))
+            lines["dash"].append(SET_DASH.get(set_name, "dotted"))
+            lines["label"].append(label)
+            for x, y, t, (_, wrong, undecided) in zip(xs, ys, secs, d["rungs"], strict=True):
+                pts["x"].append(x)
+                pts["y"].append(y)
+                pts["color"].append(INDICATOR_COLOURS.get(name, "#000000"))
+                pts["label"].append(label)
+                pts["seconds"].append(t)
+                pts["wrong"].append(wrong)
+                pts["undecided"].append(undecided)
+        pts["x"].append(int(report["reference_periods"]))
+        pts["y"].append(100.0)
+        pts["color"].append("#000000")
+        pts["label"].append(f"Lyapunov reference ({set_name})")
+        pts["seconds"].append(e["reference_s"])
+        pts["wrong"].append(0)
+        pts["undecided"].append(n - int(e["reference_ok"]))
+    return lines, pts
+
+
+def indicator_text(report: dict[str, Any]) -> list[str]:
+    """Plain lines: the reference, and per set and indicator the fewest periods from which every IC agrees with it
+    and that batch's seconds against the reference's."""
+    n = int(report["n"])
+    lines = [f"Chaos indicators against a Lyapunov exponent over {report['reference_periods']} periods (chaotic when "
+             f"lambda_1 T > {report['lyap_tol']}), {n} ICs a set: regular on Fig. 5A's island (solid), chaotic on "
+             f"Fig. 8B's attractor (dashed); right end at 100 %: the reference."]  # fmt: skip
+    for set_name, e in report["sets"].items():
+        said = []
+        for name, d in e["indicators"].items():
+            if d["all_agree_at"] is None:
+                said.append(f"{name} never all ({d['agree_at_longest']}/{n} at the longest)")
+            else:
+                said.append(f"{name} all from {indicator_periods(name, d['all_agree_at'])} periods "
+                            f"({d['seconds_at_that_rung']:g} s, {d['speedup']:g}x faster)")  # fmt: skip
+        lines.append(f"{set_name} (reference {e['reference_s']:g} s): " + "; ".join(said) + ".")
+    return lines
+
+
+def indicator_figure(lines: ColumnDataSource, points: ColumnDataSource) -> Plot:
+    """The indicators' chart: agreement (%) against periods given (log), in the work-precision diagram's style."""
+    f = figure(x_axis_type="log", sizing_mode="stretch_both", min_height=260, y_range=Range1d(-5, 105),
+               name="bench_indicators", tools="pan,wheel_zoom,box_zoom,reset,save",
+               x_axis_label="periods given to each orbit",
+               y_axis_label="ICs classified as the long Lyapunov run (%)")  # fmt: skip
+    f.toolbar.logo = None
+    f.toolbar.active_scroll = None
+    drawn = f.multi_line("xs", "ys", color="color", line_dash="dash", line_width=2, source=lines)
+    f.add_layout(Legend(items=[LegendItem(label=field("label"), renderers=[drawn])], label_text_font_size="8pt"),
+                 "right")  # fmt: skip
+    dots = f.scatter("x", "y", color="color", size=6, source=points)
+    f.add_tools(HoverTool(renderers=[dots], tooltips=[("", "@label"), ("periods", "@x"), ("agree", "@y{0.0} %"),
+                                                      ("opposite verdict", "@wrong"), ("undecided", "@undecided"),
+                                                      ("batch time", "@seconds{0.000} s")]))  # fmt: skip
+    f.visible = False  # shown when its diagram is chosen
+    return f
+
+
 class BenchTab(AnalysisTab):
     """The speed-vs-accuracy tab of one session."""
 
@@ -132,6 +228,14 @@ class BenchTab(AnalysisTab):
         self.points = ColumnDataSource({"x": [], "y": [], "color": [], "label": [], "setting": [], "status": []},
                                        name="bench_points")  # fmt: skip
         self.floor = Span(location=1e-16, dimension="width", line_dash="dotted", line_color="#777777", visible=False)
+        self.indicator_lines = ColumnDataSource({"xs": [], "ys": [], "color": [], "dash": [], "label": []},
+                                                name="bench_indicator_lines")  # fmt: skip
+        self.indicator_points = ColumnDataSource(
+            {"x": [], "y": [], "color": [], "label": [], "seconds": [], "wrong": [], "undecided": []},
+            name="bench_indicator_points",
+        )
+        self.work_precision: Plot | None = None
+        self.indicators: Plot | None = None
         if os.path.exists(self.results_path):
             self.load_results(quiet=True)
 
@@ -153,7 +257,9 @@ class BenchTab(AnalysisTab):
                                                           ("error", "@y{0.00e}"), ("time / traj", "@x{0.000e} s"),
                                                           ("status", "@status")]))  # fmt: skip
         f.add_layout(self.floor)
-        return f
+        f.name = "bench_work_precision"
+        self.work_precision, self.indicators = f, indicator_figure(self.indicator_lines, self.indicator_points)
+        return column(f, self.indicators, sizing_mode="stretch_both")
 
     # --- data -----------------------------------------------------------------------------
 
@@ -166,6 +272,9 @@ class BenchTab(AnalysisTab):
             label = source if source == MEASURED else f"{source}: {case}"
             self.datasets[label] = (data, case)
             labels.append(label)
+        if data.get("indicators"):
+            self.datasets[f"{source}: {INDICATORS}"] = (data, INDICATORS)
+            labels.append(f"{source}: {INDICATORS}")
         self.set_view(options=list(self.datasets))
         return labels
 
@@ -253,6 +362,13 @@ class BenchTab(AnalysisTab):
         if self.view["choice"] not in self.datasets:
             return
         data, case = self.datasets[self.view["choice"]]
+        if self.work_precision is not None and self.indicators is not None:
+            self.work_precision.visible, self.indicators.visible = case != INDICATORS, case == INDICATORS
+        if case == INDICATORS:
+            self.indicator_lines.data, self.indicator_points.data = indicator_columns(data["indicators"])
+            self.set_view(result=indicator_text(data["indicators"]), footnote=INDICATOR_FOOTNOTE)
+            return
+        self.set_view(footnote=FOOTNOTE)
         solid, dashed, pts = _lines(data, case)
         self.solid.data = solid
         self.dashed.data = dashed

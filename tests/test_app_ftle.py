@@ -150,6 +150,13 @@ def test_a_regular_trajectory_gets_its_rotation_number_and_a_chaotic_one_its_ver
     assert words.startswith("chaotic (Birkhoff, ") and words.endswith(" digits after 1000 periods)"), words
 
 
+def test_a_drifting_trajectory_is_said_to_drift_not_to_be_chaotic() -> None:
+    # Fig. 5A from (1.5, 0) drifts off; its Birkhoff "digits" are negative, which read as chaos before
+    page, _ = page_for({"n": "0", "periods": "5", "ics": "1.5,0"})
+    said = page.ui.view["section"]["series_verdict"]
+    assert said.startswith("no Birkhoff verdict: it drifts off within 1000 periods"), said
+
+
 def test_the_verdicts_spec_is_the_command_lines(monkeypatch) -> None:
     page, _ = page_for({"n": "3", "seed": "7", "transient": "4", "ics": "0.3,0.1;0.2,-0.1", "sel": "4",
                         "method": "dop853", "accuracy": "high"})  # fmt: skip

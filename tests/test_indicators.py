@@ -237,3 +237,13 @@ def test_the_commands_run_the_analyses_and_name_a_refused_flag(tmp_path) -> None
     assert json.loads(stdout)["orbits"][0]["verdict"] == "chaotic"
     code, _, err = run_cli("birkhoff", "--scene", "fig5A", "--ic", "0.4,0", "--chaotic-digits", "9")
     assert code == 2 and "--chaotic-digits" in err
+
+
+def test_a_drifting_orbit_is_no_chaos_but_undecided_and_says_it_drifts() -> None:
+    # Fig. 5A from (1.5, 0) drifts off (|x| from 1.3 to ~1400 in 1000 periods, growing every period of the second
+    # half): its two halves' averages differ by ~70, "-1.9 digits", which the test read as chaos before.
+    b = ind.birkhoff(FIG5A, [(1.5, 0.0), ISLANDS[0]], 500)
+    assert b.verdicts() == ["undecided", "regular"] and b.drifting.tolist() == [True, False]
+    assert Status(int(b.status[0])) == Status.UNDECIDED and b.digits[0] < 0 and not b.has_rotation[0]
+    assert "drifting off" in b.report()[0] and "drifting" not in b.report()[1]
+    assert [o["drifting"] for o in json.loads(json.dumps(b.summary()))["orbits"]] == [True, False]

@@ -52,13 +52,16 @@ class VerdictInputs:
 def verdict_words(b: Birkhoff) -> str:
     """The verdict on the one orbit of ``b`` in the page's words: "regular (Birkhoff, 11 digits): rotation number
     0.2260682", "chaotic (Birkhoff, 1.6 digits after 1000 periods)", "undecided after 1000 periods (Birkhoff,
-    5.2 digits)", or why there is none ("no verdict: escaped")."""
+    5.2 digits)", or why there is none ("no verdict: escaped"; "no Birkhoff verdict: it drifts off ...": a drift has
+    no invariant measure to average, and its negative digits are no chaos)."""
     digits, verdict, periods = float(b.digits[0]), int(b.verdict[0]), 2 * b.spec.periods
     status = Status(int(b.status[0]))
     if verdict == REGULAR:
         return f"regular (Birkhoff, {digits:.0f} digits): rotation number {float(b.rotation[0]):.7f}"
     if verdict == CHAOTIC:
         return f"chaotic (Birkhoff, {digits:.1f} digits after {periods} periods)"
+    if b.drifting[0]:
+        return f"no Birkhoff verdict: it drifts off within {periods} periods (no invariant measure to average)"
     if status in (Status.OK, Status.UNDECIDED):
         return f"undecided after {periods} periods (Birkhoff, {digits:.1f} digits)"
     return f"no Birkhoff verdict: {status.label} within {periods} periods"

@@ -109,6 +109,15 @@ BASIN_NEWTON = ORBITS.replace(patience=None)
 #: Periods of the Lyapunov exponent that tells a chaotic attractor from a quasi-periodic one, and the
 #: fewest that count if the run fails (escapes) before the end.
 LYAP_PERIODS, LYAP_MIN_PERIODS = 300, 50
+#: The chaos test stays this exponent, not the SALI the chart and ``reproduce`` use (issue 34, item 3): here the same
+#: run gives the area trend that tells an attractor from a conservative island, so a SALI verdict saves at most that
+#: first run on a chaotic set, and it decides too few sets. Every call on three boxes (SALI over 25 periods from the
+#: same point, 5,000-period exponents as the reference): Fig. 11's tensor (40 x 40) calls it never (cycles only);
+#: Fig. 4A (16 x 16) 109 times: 107 conservative sets, all undecided by the SALI (a regular verdict needs 100 periods),
+#: and 2 chaotic ones (reference 0.016), one decided in 13 periods; the confirmation's 1,500-period check, undecided.
+#: Fig. 1C (20 x 20) 84 times: 79 conservative, 5 chaotic transients, 1 decided by the SALI (whose reference, 4.3e-3,
+#: is below the threshold); on the crescent the confirmation's check is undecided by the SALI while its vectors stretch
+#: by 0.093 per unit time over 25 periods where the reference is 1.1e-4: a longer SALI would call the crescent chaotic.
 #: Refinement levels: every 4th pixel, then every 2nd, then all.
 LEVELS = (4, 2, 1)
 #: A set whose area ``|det DP^k|`` has a secular part (the least-squares trend of ``log |det DP^k|``, the

@@ -14,8 +14,11 @@ Weighted Birkhoff averages (Das, Saiki, Sander, Yorke, *Nonlinearity* 30, 2017)
     ``dig = -log10 |WB_N(f)(x) - WB_N(f)(P^N x)|`` (the paper's two-half test), capped at
     :data:`MAX_DIGITS`. ``dig >= regular_digits``: regular; ``dig < chaotic_digits``: chaotic; in between,
     undecided (and undecided with fewer than ``min_chaotic_periods`` a half unless regular: a regular orbit's
-    average may not have converged to 3 digits by then). The rotation number of a regular orbit is the weighted
-    average of the angle increments about the orbit's centre (its own weighted average), over ``2 pi``, mod 1.
+    average may not have converged to 3 digits by then). An orbit that drifts off (its distance from the origin
+    growing steadily, :func:`~explorer_core.analyses.reliability.escaping`) has no invariant measure to average:
+    undecided, and ``drifting`` says why (its averages disagree to negative digits, which is no chaos). The
+    rotation number of a regular orbit is the weighted average of the angle increments about the orbit's centre
+    (its own weighted average), over ``2 pi``, mod 1.
 
 SALI and GALI_2 (Skokos 2001; Skokos, Bountis, Antonopoulos 2007)
     Two deviation vectors are carried by ``DP`` along the orbit and normalised each period;
@@ -45,6 +48,7 @@ import numpy as np
 
 from explorer_core import config, export
 from explorer_core.analyses.lyapunov import LYAPUNOV_NUMERICS
+from explorer_core.analyses.reliability import escaping
 from explorer_core.analyses.sections import TRANSIENT_ARG
 from explorer_core.analyses.specs import Checking, spec_of
 from explorer_core.drawing import Drawable
@@ -452,7 +456,8 @@ class Birkhoff(_Verdicts):
     ``average`` (m,): ``WB_N`` of the observable over the first half; ``digits`` (m,) of convergence (0 where
     the orbit failed); ``verdict`` (m,) :data:`VERDICTS` codes; ``rotation`` (m,) the rotation number of a
     regular orbit about its centre ``centre`` (m, 2) (0 where ``has_rotation`` is False: not regular);
-    ``status`` (m,): ok, undecided (no verdict) or the engine's failure; ``npts`` (m,) periods integrated."""
+    ``status`` (m,): ok, undecided (no verdict) or the engine's failure; ``npts`` (m,) periods integrated;
+    ``drifting`` (m,): the orbit drifted off (undecided: no invariant measure to average)."""
 
     spec: BirkhoffSpec
     average: np.ndarray
@@ -463,6 +468,7 @@ class Birkhoff(_Verdicts):
     centre: np.ndarray
     status: np.ndarray
     npts: np.ndarray
+    drifting: np.ndarray
     elapsed_s: float
     completed: bool = True
 
@@ -470,20 +476,21 @@ class Birkhoff(_Verdicts):
         for i, (q, r) in enumerate(self.spec.ics):
             rot = float(self.rotation[i]) if self.has_rotation[i] else ""
             yield (i, q, r, VERDICTS[int(self.verdict[i])], float(self.digits[i]), float(self.average[i]), rot,
-                   Status(int(self.status[i])).label, int(self.npts[i]))  # fmt: skip
+                   Status(int(self.status[i])).label, int(self.npts[i]), bool(self.drifting[i]))  # fmt: skip
 
     def summary(self) -> dict[str, Any]:
-        keys = ("ic", "verdict", "digits", "average", "rotation", "status", "periods")
-        return self._summary([dict(zip(keys, ([q, r], v, d, a, None if rot == "" else rot, s, n), strict=True))
-                              for _, q, r, v, d, a, rot, s, n in self.rows()])  # fmt: skip
+        keys = ("ic", "verdict", "digits", "average", "rotation", "status", "periods", "drifting")
+        return self._summary([dict(zip(keys, ([q, r], v, d, a, None if rot == "" else rot, s, n, dr), strict=True))
+                              for _, q, r, v, d, a, rot, s, n, dr in self.rows()])  # fmt: skip
 
     def report(self) -> list[str]:
         return [f"({q:.6g}, {r:.6g}): {v}, {d:.2f} digits" + (f", rotation number {rot:.12f}" if rot != "" else "")
-                + ("" if s == "ok" else f" ({s})") for _, q, r, v, d, _, rot, s, _ in self.rows()]  # fmt: skip
+                + (" (drifting off: no invariant measure to average)" if dr else "")
+                + ("" if s == "ok" else f" ({s})") for _, q, r, v, d, _, rot, s, _, dr in self.rows()]  # fmt: skip
 
     def write(self, path: str) -> dict[str, Any]:
         """``.csv``: one row per orbit; ``.json``: the summary."""
-        header = ("orbit", "q0", "r0", "verdict", "digits", "average", "rotation", "status", "periods")
+        header = ("orbit", "q0", "r0", "verdict", "digits", "average", "rotation", "status", "periods", "drifting")
         csv_ = lambda p: export.write_csv(p, header, self.rows(), export.partial(self))  # noqa: E731
         return export.write_by_suffix(path, {".csv": csv_, ".json": lambda p: export.write_json(p, self.summary())},
                                       "Birkhoff result")  # fmt: skip
@@ -521,8 +528,10 @@ def iter_birkhoff(
     f = _observable(points, spec.observable)
     digits = np.where(ran, birkhoff_digits(f), 0.0)
     average = np.where(ran, weighted_birkhoff(f[:, : spec.periods]), 0.0)
-    verdict = np.where(ran, digits_verdict(digits, spec.regular_digits, spec.chaotic_digits, spec.periods,
-                                           spec.min_chaotic_periods), NO_VERDICT)  # fmt: skip
+    # a drift's averages follow it off and disagree to negative digits: no chaos, no verdict
+    drifting = np.array([bool(ran[i]) and escaping(np.hypot(points[i, :, 0], points[i, :, 1])) for i in range(m)])
+    verdict = np.where(ran & ~drifting, digits_verdict(digits, spec.regular_digits, spec.chaotic_digits, spec.periods,
+                                                       spec.min_chaotic_periods), NO_VERDICT)  # fmt: skip
     centre = np.where(ran[:, None], weighted_birkhoff(np.moveaxis(points, -1, -2)), 0.0)
     has_rotation = verdict == REGULAR
     with np.errstate(invalid="ignore"):  # failed orbits' zeros: masked out below
@@ -530,7 +539,8 @@ def iter_birkhoff(
     if not completed:
         status = np.where((status == _OK) & (npts < total), int(Status.CANCELLED), status)
     result = Birkhoff(spec, average, digits, verdict, rotation, has_rotation, centre,
-                      _verdict_status(verdict, status), npts, time.perf_counter() - start, completed)  # fmt: skip
+                      _verdict_status(verdict, status), npts, drifting, time.perf_counter() - start,
+                      completed)  # fmt: skip
     yield Step(Progress(total if completed else done, total, "periods", result.elapsed_s), result=result)
 
 

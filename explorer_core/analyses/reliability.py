@@ -151,6 +151,16 @@ def _size_inside(states: np.ndarray, window: Sequence[float]) -> float:
     return float(np.max(np.abs(inside))) if inside.size else 0.0
 
 
+def escaping(norm: np.ndarray) -> bool:
+    """True if the distances ``norm`` (n,) of one orbit's points from the origin, in order, are those of an escaping
+    drift: growing in :data:`DRIFT_MONOTONE` of the steps of the second half and ending beyond :data:`DRIFT_GROWTH`
+    times the largest of the first half (a bounded orbit goes back and forth)."""
+    half = norm.size // 2
+    growing = np.mean(np.diff(norm[half:]) > 0) >= DRIFT_MONOTONE if norm.size > 2 else False
+    further = norm[-1] >= DRIFT_GROWTH * max(float(norm[:half].max(initial=0.0)), 1e-300)
+    return bool(growing and further)
+
+
 def _drifting(
     pts: np.ndarray, traj: Any, window: Sequence[float], escaped: set[int]
 ) -> tuple[int, tuple[float, float]]:
@@ -173,10 +183,7 @@ def _drifting(
         sel = order[lo:hi]
         if not out[sel[-1]] or (int(t) not in escaped and sel.size < MIN_DRIFT_POINTS):
             continue
-        half = sel.size // 2
-        growing = np.mean(np.diff(norm[sel[half:]]) > 0) >= DRIFT_MONOTONE if sel.size > 2 else False
-        further = norm[sel[-1]] >= DRIFT_GROWTH * max(float(norm[sel[:half]].max(initial=0.0)), 1e-300)
-        if int(t) in escaped or (growing and further):
+        if int(t) in escaped or escaping(norm[sel]):
             n += 1
             big = (max(big[0], float(np.abs(pts[sel, 0]).max())), max(big[1], float(np.abs(pts[sel, 1]).max())))
     return n, big

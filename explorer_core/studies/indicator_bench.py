@@ -94,7 +94,8 @@ def measure(
 ) -> dict[str, Any]:
     """The comparison as a JSON-able dict: ``sets -> {reference_s, reference_chaotic, reference_ok, indicators ->
     name -> {agree_at_longest, periods_median, periods_max, never, all_agree_at, seconds_at_that_rung, speedup,
-    rungs [(length, wrong, undecided)], disagree_at_longest}}``. ``tick(text)`` is called after each batch."""
+    rungs [(length, wrong, undecided)], disagree_at_longest}, seconds -> name -> [the batch's seconds per rung]}``
+    (the seconds per rung draw the speed tab's chart against time). ``tick(text)`` is called after each batch."""
     ladders = LADDERS if ladders is None else ladders
     report: dict[str, Any] = {"n": n, "reference_periods": reference, "lyap_tol": LYAP_TOL, "repeat": repeat,
                               "ladders": {k: list(v) for k, v in ladders.items()}, "sets": {}}  # fmt: skip
@@ -109,12 +110,13 @@ def measure(
             tick(f"indicators: {set_name} reference")
         ref = (ly.exponents[:, 0] * params.period > LYAP_TOL).astype(int)
         entry = {"reference_s": round(ref_s, 3), "reference_chaotic": int(ref.sum()), "reference_ok": int(ly.ok.sum()),
-                 "indicators": {}}  # fmt: skip
+                 "indicators": {}, "seconds": {}}  # fmt: skip
         for name, ladder in ladders.items():
             rungs = [verdicts(name, params, ics, k, repeat) for k in ladder]
             if tick is not None:
                 tick(f"indicators: {set_name} {name}")
             agree = np.array([v == ref for v, _, _ in rungs])  # (rungs, n)
+            entry["seconds"][name] = [round(t, 4) for _, _, t in rungs]
             # the first rung from which every longer rung agrees
             settled = np.array([np.all(agree[j:], axis=0) for j in range(len(ladder))])
             first = np.where(settled.any(axis=0), settled.argmax(axis=0), -1)
