@@ -747,6 +747,13 @@ def _staged_args(p: argparse.ArgumentParser, stages: str, quick: str) -> None:
     p.add_argument("--stages", metavar="LIST", help=f"subset of {stages}")
 
 
+def _reproduce_args(p: argparse.ArgumentParser) -> None:
+    _staged_args(p, "sections,lyapunov,drift,bifurcation,chart", "a few minutes")
+    p.add_argument("--chaos-test", metavar="NAME", help="how a trajectory is found chaotic: in the Lyapunov "
+                   "stage's search for an IC and the chart's early stop, as the chart's --chaos-test (default: "
+                   "the chart's)")  # fmt: skip
+
+
 def _staged_run(args: argparse.Namespace) -> tuple[str, str, tuple[str, ...] | None, Callable[[str, float], None]]:
     """Output folder (created), size, stages and a progress printer of ``reproduce`` / ``failures``."""
     stages = None if args.stages is None else tuple(s.strip() for s in args.stages.split(","))
@@ -769,7 +776,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     out, size, stages, progress = _staged_run(args)
     start = time.perf_counter()
     with _Run(args) as run:
-        rep = reproduce(size, stages=stages, progress=lambda u: u.detail and progress(*u.detail), cancel=run)
+        chosen = {} if args.chaos_test is None else {"chaos_test": args.chaos_test}  # checked by reproduce
+        rep = reproduce(size, stages=stages, progress=lambda u: u.detail and progress(*u.detail), cancel=run, **chosen)
     if run() or not rep.completed:  # stopped: no figures, and no wait for matplotlib's import (a second or more)
         from explorer_core.losses import Loss
 
@@ -985,8 +993,8 @@ COMMANDS: dict[str, Command] = {
     "serve": Command("run the web explorer (panel serve app/main.py)", _serve_args, cmd_serve, system=False,
                      numerics=False, flags=()),
     "reproduce": Command("every figure of the paper as PNG and the table of its numbers",
-                         lambda p: _staged_args(p, "sections,lyapunov,drift,bifurcation,chart", "a few minutes"),
-                         cmd_reproduce, ("dir",), "output directory (created)", system=False, numerics=False),
+                         _reproduce_args, cmd_reproduce, ("dir",), "output directory (created)", system=False,
+                         numerics=False),
     "bench": Command("work-precision benchmark: error vs time, ours against solve_ivp/numbalsoda", _bench_args,
                      cmd_bench, ("dir",), "writes bench.json/.csv/.md, work_precision.png, ...", system=False,
                      numerics=False),

@@ -44,3 +44,25 @@ def test_the_chaos_test_is_named_when_bad_and_recorded_in_the_json() -> None:
     rep = rp.Reproduction(rp.SIZES["tiny"], "lyapunov")
     assert json.loads(json.dumps(rep.summary()))["chaos_test"] == "lyapunov"
     assert rp.Reproduction(rp.SIZES["tiny"]).chaos_test == "sali"
+
+
+def test_the_command_line_passes_its_chaos_test_and_refuses_a_bad_one(monkeypatch, tmp_path, capsys) -> None:
+    from explorer_core import cli
+
+    asked: list[dict] = []
+
+    class Asked(Exception):
+        pass
+
+    def fake(size, **kw):
+        asked.append(kw)
+        raise Asked  # what reproduce received is all this test needs
+
+    monkeypatch.setattr(rp, "reproduce", fake)
+    base = ["reproduce", "--out", str(tmp_path / "r"), "--size", "tiny", "--stages", "lyapunov", "--quiet"]
+    cli.main([*base, "--chaos-test", "lyapunov"])
+    cli.main(base)
+    assert asked[0]["chaos_test"] == "lyapunov" and "chaos_test" not in asked[1]  # the default is reproduce's
+    monkeypatch.undo()
+    assert cli.main([*base, "--chaos-test", "bogus"]) == 2
+    assert "chaos_test must be one of sali, lyapunov, got 'bogus'" in capsys.readouterr().err
