@@ -408,6 +408,27 @@ def guard(cap: int, lifetime_s: float = 15.0) -> None:
     WSHandler._receive, WSHandler._handle, WSHandler._async_open = _receive, _handle, _async_open  # type: ignore
     PanelDocHandler.get = get_page  # type: ignore[method-assign]
     _short_server_logs()
+    quiet_client_leaving()
+
+
+class _ClientLeft(logging.Filter):
+    """asyncio's report of a write to a websocket that its tab had closed (Panel dispatches an update in a task
+    nobody awaits; the tab closed while it was on its way): a client leaving, not a fault of the server. The long
+    day logged two such tracebacks in an hour of 30 students (benchmarks/long_day.py)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        from tornado.iostream import StreamClosedError
+        from tornado.websocket import WebSocketClosedError
+
+        exc = record.exc_info[1] if record.exc_info else None
+        return not isinstance(exc, (WebSocketClosedError, StreamClosedError))
+
+
+def quiet_client_leaving() -> None:
+    """Drop asyncio's reports of writes to closed tabs (:class:`_ClientLeft`) from the server's log; once."""
+    log = logging.getLogger("asyncio")
+    if not any(isinstance(f, _ClientLeft) for f in log.filters):
+        log.addFilter(_ClientLeft())
 
 
 def _short_server_logs() -> None:

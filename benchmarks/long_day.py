@@ -113,7 +113,9 @@ class Student:
             tab.moved = value  # type: ignore[attr-defined]
             c = await tab.change("alpha", round(alpha + 0.001 * value, 3), 120)
             if c.full_s is None:
-                raise TimeoutError(f"a move of alpha to {c.value} got no full scene")
+                why = "its socket closed" if tab.closed else "in 120 s"
+                raise TimeoutError(f"a move of alpha to {c.value} got no full scene ({why}, at "
+                                   f"{time.strftime('%H:%M:%S')}: see the server log then)")  # fmt: skip
         elif what == "play":
             await self._play(tab, self.rng.uniform(5.0, 15.0))
         elif what == "tour":

@@ -187,3 +187,25 @@ def test_the_servers_websockets_send_each_frame_at_once() -> None:
         WSHandler.open = original  # type: ignore[method-assign]
     assert calls == ["nodelay True", "open"]
     assert "no_delay()" in Path(serve_mod.__file__).read_text().split("def main(")[1]
+
+
+def test_a_write_to_a_tab_that_closed_is_not_logged_as_an_error(caplog) -> None:
+    """asyncio logs a task's unretrieved WebSocketClosedError (Panel's update to a tab that had closed) as an error
+    with its traceback: the long day's server log had two such in an hour. A real error is still logged."""
+    import asyncio
+
+    from tornado.iostream import StreamClosedError
+    from tornado.websocket import WebSocketClosedError
+
+    from app.serve import quiet_client_leaving
+
+    quiet_client_leaving()
+    quiet_client_leaving()  # once: a second call adds no second filter
+    loop = asyncio.new_event_loop()
+    try:
+        for exc in (WebSocketClosedError(), StreamClosedError(), RuntimeError("a bug")):
+            loop.default_exception_handler({"message": "Task exception was never retrieved", "exception": exc})
+    finally:
+        loop.close()
+    logged = [r for r in caplog.records if r.name == "asyncio"]
+    assert [type(r.exc_info[1]) for r in logged] == [RuntimeError]
