@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from clirun import run_cli
 
 from explorer_core.analyses.bifurcation import bifurcation_diagram
 from explorer_core.analyses.continuation import continue_orbit
@@ -74,3 +75,20 @@ def test_the_fig10_neimark_sacker_point_in_g1_gives_birth_to_a_small_stable_curv
     assert abs(e - 0.5) < 0.1, e
     nf = ns.normal_form
     assert nf.criticality == "supercritical" and nf.coefficient < 0
+
+
+def test_the_command_line_says_which_switch_is_not_offered_at_fig11_s_resonances() -> None:
+    """``bilimovich continue --switch`` on Fig. 11's NS curve in ``(g1, I11)``: the R2 is switched at (the
+    period-2 orbit's NS curve), the R3 and R4 are not, and the printed report says so with the point's kind; the
+    points of the switched curve say that switching is not repeated."""
+    rc, out, _ = run_cli("continue", "--scene", "fig11", "--inertia", "1.6,2,4,0,0.5,0.3", "--param", "g1",
+                         "--range=1,4", "--from=-0.1744491259,-2.185453719", "--param2", "I11", "--range2=1,2",
+                         "--switch")  # fmt: skip
+    assert rc == 0
+    lines = out.splitlines()
+    said = {ln.split()[3]: ln for ln in lines if ln.startswith("no switching at ") and "period-1 orbit" in ln}
+    assert set(said) == {"R3", "R4"}, said
+    assert said["R3"].startswith("no switching at R3 (1:3 resonance) of the period-1 orbit at (g1, I11) = (1.8614")
+    assert "not offered" in said["R3"] and "init_R3_NS3m" in said["R3"] and "init_R4_NS4m" in said["R4"]
+    assert any(ln.startswith("R2 (1:2 resonance) of the period-2 orbit") for ln in lines)  # the switched curve's
+    assert any("switching is not repeated" in ln for ln in lines)
