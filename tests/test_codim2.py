@@ -247,3 +247,56 @@ def test_the_codimension_two_points_are_written_and_printed(tmp_path) -> None:
     assert lines[2].startswith(
         "R3 (1:3 resonance) of the period-1 orbit on the neimark sacker curve at (b, a) = (-1, 1.25) +- "
     )
+
+
+def test_a_switch_not_offered_is_said_with_the_point_s_kind() -> None:
+    """With ``switch``, every R1, R3, R4 (and CH) met says that no switching is offered there and why, and an R2
+    whose doubled orbit is beyond ``max_period`` says so: the report (what the command line prints) has each
+    once; without ``switch`` nothing is said."""
+    args = (Henon(a=1.0, b=-0.9), "b", (-0.9, -1.1), Henon.fixed_point(1.0, -0.9), 1)
+    res = continue_map(*args, param2="a", range2=(-2.0, 5.0), switch=True, max_period=1)
+    said = [m for m in res.messages if m.startswith("no switching at ")]
+    assert [m.split()[3] for m in said] == ["R1", "R4", "R3", "R2"]
+    assert said[2].startswith("no switching at R3 (1:3 resonance) of the period-1 orbit at (b, a) = (-1, 1.25")
+    assert "not offered" in said[0] and "init_R3_NS3m" in said[2] and "init_R4_NS4m" in said[1]
+    assert "period-2 orbit is beyond max_period = 1" in said[3]
+    assert [ln for ln in res.report() if ln.startswith("no switching")] == said
+    quiet = continue_map(*args, param2="a", range2=(-2.0, 5.0))
+    assert not [m for m in quiet.messages if m.startswith("no switching")]
+
+
+def test_the_points_of_a_curve_switched_onto_say_that_switching_is_not_repeated() -> None:
+    res = continue_map(Henon(b=0.3), "a", (0.2, 0.5), Henon.fixed_point(0.2, 0.3), 1, param2="b",
+                       range2=(-1.5, 0.6), window1=(-2.0, 5.0), switch=True, max_period=4)  # fmt: skip
+    (ns2,) = [cu for cu in res.curves if cu.origin is not None]
+    said = {m.split()[3]: m for m in res.messages if "switching is not repeated" in m}
+    assert set(said) == {p.kind for p in ns2.codim2} == {"R4", "R3", "R2"}
+    assert "of the period-2 orbit at (a, b) = (4.0000000" in said["R2"]
+
+
+def test_the_henon_cascade_s_r2_points_are_within_their_error_estimates_on_both_curves() -> None:
+    """The R2 of the period-1 .. 16 orbits (flip curves switched onto at R2, and the Neimark-Sacker curves that end
+    there) against the point solved independently in 40 digits (mpmath: ``P^n(x) = x``, ``tr DP^n = -2`` on
+    ``b = -1``, where ``det DP^n = b^n = 1``). Fails on the old estimate: the 8-cycle's R2 on its flip curve is
+    ``7.3e-9`` off, estimated ``3.7e-9`` (the corrector's untaken step moves ``tr A``, steep in ``a``), and the
+    16-cycle's ``1.2e-11`` off, estimated ``7e-12`` (the test function's own error, where it is flat)."""
+    import mpmath as mp
+
+    res = continue_map(Henon(b=0.3), "a", (0.2, 1.5), Henon.fixed_point(0.2, 0.3), 1, param2="b",
+                       range2=(-1.5, 0.6), window1=(-2.0, 5.0), switch=True)  # fmt: skip
+    r2 = [(cu.kind, c) for cu in res.curves for c in cu.codim2 if c.kind == "R2"]
+    assert {c.period for _, c in r2} >= {1, 2, 4, 8, 16} and {k for k, _ in r2} == {"period_doubling", "neimark_sacker"}
+    mp.mp.dps = 40
+
+    def g(x, y, a, n):
+        jac = mp.eye(2)
+        x0, y0 = x, y
+        for _ in range(n):
+            jac = mp.matrix([[-2 * a * x, 1], [-1, 0]]) * jac
+            x, y = 1 - a * x**2 + y, -x
+        return [x - x0, y - y0, jac[0, 0] + jac[1, 1] + 2]
+
+    for kind, c in r2:
+        x, y, a = mp.findroot(lambda x, y, a, n=c.period: g(x, y, a, n), (*map(mp.mpf, c.point), mp.mpf(c.values[0])))
+        err = max(abs(c.values[0] - float(a)), abs(c.values[1] + 1.0))
+        assert err <= c.error, (kind, c.period, c.values, float(a), err, c.error)

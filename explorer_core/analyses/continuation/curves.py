@@ -130,6 +130,17 @@ def _follow_curve(eng: _Engine, branch: ContinuationMap, name2: str, bif: Bifurc
 #: The curve switched onto at a codimension-two point (MatContM's ``init_R2_NS2m``, ``init_LPPD_NS2m``,
 #: ``init_GPD_LP2m``): the Neimark-Sacker curve of the doubled orbit at R2 and LPPD, its fold curve at GPD.
 SWITCHES = {"R2": "neimark_sacker", "LPPD": "neimark_sacker", "GPD": "fold"}
+#: The switchings MatContM offers that this package does not, and why: said in ``messages`` (with ``switch``)
+#: for every such point met, so that asking for a switch is never answered by silence.
+NOT_OFFERED = {
+    "R1": "the Neimark-Sacker curve of the same orbit that MatContM switches onto (init_R1_NSm) is reached from "
+          "its Neimark-Sacker points on the branches instead",
+    "R3": "the period-3n orbit's Neimark-Sacker curve (MatContM's init_R3_NS3m) is not switched onto",
+    "R4": "the period-4n orbit's fold and Neimark-Sacker curves (MatContM's init_R4_LP4m, init_R4_NS4m) are "
+          "not switched onto",
+    "CH": "the curve of folds of invariant curves (MatContM's init_CH_LPCm) needs invariant curves, which this "
+          "package does not compute",
+}  # fmt: skip
 #: Switching looks for the doubled orbit's bifurcation on lines this far (a fraction of the box) from the point ...
 SWITCH_OFFSET = 1e-3
 #: ... along this much of them (a fraction of the box) from the flip curve.

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core.analyses.continuation.curves import SWITCHES, _follow_curve, _switch_codim2
+from explorer_core.analyses.continuation.curves import NOT_OFFERED, SWITCHES, _follow_curve, _switch_codim2
 from explorer_core.analyses.continuation.engine import _Engine, _Point
 from explorer_core.analyses.continuation.events import _crossed, _located
 from explorer_core.analyses.continuation.options import (
@@ -35,7 +35,14 @@ from explorer_core.analyses.continuation.options import (
     seeds_spec,
 )
 from explorer_core.analyses.continuation.problems import _BranchProblem
-from explorer_core.analyses.continuation.results import Boundaries, Branch, Continuation, Curve
+from explorer_core.analyses.continuation.results import (
+    CODIM2_NAMES,
+    Boundaries,
+    Branch,
+    Codim2Point,
+    Continuation,
+    Curve,
+)
 from explorer_core.analyses.continuation.switching import _birth, _switch
 from explorer_core.analyses.continuation.system import ContinuationMap, _Stop, _System
 from explorer_core.analyses.orbits import find_orbits, minimal_period, newton
@@ -183,7 +190,13 @@ class _OrbitRun:
         res, spec, lost = self.result, self.spec, []
         sys2 = self.sys.over([spec.param, res.param2])
         for c in curve.codim2:
-            if c.kind not in SWITCHES or 2 * c.period > spec.max_period or self.stop():
+            if self.stop():
+                continue
+            if c.kind in NOT_OFFERED:
+                self._no_switch(c, f"not offered: {NOT_OFFERED[c.kind]}")
+            elif c.kind in SWITCHES and 2 * c.period > spec.max_period:
+                self._no_switch(c, f"the period-{2 * c.period} orbit is beyond max_period = {spec.max_period}")
+            if c.kind not in SWITCHES or 2 * c.period > spec.max_period:
                 continue
             near = 1e-6 * (1.0 + max(abs(v) for v in c.values))
             if any(o.origin is not None and o.origin.kind == c.kind and o.origin.period == c.period
@@ -194,7 +207,19 @@ class _OrbitRun:
             if new is not None:
                 res.curves.append(new)
                 lost += losses
+                for c2 in new.codim2:  # switching is not repeated from a curve switched onto
+                    if c2.kind in SWITCHES or c2.kind in NOT_OFFERED:
+                        self._no_switch(c2, "it lies on a curve switched onto (switching is not repeated)")
         return lost
+
+    def _no_switch(self, c: Codim2Point, why: str) -> None:
+        """Say in ``messages`` (once) why the curves that emanate from ``c`` are not followed: a switch asked for
+        is never answered by silence."""
+        res = self.result
+        say = (f"no switching at {c.kind} ({CODIM2_NAMES[c.kind]}) of the period-{c.period} orbit at "
+               f"({res.param}, {res.param2}) = ({c.values[0]:.12g}, {c.values[1]:.12g}): {why}")  # fmt: skip
+        if say not in res.messages:
+            res.messages.append(say)
 
     def _judge(self, prob: _BranchProblem, br: Branch, k: int, pt: _Point, new: _Point) -> tuple[float, str | None]:
         """The driver's word on ``new``, a point the engine accepted on branch ``k`` after ``pt``: it records the
