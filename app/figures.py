@@ -30,6 +30,7 @@ from app import holo
 from app.analyses import BifurcationTab, ChartTab, LyapunovTab
 from app.controls import SYSTEM_FIELDS
 from app.layers.base import Download, named
+from app.words import counted
 from explorer_core.scenes import get_scene
 from explorer_core.system.params import ParameterError
 
@@ -133,11 +134,11 @@ def section_picture(session: ExplorerSession, data: tuple[np.ndarray, ...] | Non
     orbits = getattr(session.layers.get("orbits"), "orbits", [])
     if orbits:
         layers.append(holo.draw_orbits(orbits))
-    head = f"Poincaré section: {traj.size} points of {n} trajectories"
+    head = f"Poincaré section: {counted(traj.size, 'point')} of {counted(n, 'trajectory')}"
     if stopped:
         head += f" (stopped after {done} of {total} periods)"
     if orbits:
-        head += f", {len(orbits)} periodic orbit{'s' if len(orbits) > 1 else ''}"
+        head += f", {counted(len(orbits), 'periodic orbit')}"
     obj = hv.Overlay([el for layer in layers for el in _elements(layer)]).opts(
         title=head, xlim=tuple(session.state.q_range), ylim=tuple(session.state.r_range))  # fmt: skip
     return obj, stopped

@@ -44,6 +44,7 @@ from app.views import (
     equilibrium_label,
     orbit_label,
 )
+from app.words import counted
 from explorer_core import drawing
 from explorer_core.analyses.basins import Basins
 from explorer_core.analyses.bifurcation import OrbitDiagram
@@ -143,7 +144,7 @@ def draw_section(s: Section, *, max_points: int = MAX_POINTS, **opts: Any) -> hv
     elem, note = _many(pts, traj.size, stride, "points")
     lost = [f"{n} {lab}" for lab, n in zip(*np.unique(s.status_labels(), return_counts=True), strict=True)
             if lab != "ok"]  # fmt: skip
-    title = f"Poincaré section: {traj.size} points of {s.n} trajectories{note}"
+    title = f"Poincaré section: {counted(traj.size, 'point')} of {counted(s.n, 'trajectory')}{note}"
     if lost:
         title += f"; {', '.join(lost)}"
     if not s.completed:
@@ -350,9 +351,9 @@ def draw_orbit(o: Orbit, **opts: Any) -> hv.Overlay:
 
 def draw_orbit_search(s: OrbitSearch, **opts: Any) -> hv.Overlay:
     """The orbits found (the seeds that found none are counted in the title)."""
-    title = f"{len(s.orbits)} periodic orbits of the map from {s.seeds} seeds"
+    title = f"{counted(len(s.orbits), 'periodic orbit')} of the map from {counted(s.seeds, 'seed')}"
     if s.failures:
-        title += f"; {len(s.failures)} seeds found none"
+        title += f"; {counted(len(s.failures), 'seed')} found none"
     return _finish(draw_orbits(s.orbits, title), opts)
 
 

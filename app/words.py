@@ -66,3 +66,14 @@ def page_words(message: str) -> str:
 
 
 __all__ = ["REWRITES", "page_words"]
+
+
+def counted(n: int, noun: str, grouped: bool = False) -> str:
+    """``n`` and the noun in the number it takes: "1 trajectory", "2 trajectories", "0 branches" (English plurals of
+    the page's nouns: -y after a consonant -> -ies; -s, -x, -ch, -sh -> -es; else -s); ``grouped``: 1,234."""
+    number = f"{n:,}" if grouped else str(n)
+    if n == 1:
+        return f"{number} {noun}"
+    if noun.endswith("y") and noun[-2:-1] not in "aeiou":
+        return f"{number} {noun[:-1]}ies"
+    return f"{number} {noun}{'es' if noun.endswith(('s', 'x', 'ch', 'sh')) else 's'}"

@@ -191,3 +191,12 @@ def test_a_value_that_leaves_nothing_to_compute_is_refused_with_the_reason(name:
     assert problem is not None and getattr(state, name) == before
     assert "leaves the model nothing to compute" in problem or "must" in problem, problem
     assert commit(state, "alpha", "0.2") is None and commit(state, "alpha", "1000") is None  # slow, but it runs
+
+
+def test_counts_take_the_number_of_their_noun() -> None:
+    from app.words import counted
+
+    assert [counted(n, "trajectory") for n in (0, 1, 2)] == ["0 trajectories", "1 trajectory", "2 trajectories"]
+    assert counted(1, "periodic orbit") == "1 periodic orbit" and counted(3, "periodic orbit") == "3 periodic orbits"
+    assert counted(2, "branch") == "2 branches" and counted(2, "Newton search") == "2 Newton searches"
+    assert counted(2, "day") == "2 days" and counted(12345, "point", grouped=True) == "12,345 points"

@@ -13,6 +13,7 @@ import param
 from app.controls import MAX_MAGNITUDE, SYSTEM_FIELDS, Control, UrlKey, choice, ints, places, points_text
 from app.layers.base import KEEP, Action, Layer, Table, loss_lines
 from app.runner import LAYER, POINTS
+from app.words import counted
 from explorer_core.analyses.orbits import (
     ORBIT_NUMERICS,
     Orbit,
@@ -214,11 +215,11 @@ class OrbitsLayer(Layer):
 
     def prepare(self, inputs: OrbitInputs) -> OrbitInputs:
         if not inputs.where and inputs.follow:  # a played parameter's frame: the orbits shown, continued
-            self.text = (f"following {len(inputs.follow)} periodic orbits to this frame"
-                         + (f" and searching from {len(inputs.seeds)} points…" if inputs.seeds else "…"))  # fmt: skip
+            searching = f" and searching from {counted(len(inputs.seeds), 'point')}…" if inputs.seeds else "…"
+            self.text = f"following {counted(len(inputs.follow), 'periodic orbit')} to this frame{searching}"
         elif not inputs.where:
-            self.text = (f"finding periodic orbits (periods 1..{max(inputs.periods)}) from {len(inputs.seeds)} "
-                         "starting points…")  # fmt: skip
+            self.text = (f"finding periodic orbits (periods 1..{max(inputs.periods)}) from "
+                         f"{counted(len(inputs.seeds), 'starting point')}…")  # fmt: skip
         return inputs
 
     @staticmethod
@@ -317,13 +318,15 @@ class OrbitsLayer(Layer):
             if inputs.follow:
                 # Played: a frame; paused or stepped: a still (the orbits shown, followed to it).
                 to = "this frame" if getattr(self.host, "frame_periods", None) is not None else "this still"
-                self.text = (f"{len(self.orbits)} periodic orbits followed to {to} ({tries} Newton searches, "
+                self.text = (f"{counted(len(self.orbits), 'periodic orbit')} followed to {to} "
+                             f"({counted(tries, 'Newton search')}, "
                              f"one per orbit followed at its own period; {len(res.failures)} found none; "
                              f"{res.elapsed_s:.2f} s)")  # fmt: skip
             else:
-                self.text = (f"{len(self.orbits)} periodic orbits of period 1..{max(periods)} from {res.seeds} "
-                             f"starting points ({len(res.failures)} of the {tries} Newton searches, one per "
-                             f"starting point and period, found none; {res.elapsed_s:.2f} s)")  # fmt: skip
+                self.text = (f"{counted(len(self.orbits), 'periodic orbit')} of period 1..{max(periods)} from "
+                             f"{counted(res.seeds, 'starting point')} ({len(res.failures)} of the {tries} "
+                             "Newton searches, one per starting point and period, found none; "
+                             f"{res.elapsed_s:.2f} s)")  # fmt: skip
 
     def clear(self) -> None:
         self.orbits, self.lost = [], []
@@ -356,9 +359,9 @@ class OrbitsLayer(Layer):
             return
         note = self.stale(self.shown_query, now, self.depends) if self.orbits else ""
         if note:
-            self.text = f"stopped: the {len(self.orbits)} periodic orbits shown are for {note}"
+            self.text = f"stopped: the {counted(len(self.orbits), 'periodic orbit')} shown are for {note}"
         elif busy:
-            self.text = f"stopped: {len(self.orbits)} periodic orbits shown (the search did not end)"
+            self.text = f"stopped: {counted(len(self.orbits), 'periodic orbit')} shown (the search did not end)"
             self.lost = [Loss("orbit search", 1, "not computed: the search was stopped before its end (orbits it "
                               "would have found are not here)")]  # fmt: skip
 

@@ -22,6 +22,7 @@ from app.layers.density import DensityImage
 from app.layers.stream import MAX_CHUNK, Cadence
 from app.runner import LAYER, POINTS, Emit
 from app.state import NO_SELECTION, SYSTEM_FIELDS, SectionRequest, key_words, url_keys
+from app.words import counted
 from explorer_core.analyses.reliability import assess
 from explorer_core.losses import Loss
 from explorer_core.solve.integrators import Status
@@ -274,14 +275,14 @@ class SectionLayer(Layer):
         if running:
             self.elapsed = time.perf_counter() - self.t_start
         n_traj = self.n_traj if n_points else self.run_n  # nothing on screen yet: the run's count
-        parts = [f"{n_points:,} points", f"{n_traj} trajectories", f"{self.elapsed:.2f} s"]
+        parts = [counted(n_points, "point", grouped=True), counted(n_traj, "trajectory"), f"{self.elapsed:.2f} s"]
         counts = self.density.counts
         if counts is not None:
             n_traj = self.n_traj or self.run_n
             n_drawn = sum(int(np.count_nonzero(c[0] >= self.density.first_clicked)) for c in self.chunks)
             drawn = f" ({n_drawn:,} of them drawn as points: the clicked trajectories)" if n_drawn else ""
             parts = [f"{counts[0]:,} points as a density image, {counts[1]:,} in view{drawn}",
-                     f"{n_traj} trajectories", f"{self.elapsed:.2f} s"]  # fmt: skip
+                     counted(n_traj, "trajectory"), f"{self.elapsed:.2f} s"]  # fmt: skip
         if running:
             done, total = self.progress or (None, None)
             if done == 0 and self.run_transient:
