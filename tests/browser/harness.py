@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -197,7 +198,7 @@ def wait_finished(page, timeout: float = 60.0) -> str:
     deadline = time.time() + timeout
     while time.time() < deadline:
         status = text(page, ".status-line")
-        if "trajectories" in status and not status.startswith("computing"):
+        if re.search(r"\b1 trajectory\b|trajectories", status) and not status.startswith("computing"):
             return status
         time.sleep(0.1)
     raise TimeoutError(f"run did not finish; status {status!r}{log_tail()}")
