@@ -178,6 +178,9 @@ def test_heyoka_is_a_peer_single_and_batch(tmp_path) -> None:
             assert single.error < 100 * single.tol and batch.error == pytest.approx(single.error, rel=1e-3, abs=1e-13)
     assert "heyoka taylor / ours dop853" in res.ratios
     assert "heyoka: available" in res.markdown()
+    # Each peer's field is printed: the closed form for fig1C's diagonal tensor, the general one for fig8B's.
+    assert "regular, heyoka: q' = " in res.markdown() and "  heyoka's field: q' = " in res.headline()
+    assert "/" not in res.cases["regular"].peer_fields["heyoka"].split("r' = ")[1]
 
 
 def test_heyoka_table_has_the_issue_columns_and_an_independent_reference() -> None:

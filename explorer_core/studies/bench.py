@@ -994,6 +994,8 @@ class BenchResult:
         out = []
         for c in self.cases.values():
             out.append(f"{c.name}: horizon {c.horizon}/{c.k_max} periods, reference bound {c.reference_bound:.1e}")
+            peers = {p.split(":")[0] for p in self.config.peers}
+            out += [f"  {peer}'s field: {text}" for peer, text in c.peer_fields.items() if peer in peers]
         tgt = self.throughput.get("target", {})
         if tgt.get("wall_s") is not None:
             out.append(f"target: {tgt['what']}: {tgt['wall_s']:.3f} s at tol {tgt['tol']:g} "
