@@ -17,9 +17,9 @@ like e^(0.52 k) after k periods, so the error is measured over the first ``--hor
 measured at tol >= 1e-13); the line "floor" gives heyoka at 1e-15 against 1e-16 over the same horizon, the
 smallest error the reference can tell apart.
 
-Printed per method and tolerance: steps per period, right-hand-side evaluations per period (RK: stages + FSAL;
-Taylor: order), the error, and the time per core relative to heyoka's batch x8 on one thread, both run on one
-thread in the same process, interleaved, median of ``repeat``.
+Printed per method and tolerance: steps per period, right-hand-side evaluations per period (RK: stages x steps;
+heyoka and Taylor: order x steps, one Taylor coefficient per order), the error, and the time per core relative to
+heyoka's batch x8 on one thread, both run on one thread in the same process, interleaved, median of ``repeat``.
 
 Each peer is given the simplest field for the scene, the form its user would write (``bench.peer_fields``, the
 one definition that ``bilimovich bench`` and the app's speed tab use too), and the fields are printed first.
@@ -65,6 +65,20 @@ def print_fields(model: Model) -> None:
 def heyoka_points(model: Model, ics: np.ndarray, periods: int, tol: float, tables: bool = False) -> np.ndarray:
     """Section points (n, periods, 2) of heyoka's batch mode on the peers' field (``tables``: the general one)."""
     return np.array(bench._peer_heyoka(model, ics, periods, "batch", tol, tables)[0])
+
+
+def heyoka_steps(model: Model, ics: np.ndarray, periods: int, tol: float) -> tuple[float, int]:
+    """heyoka's steps per period per IC (its scalar integrator on the peers' field: the steps a member of its batch
+    takes) and its Taylor order; run outside the timings."""
+    p = model.params
+    ta = bench._heyoka_integrator(p, float(tol), 0)
+    grid = p.t0 + p.period * np.arange(periods + 1)
+    steps = 0
+    for ic in ics:
+        ta.time = p.t0
+        ta.state[:] = ic
+        steps += ta.propagate_grid(grid)[3]
+    return steps / ics.shape[0] / periods, int(ta.order)
 
 
 def ours(model: Model, ics: np.ndarray, periods: int, method: str, tol: float, block: int) -> tuple[np.ndarray, float]:
@@ -143,9 +157,11 @@ def main() -> None:
                 res[k] = runs[k]()
                 times[k].append(time.perf_counter() - t0)
         best = {k: statistics.median(v) for k, v in times.items()}
+        hy_spp, hy_order = heyoka_steps(model, ics, a.periods, tol)
+        res["heyoka"] = (res["heyoka"][0], hy_spp)
         for k, (pts, spp) in res.items():
             evals = (
-                ""
+                f"{spp * hy_order:.0f} (order {hy_order})"
                 if k == "heyoka"
                 else (
                     f"{spp * taylor_order(tol):.0f} (order {taylor_order(tol)})"
