@@ -20,6 +20,13 @@ Printed:
 4. Per-member cost against the lock-step block size (vern9 at ``--tol``): members of a block share one step
    sequence, so a bigger block pays the coefficients less often per member but takes the smallest step any
    member needs.
+
+``--command N`` instead times the issue's section as the user types it (``bilimovich section --inertia
+1,4,2,0,0,0 --alpha 0.1 --random 200 --seed 1 --box=-1,1,-1,1 --periods 1000 --method auto --rtol TOL --json``)
+as a whole process, N times after one untimed run (the warm worker started, if it is on), beside the same
+command for one period (the fixed cost: start-up, spec, worker round trip, output), ``import explorer_core.cli``
+alone, and heyoka's batch x8 on one thread in this process on the same 200 ICs x 1000 periods at the same
+tolerance (compiled outside the timing): medians, and our wall x cores over heyoka's time.
 """
 
 from __future__ import annotations
@@ -27,11 +34,14 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import subprocess
+import sys
 import time
 
 import numpy as np
 from high_accuracy import STAGES, attractor_ics, heyoka_points, heyoka_steps
 
+from explorer_core import config
 from explorer_core.scenes import get_scene
 from explorer_core.solve.integrators import Batch, advance
 from explorer_core.solve.numerics import random_ics
@@ -62,6 +72,47 @@ def timed(runs: dict, repeat: int) -> dict[str, float]:
     return {k: statistics.median(v) for k, v in times.items()}
 
 
+SECTION = ["section", "--inertia", "1,4,2,0,0,0", "--alpha", "0.1", "--random", "200", "--seed", "1",
+           "--box=-1,1,-1,1", "--method", "auto", "--json"]  # fmt: skip
+
+
+def whole_command(runs: int, tol: float) -> None:
+    """The section as typed, whole process, against heyoka on the same work (see the module docstring)."""
+
+    def wall(cmd: list[str]) -> float:
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        return time.perf_counter() - t0
+
+    cli = [sys.executable, "-m", "explorer_core.cli"]
+    cmds = {"section 200 ICs x 1000 periods": [*cli, *SECTION, "--periods", "1000", "--rtol", f"{tol:g}"],
+            "section 200 ICs x 1 period": [*cli, *SECTION, "--periods", "1", "--rtol", f"{tol:g}"],
+            "import explorer_core.cli": [sys.executable, "-c", "import explorer_core.cli"]}  # fmt: skip
+    model = Model(Params(inertia=(1.0, 4.0, 2.0, 0.0, 0.0, 0.0), alpha=0.1))
+    ics = random_ics(200, (-1.0, 1.0, -1.0, 1.0), seed=1)
+    heyoka_points(model, ics[:8], 1, tol)  # compiled outside the timing
+    times: dict[str, list[float]] = {k: [] for k in [*cmds, "heyoka batch x8, 1 thread"]}
+    for cmd in cmds.values():
+        wall(cmd)  # untimed: the kernels' cache, the warm worker
+    for _ in range(runs):
+        for name, cmd in cmds.items():
+            times[name].append(wall(cmd))
+        t0 = time.perf_counter()
+        heyoka_points(model, ics, 1000, tol)
+        times["heyoka batch x8, 1 thread"].append(time.perf_counter() - t0)
+    med = {k: statistics.median(v) for k, v in times.items()}
+    print(
+        f"whole command at tol {tol:g}, {runs} runs, medians; {config.N_WORKERS} cores; load {os.getloadavg()[0]:.2f}"
+    )
+    for k, v in med.items():
+        print(f"  {k}: {v:.3f} s (runs {', '.join(f'{x:.3f}' for x in times[k])})")
+    ours, fixed, hy = (med[k] for k in ("section 200 ICs x 1000 periods", "section 200 ICs x 1 period",
+                                        "heyoka batch x8, 1 thread"))  # fmt: skip
+    cores = config.N_WORKERS
+    print(f"  ours wall x {cores} cores / heyoka: {ours * cores / hy:.2f}; without the one-period command's fixed "
+          f"cost: {(ours - fixed) * cores / hy:.2f}")  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--case", choices=("regular", "attractor"), default="regular")
@@ -70,9 +121,13 @@ def main() -> None:
     ap.add_argument("--tol", type=float, default=1e-12)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--blocks", default="1,4,8,16,32,64")
+    ap.add_argument("--command", type=int, default=0, help="time the section command as typed this many times")
     a = ap.parse_args()
     if bench.heyoka_status()[0] is None:
         raise SystemExit(f"heyoka not available: {bench.heyoka_status()[1]}")
+    if a.command:
+        whole_command(a.command, a.tol)
+        return
     if a.case == "regular":
         model = Model(Params(inertia=(1.0, 4.0, 2.0, 0.0, 0.0, 0.0), alpha=0.1))
         ics = random_ics(a.ics, (-1.0, 1.0, -1.0, 1.0), seed=0)
