@@ -1566,7 +1566,8 @@ def heyoka_table(
         "available": True,
         "what": f"{cfg.table_ics} random ICs in [-1, 1]^2 x {periods} periods, tensor diag(1, 4, 2), alpha 0.1, "
         f"g = cos t; error = per IC the largest distance from heyoka at tol {TABLE_REF_TOL:g} (median, max over "
-        f"ICs); ours on {workers} workers (default block kernel), heyoka batch x{HEYOKA_BATCH} on one thread; "
+        f"ICs); ours on {workers} workers (default block kernel), heyoka batch x{HEYOKA_BATCH} on one thread on "
+        f"the peers' field ({peer_fields(params).get('heyoka', '')}); "
         "ratio per core = ours wall x workers / heyoka wall; ratio 1 thread = ours on one worker / heyoka; "
         'fastest of interleaved rounds. The default method ("auto") is vern9 at rtol '
         f"{config.VERN9_MIN_RTOL:g}..{config.VERN9_MAX_RTOL:g} and dop853 elsewhere",
