@@ -17,22 +17,23 @@ like e^(0.52 k) after k periods, so the error is measured over the first ``--hor
 measured at tol >= 1e-13); the line "floor" gives heyoka at 1e-15 against 1e-16 over the same horizon, the
 smallest error the reference can tell apart.
 
-Printed per method and tolerance: steps per period, right-hand-side evaluations per period (RK: stages + FSAL;
-Taylor: order), the error, and the time per core relative to heyoka's batch x8 on one thread, both run on one
-thread in the same process, interleaved, median of ``repeat``.
+Printed per method and tolerance: steps per period, right-hand-side evaluations per period (RK: stages x steps;
+heyoka and Taylor: order x steps, one Taylor coefficient per order), the error, and the time per core relative to
+heyoka's batch x8 on one thread, both run on one thread in the same process, interleaved, median of ``repeat``.
 
-Each peer is given the simplest field for the scene, the form its user would write, and the fields are printed
-first. heyoka: for a diagonal tensor (the regular case) the paper's closed form, ``R = (A - B)(g q + alpha) q / C``
-with no denominator (:func:`simple_system`; it agrees with the model's general field, checked at tol 1e-16 before
-the timings); otherwise the model's general field (``bench._heyoka_system``). Ours: the scene's own form, read off
-the model's tables (:func:`~explorer_core.system.model.field_form`). heyoka compiles each integrator once, outside
-the timings (a warm-up run of every peer precedes them).
+Each peer is given the simplest field for the scene, the form its user would write (``bench.peer_fields``, the
+one definition that ``bilimovich bench`` and the app's speed tab use too), and the fields are printed first.
+heyoka: for a diagonal tensor (the regular case) the paper's closed form, ``R = (A - B)(g q + alpha) q / C`` with
+no denominator (``bench._heyoka_diagonal``; on the regular case its trajectories are checked against heyoka on the
+model's general tables at tol 1e-16 before the timings); otherwise the model's general field
+(``bench._heyoka_tables``). Ours: the scene's own form, read off the model's tables
+(:func:`~explorer_core.system.model.field_form`). heyoka compiles each integrator once, outside the timings (a
+warm-up run of every peer precedes them).
 """
 
 from __future__ import annotations
 
 import argparse
-import functools
 import os
 import statistics
 import time
@@ -50,70 +51,34 @@ from explorer_core.system.params import Params
 STAGES = {"dp5": 6, "dop853": 12, "vern9": 16}
 
 
-def _sum(terms: list) -> object:
-    """A sum of heyoka expressions (None when there is none)."""
-    return functools.reduce(lambda a, b: a + b, terms) if terms else None
-
-
-def simple_system(hy: object, p: Params) -> list[tuple[object, object]]:
-    """The field a heyoka user writes for a diagonal tensor ``diag(A, B, C)`` (PHYSICS.md):
-    ``q' = -[alpha (A - C) r + g (A - B) q r + A g g' q] / (g^2 A + B)``, ``r' = (A - B)(g q + alpha) q / C``, with
-    ``g = g0 + g1 cos(omega t) + g2 sin(omega t)``; zero terms and unit factors left out, as a user would."""
-    a, b, c = (float(v) for v in p.inertia[:3])
-    q, r = hy.make_vars("q", "r")
-    w = float(p.omega)
-    wt = hy.time if w == 1.0 else w * hy.time
-    cw, sw = hy.cos(wt), hy.sin(wt)
-
-    def lin(*pairs: tuple[float, object]) -> object:
-        return _sum([e if k == 1.0 else (-e if k == -1.0 else k * e) for k, e in pairs if k != 0.0])
-
-    g = lin((p.g1, cw), (p.g2, sw))
-    g = g if p.g0 == 0.0 else (p.g0 if g is None else g + p.g0)
-    gp = lin((w * p.g2, cw), (-w * p.g1, sw))
-    al = float(p.alpha)
-    num = _sum([t for t in ((al * (a - c)) * r if al * (a - c) != 0.0 else None, (a - b) * g * q * r,
-                            (a * g * gp) * q if gp is not None else None) if t is not None])  # fmt: skip
-    qdot = -num / (a * g * g + b)
-    rdot = ((a - b) / c) * ((g * q + al) if al != 0.0 else g * q) * q
-    return [(q, qdot), (r, rdot)]
-
-
-@functools.lru_cache(maxsize=32)
-def _simple_integrator(p: Params, tol: float) -> object:
-    """heyoka's batch integrator (``bench.HEYOKA_BATCH`` wide) on :func:`simple_system`, compiled once."""
-    hy, _ = bench.heyoka_status()
-    return hy.taylor_adaptive_batch(simple_system(hy, p), np.zeros((2, bench.HEYOKA_BATCH)), tol=tol)
-
-
-def heyoka_simple(p: Params, ics: np.ndarray, periods: int, tol: float) -> np.ndarray:
-    """Section points (n, periods, 2) of heyoka's batch mode on :func:`simple_system`, one thread; ``ics`` fill
-    whole batches (a multiple of ``bench.HEYOKA_BATCH``)."""
-    tb = _simple_integrator(p, float(tol))
-    nb_ = bench.HEYOKA_BATCH
-    if ics.shape[0] % nb_:
-        raise SystemExit(f"--ics must be a multiple of {nb_} for heyoka's batches")
-    grid = np.ascontiguousarray(np.repeat((p.t0 + p.period * np.arange(periods + 1))[:, None], nb_, axis=1))
-    out = []
-    for b0 in range(0, ics.shape[0], nb_):
-        tb.set_time(np.full(nb_, p.t0))
-        tb.state[:] = ics[b0 : b0 + nb_].T
-        _, states = tb.propagate_grid(grid)
-        out.append(np.moveaxis(states[1:], 2, 0))
-    return np.concatenate(out)
-
-
-def print_fields(model: Model, simple: bool) -> None:
-    """Each peer's field, as it is given to it."""
-    hy, _ = bench.heyoka_status()
-    sys_ = simple_system(hy, model.params) if simple else bench._heyoka_system(hy, model)
+def print_fields(model: Model) -> None:
+    """Each peer's field, as it is given to it (``bench.peer_fields``: the one definition), and ours."""
     print("fields:")
-    for name, (_, rhs) in zip(("q'", "r'"), sys_, strict=True):
-        print(f"  heyoka {name} = {rhs}")
+    for peer, text in bench.peer_fields(model.params).items():
+        print(f"  {peer}: {text}")
     form = field_form(model.num, model.gpc)
     for row, name in enumerate(("Q", "R")):
         kept = [MONOMIALS[m] for m in range(6) if (FORM_MASKS[form][row] >> m) & 1]
-        print(f"  ours   {name} = sum of c_m(g, g') m over m in {{{', '.join(kept)}}} (the tables' form {form})")
+        print(f"  ours {name} = sum of c_m(g, g') m over m in {{{', '.join(kept)}}} (the tables' form {form})")
+
+
+def heyoka_points(model: Model, ics: np.ndarray, periods: int, tol: float, tables: bool = False) -> np.ndarray:
+    """Section points (n, periods, 2) of heyoka's batch mode on the peers' field (``tables``: the general one)."""
+    return np.array(bench._peer_heyoka(model, ics, periods, "batch", tol, tables)[0])
+
+
+def heyoka_steps(model: Model, ics: np.ndarray, periods: int, tol: float) -> tuple[float, int]:
+    """heyoka's steps per period per IC (its scalar integrator on the peers' field: the steps a member of its batch
+    takes) and its Taylor order; run outside the timings."""
+    p = model.params
+    ta = bench._heyoka_integrator(p, float(tol), 0)
+    grid = p.t0 + p.period * np.arange(periods + 1)
+    steps = 0
+    for ic in ics:
+        ta.time = p.t0
+        ta.state[:] = ic
+        steps += ta.propagate_grid(grid)[3]
+    return steps / ics.shape[0] / periods, int(ta.order)
 
 
 def ours(model: Model, ics: np.ndarray, periods: int, method: str, tol: float, block: int) -> tuple[np.ndarray, float]:
@@ -158,12 +123,11 @@ def main() -> None:
         model = Model(scene.params)
         ics = attractor_ics(model, a.ics, scene.box)
         horizon = min(a.horizon, a.periods)
-    simple = a.case == "regular" and not any(model.params.inertia[3:])
-    print_fields(model, simple)
-    ref = np.array(bench._peer_heyoka(model, ics, horizon, "batch", 1e-16)[0])
-    if simple:
-        # heyoka's simple field against its general one, both at 1e-16: the same trajectories to ~rounding
-        dev = np.max(np.abs(heyoka_simple(model.params, ics, horizon, 1e-16) - ref) / np.max(np.abs(ref)))
+    print_fields(model)
+    ref = heyoka_points(model, ics, horizon, 1e-16)
+    if bench.is_diagonal(model.params):
+        # heyoka's closed form against the general tables, both at 1e-16: the same trajectories to ~rounding
+        dev = np.max(np.abs(heyoka_points(model, ics, horizon, 1e-16, tables=True) - ref) / np.max(np.abs(ref)))
         print(f"heyoka's simple field vs the general one at tol 1e-16: largest relative difference {dev:.1e}")
 
     def err(pts: np.ndarray) -> float:
@@ -171,13 +135,8 @@ def main() -> None:
         return float(np.median(np.max(np.linalg.norm(dev, axis=2), axis=1)))
 
     if a.case == "attractor":
-        floor = err(np.array(bench._peer_heyoka(model, ics, horizon, "batch", 1e-15)[0]))
+        floor = err(heyoka_points(model, ics, horizon, 1e-15))
         print(f"attractor of fig8B, error over the first {horizon} periods; floor (heyoka 1e-15 vs 1e-16) {floor:.1e}")
-
-    def heyoka_points(tol: float) -> np.ndarray:
-        if simple:
-            return heyoka_simple(model.params, ics, a.periods, tol)
-        return np.array(bench._peer_heyoka(model, ics, a.periods, "batch", tol)[0])
 
     print(f"{a.ics} ICs x {a.periods} periods, one thread each, median of {a.repeat} interleaved runs;",
           f"load {os.getloadavg()}")  # fmt: skip
@@ -185,7 +144,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|")
     curves: dict[str, list[tuple[float, float]]] = {}
     for tol in (float(x) for x in a.tols.split(",")):
-        runs = {"heyoka": lambda tol=tol: (heyoka_points(tol), 0.0)}
+        runs = {"heyoka": lambda tol=tol: (heyoka_points(model, ics, a.periods, tol), 0.0)}
         for m in a.methods.split(","):
             runs[m] = lambda m=m, tol=tol: ours(model, ics, a.periods, m, tol, a.block)
         for f in runs.values():  # compile / warm
@@ -198,9 +157,11 @@ def main() -> None:
                 res[k] = runs[k]()
                 times[k].append(time.perf_counter() - t0)
         best = {k: statistics.median(v) for k, v in times.items()}
+        hy_spp, hy_order = heyoka_steps(model, ics, a.periods, tol)
+        res["heyoka"] = (res["heyoka"][0], hy_spp)
         for k, (pts, spp) in res.items():
             evals = (
-                ""
+                f"{spp * hy_order:.0f} (order {hy_order})"
                 if k == "heyoka"
                 else (
                     f"{spp * taylor_order(tol):.0f} (order {taylor_order(tol)})"

@@ -9,7 +9,11 @@ and of the analyses' tasks; ``NUMBA_NUM_THREADS=n`` is set too, though no kernel
 then ``--repeat`` times timed: the median wall seconds and the process's CPU seconds over that wall (the cores
 it kept busy). Rounds alternate 1 and 2 threads; the table gives the medians over rounds and ``speed-up =
 wall(1) / wall(2)`` (2.0 is perfect on two cores). Process start-up (~1 s of imports) is not in the figures:
-it is the same on one core or two. Each case takes well under 20 s on one thread; quote the machine load
+it is the same on one core or two. "In kernels" is the share of the one-thread wall time spent inside the
+engines' block kernels (``rk.advance_blocks``, ``taylor.advance_blocks``: they release the GIL); the rest is
+Python and numpy, one thread at a time, so "bound" = 1 / ((1 - share) + share / 2) is the speed-up two threads
+could give if the kernels' work split perfectly (numpy releases the GIL in parts of the rest: a rough bound).
+Each case takes well under 20 s on one thread; quote the machine load
 printed beside the table. "Cores busy" with one thread well below 1.0 says the machine was shared (other work
 took the cores): the speed-up is then contention, not the analysis' parallel efficiency; run it on a quiet
 machine.
@@ -26,6 +30,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -52,18 +57,41 @@ CASES: dict[str, list[str]] = {
 }  # fmt: skip
 
 
+def kernel_clock() -> list[float]:
+    """Wrap the engines' block kernels (which release the GIL) so that their seconds add up in the returned list's
+    one entry: with one thread, the rest of a command's wall time is Python and numpy holding (mostly) the GIL."""
+    from explorer_core.solve import rk, taylor
+
+    spent = [0.0]
+    lock = threading.Lock()
+    for mod in (rk, taylor):
+
+        def timed(*args, _inner=mod.advance_blocks):
+            t0 = time.perf_counter()
+            try:
+                return _inner(*args)
+            finally:
+                with lock:
+                    spent[0] += time.perf_counter() - t0
+
+        mod.advance_blocks = timed
+    return spent
+
+
 def child(names: list[str], repeat: int) -> dict:
-    """Time ``names`` in this process (threads from the environment): median wall and CPU seconds of each."""
+    """Time ``names`` in this process (threads from the environment): median wall and CPU seconds of each, and
+    the seconds inside the engines' kernels (summed over threads)."""
     from explorer_core import cli, config
 
+    kernels = kernel_clock()
     out = {"threads": config.N_WORKERS}
     with tempfile.TemporaryDirectory() as tmp:
         os.chdir(tmp)
         for name in names:
             argv = CASES[name]
-            walls, cpus = [], []
+            walls, cpus, kern = [], [], []
             for i in range(repeat + 1):
-                w, c = time.perf_counter(), time.process_time()
+                w, c, k = time.perf_counter(), time.process_time(), kernels[0]
                 with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
                     status = cli.main(argv)
                 if status:
@@ -71,7 +99,9 @@ def child(names: list[str], repeat: int) -> dict:
                 if i:  # the first run loads the kernels and builds the scene
                     walls.append(time.perf_counter() - w)
                     cpus.append(time.process_time() - c)
-            out[name] = {"wall": statistics.median(walls), "cpu": statistics.median(cpus)}
+                    kern.append(kernels[0] - k)
+            out[name] = {"wall": statistics.median(walls), "cpu": statistics.median(cpus),
+                         "kernel": statistics.median(kern)}  # fmt: skip
     return out
 
 
@@ -108,7 +138,7 @@ def main() -> None:
         for threads in (1, 2) if rnd % 2 == 0 else (2, 1):
             res = run_child(threads, names, args.repeat)
             for name in names:
-                for key in ("wall", "cpu"):
+                for key in ("wall", "cpu", "kernel"):
                     figs[threads].setdefault(name, {}).setdefault(key, []).append(res[name][key])
     report = {"load": [load0[0], os.getloadavg()[0]], "rounds": args.rounds, "cases": table(figs)}
     if args.json:
@@ -119,13 +149,19 @@ def main() -> None:
 
 def table(figs: dict[int, dict[str, dict[str, list[float]]]]) -> dict[str, dict[str, float]]:
     """Print the table of the medians over rounds (``figs[threads][case][wall or cpu]``); its rows as a dict."""
-    print(f"{'case':52s} {'1 thread s':>10s} {'2 threads s':>11s} {'speed-up':>8s} {'cores busy 1 / 2':>16s}")
+    print(f"{'case':52s} {'1 thread s':>10s} {'2 threads s':>11s} {'speed-up':>8s} {'cores busy 1 / 2':>16s} "
+          f"{'in kernels 1 thread':>19s} {'bound':>5s}")  # fmt: skip
     rows = {}
     for name, one in figs[1].items():
         w1, w2 = statistics.median(one["wall"]), statistics.median(figs[2][name]["wall"])
         busy1, busy2 = statistics.median(one["cpu"]) / w1, statistics.median(figs[2][name]["cpu"]) / w2
-        rows[name] = {"wall_1": w1, "wall_2": w2, "speedup": w1 / w2, "cores_busy_1": busy1, "cores_busy_2": busy2}
-        print(f"{name:52s} {w1:10.2f} {w2:11.2f} {w1 / w2:8.2f} {busy1:8.2f} / {busy2:5.2f}")
+        share = min(1.0, statistics.median(one["kernel"]) / w1)
+        # Amdahl with the GIL: the time outside the kernels runs one thread at a time, the kernels' time halves
+        bound = 1.0 / ((1.0 - share) + share / 2.0)
+        rows[name] = {"wall_1": w1, "wall_2": w2, "speedup": w1 / w2, "cores_busy_1": busy1, "cores_busy_2": busy2,
+                      "kernel_share_1": share, "speedup_bound": bound}  # fmt: skip
+        print(f"{name:52s} {w1:10.2f} {w2:11.2f} {w1 / w2:8.2f} {busy1:8.2f} / {busy2:5.2f} {share:19.2f} "
+              f"{bound:5.2f}")  # fmt: skip
     return rows
 
 

@@ -23,6 +23,7 @@ from app.state import ExplorerState
 from explorer_core.solve.integrators import Batch, advance
 from explorer_core.studies import bench
 from explorer_core.system.model import Model
+from explorer_core.system.params import Params
 
 
 @pytest.fixture(scope="module")
@@ -177,6 +178,9 @@ def test_heyoka_is_a_peer_single_and_batch(tmp_path) -> None:
             assert single.error < 100 * single.tol and batch.error == pytest.approx(single.error, rel=1e-3, abs=1e-13)
     assert "heyoka taylor / ours dop853" in res.ratios
     assert "heyoka: available" in res.markdown()
+    # Each peer's field is printed: the closed form for fig1C's diagonal tensor, the general one for fig8B's.
+    assert "regular, heyoka: q' = " in res.markdown() and "  heyoka's field: q' = " in res.headline()
+    assert "/" not in res.cases["regular"].peer_fields["heyoka"].split("r' = ")[1]
 
 
 def test_heyoka_table_has_the_issue_columns_and_an_independent_reference() -> None:
@@ -341,3 +345,70 @@ def test_bench_tab_rejects_bad_input(_warm, tmp_path) -> None:
     assert "no initial condition" in tab.view["error"]
     tab.load_results()
     assert "bilimovich bench" in tab.view["error"]
+
+
+def _random_scenes(n: int) -> list[Params]:
+    """Seeded random scenes: diagonal and full tensors (zero, tiny and ordinary off-diagonal entries), alpha zero or
+    not, forcings with one or all three terms and omega != 1."""
+    rng = np.random.default_rng(7)
+    out = [bench.TABLE_PARAMS, Params(inertia=(1.6, 2.0, 4.0, 0.0, 0.5, 0.3), alpha=-0.45)]
+    while len(out) < n:
+        diag = rng.uniform(1.0, 5.0, 3)
+        off = rng.choice([0.0, 1e-300, 1e-9, 0.3], 3) * rng.choice([-1.0, 1.0], 3)
+        g = rng.uniform(-1.0, 1.0, 3) * rng.integers(0, 2, 3)
+        try:
+            out.append(Params(inertia=(*diag, *off), alpha=float(rng.choice([0.0, rng.uniform(-1, 1)])), g0=g[0],
+                              g1=g[1] or 1.0, g2=g[2], omega=float(rng.uniform(0.5, 3.0))))  # fmt: skip
+        except bench.ParameterError:  # not positive definite
+            continue
+    return out
+
+
+def test_every_peer_is_given_the_scenes_simplest_field_and_it_is_the_models_field(monkeypatch) -> None:
+    """The one peer definition (solve_ivp's plain function, numbalsoda's cfunc, heyoka's expressions) against the
+    model's general field from its tables, at a few units of rounding, on random scenes."""
+    hy = None
+    try:
+        import heyoka as hy
+    except ImportError:
+        pass
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-3.0, 3.0, (50, 3)) * np.array([3.0, 1.0, 1.0]) + np.array([3.0, 0.0, 0.0])
+    for p in _random_scenes(12):
+        model = Model(p)
+        diag = not any(p.inertia[3:])
+        assert bench.is_diagonal(p) is diag  # 1e-300 off the diagonal is a full tensor
+        f = bench.user_field(p)
+        jit = bench.diagonal_field if diag else bench.general_field
+        k = np.array(bench.peer_constants(p))
+        cf = None
+        if hy is not None:
+            sys_ = bench._heyoka_system(hy, p)
+            cf = hy.cfunc([sys_[0][1], sys_[1][1]], [sys_[0][0], sys_[1][0]])
+            if diag:  # the closed form: no denominator in r'
+                assert "/" not in str(sys_[1][1])
+        for t, q, r in pts:
+            want = np.array(model.field(q, r, t), dtype=float)
+            scale = (1.0 + abs(q) + abs(r)) ** 2  # the size of the field's terms (quadratic in q, r)
+            got = {"python": f(t, q, r), "numba": jit(t, q, r, k)}
+            if cf is not None:
+                got["heyoka"] = cf(np.array([q, r]), time=t)
+            for name, v in got.items():
+                assert np.max(np.abs(np.asarray(v) - want)) <= 2e-15 * scale, (p, name, t, q, r, v, want)
+    # solve_ivp's right-hand side is that plain function, not the model's tables.
+    monkeypatch.setattr(Model, "coefficients", lambda *a: pytest.fail("the peer read the model's tables"))
+    rhs = bench.scipy_rhs(Model(bench.TABLE_PARAMS))
+    assert np.allclose(rhs(0.3, np.array([0.2, -0.4])), bench.user_field(bench.TABLE_PARAMS)(0.3, 0.2, -0.4), rtol=0)
+    text = bench.peer_fields(bench.TABLE_PARAMS)
+    assert "diagonal_field" in text["scipy"] and "(A - B)(g q + alpha) q / C" in text["scipy"]
+
+
+def test_numbalsoda_peer_runs_the_plain_field() -> None:
+    nbs = pytest.importorskip("numbalsoda")
+    for p in (bench.TABLE_PARAMS, Params(inertia=(1.6, 2.0, 4.0, 0.0, 0.5, 0.3), alpha=-0.45)):
+        model = Model(p)
+        ic = np.array([[0.3, -0.4]])
+        pts, ok, _, _ = bench._peer_numbalsoda(nbs, model, ic, 5, "dop853", 1e-12)
+        sol = solve_ivp(lambda t, y, model=model: model.field(y[0], y[1], t), (p.t0, p.t0 + 5 * p.period), ic[0],
+                        method="DOP853", rtol=1e-13, atol=1e-13, t_eval=p.t0 + p.period * np.arange(1, 6))  # fmt: skip
+        assert ok == [True] and np.max(np.abs(pts[0] - sol.y.T)) < 1e-9

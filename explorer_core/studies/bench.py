@@ -48,12 +48,15 @@ Timing
 Medians of ``repeat`` runs (one run when a run takes longer than 2 s). *single*: each measured
 initial condition alone, one worker and ``block=1`` (one step sequence each), like the peers.
 *batch*: ``batch`` initial conditions in a small cloud around the case's one (measured members
-first), the default lock-step block kernel on every core. Peers: ``solve_ivp`` (RK45, DOP853,
-LSODA) with a numpy right-hand side on the model's coefficient tables, ``numbalsoda`` (LSODA,
-DOP853) with a numba ``cfunc`` doing the same coefficient evaluation, both with ``t_eval`` at the
-section times, and ``heyoka`` (Taylor's method, LLVM JIT; optional like numbalsoda), the same tables
-as runtime parameters, ``propagate_grid`` on the section times, one thread: ``heyoka:taylor`` one
-initial condition at a time, ``heyoka:batch`` the batch cloud in SIMD batches of :data:`HEYOKA_BATCH`;
+first), the default lock-step block kernel on every core. Peers, each given the simplest field for the
+scene, the form its user would write (:func:`peer_fields`; the closed form for a diagonal tensor, the
+multiplier form otherwise): ``solve_ivp`` (RK45, DOP853, LSODA) with a plain Python function of
+``(t, q, r)`` (:func:`user_field`), ``numbalsoda`` (LSODA, DOP853) with the same function as a numba
+``cfunc``, both with ``t_eval`` at the section times, and ``heyoka`` (Taylor's method, LLVM JIT; optional
+like numbalsoda) on the closed form, or the model's general tables for a full tensor, as expressions
+(:func:`_heyoka_system`), compiled outside the timings,
+``propagate_grid`` on the section times, one thread: ``heyoka:taylor`` one initial condition at a time,
+``heyoka:batch`` the batch cloud in SIMD batches of :data:`HEYOKA_BATCH`;
 a peer's tolerance ladder stops once a run costs more than ``peer_budget_s`` per
 trajectory.
 
@@ -356,66 +359,115 @@ class BenchProgress:
 
 
 # ---------------------------------------------------------------------------
-# Right-hand sides for the peers (the same coefficient tables as our kernels).
+# The peers' fields: one definition for every peer of `bilimovich bench`, the app's speed tab and
+# benchmarks/high_accuracy.py. Each peer is given the simplest field for the scene, the form its user
+# would write from the equations (PHYSICS.md), not the model's coefficient tables: for a diagonal tensor
+# the paper's closed form, otherwise the multiplier form with the tensor and its inverse. The constants
+# are the parameters' own numbers and ``g = g0 + g1 cos(omega t) + g2 sin(omega t)`` is taken at ``t``
+# as given (a user does not reduce ``t`` to the period).
 
 
-def scipy_rhs(model: Model) -> Callable[[float, np.ndarray], np.ndarray]:
-    """``f(t, y)`` as a fair user writes it for ``solve_ivp``: the model's coefficients, Horner in numpy."""
-    coefficients = model.coefficients
+def is_diagonal(params: Params) -> bool:
+    """Whether the tensor is diagonal, so the closed form of :func:`diagonal_field` applies."""
+    return not any(params.inertia[3:])
 
-    def f(t: float, y: np.ndarray) -> np.ndarray:
-        c = coefficients(t)
-        q, r = y
-        return np.array(
-            [
-                c[0, 0] + q * (c[0, 1] + c[0, 3] * q + c[0, 4] * r) + r * (c[0, 2] + c[0, 5] * r),
-                c[1, 0] + q * (c[1, 1] + c[1, 3] * q + c[1, 4] * r) + r * (c[1, 2] + c[1, 5] * r),
-            ]
-        )
 
-    return f
+def peer_constants(params: Params) -> tuple[float, ...]:
+    """What the peers' fields read: ``(A, B, C, alpha, g0, g1, g2, omega)`` for a diagonal tensor; otherwise
+    ``(I11, I22, I33, I12, I13, I23, J11, J22, J33, J12, J13, J23, alpha, g0, g1, g2, omega)``, ``J = I^-1``."""
+    p = params
+    forcing = (p.alpha, p.g0, p.g1, p.g2, p.omega)
+    if is_diagonal(p):
+        return tuple(float(v) for v in (*p.inertia[:3], *forcing))
+    j = np.linalg.inv(p.inertia_matrix)
+    inverse = (j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2])
+    return tuple(float(v) for v in (*p.inertia, *inverse, *forcing))
+
+
+@nb.njit(nogil=True, cache=True)
+def diagonal_field(t: float, q: float, r: float, k: Any) -> tuple[float, float]:
+    """``(q', r')`` for ``diag(A, B, C)``: ``q' = -[alpha (A - C) r + g (A - B) q r + A g g' q] / (g^2 A + B)``,
+    ``r' = (A - B)(g q + alpha) q / C`` (PHYSICS.md); ``k`` from :func:`peer_constants`."""
+    a, b, c, al, g0, g1, g2, w = k[0], k[1], k[2], k[3], k[4], k[5], k[6], k[7]
+    cw, sw = math.cos(w * t), math.sin(w * t)
+    g = g0 + g1 * cw + g2 * sw
+    gp = w * (g2 * cw - g1 * sw)
+    qdot = -(al * (a - c) * r + g * (a - b) * q * r + a * g * gp * q) / (g * g * a + b)
+    return qdot, (a - b) * (g * q + al) * q / c
+
+
+@nb.njit(nogil=True, cache=True)
+def general_field(t: float, q: float, r: float, k: Any) -> tuple[float, float]:
+    """``(q', r')`` from ``I omega' = M + lambda a`` with ``omega = (alpha + g q, q, r)``, ``M = (I omega) x omega``,
+    ``a = (1, -g, 0)`` and ``lambda = -[(a, J M) - g' q] / (a, J a)``, ``J = I^-1`` (PHYSICS.md); ``k`` from
+    :func:`peer_constants`."""
+    i11, i22, i33, i12, i13, i23 = k[0], k[1], k[2], k[3], k[4], k[5]
+    j11, j22, j33, j12, j13, j23 = k[6], k[7], k[8], k[9], k[10], k[11]
+    al, g0, g1, g2, w = k[12], k[13], k[14], k[15], k[16]
+    cw, sw = math.cos(w * t), math.sin(w * t)
+    g = g0 + g1 * cw + g2 * sw
+    gp = w * (g2 * cw - g1 * sw)
+    p = al + g * q
+    l1, l2, l3 = i11 * p + i12 * q + i13 * r, i12 * p + i22 * q + i23 * r, i13 * p + i23 * q + i33 * r
+    m1, m2, m3 = l2 * r - l3 * q, l3 * p - l1 * r, l1 * q - l2 * p
+    jm1, jm2, jm3 = j11 * m1 + j12 * m2 + j13 * m3, j12 * m1 + j22 * m2 + j23 * m3, j13 * m1 + j23 * m2 + j33 * m3
+    ja1, ja2, ja3 = j11 - g * j12, j12 - g * j22, j13 - g * j23
+    lam = -(jm1 - g * jm2 - gp * q) / (ja1 - g * ja2)
+    return jm2 + lam * ja2, jm3 + lam * ja3
+
+
+def user_field(params: Params) -> Callable[[float, float, float], tuple[float, float]]:
+    """``f(t, q, r) -> (q', r')`` in plain Python, the field a user writes for ``solve_ivp``: the scene's closed
+    form for a diagonal tensor, the multiplier form otherwise, on the parameters' numbers."""
+    fn = (diagonal_field if is_diagonal(params) else general_field).py_func
+    k = peer_constants(params)
+    return lambda t, q, r: fn(t, q, r, k)
+
+
+def scipy_rhs(model: Model) -> Callable[[float, np.ndarray], tuple[float, float]]:
+    """``f(t, y)`` for ``solve_ivp``: :func:`user_field` on ``y = (q, r)`` (scipy makes the array itself)."""
+    f = user_field(model.params)
+    return lambda t, y: f(t, y[0], y[1])
+
+
+def peer_fields(params: Params) -> dict[str, str]:
+    """Each peer's field as it is given to it, by peer (what the benchmarks print)."""
+    diag = is_diagonal(params)
+    doc = (diagonal_field if diag else general_field).__doc__ or ""
+    formula = " ".join(doc.split("(PHYSICS.md)")[0].replace("``", "").split()).strip(" ,")
+    k = ", ".join(f"{v:.6g}" for v in peer_constants(params))
+    plain = f"{'diagonal' if diag else 'general'}_field(t, q, r, k) in plain Python, k = ({k}): {formula}"
+    out = {"scipy": plain, "numbalsoda": plain.replace("in plain Python", "as a numba cfunc")}
+    hy, _ = heyoka_status()
+    if hy is not None:
+        sys_ = _heyoka_system(hy, params)
+        out["heyoka"] = f"q' = {sys_[0][1]}; r' = {sys_[1][1]}"
+    return out
 
 
 def cfunc_data(model: Model) -> np.ndarray:
-    """The model's tables flattened for the numbalsoda ``cfunc`` (layout documented in :func:`_cfunc_rhs`)."""
-    return np.ascontiguousarray(
-        np.concatenate(
-            [model.num[0].ravel(), model.num[1].ravel(), model.gpc[0], model.gpc[1], model.den, model.forcing]
-        )
-    )
+    """The constants of the numbalsoda ``cfunc`` (:func:`peer_constants`), as its ``data`` array."""
+    return np.array(peer_constants(model.params), dtype=float)
 
 
 @cache
-def _cfunc_rhs() -> int:
-    """Address of a numba ``cfunc`` rhs with numbalsoda's signature ``(t, u, du, p)``.
-
-    ``p`` = num[Q] (6 x 5), num[R] (6 x 5), gpc[Q] (2), gpc[R] (2), den (3), forcing (4): the same
-    Horner evaluation of the coefficient tables as :func:`explorer_core.system.model.coefficients_at`.
-    Compiled lazily (cached on disk) so importing this module stays cheap.
-    """
+def _cfunc_rhs(diagonal: bool) -> int:
+    """Address of a numba ``cfunc`` with numbalsoda's signature ``(t, u, du, p)`` calling :func:`diagonal_field`
+    or :func:`general_field` on ``p`` = :func:`cfunc_data`. Compiled lazily (cached on disk) so importing this
+    module stays cheap."""
     dbl = nb.types.double
     sig = nb.types.void(dbl, nb.types.CPointer(dbl), nb.types.CPointer(dbl), nb.types.CPointer(dbl))
+    if diagonal:
 
-    @nb.cfunc(sig, cache=True, error_model="numpy")
-    def rhs(t, u, du, p):  # pragma: no cover - runs inside numbalsoda
-        w = p[70]
-        cw = math.cos(w * t)
-        sw = math.sin(w * t)
-        g = p[67] + p[68] * cw + p[69] * sw
-        gp = w * (p[69] * cw - p[68] * sw)
-        dinv = 1.0 / (p[64] + g * (p[65] + g * p[66]))
-        q = u[0]
-        r = u[1]
-        for row in range(2):  # scalars only: no allocation per call
-            o = 30 * row
-            c0 = p[o] + g * (p[o + 1] + g * (p[o + 2] + g * (p[o + 3] + g * p[o + 4])))
-            c1 = p[o + 5] + g * (p[o + 6] + g * (p[o + 7] + g * (p[o + 8] + g * p[o + 9])))
-            c1 += gp * (p[60 + 2 * row] + g * p[61 + 2 * row])
-            c2 = p[o + 10] + g * (p[o + 11] + g * (p[o + 12] + g * (p[o + 13] + g * p[o + 14])))
-            c3 = p[o + 15] + g * (p[o + 16] + g * (p[o + 17] + g * (p[o + 18] + g * p[o + 19])))
-            c4 = p[o + 20] + g * (p[o + 21] + g * (p[o + 22] + g * (p[o + 23] + g * p[o + 24])))
-            c5 = p[o + 25] + g * (p[o + 26] + g * (p[o + 27] + g * (p[o + 28] + g * p[o + 29])))
-            du[row] = dinv * (c0 + q * (c1 + c3 * q + c4 * r) + r * (c2 + c5 * r))
+        @nb.cfunc(sig, cache=True, error_model="numpy")
+        def rhs(t, u, du, p):  # pragma: no cover - runs inside numbalsoda
+            du[0], du[1] = diagonal_field(t, u[0], u[1], p)
+
+    else:
+
+        @nb.cfunc(sig, cache=True, error_model="numpy")
+        def rhs(t, u, du, p):  # pragma: no cover - runs inside numbalsoda
+            du[0], du[1] = general_field(t, u[0], u[1], p)
 
     return rhs.address
 
@@ -446,7 +498,41 @@ def heyoka_status() -> tuple[Any, str]:
     return heyoka, f"available ({getattr(heyoka, '__version__', '?')}, batch {HEYOKA_BATCH})"
 
 
-def _heyoka_system(hy: Any, model: Model) -> list[tuple[Any, Any]]:
+def _heyoka_system(hy: Any, params: Params) -> list[tuple[Any, Any]]:
+    """heyoka's field for ``params``: :func:`_heyoka_diagonal` for a diagonal tensor, :func:`_heyoka_tables`
+    otherwise (with a full tensor the general form is the simplest)."""
+    return _heyoka_diagonal(hy, params) if is_diagonal(params) else _heyoka_tables(hy, Model(params))
+
+
+def _heyoka_sum(terms: list[Any]) -> Any:
+    """A sum of heyoka expressions (None when there is none)."""
+    return functools.reduce(lambda a, b: a + b, terms) if terms else None
+
+
+def _heyoka_diagonal(hy: Any, p: Params) -> list[tuple[Any, Any]]:
+    """The closed form of :func:`diagonal_field` as heyoka expressions, zero terms and unit factors left out as a
+    user would: ``r' = (A - B)(g q + alpha) q / C`` has no denominator at all."""
+    a, b, c = (float(v) for v in p.inertia[:3])
+    q, r = hy.make_vars("q", "r")
+    w = float(p.omega)
+    wt = hy.time if w == 1.0 else w * hy.time
+    cw, sw = hy.cos(wt), hy.sin(wt)
+
+    def lin(*pairs: tuple[float, Any]) -> Any:
+        return _heyoka_sum([e if k == 1.0 else (-e if k == -1.0 else k * e) for k, e in pairs if k != 0.0])
+
+    g = lin((p.g1, cw), (p.g2, sw))
+    g = g if p.g0 == 0.0 else (p.g0 if g is None else g + p.g0)
+    gp = lin((w * p.g2, cw), (-w * p.g1, sw))
+    al = float(p.alpha)
+    num = _heyoka_sum([t for t in ((al * (a - c)) * r if al * (a - c) != 0.0 else None, (a - b) * g * q * r,
+                                   (a * g * gp) * q if gp is not None else None) if t is not None])  # fmt: skip
+    qdot = -num / (a * g * g + b)
+    rdot = ((a - b) / c) * ((g * q + al) if al != 0.0 else g * q) * q
+    return [(q, qdot), (r, rdot)]
+
+
+def _heyoka_tables(hy: Any, model: Model) -> list[tuple[Any, Any]]:
     """The field as heyoka expressions, ``c_m = [N_m(g) + g' G_m(g)] / D(g)`` on the model's own tables.
 
     The table entries are numbers in the expressions (as a user writes a field for heyoka), so heyoka's
@@ -492,25 +578,27 @@ def _heyoka_system(hy: Any, model: Model) -> list[tuple[Any, Any]]:
 
 
 @functools.lru_cache(maxsize=128)
-def _heyoka_integrator(params: Params, tol: float, batch: int) -> Any:
-    """One compiled heyoka integrator per model, tolerance and batch width (0: scalar); compiled outside the timings."""
+def _heyoka_integrator(params: Params, tol: float, batch: int, tables: bool = False) -> Any:
+    """One compiled heyoka integrator per model, tolerance and batch width (0: scalar) on :func:`_heyoka_system`
+    (``tables``: on the model's general tables, :func:`_heyoka_tables`); compiled outside the timings."""
     hy, _ = heyoka_status()
-    sys_ = _heyoka_system(hy, Model(params))
+    sys_ = _heyoka_tables(hy, Model(params)) if tables else _heyoka_system(hy, params)
     if batch == 0:
         return hy.taylor_adaptive(sys_, [0.0, 0.0], tol=tol)
     return hy.taylor_adaptive_batch(sys_, np.zeros((2, batch)), tol=tol)
 
 
-def _peer_heyoka(model: Model, ics: np.ndarray, periods: int, mode: str, tol: float):
+def _peer_heyoka(model: Model, ics: np.ndarray, periods: int, mode: str, tol: float, tables: bool = False):
     """heyoka at ``tol``: each IC alone (``single``) or SIMD batches of :data:`HEYOKA_BATCH` (``batch``), one thread.
 
-    ``propagate_grid`` on the section times (heyoka's dense output lands on them); the rhs of :func:`_heyoka_system`.
+    ``propagate_grid`` on the section times (heyoka's dense output lands on them); the rhs of :func:`_heyoka_system`
+    (``tables``: of :func:`_heyoka_tables`, the general form, for checks).
     """
     p = model.params
     grid = p.t0 + p.period * np.arange(0, periods + 1)
     pts, ok, msgs = [], [], []
     if mode == "single":
-        ta = _heyoka_integrator(p, float(tol), 0)
+        ta = _heyoka_integrator(p, float(tol), 0, tables)
         for ic in ics:
             ta.time = p.t0
             ta.state[:] = ic
@@ -522,7 +610,7 @@ def _peer_heyoka(model: Model, ics: np.ndarray, periods: int, mode: str, tol: fl
             pts.append(states[1:])
         return pts, ok, None, msgs
     nb_ = HEYOKA_BATCH
-    tb = _heyoka_integrator(p, float(tol), nb_)
+    tb = _heyoka_integrator(p, float(tol), nb_, tables)
     bgrid = np.ascontiguousarray(np.repeat(grid[:, None], nb_, axis=1))
     for b0 in range(0, ics.shape[0], nb_):
         chunk = ics[b0 : b0 + nb_]
@@ -564,7 +652,8 @@ def warmup() -> None:
     run_ceiling(model, np.array([[0.1, 0.2], [0.2, 0.1]]), 1, 4)
     mod, _ = numbalsoda_status()
     if mod is not None:
-        _cfunc_rhs()
+        _cfunc_rhs(True)
+        _cfunc_rhs(False)
 
 
 # ---------------------------------------------------------------------------
@@ -813,7 +902,7 @@ def _peer_numbalsoda(mod: Any, model: Model, ics: np.ndarray, periods: int, meth
     p = model.params
     t_eval = p.t0 + p.period * np.arange(0, periods + 1)
     data = cfunc_data(model)
-    addr = _cfunc_rhs()
+    addr = _cfunc_rhs(is_diagonal(p))
     solver = mod.lsoda if method == "lsoda" else mod.dop853
     pts, ok, msgs = [], [], []
     for ic in ics:
@@ -852,6 +941,8 @@ class CaseInfo:
     cache_hits: int
     cache_misses: int
     notes: list[str] = field(default_factory=list)
+    #: Each peer's field as it is given to it (:func:`peer_fields`).
+    peer_fields: dict[str, str] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         return {k: _jsonable(v) for k, v in dataclasses.asdict(self).items()}
@@ -903,6 +994,8 @@ class BenchResult:
         out = []
         for c in self.cases.values():
             out.append(f"{c.name}: horizon {c.horizon}/{c.k_max} periods, reference bound {c.reference_bound:.1e}")
+            peers = {p.split(":")[0] for p in self.config.peers}
+            out += [f"  {peer}'s field: {text}" for peer, text in c.peer_fields.items() if peer in peers]
         tgt = self.throughput.get("target", {})
         if tgt.get("wall_s") is not None:
             out.append(f"target: {tgt['what']}: {tgt['wall_s']:.3f} s at tol {tgt['tol']:g} "
@@ -971,6 +1064,9 @@ def markdown_report(data: dict[str, Any], rows: bool = True) -> str:
                    f"{c['cache_hits'] + c['cache_misses']} |")  # fmt: skip
     notes = [f"{c['name']}: {n}" for c in data["cases"].values() for n in c.get("notes", [])]
     out += ["", *(f"* {n}" for n in notes), ""] if notes else [""]
+    fields = [f"* {c['name']}, {peer}: {text}" for c in data["cases"].values()
+              for peer, text in c.get("peer_fields", {}).items()]  # fmt: skip
+    out += ["Each peer's field, as it is given to it:", "", *fields, ""] if fields else []
     # Time per trajectory to reach the target error, per line and case.
     names = list(data["cases"])
     series: dict[str, dict[str, list[tuple[float | None, float]]]] = {}
@@ -1191,7 +1287,7 @@ def _warm(cfg: BenchConfig, nbs: Any) -> None:
     if cfg.throughput:
         run_ceiling(model, ics, 1, 4)
     if nbs is not None:  # numbalsoda's drivers are jitted without a disk cache: compiled in every process
-        _cfunc_rhs()
+        _cfunc_rhs(is_diagonal(model.params))
         for method in ("lsoda", "dop853"):
             _peer_numbalsoda(nbs, model, ics[:1], 1, method, 1e-6)
 
@@ -1225,7 +1321,7 @@ def _run_case(
         reference_steps_per_period=max(r.ref_steps_per_period for r in refs),
         reference_fixed_steps=max(r.fixed_steps for r in refs),
         reference_elapsed_s=round(sum(r.elapsed_s for r in refs), 2), cache_hits=sum(r.cache_hit for r in refs),
-        cache_misses=sum(not r.cache_hit for r in refs), notes=notes,
+        cache_misses=sum(not r.cache_hit for r in refs), notes=notes, peer_fields=peer_fields(case.params),
     )  # fmt: skip
     res.cases[case.name] = info
     tick(f"{case.name}: horizon {k} periods, reference bound {info.reference_bound:.1e} "
@@ -1470,7 +1566,8 @@ def heyoka_table(
         "available": True,
         "what": f"{cfg.table_ics} random ICs in [-1, 1]^2 x {periods} periods, tensor diag(1, 4, 2), alpha 0.1, "
         f"g = cos t; error = per IC the largest distance from heyoka at tol {TABLE_REF_TOL:g} (median, max over "
-        f"ICs); ours on {workers} workers (default block kernel), heyoka batch x{HEYOKA_BATCH} on one thread; "
+        f"ICs); ours on {workers} workers (default block kernel), heyoka batch x{HEYOKA_BATCH} on one thread on "
+        f"the peers' field ({peer_fields(params).get('heyoka', '')}); "
         "ratio per core = ours wall x workers / heyoka wall; ratio 1 thread = ours on one worker / heyoka; "
         'fastest of interleaved rounds. The default method ("auto") is vern9 at rtol '
         f"{config.VERN9_MIN_RTOL:g}..{config.VERN9_MAX_RTOL:g} and dop853 elsewhere",
