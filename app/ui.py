@@ -21,9 +21,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import panel as pn
 import param
 from bokeh.model import DataModel
 from panel.custom import JSComponent
+from panel.io.model import remove_root
 from panel.viewable import Child
 
 from app.state import BY_NAME, CONTROLS, MAX_TEXT, TABS
@@ -87,6 +89,26 @@ def check_message(data: Any) -> dict[str, Any] | None:
             return None
         out["on"] = data["on"]
     return out
+
+
+class FigurePane(pn.pane.Bokeh):
+    """A Bokeh model (a figure, the analysis tab's box) as a child of the page.
+
+    Panel's pane searches everything under the model for ``CustomJS`` callbacks to renumber each time it is
+    rendered: a walk of every model of the section figure (~60) for a new page, a tenth of what building it
+    costs the event loop (docs/load.md). The page's figures have no ``CustomJS``, so this pane skips that search;
+    the rest is Panel's (1.9) ``Bokeh._get_model``.
+    """
+
+    def _get_model(self, doc: Any, root: Any = None, parent: Any = None, comm: Any = None) -> Any:
+        if root is None or comm is not None or self.object is None:
+            return super()._get_model(doc, root, parent, comm)
+        model = self.object
+        if model._document and doc is not model._document:
+            remove_root(model, doc)
+        self._models[root.ref["id"]] = (model, parent)
+        self._design.apply_bokeh_theme_to_model(model, self.theme)
+        return model
 
 
 class ExplorerUI(JSComponent):

@@ -20,7 +20,9 @@ import os
 from typing import Any
 
 import numpy as np
+from bokeh.core.property.validation import validate
 from bokeh.models import (
+    AllIndices,
     AllLabels,
     BasicTicker,
     BoxZoomTool,
@@ -101,6 +103,21 @@ BASIN_ALPHA = 0.5
 FONTS = {False: ("11pt", "9pt"), True: ("16pt", "13pt")}
 
 
+def _mapper(cls: type, palette: Any, **kw: Any) -> Any:
+    """A colour mapper over one of the palettes above, without Bokeh's check of each of its colours.
+
+    Bokeh checks every colour of a palette each time a mapper is made (~5 ms for 255 colours, a twentieth of what a
+    new page cost); these palettes are checked once, at import.
+    """
+    with validate(False):
+        return cls(palette=palette, **kw)
+
+
+# Bokeh's check of the palettes, once per process (a palette it refuses fails the import, as it failed every page).
+for _palette in (TPRIME_PALETTE, TRAJ_PALETTE, DENSITY_PALETTE, FTLE_PALETTE):
+    LinearColorMapper(palette=_palette)
+
+
 def _empty_points() -> dict[str, list]:
     return {"q": [], "r": [], "traj": [], "k": [], "c": []}
 
@@ -145,12 +162,6 @@ def _axes(plot: Plot, x_label: str, y_label: str, *, grid: bool = True) -> list[
     return axes
 
 
-def _renderer(source: ColumnDataSource, glyph: Any, **kw: Any) -> GlyphRenderer:
-    # Its own CDSView (BokehJS keeps the view's indices for one source) and no glyph of its own
-    # for the unselected state (nothing is ever selected here).
-    return GlyphRenderer(data_source=source, glyph=glyph, view=CDSView(), **kw)
-
-
 def set_fonts(axes: list[LinearAxis], presentation: bool) -> None:
     label, ticks = FONTS[presentation]
     for a in axes:
@@ -185,14 +196,17 @@ class SectionFigure:
         )  # fmt: skip
         self.axes = _axes(fig, "q", "r")
         policy = UnionRenderers()
+        # One filter for every renderer's view: each view would have its own (a model more per layer to build and
+        # send); it selects nothing, so sharing it changes nothing.
+        self._every = AllIndices()
 
         def source(data: dict, name: str) -> ColumnDataSource:
             return ColumnDataSource(data, name=name, selection_policy=policy)
 
-        self.tprime_mapper = LinearColorMapper(palette=TPRIME_PALETTE, low=-1, high=1)
+        self.tprime_mapper = _mapper(LinearColorMapper, TPRIME_PALETTE, low=-1, high=1)
         self.tprime = source(_image_data(), "tprime_source")
         image = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.tprime_mapper, global_alpha=0.55)
-        tp = _renderer(self.tprime, image, level="image", name="tprime_image")
+        tp = self._renderer(self.tprime, image, level="image", name="tprime_image")
         self._tprime_renderer = tp
         self.colorbar = ColorBar(
             color_mapper=self.tprime_mapper,
@@ -206,24 +220,24 @@ class SectionFigure:
         self._tprime_title, self._presentation = self.colorbar.title, False
         self._ftle_title = ""
         self.tracks = source({"xs": [], "ys": [], "color": [], "type": []}, "tracks_source")
-        tracks = _renderer(self.tracks, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6, line_alpha=0.7,
-                                                  line_dash="dashed"))  # fmt: skip
+        tracks = self._renderer(self.tracks, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6,
+                                                       line_alpha=0.7, line_dash="dashed"))  # fmt: skip
         self.points = source(_empty_points(), "section_source")
-        self.traj_mapper = LinearColorMapper(palette=TRAJ_PALETTE, low=0, high=N_COLORS - 1)
+        self.traj_mapper = _mapper(LinearColorMapper, TRAJ_PALETTE, low=0, high=N_COLORS - 1)
         colour = {"field": "c", "transform": self.traj_mapper}
         dots = Scatter(x="q", y="r", size=POINT_SIZE, line_color=None, fill_alpha=0.9, fill_color=colour)
-        pts = _renderer(self.points, dots, name="section_points")
+        pts = self._renderer(self.points, dots, name="section_points")
         # The selected trajectory, ringed on top of the others: thin translucent rings just wider than a point, so
         # an attractor it lies on keeps its structure and colours (6 px rings at 0.7 hid Fig. 8B's; issue 36).
         self.selected = source({"q": [], "r": []}, "selected_source")
-        sel = _renderer(self.selected, Scatter(x="q", y="r", size=SELECTED_RING, line_color="black",
-                                               line_width=SELECTED_LINE, line_alpha=SELECTED_ALPHA, fill_color=None),
-                        name="selected_points")  # fmt: skip
+        ring = Scatter(x="q", y="r", size=SELECTED_RING, line_color="black", line_width=SELECTED_LINE,
+                       line_alpha=SELECTED_ALPHA, fill_color=None)  # fmt: skip
+        sel = self._renderer(self.selected, ring, name="selected_points")
         self.equilibria = source({"q": [], "r": [], "color": [], "type": [], "label": []}, "equilibria_source")
-        eq = _renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
-                                                line_color="black"), name="frozen_field_equilibria")  # fmt: skip
+        eq = self._renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
+                                                     line_color="black"), name="frozen_field_equilibria")  # fmt: skip
         self.ics = source({"q": [], "r": []}, "ics_source")
-        ics = _renderer(self.ics, Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2))
+        ics = self._renderer(self.ics, Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2))
         self._source = source
         # The layers a new page does not show (basins, density, manifolds, periodic orbits) are built
         # when first used and join the plot then, in their place (a string here): a new page builds
@@ -253,6 +267,11 @@ class SectionFigure:
                               logo=None, active_scroll=None)  # fmt: skip
         self.fig = fig
 
+    def _renderer(self, source: ColumnDataSource, glyph: Any, **kw: Any) -> GlyphRenderer:
+        # Its own CDSView (BokehJS keeps the view's indices for one source) and no glyph of its own
+        # for the unselected state (nothing is ever selected here).
+        return GlyphRenderer(data_source=source, glyph=glyph, view=CDSView(filter=self._every), **kw)
+
     # --- the layers built on first use ------------------------------------------------------
 
     def _build(self, layer: str) -> list[GlyphRenderer]:
@@ -262,34 +281,34 @@ class SectionFigure:
 
     def _build_density(self) -> list[GlyphRenderer]:
         # A long section as a density image (counts per pixel, binned on the server), under the points.
-        self._density_mapper = LogColorMapper(palette=DENSITY_PALETTE, low=1, high=2, nan_color=(0, 0, 0, 0))
+        self._density_mapper = _mapper(LogColorMapper, DENSITY_PALETTE, low=1, high=2, nan_color=(0, 0, 0, 0))
         self._density = self._source(_image_data(), "density_source")
         shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self._density_mapper)
-        return [_renderer(self._density, shade, level="image", name="density_image")]
+        return [self._renderer(self._density, shade, level="image", name="density_image")]
 
     def _build_basins(self) -> list[GlyphRenderer]:
         # Basins of attraction: a colour per attractor, translucent, over the T' map and under the points.
         self._basins = self._source(_image_data(), "basins_source")
         rgba = ImageRGBA(image="image", x="x", y="y", dw="dw", dh="dh", global_alpha=BASIN_ALPHA)
-        return [_renderer(self._basins, rgba, level="image", name="basins_image")]
+        return [self._renderer(self._basins, rgba, level="image", name="basins_image")]
 
     def _build_ftle(self) -> list[GlyphRenderer]:
         # An FTLE map: a colour scale (its key the colour bar), under the points; failed pixels transparent.
-        self._ftle_mapper = LinearColorMapper(
-            palette=FTLE_PALETTE, low=0, high=1, nan_color=(0, 0, 0, 0), name="ftle_mapper"
+        self._ftle_mapper = _mapper(
+            LinearColorMapper, FTLE_PALETTE, low=0, high=1, nan_color=(0, 0, 0, 0), name="ftle_mapper"
         )
         self._ftle = self._source(_image_data(), "ftle_source")
         shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self._ftle_mapper)
-        return [_renderer(self._ftle, shade, level="image", name="ftle_image")]
+        return [self._renderer(self._ftle, shade, level="image", name="ftle_image")]
 
     def _build_manifolds(self) -> list[GlyphRenderer]:
         # Stable and unstable manifolds of saddles over the points, their crossings (homoclinic points) on them.
         self._manifolds = self._source({"xs": [], "ys": [], "color": [], "kind": []}, "manifolds_source")
-        man = _renderer(self._manifolds, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6,
-                                                   line_alpha=0.9), name="manifold_lines")  # fmt: skip
+        man = self._renderer(self._manifolds, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6,
+                                                        line_alpha=0.9), name="manifold_lines")  # fmt: skip
         self._crossings = self._source({"q": [], "r": [], "what": []}, "crossings_source")
         diamond = Scatter(x="q", y="r", marker="diamond", size=8, fill_color="black", line_color="white", line_width=1)
-        cross = _renderer(self._crossings, diamond, name="homoclinic_points")
+        cross = self._renderer(self._crossings, diamond, name="homoclinic_points")
         self._hovers["manifolds"] = HoverTool(renderers=[cross], tooltips=[("", "@what"), ("q, r", "@q, @r")])
         return [man, cross]
 
@@ -302,11 +321,11 @@ class SectionFigure:
         for kind, marker, fill, alpha in (("saddle", "x", "white", 0.0), ("unstable", "circle", "white", 0.85),
                                           ("stable", "circle", "#ffd21f", 1.0)):  # fmt: skip
             src = self._orbit_sources[kind]
-            orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color="white", line_width=6,
-                                              fill_alpha=0.0)))  # fmt: skip
-            orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
-                                              line_width=2.5, fill_color=fill, fill_alpha=alpha),
-                                 name=f"orbit_points_{kind}"))  # fmt: skip
+            orb.append(self._renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color="white",
+                                                   line_width=6, fill_alpha=0.0)))  # fmt: skip
+            orb.append(self._renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
+                                                   line_width=2.5, fill_color=fill, fill_alpha=alpha),
+                                      name=f"orbit_points_{kind}"))  # fmt: skip
         # The multipliers first: they are what tells the kind of orbit; one orbit point described at a time.
         tips = [("multipliers", "@mu"), ("periodic orbit of the map", "period @period, @type"), ("q, r", "@q, @r")]
         self._hovers["orbits"] = HoverTool(renderers=orb[1::2], tooltips=tips, limit=1)
@@ -318,12 +337,13 @@ class SectionFigure:
     def _build_marks(self) -> list[GlyphRenderer]:
         # What a tour's step says to look at: a thick ring and its words, over everything.
         self._marks = self._source({"q": [], "r": [], "label": []}, "marks_source")
-        ring = _renderer(self._marks, Scatter(x="q", y="r", marker="circle", size=34, fill_alpha=0.0,
-                                              line_color=MARK_COLOUR, line_width=4), name="tour_marks")  # fmt: skip
-        words = _renderer(self._marks, Text(x="q", y="r", text="label", x_offset=20, y_offset=-10,
-                                            text_font_size="13pt", text_font_style="bold", text_color=MARK_COLOUR,
-                                            background_fill_color="white", background_fill_alpha=0.75),
-                          name="tour_labels")  # fmt: skip
+        ring = self._renderer(self._marks, Scatter(x="q", y="r", marker="circle", size=34, fill_alpha=0.0,
+                                                   line_color=MARK_COLOUR, line_width=4),
+                              name="tour_marks")  # fmt: skip
+        words = self._renderer(self._marks, Text(x="q", y="r", text="label", x_offset=20, y_offset=-10,
+                                                 text_font_size="13pt", text_font_style="bold", text_color=MARK_COLOUR,
+                                                 background_fill_color="white", background_fill_alpha=0.75),
+                               name="tour_labels")  # fmt: skip
         return [ring, words]
 
     def _build_body(self) -> list[GlyphRenderer]:
@@ -333,7 +353,7 @@ class SectionFigure:
         # repaint each period took 0.5-1.2 s in headless Chromium and the body ran at 2-14 frames/s at 1-4 periods/s).
         self._body = self._source({"q": [], "r": []}, "body_source")
         star = Scatter(x="q", y="r", marker="star", size=22, fill_color=BODY_COLOUR, line_color="black", line_width=1.5)
-        return [_renderer(self._body, star, level="overlay", name="body_point")]
+        return [self._renderer(self._body, star, level="overlay", name="body_point")]
 
     def show_body_point(self) -> None:
         """Put the body view's highlighted section point in the plot (built on first use; the page moves it)."""
