@@ -109,6 +109,18 @@ def _release() -> None:
 
     if SCHEDULER is not None:
         SCHEDULER.poke()  # the layers held back while pages were built may start
+    _fill_spares()
+
+
+def _fill_spares() -> None:
+    """No page in line: build the next pages' section figures while the loop is idle (app/views.py: SPARES)."""
+    try:
+        loop = asyncio.get_running_loop()
+    except RuntimeError:  # no server (tests, scripts)
+        return
+    from app.views import SPARES
+
+    SPARES.fill(loop, lambda: not pages_due() and not DELIVERIES.busy())
 
 
 def pages_due() -> bool:
@@ -169,6 +181,10 @@ class Deliveries:
                 return
             self._scheduled = True
         self._loop.add_callback(self._drain)  # thread-safe
+
+    def busy(self) -> bool:
+        """Whether deliveries wait to be run."""
+        return self._scheduled
 
     def bind(self) -> None:
         """Remember the server's event loop (called on it, when a session is built)."""

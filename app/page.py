@@ -48,7 +48,7 @@ from app.state import (
 )
 from app.tours import TOURS, Tour, TourError, nearest_step, parse_tours, read_tour_url
 from app.ui import ExplorerUI, FigurePane
-from app.views import SectionFigure, SeriesData
+from app.views import SPARES, SeriesData
 from app.words import page_words
 from explorer_core.scenes import get_scene
 from explorer_core.system.params import ParameterError
@@ -97,7 +97,7 @@ class Page:
         self.state = state
         self.runner = Runner(deliver, on_error=self._job_failed, executor=executor, scheduler=scheduler, alive=alive,
                              on_busy=self._on_busy)  # fmt: skip
-        self.fig = SectionFigure(state.q_range, state.r_range)
+        self.fig = SPARES.take(state.q_range, state.r_range)
         self.series = SeriesData(on_change=self._on_series)
         self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
         self.tabs: dict[str, AnalysisTab] = {}

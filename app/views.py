@@ -605,6 +605,55 @@ class SectionFigure:
         return title
 
 
+class SpareFigures:
+    """Section figures built ahead, while the server's event loop has nothing else to do.
+
+    A section figure is the largest part of a new page the server builds (~60 Bokeh models, a quarter of its
+    event-loop time, docs/load.md) and depends on nothing of the visitor's (its view is set when taken). When a
+    class opens the link together, each worker builds its pages one after the other and the last student waits
+    for all of them: with figures built beforehand, in the quiet moments before (one per turn of an idle loop),
+    each page costs that much less. Taken one by one (:meth:`take`); without spares, a figure is built then.
+    """
+
+    def __init__(self, size: int = 16, every: float = 0.05) -> None:
+        self.size = size
+        self.every = every
+        self._spares: list[SectionFigure] = []
+        self._filling: Any = None  # the loop the spares are being built on
+
+    def __len__(self) -> int:
+        return len(self._spares)
+
+    def take(self, q_range: tuple[float, float], r_range: tuple[float, float]) -> SectionFigure:
+        """A section figure over ``q_range`` x ``r_range``: a spare if there is one, else built now."""
+        if not self._spares:
+            return SectionFigure(q_range, r_range)
+        fig = self._spares.pop()
+        fig.set_view(q_range, r_range)
+        return fig
+
+    def fill(self, loop: Any, idle: Any) -> None:
+        """Build spares on ``loop`` (an asyncio loop), one at a time while ``idle()`` says the server has nothing
+        more urgent to do and nothing else is ready to run, until there are :attr:`size` of them."""
+        if (self._filling is loop and not loop.is_closed()) or len(self._spares) >= self.size:
+            return
+        self._filling = loop
+        loop.call_later(self.every, self._one, loop, idle)
+
+    def _one(self, loop: Any, idle: Any) -> None:
+        # CPython's loop keeps its ready callbacks in ``_ready``: none waiting means the loop is idle.
+        if idle() and not getattr(loop, "_ready", None):
+            self._spares.append(SectionFigure((0.0, 1.0), (0.0, 1.0)))
+        if len(self._spares) >= self.size:
+            self._filling = None
+            return
+        loop.call_later(self.every, self._one, loop, idle)
+
+
+#: The spare section figures of this process (filled by the server: app/pacing.py).
+SPARES = SpareFigures()
+
+
 class SeriesData:
     """q_k, r_k and T_k of the selected trajectory. The page draws them itself (app/ui.js, three small
     SVG charts): three Bokeh figures cost a new session ~90 ms of the server's event loop to build
