@@ -236,13 +236,11 @@ class SectionFigure:
         self.equilibria = source({"q": [], "r": [], "color": [], "type": [], "label": []}, "equilibria_source")
         eq = self._renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
                                                      line_color="black"), name="frozen_field_equilibria")  # fmt: skip
-        self.ics = source({"q": [], "r": []}, "ics_source")
-        ics = self._renderer(self.ics, Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2))
         self._source = source
-        # The layers a new page does not show (basins, density, manifolds, periodic orbits) are built
+        # The layers a new page does not show (basins, density, manifolds, periodic orbits, clicked points) are built
         # when first used and join the plot then, in their place (a string here): a new page builds
         # ~55 models fewer and sends ~30 fewer (Bokeh spends ~0.4 ms a model: docs/load.md).
-        self._order: list[Any] = [tp, "basins", "ftle", "density", tracks, pts, sel, eq, ics, "manifolds", "orbits",
+        self._order: list[Any] = [tp, "basins", "ftle", "density", tracks, pts, sel, eq, "ics", "manifolds", "orbits",
                                  "body", "marks"]  # fmt: skip
         self._built: dict[str, list[GlyphRenderer]] = {}
         self._shown: set[str] = set()
@@ -285,6 +283,12 @@ class SectionFigure:
         self._density = self._source(_image_data(), "density_source")
         shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self._density_mapper)
         return [self._renderer(self._density, shade, level="image", name="density_image")]
+
+    def _build_ics(self) -> list[GlyphRenderer]:
+        # The initial conditions clicked in the plot (none on a new page but a link's own).
+        self._ics = self._source({"q": [], "r": []}, "ics_source")
+        cross = Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2)
+        return [self._renderer(self._ics, cross, name="clicked_points")]
 
     def _build_basins(self) -> list[GlyphRenderer]:
         # Basins of attraction: a colour per attractor, translucent, over the T' map and under the points.
@@ -384,6 +388,7 @@ class SectionFigure:
     manifolds = _OfLayer("manifolds")
     crossings = _OfLayer("manifolds")
     orbit_sources = _OfLayer("orbits")
+    ics = _OfLayer("ics")
 
     def _activate(self, layer: str) -> None:
         """Put a layer's renderers in the plot (in their place among the others), once."""
@@ -475,6 +480,9 @@ class SectionFigure:
         self.selected.data = {"q": q, "r": r}
 
     def set_ics(self, ics: np.ndarray) -> None:
+        if not ics.size and "ics" not in self._built:
+            return
+        self._activate("ics")
         self.ics.data = {"q": ics[:, 0], "r": ics[:, 1]} if ics.size else {"q": [], "r": []}
 
     def set_orbits(self, rows: list[dict[str, Any]]) -> None:

@@ -114,6 +114,7 @@ def test_pages_pass_bokehs_checks() -> None:
     page.fig.set_density(np.ones((4, 4)), view)
     page.fig.set_basins(np.zeros((4, 4), dtype=int), view, {0: "#1f77b4"})
     page.fig.set_manifolds([(np.array([0.0, 1.0]), np.array([0.0, 1.0]), "unstable")], [(0.5, 0.5, "homoclinic")])
+    page.fig.set_ics(np.array([[0.1, -0.2]]))
 
     def errors() -> list:
         refs = set().union(*(root.references() for root in doc.roots))
