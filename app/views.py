@@ -658,8 +658,9 @@ class SpareFigures:
         loop.call_later(self.every, self._one, loop, idle)
 
 
-#: The spare section figures of this process (filled by the server: app/pacing.py).
-SPARES = SpareFigures()
+#: The spare section figures of this process (filled by the server: app/pacing.py); env BILIMOVICH_SPARE_FIGURES:
+#: how many (0: none, for measurements of a page's whole cost: benchmarks/session_cost.py).
+SPARES = SpareFigures(int(os.environ.get("BILIMOVICH_SPARE_FIGURES", "16")))
 
 
 class SeriesData:
