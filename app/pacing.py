@@ -98,17 +98,19 @@ def _after_turns(loop: asyncio.AbstractEventLoop, turns: int) -> None:
 
 def _release() -> None:
     global _building_since
+    from app.runner import SCHEDULER
+
     while _waiting:
         fut = _waiting.popleft()
         if not fut.done():
             fut.set_result(None)
             _building_since = time.monotonic()
+            if SCHEDULER is not None:
+                SCHEDULER.poke()  # jobs held back longer than the scheduler's max_wait go, pages or not
             return
     _building_since = None
-    from app.runner import SCHEDULER
-
     if SCHEDULER is not None:
-        SCHEDULER.poke()  # the layers held back while pages were built may start
+        SCHEDULER.poke()  # the first points and layers held back while pages were built may start
     _fill_spares()
 
 
