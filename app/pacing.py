@@ -115,14 +115,21 @@ def _release() -> None:
 
 
 def _fill_spares() -> None:
-    """No page in line: build the next pages' section figures while the loop is idle (app/views.py: SPARES)."""
+    """No page in line: build the next pages' section figures while the server is idle (app/views.py: SPARES):
+    no page due, no delivery waiting and no job computing (a figure holds the GIL ~25 ms: after a class opened,
+    the first scenes go first)."""
     try:
         loop = asyncio.get_running_loop()
     except RuntimeError:  # no server (tests, scripts)
         return
+    from app.runner import SCHEDULER
     from app.views import SPARES
 
-    SPARES.fill(loop, lambda: not pages_due() and not DELIVERIES.busy())
+    def idle() -> bool:
+        jobs = SCHEDULER.stats() if SCHEDULER is not None else {"running": 0, "waiting": 0}
+        return not (pages_due() or DELIVERIES.busy() or jobs["running"] or jobs["waiting"])
+
+    SPARES.fill(loop, idle)
 
 
 def pages_due() -> bool:
