@@ -201,7 +201,7 @@ def test_a_layer_that_waited_max_wait_starts_beside_first_points() -> None:
 def test_first_points_wait_while_pages_are_built_at_most_max_wait() -> None:
     """A class opening together: while new pages are built (app/pacing.py), the first scenes of the pages built
     already wait for them (they were computed and delivered between the next pages: page p95 3.3-3.6 s with 30 tabs
-    on two workers, 1.1 s since), then go; one that waited max_wait goes anyway, pages or not."""
+    on two workers, 1.2-1.8 s since), then go; one that waited max_wait goes anyway, pages or not."""
     now = [0.0]
     pages = [True]
     sched = FairScheduler(slots=2, max_wait=2.0, clock=lambda: now[0])
