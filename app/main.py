@@ -100,12 +100,16 @@ def local_stylesheets(doc: Any) -> None:
     built when its websocket connects, after the page, and keeps the CDN's URLs (a page on a
     network without internet would then miss them and log errors).
     """
-    from panel.io.resources import LOCAL_DIST, patch_model_css
+    from bokeh.models import ImportedStyleSheet
+    from panel.io.resources import LOCAL_DIST, patch_stylesheet
 
     dist_url = f"{pn.state.rel_path}/{LOCAL_DIST}" if pn.state.rel_path else LOCAL_DIST
     doc._template_variables["dist_url"] = dist_url
-    for root in doc.roots:
-        patch_model_css(root, dist_url=dist_url)
+    # What Panel's patch_model_css does for each root, over the document's models at hand (it walked every root's
+    # models again, ~10 ms a page); the session is not connected yet, so its changes need no holding back.
+    for model in list(doc.models):
+        if isinstance(model, ImportedStyleSheet):
+            patch_stylesheet(model, dist_url)
 
 
 if __name__.startswith("bokeh_app") or __name__ == "__main__":

@@ -98,17 +98,38 @@ def _after_turns(loop: asyncio.AbstractEventLoop, turns: int) -> None:
 
 def _release() -> None:
     global _building_since
+    from app.runner import SCHEDULER
+
     while _waiting:
         fut = _waiting.popleft()
         if not fut.done():
             fut.set_result(None)
             _building_since = time.monotonic()
+            if SCHEDULER is not None:
+                SCHEDULER.poke()  # jobs held back longer than the scheduler's max_wait go, pages or not
             return
     _building_since = None
-    from app.runner import SCHEDULER
-
     if SCHEDULER is not None:
-        SCHEDULER.poke()  # the layers held back while pages were built may start
+        SCHEDULER.poke()  # the first points and layers held back while pages were built may start
+    _fill_spares()
+
+
+def _fill_spares() -> None:
+    """No page in line: build the next pages' section figures while the server is idle (app/views.py: SPARES):
+    no page due, no delivery waiting and no job computing (a figure holds the GIL ~25 ms: after a class opened,
+    the first scenes go first)."""
+    try:
+        loop = asyncio.get_running_loop()
+    except RuntimeError:  # no server (tests, scripts)
+        return
+    from app.runner import SCHEDULER
+    from app.views import SPARES
+
+    def idle() -> bool:
+        jobs = SCHEDULER.stats() if SCHEDULER is not None else {"running": 0, "waiting": 0}
+        return not (pages_due() or DELIVERIES.busy() or jobs["running"] or jobs["waiting"])
+
+    SPARES.fill(loop, idle)
 
 
 def pages_due() -> bool:
@@ -169,6 +190,10 @@ class Deliveries:
                 return
             self._scheduled = True
         self._loop.add_callback(self._drain)  # thread-safe
+
+    def busy(self) -> bool:
+        """Whether deliveries wait to be run."""
+        return self._scheduled
 
     def bind(self) -> None:
         """Remember the server's event loop (called on it, when a session is built)."""

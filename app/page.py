@@ -23,7 +23,6 @@ from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Executor
 from typing import Any
 
-import panel as pn
 from bokeh.events import RangesUpdate, Tap
 from bokeh.models import Column
 
@@ -48,8 +47,8 @@ from app.state import (
     state_from_query,
 )
 from app.tours import TOURS, Tour, TourError, nearest_step, parse_tours, read_tour_url
-from app.ui import ExplorerUI
-from app.views import SectionFigure, SeriesData
+from app.ui import ExplorerUI, FigurePane
+from app.views import SPARES, SeriesData
 from app.words import page_words
 from explorer_core.scenes import get_scene
 from explorer_core.system.params import ParameterError
@@ -98,7 +97,7 @@ class Page:
         self.state = state
         self.runner = Runner(deliver, on_error=self._job_failed, executor=executor, scheduler=scheduler, alive=alive,
                              on_busy=self._on_busy)  # fmt: skip
-        self.fig = SectionFigure(state.q_range, state.r_range)
+        self.fig = SPARES.take(state.q_range, state.r_range)
         self.series = SeriesData(on_change=self._on_series)
         self.session = ExplorerSession(state, self.runner, self.fig, self.series, on_query=publish_url)
         self.tabs: dict[str, AnalysisTab] = {}
@@ -131,8 +130,8 @@ class Page:
             view={"section": self._section_view()},
             tab=state.tab,
             presentation=state.presentation,
-            section_plot=pn.pane.Bokeh(self.fig.fig, sizing_mode="stretch_both"),
-            analysis_plot=pn.pane.Bokeh(self._analysis_box, sizing_mode="stretch_both"),
+            section_plot=FigurePane(self.fig.fig, sizing_mode="stretch_both"),
+            analysis_plot=FigurePane(self._analysis_box, sizing_mode="stretch_both"),
             sizing_mode="stretch_both",
         )
         if state.presentation:

@@ -74,6 +74,8 @@ class Player:
         self.t_play = 0.0
         self.t_request = 0.0
         self.first_frame_s: float | None = None  # Play to the first frame drawn
+        #: The picture on screen while a frame is computed: its frame index (-1: the still before Play) and value.
+        self._on_screen: tuple[int, float] | None = None
         self.drawn: list[float] = []  # when each frame of this Play was drawn
         self.message = ""
         session.param.watch(lambda *e: self._check_done(), ["running"])
@@ -135,6 +137,7 @@ class Player:
         self._gen += 1
         self.playing = True
         self._still = False
+        self._on_screen = (self.frame, float(getattr(self.state, self.state.play_param)))
         self.frame = -1
         self._sign = -1 if self.state.play_dir == "backward" else 1
         self.t_play = self._clock()
@@ -145,15 +148,24 @@ class Player:
         self._request(self._next_index())
 
     def pause(self) -> None:
-        """Stop after the frame on screen; it is computed again as a still (the state's periods), keeping the
-        orbits found while playing (the teacher who pauses explains what was on screen)."""
+        """Stop at the frame on screen; it is computed again as a still (the state's periods), keeping the
+        orbits found while playing (the teacher who pauses explains what was on screen).
+
+        The frame on screen is the last one drawn: the next one, asked for and not computed yet, is not shown (a
+        frame's points replace the last frame's only once all computed), so Pause then goes back to the one shown
+        (it landed on the next frame)."""
         if not self.playing:
             return
         self._gen += 1
         self.playing = False
+        shown = self._on_screen if self._waiting and not self._computed else None
         self._waiting = False
         self.session.frame_periods = None
-        self._still = self._with_orbits_shown(self.session.recompute)
+        if shown is not None and shown[1] != float(getattr(self.state, self.state.play_param)):
+            self.frame = shown[0]
+            self._still = self._with_orbits_shown(lambda: self._commit(shown[1]))
+        else:
+            self._still = self._with_orbits_shown(self.session.recompute)
         self._changed()
 
     def step(self) -> None:
@@ -179,7 +191,9 @@ class Player:
     # --- frames --------------------------------------------------------------------------------------
 
     def _set(self, i: int) -> None:
-        value = float(self.values()[i])
+        self._commit(float(self.values()[i]))
+
+    def _commit(self, value: float) -> None:
         problem = commit(self.state, self.state.play_param, repr(value))
         if problem:
             self.message = f"Play stopped: {problem}"
@@ -255,6 +269,7 @@ class Player:
 
     def _drawn(self) -> None:
         self._waiting = False
+        self._on_screen = (self.frame, float(getattr(self.state, self.state.play_param)))
         now = self._clock()
         if self.first_frame_s is None:
             self.first_frame_s = now - self.t_play

@@ -290,12 +290,15 @@ class FairScheduler:
         now = self._clock()
         while self._used() < self.slots and self._waiting:
             # New pages being built count as first points due: the layers and analyses (Python, they
-            # hold the GIL the event loop needs) wait for them too (app/pacing.py).
-            first_due = self.pages_due() or any(t.kind == POINTS and t.fresh for t in (*self._waiting, *self._active))
+            # hold the GIL the event loop needs) wait for them too (app/pacing.py), and so do first points:
+            # a class opening together had the first scenes of the pages built first computed and delivered
+            # between the next pages (page p95 3.3-3.6 s; a page is ~60 ms, a first scene's points more).
+            pages = self.pages_due()
+            first_due = pages or any(t.kind == POINTS and t.fresh for t in (*self._waiting, *self._active))
             ready = [
                 t for t in self._waiting
                 if self._running[t.kind] < self._caps[t.kind]
-                and (t.kind == POINTS or not first_due or now - t.since >= self.max_wait)
+                and ((t.kind == POINTS and not pages) or not first_due or now - t.since >= self.max_wait)
             ]  # fmt: skip
             if not ready:
                 return

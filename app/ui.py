@@ -17,13 +17,16 @@ from __future__ import annotations
 
 import base64
 import logging
+import textwrap
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import panel as pn
 import param
 from bokeh.model import DataModel
 from panel.custom import JSComponent
+from panel.io.model import remove_root
 from panel.viewable import Child
 
 from app.state import BY_NAME, CONTROLS, MAX_TEXT, TABS
@@ -61,6 +64,10 @@ SPEC = _spec()
 ESM = "\n".join(Path(__file__).with_name(f).read_text(encoding="utf-8") for f in ("body.js", "ui.js"))
 
 
+#: The module as Panel sends it to a page (flush left).
+_ESM_RENDERED = textwrap.dedent(ESM)
+
+
 def check_message(data: Any) -> dict[str, Any] | None:
     """A message from the page if it is well formed, else None (dropped: it did not come from our page)."""
     if not isinstance(data, dict):
@@ -89,6 +96,26 @@ def check_message(data: Any) -> dict[str, Any] | None:
     return out
 
 
+class FigurePane(pn.pane.Bokeh):
+    """A Bokeh model (a figure, the analysis tab's box) as a child of the page.
+
+    Panel's pane searches everything under the model for ``CustomJS`` callbacks to renumber each time it is
+    rendered: a walk of every model of the section figure (~60) for a new page, a tenth of what building it
+    costs the event loop (docs/load.md). The page's figures have no ``CustomJS``, so this pane skips that search;
+    the rest is Panel's (1.9) ``Bokeh._get_model``.
+    """
+
+    def _get_model(self, doc: Any, root: Any = None, parent: Any = None, comm: Any = None) -> Any:
+        if root is None or comm is not None or self.object is None:
+            return super()._get_model(doc, root, parent, comm)
+        model = self.object
+        if model._document and doc is not model._document:
+            remove_root(model, doc)
+        self._models[root.ref["id"]] = (model, parent)
+        self._design.apply_bokeh_theme_to_model(model, self.theme)
+        return model
+
+
 class ExplorerUI(JSComponent):
     """The whole page of one session (figures are its children)."""
 
@@ -106,6 +133,11 @@ class ExplorerUI(JSComponent):
     analysis_plot = Child()
 
     _esm = ESM
+
+    @classmethod
+    def _render_esm(cls, compiled: Any = True, server: bool = False) -> str:
+        # Panel dedents the module's text (~83 kB) again for every page (~1.3 ms); it is the same each time.
+        return _ESM_RENDERED
 
     def __init__(self, on_message: Callable[[dict[str, Any]], None] | None = None, **params: Any) -> None:
         super().__init__(**params)

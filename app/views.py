@@ -20,7 +20,9 @@ import os
 from typing import Any
 
 import numpy as np
+from bokeh.core.property.validation import validate
 from bokeh.models import (
+    AllIndices,
     AllLabels,
     BasicTicker,
     BoxZoomTool,
@@ -101,6 +103,21 @@ BASIN_ALPHA = 0.5
 FONTS = {False: ("11pt", "9pt"), True: ("16pt", "13pt")}
 
 
+def _mapper(cls: type, palette: Any, **kw: Any) -> Any:
+    """A colour mapper over one of the palettes above, without Bokeh's check of each of its colours.
+
+    Bokeh checks every colour of a palette each time a mapper is made (~5 ms for 255 colours, a twentieth of what a
+    new page cost); these palettes are checked once, at import.
+    """
+    with validate(False):
+        return cls(palette=palette, **kw)
+
+
+# Bokeh's check of the palettes, once per process (a palette it refuses fails the import, as it failed every page).
+for _palette in (TPRIME_PALETTE, TRAJ_PALETTE, DENSITY_PALETTE, FTLE_PALETTE):
+    LinearColorMapper(palette=_palette)
+
+
 def _empty_points() -> dict[str, list]:
     return {"q": [], "r": [], "traj": [], "k": [], "c": []}
 
@@ -145,12 +162,6 @@ def _axes(plot: Plot, x_label: str, y_label: str, *, grid: bool = True) -> list[
     return axes
 
 
-def _renderer(source: ColumnDataSource, glyph: Any, **kw: Any) -> GlyphRenderer:
-    # Its own CDSView (BokehJS keeps the view's indices for one source) and no glyph of its own
-    # for the unselected state (nothing is ever selected here).
-    return GlyphRenderer(data_source=source, glyph=glyph, view=CDSView(), **kw)
-
-
 def set_fonts(axes: list[LinearAxis], presentation: bool) -> None:
     label, ticks = FONTS[presentation]
     for a in axes:
@@ -185,14 +196,17 @@ class SectionFigure:
         )  # fmt: skip
         self.axes = _axes(fig, "q", "r")
         policy = UnionRenderers()
+        # One filter for every renderer's view: each view would have its own (a model more per layer to build and
+        # send); it selects nothing, so sharing it changes nothing.
+        self._every = AllIndices()
 
         def source(data: dict, name: str) -> ColumnDataSource:
             return ColumnDataSource(data, name=name, selection_policy=policy)
 
-        self.tprime_mapper = LinearColorMapper(palette=TPRIME_PALETTE, low=-1, high=1)
+        self.tprime_mapper = _mapper(LinearColorMapper, TPRIME_PALETTE, low=-1, high=1)
         self.tprime = source(_image_data(), "tprime_source")
         image = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self.tprime_mapper, global_alpha=0.55)
-        tp = _renderer(self.tprime, image, level="image", name="tprime_image")
+        tp = self._renderer(self.tprime, image, level="image", name="tprime_image")
         self._tprime_renderer = tp
         self.colorbar = ColorBar(
             color_mapper=self.tprime_mapper,
@@ -206,29 +220,27 @@ class SectionFigure:
         self._tprime_title, self._presentation = self.colorbar.title, False
         self._ftle_title = ""
         self.tracks = source({"xs": [], "ys": [], "color": [], "type": []}, "tracks_source")
-        tracks = _renderer(self.tracks, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6, line_alpha=0.7,
-                                                  line_dash="dashed"))  # fmt: skip
+        tracks = self._renderer(self.tracks, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6,
+                                                       line_alpha=0.7, line_dash="dashed"))  # fmt: skip
         self.points = source(_empty_points(), "section_source")
-        self.traj_mapper = LinearColorMapper(palette=TRAJ_PALETTE, low=0, high=N_COLORS - 1)
+        self.traj_mapper = _mapper(LinearColorMapper, TRAJ_PALETTE, low=0, high=N_COLORS - 1)
         colour = {"field": "c", "transform": self.traj_mapper}
         dots = Scatter(x="q", y="r", size=POINT_SIZE, line_color=None, fill_alpha=0.9, fill_color=colour)
-        pts = _renderer(self.points, dots, name="section_points")
+        pts = self._renderer(self.points, dots, name="section_points")
         # The selected trajectory, ringed on top of the others: thin translucent rings just wider than a point, so
         # an attractor it lies on keeps its structure and colours (6 px rings at 0.7 hid Fig. 8B's; issue 36).
         self.selected = source({"q": [], "r": []}, "selected_source")
-        sel = _renderer(self.selected, Scatter(x="q", y="r", size=SELECTED_RING, line_color="black",
-                                               line_width=SELECTED_LINE, line_alpha=SELECTED_ALPHA, fill_color=None),
-                        name="selected_points")  # fmt: skip
+        ring = Scatter(x="q", y="r", size=SELECTED_RING, line_color="black", line_width=SELECTED_LINE,
+                       line_alpha=SELECTED_ALPHA, fill_color=None)  # fmt: skip
+        sel = self._renderer(self.selected, ring, name="selected_points")
         self.equilibria = source({"q": [], "r": [], "color": [], "type": [], "label": []}, "equilibria_source")
-        eq = _renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
-                                                line_color="black"), name="frozen_field_equilibria")  # fmt: skip
-        self.ics = source({"q": [], "r": []}, "ics_source")
-        ics = _renderer(self.ics, Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2))
+        eq = self._renderer(self.equilibria, Scatter(x="q", y="r", marker="diamond", size=15, fill_color="color",
+                                                     line_color="black"), name="frozen_field_equilibria")  # fmt: skip
         self._source = source
-        # The layers a new page does not show (basins, density, manifolds, periodic orbits) are built
+        # The layers a new page does not show (basins, density, manifolds, periodic orbits, clicked points) are built
         # when first used and join the plot then, in their place (a string here): a new page builds
         # ~55 models fewer and sends ~30 fewer (Bokeh spends ~0.4 ms a model: docs/load.md).
-        self._order: list[Any] = [tp, "basins", "ftle", "density", tracks, pts, sel, eq, ics, "manifolds", "orbits",
+        self._order: list[Any] = [tp, "basins", "ftle", "density", tracks, pts, sel, eq, "ics", "manifolds", "orbits",
                                  "body", "marks"]  # fmt: skip
         self._built: dict[str, list[GlyphRenderer]] = {}
         self._shown: set[str] = set()
@@ -253,6 +265,11 @@ class SectionFigure:
                               logo=None, active_scroll=None)  # fmt: skip
         self.fig = fig
 
+    def _renderer(self, source: ColumnDataSource, glyph: Any, **kw: Any) -> GlyphRenderer:
+        # Its own CDSView (BokehJS keeps the view's indices for one source) and no glyph of its own
+        # for the unselected state (nothing is ever selected here).
+        return GlyphRenderer(data_source=source, glyph=glyph, view=CDSView(filter=self._every), **kw)
+
     # --- the layers built on first use ------------------------------------------------------
 
     def _build(self, layer: str) -> list[GlyphRenderer]:
@@ -262,34 +279,40 @@ class SectionFigure:
 
     def _build_density(self) -> list[GlyphRenderer]:
         # A long section as a density image (counts per pixel, binned on the server), under the points.
-        self._density_mapper = LogColorMapper(palette=DENSITY_PALETTE, low=1, high=2, nan_color=(0, 0, 0, 0))
+        self._density_mapper = _mapper(LogColorMapper, DENSITY_PALETTE, low=1, high=2, nan_color=(0, 0, 0, 0))
         self._density = self._source(_image_data(), "density_source")
         shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self._density_mapper)
-        return [_renderer(self._density, shade, level="image", name="density_image")]
+        return [self._renderer(self._density, shade, level="image", name="density_image")]
+
+    def _build_ics(self) -> list[GlyphRenderer]:
+        # The initial conditions clicked in the plot (none on a new page but a link's own).
+        self._ics = self._source({"q": [], "r": []}, "ics_source")
+        cross = Scatter(x="q", y="r", marker="x", size=11, line_color="black", line_width=2)
+        return [self._renderer(self._ics, cross, name="clicked_points")]
 
     def _build_basins(self) -> list[GlyphRenderer]:
         # Basins of attraction: a colour per attractor, translucent, over the T' map and under the points.
         self._basins = self._source(_image_data(), "basins_source")
         rgba = ImageRGBA(image="image", x="x", y="y", dw="dw", dh="dh", global_alpha=BASIN_ALPHA)
-        return [_renderer(self._basins, rgba, level="image", name="basins_image")]
+        return [self._renderer(self._basins, rgba, level="image", name="basins_image")]
 
     def _build_ftle(self) -> list[GlyphRenderer]:
         # An FTLE map: a colour scale (its key the colour bar), under the points; failed pixels transparent.
-        self._ftle_mapper = LinearColorMapper(
-            palette=FTLE_PALETTE, low=0, high=1, nan_color=(0, 0, 0, 0), name="ftle_mapper"
+        self._ftle_mapper = _mapper(
+            LinearColorMapper, FTLE_PALETTE, low=0, high=1, nan_color=(0, 0, 0, 0), name="ftle_mapper"
         )
         self._ftle = self._source(_image_data(), "ftle_source")
         shade = Image(image="image", x="x", y="y", dw="dw", dh="dh", color_mapper=self._ftle_mapper)
-        return [_renderer(self._ftle, shade, level="image", name="ftle_image")]
+        return [self._renderer(self._ftle, shade, level="image", name="ftle_image")]
 
     def _build_manifolds(self) -> list[GlyphRenderer]:
         # Stable and unstable manifolds of saddles over the points, their crossings (homoclinic points) on them.
         self._manifolds = self._source({"xs": [], "ys": [], "color": [], "kind": []}, "manifolds_source")
-        man = _renderer(self._manifolds, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6,
-                                                   line_alpha=0.9), name="manifold_lines")  # fmt: skip
+        man = self._renderer(self._manifolds, MultiLine(xs="xs", ys="ys", line_color="color", line_width=1.6,
+                                                        line_alpha=0.9), name="manifold_lines")  # fmt: skip
         self._crossings = self._source({"q": [], "r": [], "what": []}, "crossings_source")
         diamond = Scatter(x="q", y="r", marker="diamond", size=8, fill_color="black", line_color="white", line_width=1)
-        cross = _renderer(self._crossings, diamond, name="homoclinic_points")
+        cross = self._renderer(self._crossings, diamond, name="homoclinic_points")
         self._hovers["manifolds"] = HoverTool(renderers=[cross], tooltips=[("", "@what"), ("q, r", "@q, @r")])
         return [man, cross]
 
@@ -302,11 +325,11 @@ class SectionFigure:
         for kind, marker, fill, alpha in (("saddle", "x", "white", 0.0), ("unstable", "circle", "white", 0.85),
                                           ("stable", "circle", "#ffd21f", 1.0)):  # fmt: skip
             src = self._orbit_sources[kind]
-            orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color="white", line_width=6,
-                                              fill_alpha=0.0)))  # fmt: skip
-            orb.append(_renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
-                                              line_width=2.5, fill_color=fill, fill_alpha=alpha),
-                                 name=f"orbit_points_{kind}"))  # fmt: skip
+            orb.append(self._renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color="white",
+                                                   line_width=6, fill_alpha=0.0)))  # fmt: skip
+            orb.append(self._renderer(src, Scatter(x="q", y="r", marker=marker, size=15, line_color=ORBIT_COLOUR,
+                                                   line_width=2.5, fill_color=fill, fill_alpha=alpha),
+                                      name=f"orbit_points_{kind}"))  # fmt: skip
         # The multipliers first: they are what tells the kind of orbit; one orbit point described at a time.
         tips = [("multipliers", "@mu"), ("periodic orbit of the map", "period @period, @type"), ("q, r", "@q, @r")]
         self._hovers["orbits"] = HoverTool(renderers=orb[1::2], tooltips=tips, limit=1)
@@ -318,12 +341,13 @@ class SectionFigure:
     def _build_marks(self) -> list[GlyphRenderer]:
         # What a tour's step says to look at: a thick ring and its words, over everything.
         self._marks = self._source({"q": [], "r": [], "label": []}, "marks_source")
-        ring = _renderer(self._marks, Scatter(x="q", y="r", marker="circle", size=34, fill_alpha=0.0,
-                                              line_color=MARK_COLOUR, line_width=4), name="tour_marks")  # fmt: skip
-        words = _renderer(self._marks, Text(x="q", y="r", text="label", x_offset=20, y_offset=-10,
-                                            text_font_size="13pt", text_font_style="bold", text_color=MARK_COLOUR,
-                                            background_fill_color="white", background_fill_alpha=0.75),
-                          name="tour_labels")  # fmt: skip
+        ring = self._renderer(self._marks, Scatter(x="q", y="r", marker="circle", size=34, fill_alpha=0.0,
+                                                   line_color=MARK_COLOUR, line_width=4),
+                              name="tour_marks")  # fmt: skip
+        words = self._renderer(self._marks, Text(x="q", y="r", text="label", x_offset=20, y_offset=-10,
+                                                 text_font_size="13pt", text_font_style="bold", text_color=MARK_COLOUR,
+                                                 background_fill_color="white", background_fill_alpha=0.75),
+                               name="tour_labels")  # fmt: skip
         return [ring, words]
 
     def _build_body(self) -> list[GlyphRenderer]:
@@ -333,7 +357,7 @@ class SectionFigure:
         # repaint each period took 0.5-1.2 s in headless Chromium and the body ran at 2-14 frames/s at 1-4 periods/s).
         self._body = self._source({"q": [], "r": []}, "body_source")
         star = Scatter(x="q", y="r", marker="star", size=22, fill_color=BODY_COLOUR, line_color="black", line_width=1.5)
-        return [_renderer(self._body, star, level="overlay", name="body_point")]
+        return [self._renderer(self._body, star, level="overlay", name="body_point")]
 
     def show_body_point(self) -> None:
         """Put the body view's highlighted section point in the plot (built on first use; the page moves it)."""
@@ -364,6 +388,7 @@ class SectionFigure:
     manifolds = _OfLayer("manifolds")
     crossings = _OfLayer("manifolds")
     orbit_sources = _OfLayer("orbits")
+    ics = _OfLayer("ics")
 
     def _activate(self, layer: str) -> None:
         """Put a layer's renderers in the plot (in their place among the others), once."""
@@ -455,6 +480,9 @@ class SectionFigure:
         self.selected.data = {"q": q, "r": r}
 
     def set_ics(self, ics: np.ndarray) -> None:
+        if not ics.size and "ics" not in self._built:
+            return
+        self._activate("ics")
         self.ics.data = {"q": ics[:, 0], "r": ics[:, 1]} if ics.size else {"q": [], "r": []}
 
     def set_orbits(self, rows: list[dict[str, Any]]) -> None:
@@ -583,6 +611,56 @@ class SectionFigure:
         if self._presentation:
             return ("T′" if title.startswith("T′") else "ΔT over a period") + ": red gain, blue loss"
         return title
+
+
+class SpareFigures:
+    """Section figures built ahead, while the server's event loop has nothing else to do.
+
+    A section figure is the largest part of a new page the server builds (~60 Bokeh models, a quarter of its
+    event-loop time, docs/load.md) and depends on nothing of the visitor's (its view is set when taken). When a
+    class opens the link together, each worker builds its pages one after the other and the last student waits
+    for all of them: with figures built beforehand, in the quiet moments before (one per turn of an idle loop),
+    each page costs that much less. Taken one by one (:meth:`take`); without spares, a figure is built then.
+    """
+
+    def __init__(self, size: int = 16, every: float = 0.05) -> None:
+        self.size = size
+        self.every = every
+        self._spares: list[SectionFigure] = []
+        self._filling: Any = None  # the loop the spares are being built on
+
+    def __len__(self) -> int:
+        return len(self._spares)
+
+    def take(self, q_range: tuple[float, float], r_range: tuple[float, float]) -> SectionFigure:
+        """A section figure over ``q_range`` x ``r_range``: a spare if there is one, else built now."""
+        if not self._spares:
+            return SectionFigure(q_range, r_range)
+        fig = self._spares.pop()
+        fig.set_view(q_range, r_range)
+        return fig
+
+    def fill(self, loop: Any, idle: Any) -> None:
+        """Build spares on ``loop`` (an asyncio loop), one at a time while ``idle()`` says the server has nothing
+        more urgent to do and nothing else is ready to run, until there are :attr:`size` of them."""
+        if (self._filling is loop and not loop.is_closed()) or len(self._spares) >= self.size:
+            return
+        self._filling = loop
+        loop.call_later(self.every, self._one, loop, idle)
+
+    def _one(self, loop: Any, idle: Any) -> None:
+        # CPython's loop keeps its ready callbacks in ``_ready``: none waiting means the loop is idle.
+        if idle() and not getattr(loop, "_ready", None):
+            self._spares.append(SectionFigure((0.0, 1.0), (0.0, 1.0)))
+        if len(self._spares) >= self.size:
+            self._filling = None
+            return
+        loop.call_later(self.every, self._one, loop, idle)
+
+
+#: The spare section figures of this process (filled by the server: app/pacing.py); env BILIMOVICH_SPARE_FIGURES:
+#: how many (0: none, for measurements of a page's whole cost: benchmarks/session_cost.py).
+SPARES = SpareFigures(int(os.environ.get("BILIMOVICH_SPARE_FIGURES", "16")))
 
 
 class SeriesData:

@@ -160,6 +160,7 @@ class Tab:
         self.probe: Change | None = None
         self.closed = False
         self.times: dict[str, float] = {}  # seconds from the GET: page (document in hand), first points, full scene
+        self.document: dict[str, Any] = {}  # the document as pulled (its size and models are reported)
         self._changed = asyncio.Event()
         self._replies: dict[str, asyncio.Future] = {}
         self._arrived: dict[str, float] = {}
@@ -276,6 +277,7 @@ class Tab:
         await self._send("PULL-DOC-REQ", {})
         doc = (await asyncio.wait_for(reply, timeout))["doc"]
         self.times["page"] = self._arrived["PULL-DOC-REPLY"] - t0
+        self.document = doc
         self._index(doc)
         self.probe = Change(self.name, DEFAULT_ALPHA, t0=t0, gen0=self.gen)
         await self._send("PATCH-DOC", {"events": [_ui_event("document_ready", {})]})
@@ -532,6 +534,7 @@ async def classroom(
         "changes_per_session": changes,
         "open_s": _summary(open_s, 1.0, 2),
         "open_stagger_s": stagger,
+        "document": {"models": len(_models(tabs[0].document)), "kB": round(len(json.dumps(tabs[0].document)) / 1e3, 1)},
         "open_page_s": _summary([t.times["page"] for t in tabs], 1.0, 2),
         "open_first_points_s": _summary([t.times["first_points"] for t in tabs], 1.0, 2),
         "open_full_scene_s": _summary([t.times["full_scene"] for t in tabs], 1.0, 2),
@@ -675,6 +678,7 @@ def markdown(report: dict[str, Any]) -> str:
             "sessions x slider moves (server processes)",
             f"{c['sessions']} x {c['changes_per_session']} ({report.get('procs', 1)})",
         ),
+        ("a new page's document: Bokeh models, JSON", f"{c['document']['models']}, {c['document']['kB']} kB"),
         (f"opened {when}: GET -> page (document), p50 / p95 / max", _s(c["open_page_s"])),
         ("GET -> first section points, p50 / p95 / max", _s(c["open_first_points_s"])),
         ("GET -> full first scene, p50 / p95 / max", _s(c["open_full_scene_s"])),

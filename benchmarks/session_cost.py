@@ -4,11 +4,14 @@
 
 Serves the app (one process), warms it up, then opens ``--sessions`` tabs one after the other
 the way a browser does (GET the page, websocket with its token, ACK, PULL-DOC) and measures, per
-tab, the server CPU it took until the document was in the client's hands: the event loop's own
+tab, the server CPU it took until the document was in the client's hands (in all, and per step: the
+page's HTML, the session built, the document sent), the document's size and models; the event loop's own
 CPU (``/proc/<pid>/schedstat`` of the main thread, nanoseconds) and the whole process's (all
 threads, ``/proc/<pid>/stat``, 10 ms ticks). The tabs never say ``document_ready``, so nothing
 is computed: this is the page alone, what a class opening the link at once queues on the event
-loop. Then, with every tab open and idle, the RSS per session.
+loop. The server builds no spare section figures here (``BILIMOVICH_SPARE_FIGURES=0``): the figures are
+what a page costs in all (spares move a part of it to before the class arrives, app/views.py). Then, with
+every tab open and idle, the RSS per session.
 
 A second pass opens the same number of tabs that do say ``document_ready`` (the first scene is
 computed and its first points, layers and series sent), and reports the CPU per session with
@@ -43,13 +46,17 @@ def loop_cpu_s(pid: int) -> float:
 class PageOnly(lt.Tab):
     """A tab that loads the page and its document, and stops there (no ``document_ready``)."""
 
-    async def page_only(self, timeout: float = 120.0) -> None:
+    async def page_only(self, timeout: float = 120.0, mark: Any = None) -> dict:
+        """The page's three steps; ``mark(step)`` is called after each (the HTML, the session built, the
+        document received). Returns the document."""
         from bokeh.protocol import Protocol
         from bokeh.protocol.receiver import Receiver
         from tornado.httpclient import AsyncHTTPClient, HTTPRequest
         from tornado.websocket import websocket_connect
 
+        mark = mark or (lambda step: None)
         page = await AsyncHTTPClient().fetch(self.server.url, request_timeout=timeout)
+        await mark("html")
         token = re.search(r'"token":"([^"]+)"', page.body.decode())[1]
         request = HTTPRequest(self.server.url.replace("http://", "ws://") + "/ws", request_timeout=timeout)
         self._receiver = Receiver(Protocol())
@@ -57,9 +64,12 @@ class PageOnly(lt.Tab):
         self.ws = await websocket_connect(request, subprotocols=["bokeh", token], max_message_size=64 * 2**20)
         self._reader = asyncio.create_task(self._read_loop())
         await asyncio.wait_for(ack, timeout)
+        await mark("session")
         reply = self._expect("PULL-DOC-REPLY")
         await self._send("PULL-DOC-REQ", {})
-        await asyncio.wait_for(reply, timeout)
+        doc = (await asyncio.wait_for(reply, timeout))["doc"]
+        await mark("document")
+        return doc
 
 
 def _ms(xs: list[float]) -> dict[str, float]:
@@ -78,11 +88,20 @@ async def measure(server: Any, sessions: int) -> dict[str, Any]:
     # Pass 1: the page alone.
     base = lt.proc_status(pid)
     tabs, loop_s, proc_s, wall_s = [], [], [], []
+    steps: dict[str, list[float]] = {"html": [], "session": [], "document": []}
     for i in range(sessions):
         t = PageOnly(server, f"p{i}")
         l0, c0, w0 = loop_cpu_s(pid), lt.proc_status(pid)["cpu_s"], time.perf_counter()
-        await t.page_only()
-        await asyncio.sleep(0.05)  # let the server finish sending
+        last = [l0]
+
+        async def mark(step: str, last: list[float] = last) -> None:
+            # The event loop's CPU per step: the GET's HTML, the session built (app/main.py), the document sent.
+            await asyncio.sleep(0.05)  # let the server finish the step
+            now = loop_cpu_s(pid)
+            steps[step].append(now - last[0])
+            last[0] = now
+
+        doc = await t.page_only(mark=mark)
         loop_s.append(loop_cpu_s(pid) - l0)
         proc_s.append(lt.proc_status(pid)["cpu_s"] - c0)
         wall_s.append(time.perf_counter() - w0)
@@ -91,6 +110,8 @@ async def measure(server: Any, sessions: int) -> dict[str, Any]:
     idle = lt.proc_status(pid)
     out["page_only"] = {
         "event_loop_cpu_ms": _ms(loop_s),
+        "event_loop_cpu_ms_per_step": {k: _ms(v) for k, v in steps.items()},
+        "document": {"models": len(lt._models(doc)), "kB": round(len(json.dumps(doc)) / 1e3, 1)},
         "process_cpu_ms_mean": round(1e3 * sum(proc_s) / sessions, 1),
         "wall_ms": _ms(wall_s),
         "rss_per_session_mb": round((idle["rss_mb"] - base["rss_mb"]) / sessions, 2),
@@ -127,7 +148,8 @@ def main() -> None:
     ap.add_argument("--sessions", type=int, default=30)
     ap.add_argument("--json", metavar="FILE")
     args = ap.parse_args()
-    with serve("/tmp/session_cost_panel.log", session_lifetime=3000) as server:
+    env = {"BILIMOVICH_SPARE_FIGURES": "0"}
+    with serve("/tmp/session_cost_panel.log", session_lifetime=3000, env=env) as server:
         with concurrent.futures.ThreadPoolExecutor(1) as pool:
             report = pool.submit(asyncio.run, measure(server, args.sessions)).result()
     report["command"] = " ".join(sys.argv)

@@ -459,3 +459,42 @@ def test_pause_and_step_keep_the_orbits_found_while_playing() -> None:
     page.handle({"action": "step"})
     jobs.drain()
     assert page.session.orbits == []
+
+
+@pytest.mark.parametrize("direction", ["backward", "forward"])
+def test_pause_while_the_next_frame_is_computed_stays_on_the_frame_on_screen(direction: str) -> None:
+    """A frame's points replace the last frame's only once all computed: while the next frame is computed the page
+    still shows the last one, and Pause stops there (it landed on the next frame, seen playing Fig. 10 backward);
+    a frame computed (its points sent) is the one Pause keeps. Before the first frame, the still before Play."""
+    page, jobs, clock = page_for({"alpha": str(VALUES[5]), "play_dir": direction}, wait_for_browser=True)
+    step = -1 if direction == "backward" else 1
+    page.handle({"action": "play"})
+    jobs.drain()
+    page.handle({"action": "shown", "value": str(page.ui.view["section"]["play"]["number"])})
+    assert page.player.frame == 5 and page.state.alpha == pytest.approx(VALUES[5])  # frame 5 on screen
+    clock.advance(0.1)
+    assert page.player.frame == 5 + step and jobs.queue  # the next is asked for, computing
+    page.handle({"action": "pause"})
+    jobs.drain()
+    assert page.state.alpha == pytest.approx(VALUES[5]) and page.player.frame == 5  # the frame on screen
+    assert page.session.n_points == 3 * 300 and not page.player.playing  # as a still
+    assert page.ui.view["section"]["play"]["frame"] == 5
+    assert float(page.state.to_query()["alpha"]) == pytest.approx(VALUES[5])
+    clock.advance(5.0)
+    jobs.drain()
+    assert page.state.alpha == pytest.approx(VALUES[5])
+
+    page.handle({"action": "play"})  # from frame 5 again
+    jobs.drain()
+    page.handle({"action": "shown", "value": str(page.ui.view["section"]["play"]["number"])})
+    clock.advance(0.1)
+    jobs.drain()  # the next frame computed, its points sent: on screen (or at the next paint)
+    page.handle({"action": "pause"})
+    jobs.drain()
+    assert page.state.alpha == pytest.approx(VALUES[5 + step])
+
+    page, jobs, clock = page_for({"alpha": "-0.4", "play_dir": direction}, wait_for_browser=True)
+    page.handle({"action": "play"})  # the first frame computing: the still before Play is on screen
+    page.handle({"action": "pause"})
+    jobs.drain()
+    assert page.state.alpha == -0.4 and page.player.frame == -1

@@ -114,6 +114,7 @@ def test_pages_pass_bokehs_checks() -> None:
     page.fig.set_density(np.ones((4, 4)), view)
     page.fig.set_basins(np.zeros((4, 4), dtype=int), view, {0: "#1f77b4"})
     page.fig.set_manifolds([(np.array([0.0, 1.0]), np.array([0.0, 1.0]), "unstable")], [(0.5, 0.5, "homoclinic")])
+    page.fig.set_ics(np.array([[0.1, -0.2]]))
 
     def errors() -> list:
         refs = set().union(*(root.references() for root in doc.roots))
@@ -209,3 +210,79 @@ def test_a_write_to_a_tab_that_closed_is_not_logged_as_an_error(caplog) -> None:
         loop.close()
     logged = [r for r in caplog.records if r.name == "asyncio"]
     assert [type(r.exc_info[1]) for r in logged] == [RuntimeError]
+
+
+def test_a_pages_html_is_rendered_once_and_carries_each_requests_token(monkeypatch) -> None:
+    """app.serve.pages_once: the template document's HTML is rendered once (Panel walked its models for every
+    GET); each request gets it with its own token, and a new document, title or prefix is rendered anew."""
+    import panel.io.server as panel_server
+
+    import app.serve as serve_mod
+
+    rendered: list[tuple[str, str]] = []
+
+    def render(session: object, resources: object, title: str, token: str | None = None, **kw: object) -> str:
+        rendered.append((title, str(token)))
+        return f'<html><title>{title}</title><script>[{{"token":"{token}"}}]</script></html>'
+
+    class Doc:  # a document (weakly referenced by the cache)
+        pass
+
+    class Session:
+        def __init__(self, doc: Doc, token: str) -> None:
+            self.document, self.token = doc, token
+
+    class Resources:
+        mode, root_url = "server", "/"
+
+    monkeypatch.setattr(panel_server, "server_html_page_for_session", render)
+    serve_mod.pages_once()
+    serve_mod.pages_once()  # once only
+    page = panel_server.server_html_page_for_session
+    template = Doc()
+    first = page(Session(template, "t0"), Resources(), "Explorer", token="token-a", template=None)
+    second = page(Session(template, "t0"), Resources(), "Explorer", token="token-b", template=None)
+    assert '"token":"token-a"' in first and '"token":"token-b"' in second
+    assert first.replace("token-a", "token-b") == second
+    assert rendered == [("Explorer", serve_mod.TOKEN_SLOT)]  # one render for both
+    page(Session(template, "t0"), Resources(), "Other", token="token-c", template=None)
+    page(Session(Doc(), "t1"), Resources(), "Explorer", template=None)  # the session's own token
+    assert [r[0] for r in rendered] == ["Explorer", "Other", "Explorer"]
+    assert '"token":"t1"' in page(Session(Doc(), "t1"), Resources(), "Explorer", template=None)
+    assert "pages_once()" in Path(serve_mod.__file__).read_text().split("def main(")[1]
+
+
+def test_every_page_of_a_served_app_has_a_token_of_its_own(tmp_path) -> None:
+    """The HTML rendered once (pages_once) still gives each visitor a session of their own: two GETs differ in
+    their token only, and each token opens a session whose document comes back."""
+    import asyncio
+    import re
+
+    from bokeh.protocol import Protocol
+    from bokeh.protocol.receiver import Receiver
+    from tornado.websocket import websocket_connect
+
+    with serve(str(tmp_path / "serve.log")) as server:
+        pages = [urllib.request.urlopen(server.url, timeout=60).read().decode() for _ in range(2)]
+        tokens = [re.search(r'"token":"([^"]+)"', p)[1] for p in pages]
+        assert tokens[0] != tokens[1] and pages[0].replace(tokens[0], tokens[1]) == pages[1]
+
+        async def pull(token: str) -> dict:
+            ws = await websocket_connect(server.url.replace("http://", "ws://") + "/ws", subprotocols=["bokeh", token])
+            receiver, protocol = Receiver(Protocol()), Protocol()
+            try:
+                while True:  # ACK, then the document on request
+                    msg = await receiver.consume(await ws.read_message())
+                    if msg is None:
+                        continue
+                    if msg.header["msgtype"] == "ACK":
+                        req = protocol.create("PULL-DOC-REQ")
+                        for part in (req.header_json, req.metadata_json, req.content_json):
+                            await ws.write_message(part)
+                    elif msg.header["msgtype"] == "PULL-DOC-REPLY":
+                        return msg.content["doc"]
+            finally:
+                ws.close()
+
+        docs = [asyncio.run(asyncio.wait_for(pull(t), 120)) for t in tokens]
+        assert all(any("ExplorerUI" in str(r) for r in d["roots"]) for d in docs)

@@ -115,3 +115,71 @@ def test_a_tab_closed_while_waiting_leaves_the_line() -> None:
     log = _run(main())
     assert [e[1] for e in log if e[0] == "start"] == ["first"]
     assert pacing._building_since is None  # nobody waits: the line is free
+
+
+def _normalised(fig) -> str:
+    """A figure as a page receives it, its models' ids numbered in order of appearance."""
+    import json
+    import re
+
+    from bokeh.document import Document
+    from bokeh.protocol import Protocol
+
+    doc = Document()
+    doc.add_root(fig.fig)
+    text = json.dumps(json.loads(Protocol().create("PULL-DOC-REPLY", "x", doc).content_json), sort_keys=True)
+    ids: dict[str, str] = {}
+    return re.sub(r'"(p\d+)"', lambda m: f'"m{ids.setdefault(m[1], len(ids))}"', text)
+
+
+def test_spare_figures_are_built_while_the_loop_is_idle_and_taken_with_the_pages_view() -> None:
+    """app.views.SpareFigures: built one at a time only while the server is idle, up to their number; a page takes
+    one with its own view, the same figure a page built then would have; none left: built then."""
+    from app.views import SectionFigure, SpareFigures
+
+    spares = SpareFigures(size=3, every=0.005)
+    idle = [False]
+
+    async def scenario() -> list[int]:
+        seen = []
+        spares.fill(asyncio.get_running_loop(), lambda: idle[0])
+        await asyncio.sleep(0.1)
+        seen.append(len(spares))  # busy: none built
+        idle[0] = True
+        for _ in range(200):
+            await asyncio.sleep(0.01)
+            if len(spares) == 3:
+                break
+        await asyncio.sleep(0.1)
+        seen.append(len(spares))  # full: no more
+        return seen
+
+    assert _run(scenario()) == [0, 3]
+    fig = spares.take((-2.0, 1.5), (-3.5, 0.5))
+    assert len(spares) == 2
+    assert (fig.x_range.start, fig.x_range.end, fig.y_range.start, fig.y_range.end) == (-2.0, 1.5, -3.5, 0.5)
+    assert _normalised(fig) == _normalised(SectionFigure((-2.0, 1.5), (-3.5, 0.5)))
+    spares.take((0, 1), (0, 1)), spares.take((0, 1), (0, 1))
+    built = spares.take((-1.0, 1.0), (-2.0, 2.0))  # none left
+    assert len(spares) == 0 and (built.x_range.start, built.y_range.end) == (-1.0, 2.0)
+    idle[0] = False
+    assert _run(scenario()) == [0, 3]  # a new loop (a new server) fills them again
+
+
+def test_the_spares_are_filled_when_no_page_waits(monkeypatch) -> None:
+    """The line of pages empty (pacing._release), the server builds the next pages' figures, not before."""
+    import app.views as views
+
+    spares = views.SpareFigures(size=2, every=0.005)
+    monkeypatch.setattr(views, "SPARES", spares)
+
+    async def scenario() -> list[int]:
+        log: list = []
+        await asyncio.gather(_build(log, "a", 0.02), _build(log, "b", 0.02))
+        for _ in range(200):
+            await asyncio.sleep(0.01)
+            if len(spares) == 2:
+                break
+        return [len(spares)]
+
+    assert _run(scenario()) == [2]
