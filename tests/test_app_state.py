@@ -327,3 +327,16 @@ def test_url_initial_conditions_lie_within_the_pages_bounds() -> None:
     assert errors and "ics must lie within" in " ".join(map(str, errors)) and st.clicked == []
     st, errors = state_from_query({"ics": f"{MAX_MAGNITUDE:g},-1;0.5,0.25"})
     assert not errors and st.clicked == [(MAX_MAGNITUDE, -1.0), (0.5, 0.25)]
+
+
+def test_fig9_shows_its_noncompact_curve_in_the_k_series() -> None:
+    """Fig. 9 is about a noncompact attractive curve; its k-series showed trajectory 0, which stays on the bounded
+    attractor. The scene's own point (failures.py's 'exponential escape (Fig. 9)') is selected: it drifts off."""
+    sess = make_session(scene="fig1C")
+    sess.apply_scene("fig9")
+    s = sess.state
+    assert s.selected == s.n_random and s.clicked == [(0.8663, -2.1588)]
+    sc = get_scene("fig9")
+    sec = section(sc.params, [s.clicked[0]], sc.periods, numerics=sc.numerics())
+    _, q, r = np.asarray(sec.trajectory(0))
+    assert np.all(np.diff(np.hypot(q, r)[10:]) > 0) and np.hypot(q[-1], r[-1]) > 100 * np.hypot(q[10], r[10])
