@@ -379,7 +379,7 @@ def test_every_peer_is_given_the_scenes_simplest_field_and_it_is_the_models_fiel
         diag = not any(p.inertia[3:])
         assert bench.is_diagonal(p) is diag  # 1e-300 off the diagonal is a full tensor
         f = bench.user_field(p)
-        jit = bench.diagonal_field if diag else bench.general_field
+        jit = bench.compiled_field(diag)
         k = np.array(bench.peer_constants(p))
         cf = None
         if hy is not None:

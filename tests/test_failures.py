@@ -202,7 +202,7 @@ def session() -> ExplorerSession:
 
 def test_app_warns_for_rk4_at_low_steps_on_the_drift(session: ExplorerSession) -> None:
     session.state.param.update(n_random=0, clicked=[(-0.3, -20.0)], periods=600, method="rk4", steps_per_period=100)
-    assert "1 trajectories" in session.status and not session.failed  # the status says nothing is wrong
+    assert "1 trajectory ·" in session.status and not session.failed  # the status says nothing is wrong
     found = {w["code"]: w for w in session.reliability}
     lost = found["rk4_drift_lost"]
     assert lost["level"] == "warning" and "100 steps per period" in lost["message"]

@@ -384,7 +384,6 @@ def peer_constants(params: Params) -> tuple[float, ...]:
     return tuple(float(v) for v in (*p.inertia, *inverse, *forcing))
 
 
-@nb.njit(nogil=True, cache=True)
 def diagonal_field(t: float, q: float, r: float, k: Any) -> tuple[float, float]:
     """``(q', r')`` for ``diag(A, B, C)``: ``q' = -[alpha (A - C) r + g (A - B) q r + A g g' q] / (g^2 A + B)``,
     ``r' = (A - B)(g q + alpha) q / C`` (PHYSICS.md); ``k`` from :func:`peer_constants`."""
@@ -396,7 +395,6 @@ def diagonal_field(t: float, q: float, r: float, k: Any) -> tuple[float, float]:
     return qdot, (a - b) * (g * q + al) * q / c
 
 
-@nb.njit(nogil=True, cache=True)
 def general_field(t: float, q: float, r: float, k: Any) -> tuple[float, float]:
     """``(q', r')`` from ``I omega' = M + lambda a`` with ``omega = (alpha + g q, q, r)``, ``M = (I omega) x omega``,
     ``a = (1, -g, 0)`` and ``lambda = -[(a, J M) - g' q] / (a, J a)``, ``J = I^-1`` (PHYSICS.md); ``k`` from
@@ -419,7 +417,7 @@ def general_field(t: float, q: float, r: float, k: Any) -> tuple[float, float]:
 def user_field(params: Params) -> Callable[[float, float, float], tuple[float, float]]:
     """``f(t, q, r) -> (q', r')`` in plain Python, the field a user writes for ``solve_ivp``: the scene's closed
     form for a diagonal tensor, the multiplier form otherwise, on the parameters' numbers."""
-    fn = (diagonal_field if is_diagonal(params) else general_field).py_func
+    fn = diagonal_field if is_diagonal(params) else general_field
     k = peer_constants(params)
     return lambda t, q, r: fn(t, q, r, k)
 
@@ -451,23 +449,25 @@ def cfunc_data(model: Model) -> np.ndarray:
 
 
 @cache
+def compiled_field(diagonal: bool) -> Any:
+    """:func:`diagonal_field` or :func:`general_field` compiled by numba (numbalsoda's cfunc calls it), built on
+    first use: the plain functions are the peers' fields (solve_ivp's too), and no module-level dispatcher is left
+    for warm_all to compile (the benchmark's peers are not the app's kernels)."""
+    return nb.njit(nogil=True, cache=True)(diagonal_field if diagonal else general_field)
+
+
+@cache
 def _cfunc_rhs(diagonal: bool) -> int:
     """Address of a numba ``cfunc`` with numbalsoda's signature ``(t, u, du, p)`` calling :func:`diagonal_field`
     or :func:`general_field` on ``p`` = :func:`cfunc_data`. Compiled lazily (cached on disk) so importing this
     module stays cheap."""
     dbl = nb.types.double
     sig = nb.types.void(dbl, nb.types.CPointer(dbl), nb.types.CPointer(dbl), nb.types.CPointer(dbl))
-    if diagonal:
+    field = compiled_field(diagonal)
 
-        @nb.cfunc(sig, cache=True, error_model="numpy")
-        def rhs(t, u, du, p):  # pragma: no cover - runs inside numbalsoda
-            du[0], du[1] = diagonal_field(t, u[0], u[1], p)
-
-    else:
-
-        @nb.cfunc(sig, cache=True, error_model="numpy")
-        def rhs(t, u, du, p):  # pragma: no cover - runs inside numbalsoda
-            du[0], du[1] = general_field(t, u[0], u[1], p)
+    @nb.cfunc(sig, cache=True, error_model="numpy")
+    def rhs(t, u, du, p):  # pragma: no cover - runs inside numbalsoda
+        du[0], du[1] = field(t, u[0], u[1], p)
 
     return rhs.address
 
