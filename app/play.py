@@ -298,9 +298,16 @@ class Player:
     def view(self) -> dict[str, Any]:
         st = self.state
         vals = self.values() if st.play_frames >= 2 else np.zeros(1)
+        frame = int(self.frame)
+        if not self.playing and frame >= 0:
+            # A frame of another parameter, range or value (the played parameter switched, a slider moved) is no
+            # frame of this one: the page then says the range, not a stale "frame 5/8: g1 = ...".
+            current = float(getattr(st, st.play_param))
+            if frame >= vals.size or abs(float(vals[frame]) - current) > 1e-12 * max(1.0, abs(current)):
+                frame = -1
         return {
             "playing": self.playing,
-            "frame": int(self.frame),
+            "frame": frame,
             "frames": int(st.play_frames),
             "number": self._number if self._computed or not self._waiting else -1,
             "label": plain_label(st.play_param),

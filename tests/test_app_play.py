@@ -498,3 +498,22 @@ def test_pause_while_the_next_frame_is_computed_stays_on_the_frame_on_screen(dir
     page.handle({"action": "pause"})
     jobs.drain()
     assert page.state.alpha == -0.4 and page.player.frame == -1
+
+
+def test_the_frame_label_is_not_kept_for_another_parameter_or_value() -> None:
+    """After Step the page says 'frame 5/8: alpha = ...'; switching the played parameter (or moving the slider
+    off the frame's value) left that label, now naming g1 with alpha's frame. The view's frame is then -1: the
+    page says the new range instead."""
+    page, jobs, _ = page_for({"alpha": str(VALUES[3])})
+    page.handle({"action": "step"})
+    jobs.drain()
+    assert page.player.view()["frame"] == 4
+    page.commit("play_param", "g1")
+    jobs.drain()
+    assert page.player.view()["frame"] == -1 and page.player.view()["label"] != "α"
+    page.commit("play_param", "alpha")
+    jobs.drain()
+    assert page.player.view()["frame"] == 4  # alpha still at that frame's value: the frame is this parameter's
+    page.commit("alpha", "-0.3999")
+    jobs.drain()
+    assert page.player.view()["frame"] == -1
