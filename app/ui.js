@@ -150,7 +150,7 @@ progress[hidden] { display: none; }
 .play-bar { display: flex; flex-wrap: wrap; gap: 6px; align-items: flex-end; }
 .play-bar .ctl { margin: 0; }
 .play-bar .ctl label, .play-bar .ctl .lab { font-size: .85em; margin: 0; }
-.play-bar .ctl.text input.txt { width: 6.5em; }
+.play-bar .ctl.text input.txt { width: 7.5em; }  /* the placeholder "value − 0.05" whole */
 .play-bar .ctl.int input.num { width: 4em; }
 .play-bar .ctl.select select { width: auto; }
 .play-bar .ctl-msg { position: absolute; z-index: 5; }
