@@ -164,7 +164,7 @@ def test_drift_and_escapes_are_reported() -> None:
     assert sec.status_labels() == ["escaped", "ok"]
     found = {w.code: w for w in assess_section(sec, window=WINDOW_1A)}
     assert "1 of 2 trajectories escaped" in found["escaped"].message
-    assert found["drift"].message.startswith("1 trajectories leave the plot window")
+    assert found["drift"].message.startswith("1 trajectory leaves the plot window")
 
 
 # --- the command line and the app -----------------------------------------------------------------

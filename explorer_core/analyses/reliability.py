@@ -363,7 +363,8 @@ def assess(
         drifting, big = _drifting(np.asarray(points, dtype=float).reshape(-1, 2), traj, window, escaped_ids)
         if drifting:
             out.append(ReliabilityWarning("warning", "drift", (
-                f"{drifting} trajectories leave the plot window with growing |x| (up to |q| = {_fmt(big[0])}, "
+                f"{drifting} {'trajectory leaves' if drifting == 1 else 'trajectories leave'} the plot window with "
+                f"growing |x| (up to |q| = {_fmt(big[0])}, "
                 f"|r| = {_fmt(big[1])}): noncompact drift. The cost per period grows with |r| (DOP853 steps "
                 f"~ |r|^{DRIFT_COST_EXPONENT:g}) and fixed-step rk4 loses the drift."
             )))  # fmt: skip
