@@ -176,7 +176,7 @@ class Player:
         if self.message:
             self._changed()
             return
-        if self.frame < 0 or abs(self.values()[self.frame] - getattr(self.state, self.state.play_param)) > 1e-12:
+        if self._frame_of_value() < 0:
             self.frame = self._nearest()
         self.frame = self._next_index()
         self._still = self._with_orbits_shown(lambda: self._set(self.frame))  # the orbits shown, to the next frame
@@ -189,6 +189,13 @@ class Player:
         self._check_done()
 
     # --- frames --------------------------------------------------------------------------------------
+
+    def _frame_of_value(self) -> int:
+        """The frame index if the played parameter holds that frame's value of the current range, else -1."""
+        vals = self.values() if self.state.play_frames >= 2 else np.zeros(1)
+        i = int(self.frame)
+        current = float(getattr(self.state, self.state.play_param))
+        return i if 0 <= i < vals.size and abs(float(vals[i]) - current) <= 1e-12 else -1
 
     def _set(self, i: int) -> None:
         self._commit(float(self.values()[i]))
@@ -298,13 +305,9 @@ class Player:
     def view(self) -> dict[str, Any]:
         st = self.state
         vals = self.values() if st.play_frames >= 2 else np.zeros(1)
-        frame = int(self.frame)
-        if not self.playing and frame >= 0:
-            # A frame of another parameter, range or value (the played parameter switched, a slider moved) is no
-            # frame of this one: the page then says the range, not a stale "frame 5/8: g1 = ...".
-            current = float(getattr(st, st.play_param))
-            if frame >= vals.size or abs(float(vals[frame]) - current) > 1e-12 * max(1.0, abs(current)):
-                frame = -1
+        # Not playing, a frame of another parameter, range or value (the played parameter switched, a slider
+        # moved) is no frame of this one: the page then says the range, not a stale "frame 5/8: g1 = ...".
+        frame = int(self.frame) if self.playing else self._frame_of_value()
         return {
             "playing": self.playing,
             "frame": frame,
