@@ -96,6 +96,8 @@ REGIMES = ("not_computed", "periodic", "quasi_periodic", "chaotic", "escaped", "
 DEFAULT_CHART_TOL = 1e-8
 #: Early chaos tests of :attr:`ChartSpec.chaos_test` (:func:`compute_tile`).
 CHAOS_TESTS = ("sali", "lyapunov")
+#: The chart's default, which ``reproduce`` shares (its Lyapunov stage and its chart).
+DEFAULT_CHAOS_TEST = "sali"
 
 
 def classify(
@@ -239,7 +241,7 @@ def _grid(name: str, grid: Any) -> tuple[int, int]:
     ),
     newton=Arg("Newton on a member's settled cycle", cli=False, default=SETTLING, check=instance(NewtonOptions)),
     chaos_test=Arg("early chaos test: sali (alignment of two tangent vectors) or lyapunov (a bound on the exponent)",
-                   "str", default="sali", check=choice(CHAOS_TESTS)),
+                   "str", default=DEFAULT_CHAOS_TEST, check=choice(CHAOS_TESTS)),
 )  # fmt: skip
 def chart_spec(
     params: Params,

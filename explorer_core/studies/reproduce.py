@@ -39,7 +39,16 @@ from explorer_core.analyses.indicators import CHAOTIC as ALIGNED_CHAOS
 from explorer_core.analyses.indicators import sali
 from explorer_core.analyses.lyapunov import LyapunovResult, attractor_ensemble, kaplan_yorke, lyapunov_spectrum
 from explorer_core.analyses.orbits import find_orbits
-from explorer_core.analyses.regimes import CHAOS_MARGIN, CHAOS_TESTS, CHAOTIC, PERIODIC, Chart, chart_spec, regime_chart
+from explorer_core.analyses.regimes import (
+    CHAOS_MARGIN,
+    CHAOS_TESTS,
+    CHAOTIC,
+    DEFAULT_CHAOS_TEST,
+    PERIODIC,
+    Chart,
+    chart_spec,
+    regime_chart,
+)
 from explorer_core.analyses.sweeps import sweep_values
 from explorer_core.losses import Loss
 from explorer_core.progress import Progress, Step, run
@@ -152,7 +161,7 @@ class Reproduction:
 
     size: Size
     #: How a trajectory is found chaotic: the Lyapunov stage's search for an IC, the chart's early stop (CHAOS_TESTS).
-    chaos_test: str = "sali"
+    chaos_test: str = DEFAULT_CHAOS_TEST
     sections: dict[str, Section] = field(default_factory=dict)
     lyapunov: dict[str, LyapunovResult] = field(default_factory=dict)
     drift: dict[str, DriftFit] = field(default_factory=dict)
@@ -245,7 +254,7 @@ def _sections(rep: Reproduction, stop: Callable[[], bool]) -> None:
 
 
 def _find_attractor_ic(
-    scene: Scene, tries: int, periods: int, stop: Callable[[], bool] | None = None, chaos_test: str = "sali"
+    scene: Scene, tries: int, periods: int, stop: Callable[[], bool] | None = None, chaos_test: str = DEFAULT_CHAOS_TEST
 ) -> tuple[float, float] | None:
     """First of the scene's random ICs chaotic by the SALI (``chaos_test="sali"``, :data:`SALI_SEARCH_PERIODS`) or,
     with ``"lyapunov"`` or when the SALI finds none, whose finite-time largest exponent over ``periods`` exceeds
@@ -793,7 +802,7 @@ def iter_reproduce(
     *,
     stages: tuple[str, ...] | None = None,
     cancel: Callable[[], bool] | None = None,
-    chaos_test: str = "sali",
+    chaos_test: str = DEFAULT_CHAOS_TEST,
 ) -> Iterator[Step[Reproduction]]:
     """:func:`reproduce` as a stream of :class:`~explorer_core.progress.Step` in ``stages`` (``detail``:
     the stage that finished and its seconds); the last update's ``result`` is the reproduction."""
@@ -831,7 +840,7 @@ def reproduce(
     stages: tuple[str, ...] | None = None,
     progress: Callable[[Step[Reproduction]], None] | None = None,
     cancel: Callable[[], bool] | None = None,
-    chaos_test: str = "sali",
+    chaos_test: str = DEFAULT_CHAOS_TEST,
 ) -> Reproduction:
     """Compute every figure's data and the table of numbers (see the module docstring).
 
