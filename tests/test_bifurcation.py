@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 
@@ -318,3 +319,30 @@ def test_newtons_cycle_is_taken_only_where_the_transient_would_bring_the_member(
     mid = two[-2:].mean(axis=0, keepdims=True)  # between the two points: near the period-1 saddle
     (repelled,) = _newton_cycles(PoincareMap.of(past, num), mid, np.array([1]), np.array([400]))
     assert repelled is None
+
+
+def _csv_rows_of_long(d) -> str:
+    """The rows of every drawn point from :meth:`OrbitDiagram.long`, each float as its repr (what csv.writer wrote)."""
+    s, v, val, i, k, q, r = d.long()
+    cols = zip(d.sweeps[s], v.tolist(), val.tolist(), i.tolist(), k.tolist(), q.tolist(), r.tolist(), strict=True)
+    return "".join(",".join([a, str(b), repr(c), str(e), str(f), repr(g), repr(h), "ok"]) + "\r\n"
+                   for a, b, c, e, f, g, h in cols)  # fmt: skip
+
+
+def test_csv_formats_each_point_as_before_and_keeps_the_sign_of_zero(tmp_path) -> None:
+    # Continuation sweeps settle on cycles (their points repeat: formatted once each); a value of the chaotic band
+    # does not. Then 0.0 and -0.0 (equal as floats, not as text) in one trajectory.
+    d = bifurcation_diagram(FIG10, "alpha", sweep_values((-0.4, -0.355), 4), points=40, transient=300,
+                            ics=[(-0.0959, -1.962), (0.1, 0.1)])  # fmt: skip
+    assert d.settled_summary()["periods_copied"] > 0 and d.drawn().all()
+    points = d.points.copy()
+    points[0, 0, 0, :4] = [[0.0, 1.5], [-0.0, 1.5], [0.0, -0.0], [-0.0, 1.5]]
+    d = dataclasses.replace(d, points=points)
+    path = tmp_path / "b.csv"
+    rows = d.to_csv(str(path))
+    text = path.read_bytes().decode()
+    assert rows == d.drawn().sum() * d.n_points
+    assert text == "sweep,value_index,value,ic,k,q,r,status\r\n" + _csv_rows_of_long(d)
+    first = [f"forward,0,-0.4,0,{k},{qr},ok" for k, qr in ((301, "0.0,1.5"), (302, "-0.0,1.5"), (303, "0.0,-0.0"),
+                                                            (304, "-0.0,1.5"))]  # fmt: skip
+    assert text.split("\r\n")[1:5] == first

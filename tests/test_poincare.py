@@ -18,6 +18,7 @@ from explorer_core.solve.numerics import Numerics
 from explorer_core.solve.poincare import PoincareMap, least_period, newton
 from explorer_core.solve.section import section
 from explorer_core.solve.tangent import Monodromy
+from explorer_core.status import Status
 from explorer_core.system.model import Model
 from explorer_core.system.params import ParameterError
 
@@ -166,3 +167,22 @@ def test_manifolds_say_what_they_lost() -> None:
     assert not m.complete and any("budget" in loss.why for loss in m.lost)
     assert m.summary()["lost"] == [loss.as_dict() for loss in m.lost]
     assert m.progress.fraction == 1.0  # the run is over: what it lacks is in lost
+
+
+def test_shared_map_derivative_is_the_grouped_run_bit_for_bit() -> None:
+    # A map of one system takes the tangent system's run directly (no grouping by section times): the same
+    # batch, so the same numbers as monodromy_at's grouped run, at every member, failed ones' statuses included.
+    from explorer_core.solve.tangent import monodromy_at
+
+    p = get_scene("fig10").params
+    pmap = PoincareMap.of(p, Numerics(bound=50.0))
+    x = np.array([[-0.0959, -1.962], [0.3, -0.2], [0.0, 40.0], [np.nan, 0.0], [1.0, 1.0]])
+    for n in (1, 3):
+        got = pmap.derivative(x, n)
+        ref = monodromy_at([p], x, n, pmap.numerics, block=pmap.block)
+        ok = ref.status == Status.OK
+        assert ok.sum() >= 3 and not ok.all()
+        np.testing.assert_array_equal(got.status, ref.status)
+        np.testing.assert_array_equal(got.nsteps, ref.nsteps)
+        for name in ("end", "matrix", "div", "points"):
+            np.testing.assert_array_equal(getattr(got, name)[ok], getattr(ref, name)[ok])

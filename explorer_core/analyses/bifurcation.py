@@ -345,10 +345,10 @@ class OrbitDiagram(Drawable):
                     head = f"{self.sweeps[s]},{v},{float(self.values[v])!r},"
                     for i in range(self.ics.shape[0]):
                         if drawn[s, v, i]:
-                            pts = self.points[s, v, i, : self.n_points].tolist()
-                            lines = (f"{head}{i},{k},{q!r},{r!r},ok{end}" for k, (q, r) in zip(ks, pts, strict=True))
-                            fh.write("".join(lines))
-                            rows += len(pts)
+                            pre = f"{head}{i},"
+                            texts = _point_texts(self.points[s, v, i, : self.n_points], end)
+                            fh.write("".join([f"{pre}{k},{qr}" for k, qr in zip(ks, texts, strict=True)]))
+                            rows += len(texts)
                         else:
                             # ok but short of its points: only a cancel stops an ok trajectory
                             lab = Status.of(int(self.status[s, v, i]) or Status.CANCELLED).label
@@ -383,6 +383,22 @@ class OrbitDiagram(Drawable):
             "newton": self.newton.as_dict(),
             "newton_numerics": self.newton.at(self.numerics, DIAGRAM_RTOL)[0].as_dict(),
         }
+
+
+def _point_texts(pts: np.ndarray, end: str) -> list[str]:
+    """``"q,r,ok" + end`` of each row of ``pts`` (n, 2), each float as its repr. A settled trajectory repeats its
+    cycle, so each distinct point is formatted once (keyed by its bits: 0.0 and -0.0 stay apart): 2.5x faster on
+    the Fig. 10 diagram, whose csv was 0.16 s of the command."""
+    bits = np.ascontiguousarray(pts).view(np.int64)
+    seen: dict[tuple[int, int], str] = {}
+    out = []
+    keys = zip(bits[:, 0].tolist(), bits[:, 1].tolist(), strict=True)
+    for key, q, r in zip(keys, pts[:, 0].tolist(), pts[:, 1].tolist(), strict=True):
+        text = seen.get(key)
+        if text is None:
+            text = seen[key] = f"{q!r},{r!r},ok{end}"
+        out.append(text)
+    return out
 
 
 #: A continuation sweep's members stop integrating once they are on an attracting cycle; they are looked at
@@ -423,6 +439,8 @@ JUMP_SAFETY = 10.0
 JUMP_TRIES = 2
 #: How a trajectory settled (``OrbitDiagram.settled[..., 2]``).
 REPEATED, NEWTON_CYCLE = 1, 2
+#: ``Status.OK`` as a plain int (numpy compares with it ~5x faster than with the enum member).
+_OK = int(Status.OK)
 
 
 def _newton_cycles(pmap: PoincareMap, x: np.ndarray, periods: np.ndarray, turns: np.ndarray,
@@ -492,7 +510,7 @@ def bilimovich_orbits(
         got[i] = total
         settled[i] = (p, done, how)
 
-    run = np.flatnonzero(batch.status == Status.OK)
+    run = np.flatnonzero(batch.status == _OK)
     while done < total and run.size:
         c = min(SETTLE_FIRST if done == 0 else SETTLE_CHUNK, total - done)
         part = batch.take(run)
@@ -502,7 +520,7 @@ def bilimovich_orbits(
             traj[i, got[i] : got[i] + npts[j]] = pts[j, : npts[j]]
             got[i] += npts[j]
         done += c
-        run = run[batch.status[run] == Status.OK]
+        run = run[batch.status[run] == _OK]
         if done == total:
             break
         loose = []

@@ -137,5 +137,8 @@ def monodromy_at(
 
 
 def _matrix(y: np.ndarray) -> np.ndarray:
-    # Phi with columns v1 = (y2, y3), v2 = (y4, y5), shape (m, 2, 2)
-    return np.stack([np.stack([y[:, 2], y[:, 4]], axis=-1), np.stack([y[:, 3], y[:, 5]], axis=-1)], axis=-2)
+    # Phi with columns v1 = (y2, y3), v2 = (y4, y5), shape (m, 2, 2): rows (y2, y4) and (y3, y5), a new array
+    return y[:, _PHI_ROWS].reshape(-1, 2, 2)
+
+
+_PHI_ROWS = np.array([2, 4, 3, 5])
