@@ -130,3 +130,31 @@ def test_early_stops_agree_with_the_whole_run_off_the_boundaries() -> None:
     assert interior.sum() >= 40
     np.testing.assert_array_equal(early[interior], ref[interior])
     assert np.count_nonzero(early != ref) <= 3, np.argwhere(early != ref)
+
+
+@pytest.mark.parametrize(("window", "done", "transient"), [(3, 95, 100), (48, 40, 0), (4, 500, 600)])
+def test_a_chunks_records_go_where_the_loop_over_periods_put_them(window: int, done: int, transient: int) -> None:
+    # The loop the tile ran before (frozen reference): period by period, the ring slot written once per period, so a
+    # chunk longer than the ring leaves each slot with its latest period. Members that failed stop recording.
+    rng = np.random.default_rng(7)
+    n, step, total = 9, 10, 700
+    rec = rng.normal(size=(6, step, 5))
+    npts = np.array([10, 0, 3, 10, 7, 1])
+    live = np.array([8, 0, 3, 5, 2, 7])
+
+    def arrays() -> tuple[np.ndarray, ...]:
+        return np.zeros((n, window, 2)), np.zeros((n, total)), np.zeros((n, total, 2)), np.arange(n) * 2
+
+    recent, every, points, measured = arrays()
+    for c in range(step):
+        kk = done + c
+        ok = npts > c
+        recent[live[ok], kk % window] = rec[ok, c, :2]
+        every[live[ok], kk] = rec[ok, c, 2]
+        if kk >= transient:
+            points[live[ok], kk - transient] = rec[ok, c, :2]
+            measured[live[ok]] += 1
+    got = arrays()
+    regimes._record(rec, npts, live, done, transient, *got)
+    for a, b in zip(got, (recent, every, points, measured), strict=True):
+        np.testing.assert_array_equal(a, b)
