@@ -14,7 +14,7 @@ import logging
 import signal
 import threading
 
-from app import pacing
+from app import memory, pacing
 from app.runner import WARM
 
 _started = threading.Lock()
@@ -75,3 +75,5 @@ def warm_page() -> None:
 
 
 warm_page()
+
+memory.start()  # give freed memory back to the system; the diagnostic if asked (app/memory.py)

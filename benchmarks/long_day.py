@@ -108,8 +108,10 @@ class Student:
     async def _act(self, tab: Tab, page: str, alpha: float, what: str | None = None) -> None:
         what = what or self.rng.choice(["move", "move", "play" if page == "play" else "move", "tour", "tab"])
         if what == "move":
-            # A value other than the one in use (the same value starts no run: no scene to wait for).
-            value = self.rng.choice([v for v in range(-20, 21) if v != getattr(tab, "moved", 0)])  # 0: the page's
+            # A value other than the one in use (the same value starts no run: no scene to wait for): not the
+            # last move's, and not a multiple of 0.01, which a tour's step or a scene may have set (Fig. 10's
+            # tour sets alpha = -0.38 and a move there waited for a scene that never came).
+            value = self.rng.choice([v for v in range(-20, 21) if v % 10 and v != getattr(tab, "moved", 0)])
             tab.moved = value  # type: ignore[attr-defined]
             c = await tab.change("alpha", round(alpha + 0.001 * value, 3), 120)
             if c.full_s is None:

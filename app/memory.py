@@ -1,0 +1,175 @@
+"""A server process's memory: freed memory given back to the system, and where the memory goes (a diagnostic).
+
+**Giving back.** glibc keeps what the program frees in its arenas for the next allocation; it returns the top of
+an arena to the system, not the free pages between blocks still in use. A classroom allocates and frees a few
+hundred MB a minute (scenes, figures, documents) and the blocks that stay (a session's page, a cache) pin the pages
+around them: in a long day (``benchmarks/long_day.py``, 30 students) the memory in use stayed at ~200 MB while the
+freed-but-kept memory grew from 13 to 107 MB in 8 minutes and the RSS with it (+152 MB in an hour). :func:`start`
+runs :func:`give_back` every ``BILIMOVICH_TRIM_EVERY`` seconds (30; 0: never): ``malloc_trim(0)`` returns every
+free page of every arena (glibc >= 2.8), when more than :data:`TRIM_ABOVE_MB` is kept. The pages come back on demand.
+
+**Where it goes.** Enabled by ``BILIMOVICH_MEMORY_LOG=FILE``: every ``BILIMOVICH_MEMORY_EVERY`` seconds (30) a
+JSON line is appended to ``FILE.<pid>``: the RSS, what glibc's allocator holds (in use by the program, free but
+kept, mapped), the objects the garbage collector tracks that were made after the page's first build
+(``gc.freeze`` keeps the rest out of sight: :func:`app.pacing.page_built`) counted by type, the threads and the
+trims. With
+``BILIMOVICH_TRACEMALLOC=N`` (frames per trace) the lines also name the source lines whose allocations grew most
+since the first sample. Nothing of this runs unless asked: it walks every object (~50-200 ms held GIL).
+"""
+
+from __future__ import annotations
+
+import collections
+import ctypes
+import ctypes.util
+import functools
+import gc
+import json
+import os
+import threading
+import time
+from typing import Any
+
+LOG_ENV, EVERY_ENV, TRACE_ENV = "BILIMOVICH_MEMORY_LOG", "BILIMOVICH_MEMORY_EVERY", "BILIMOVICH_TRACEMALLOC"
+TRIM_ENV = "BILIMOVICH_TRIM_EVERY"
+#: Free memory kept by the allocator (MB) above which :func:`give_back` trims (below it a trim gains little).
+TRIM_ABOVE_MB = 16.0
+#: Seconds after the server's start before the allocations' baseline is taken (after the warm-up).
+BASELINE_ENV = "BILIMOVICH_MEMORY_BASELINE"
+
+
+class _MallInfo2(ctypes.Structure):
+    _fields_ = [
+        (name, ctypes.c_size_t)
+        for name in "arena ordblks smblks hblks hblkhd usmblks fsmblks uordblks fordblks keepcost".split()
+    ]
+
+
+@functools.cache
+def _glibc() -> tuple[Any, Any]:
+    """glibc's ``mallinfo2`` and ``malloc_trim`` (None each where the C library has none: musl, macOS)."""
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+    except OSError:
+        return None, None
+    info, trim = getattr(libc, "mallinfo2", None), getattr(libc, "malloc_trim", None)
+    if info is not None:
+        info.restype, info.argtypes = _MallInfo2, []
+    if trim is not None:
+        trim.restype, trim.argtypes = ctypes.c_int, [ctypes.c_size_t]
+    return info, trim
+
+
+def allocator() -> dict[str, float] | None:
+    """glibc's view in MB: ``in_use`` (allocated and not freed, heap and mapped), ``held_free`` (freed, kept in
+    the arenas), ``mapped`` (large blocks mapped on their own); None where glibc has no ``mallinfo2``."""
+    info = _glibc()[0]
+    if info is None:
+        return None
+    m = info()
+    mb = 1 / 2**20
+    return {"in_use": (m.uordblks + m.hblkhd) * mb, "held_free": m.fordblks * mb, "mapped": m.hblkhd * mb}
+
+
+#: What :func:`give_back` did in this process: trims, seconds spent, MB of RSS returned.
+TRIMS = {"trims": 0, "seconds": 0.0, "returned_mb": 0.0}
+
+
+def give_back(above_mb: float = TRIM_ABOVE_MB) -> float:
+    """Return the allocator's free pages to the system if it keeps more than ``above_mb``; the RSS returned (MB).
+
+    ctypes releases the GIL for the call: the event loop and the jobs go on (an allocation meanwhile waits for
+    its arena's lock, a few ms)."""
+    info, trim = _glibc()
+    if trim is None:
+        return 0.0
+    if info is not None and info().fordblks < above_mb * 2**20:
+        return 0.0
+    t0, before = time.perf_counter(), rss_mb()
+    trim(0)
+    returned = max(0.0, before - rss_mb())
+    TRIMS["trims"] += 1
+    TRIMS["seconds"] += time.perf_counter() - t0
+    TRIMS["returned_mb"] += returned
+    return returned
+
+
+def rss_mb() -> float:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def objects_by_type(top: int = 25) -> tuple[int, list[tuple[str, int]]]:
+    """The garbage collector's unfrozen objects: how many, and the ``top`` types by count."""
+    objs = gc.get_objects()
+    counts = collections.Counter(f"{type(o).__module__}.{type(o).__qualname__}" for o in objs)
+    n = len(objs)
+    del objs
+    return n, counts.most_common(top)
+
+
+def sample(baseline: Any = None) -> dict[str, Any]:
+    """One sample of the diagnostic (see the module's docstring); ``baseline``: a tracemalloc snapshot."""
+    n, top = objects_by_type()
+    out: dict[str, Any] = {"t": time.time(), "rss": rss_mb(), "allocator": allocator(), "objects": n, "types": top}
+    out["threads"] = threading.active_count()
+    out["trims"] = dict(TRIMS)
+    try:
+        import tracemalloc
+
+        if tracemalloc.is_tracing():
+            snap = tracemalloc.take_snapshot()
+            out["traced_mb"] = tracemalloc.get_traced_memory()[0] / 2**20
+            if baseline is not None:
+                diff = snap.compare_to(baseline, "traceback" if tracemalloc.get_traceback_limit() > 1 else "lineno")
+                out["grew"] = [
+                    {"kb": round(d.size_diff / 1024, 1), "n": d.count_diff, "where": [str(f) for f in d.traceback]}
+                    for d in diff[:15]
+                ]
+            out["_snapshot"] = snap
+    except Exception as e:  # a diagnostic must never stop the server
+        out["trace_error"] = repr(e)
+    return out
+
+
+_started = threading.Lock()
+
+
+def start() -> None:
+    """In this process, once: give freed memory back every ``BILIMOVICH_TRIM_EVERY`` s, and sample the diagnostic
+    if ``BILIMOVICH_MEMORY_LOG`` is set (see the module's docstring)."""
+    if not _started.acquire(blocking=False):
+        return
+    trim_every = float(os.environ.get(TRIM_ENV, "30") or 0)
+    if trim_every > 0 and _glibc()[1] is not None:
+
+        def trimming() -> None:
+            while True:
+                time.sleep(trim_every)
+                give_back()
+
+        threading.Thread(target=trimming, name="memory-give-back", daemon=True).start()
+    path = os.environ.get(LOG_ENV)
+    if not path:
+        return
+    every = float(os.environ.get(EVERY_ENV, "30"))
+    frames = int(os.environ.get(TRACE_ENV, "0") or 0)
+    if frames > 0:
+        import tracemalloc
+
+        tracemalloc.start(frames)
+    after = time.monotonic() + float(os.environ.get(BASELINE_ENV, "0"))
+
+    def sampling() -> None:
+        baseline = None
+        out = f"{path}.{os.getpid()}"
+        while True:
+            time.sleep(every)
+            s = sample(baseline)
+            snap = s.pop("_snapshot", None)
+            if baseline is None and time.monotonic() >= after:
+                baseline = snap
+            with open(out, "a") as f:
+                f.write(json.dumps(s) + "\n")
+
+    threading.Thread(target=sampling, name="memory-log", daemon=True).start()
