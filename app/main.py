@@ -15,33 +15,15 @@ import panel as pn
 from panel.io.location import Location
 
 from app import pacing, warm
+from app.location import AppLocation, raw_query
 from app.page import Page
 
 # Bokeh runs this file again for every session, as a new module (``bokeh_app_<uuid>``): nothing at
 # module level may register itself globally (``logging.getLogger(__name__)`` here kept one Logger per
-# session for the life of the server). What is built once lives in the modules imported above.
+# session for the life of the server) or define a class (a Parameterized subclass here, the page's
+# location, stayed alive, one per session: 1,300 classes in a long day). What is built once lives in the
+# modules imported above.
 pn.extension(notifications=False)
-
-
-class AppLocation(Location):
-    """The page's URL, written by the app (:func:`publish`) and never parsed by Panel.
-
-    Panel parses the query of every URL it is given (``panel.util.parse_query``): ``int()`` on any value
-    of digits (``?n=²`` or 5000 digits raise, the page is blank and the server logs a traceback), JSON or
-    ``literal_eval`` on ``[``/``{`` values (``?ics=[1,2]`` arrived as the list ``[1, 2]``). The app reads
-    the raw query itself (:func:`raw_query`, then :func:`app.state.parse_query`, which reports every bad
-    value by its key) and syncs no parameter through Panel, so nothing here needs Panel's parsing.
-    """
-
-    def _update_synced(self, event: Any = None) -> None:
-        if self._synced:  # nothing of the app is synced through Panel; kept for any other use
-            super()._update_synced(event)
-
-
-def raw_query(request: Any) -> dict[str, list[bytes]]:
-    """The URL's query as the server received it (key -> raw values), without Panel's parsing."""
-    args = getattr(request, "arguments", None) or {}
-    return {str(k): list(v) if isinstance(v, list | tuple) else [v] for k, v in args.items()}
 
 
 def create_app() -> tuple[Any, Location | None]:

@@ -99,19 +99,28 @@ def rss_mb() -> float:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
-def objects_by_type(top: int = 25) -> tuple[int, list[tuple[str, int]]]:
-    """The garbage collector's unfrozen objects: how many, and the ``top`` types by count."""
+def _module(cls: type) -> str:
+    # Bokeh runs the app's file as a new module for each session (bokeh_app_<uuid>): one name for them all.
+    name = str(getattr(cls, "__module__", "?"))
+    return "bokeh_app_*" if name.startswith("bokeh_app_") else name
+
+
+def objects_by_type(top: int = 25) -> tuple[int, list[tuple[str, int]], list[tuple[str, int]]]:
+    """The garbage collector's unfrozen objects: how many, the ``top`` types by count, and the classes made more
+    than once (by module and name: a class made again for each session is a leak's sign)."""
     objs = gc.get_objects()
     counts = collections.Counter(f"{type(o).__module__}.{type(o).__qualname__}" for o in objs)
+    classes = collections.Counter(f"{_module(o)}.{o.__qualname__}" for o in objs if isinstance(o, type))
     n = len(objs)
     del objs
-    return n, counts.most_common(top)
+    return n, counts.most_common(top), [(k, c) for k, c in classes.most_common(top) if c > 1]
 
 
 def sample(baseline: Any = None) -> dict[str, Any]:
     """One sample of the diagnostic (see the module's docstring); ``baseline``: a tracemalloc snapshot."""
-    n, top = objects_by_type()
+    n, top, classes = objects_by_type()
     out: dict[str, Any] = {"t": time.time(), "rss": rss_mb(), "allocator": allocator(), "objects": n, "types": top}
+    out["classes"] = classes
     out["threads"] = threading.active_count()
     out["trims"] = dict(TRIMS)
     try:
