@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from explorer_core import __version__, config, export
+from explorer_core import __version__, config, export, launch
 from explorer_core.launch import STOP_SIGNALS
 from explorer_core.scenes import Scene, get_scene, list_scenes
 from explorer_core.solve.numerics import Numerics
@@ -1145,7 +1145,10 @@ def entry() -> None:
     def outside(signum: int, frame: Any) -> None:
         late.append(int(signum))
         if _began is None:
-            raise Interrupted
+            # Nothing has run: end at once, as before this handler (explorer_core.launch). Not by raising: the
+            # signal can land in a callback Python runs from C (an import's module-lock weakref callback), which
+            # prints the exception as "ignored" with its traceback and goes on with the command.
+            launch.before_the_command(signum, frame)
 
     for s in STOP_SIGNALS:
         signal.signal(s, outside)

@@ -19,7 +19,8 @@ import sys
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
-def _before_the_command(signum: int, frame: object) -> None:
+def before_the_command(signum: int, frame: object) -> None:
+    """End the process at once: one line and ``128 + signum`` (a stop signal before the command began)."""
     args = [a for a in sys.argv[1:] if not a.startswith("-")]
     os.write(2, f"bilimovich{f' {args[0]}' if args else ''}: interrupted\n".encode())
     os._exit(128 + signum)  # no file is written yet, and no exit handler has anything to do
@@ -28,4 +29,4 @@ def _before_the_command(signum: int, frame: object) -> None:
 def early() -> None:
     """Install the stop-signal handlers that hold until the command line's own replace them."""
     for s in STOP_SIGNALS:
-        signal.signal(s, _before_the_command)
+        signal.signal(s, before_the_command)
