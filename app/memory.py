@@ -14,9 +14,10 @@ kept, mapped), the objects the garbage collector tracks that were made after the
 (``gc.freeze`` keeps the rest out of sight: :func:`app.pacing.page_built`) counted by type, the threads and the
 trims. With ``BILIMOVICH_TRACEMALLOC=N`` (frames per trace) the lines also name the source lines whose
 allocations grew most since the first sample. Nothing of this runs unless asked: it walks every object
-(~50-200 ms held GIL), and on Python < 3.12 ``gc.get_objects()`` can hand out a tuple another thread is still building (``tuple(generator)``),
-which then fails in that thread with "SystemError: ... bad argument to internal function" (CPython gh-107137, fixed
-in 3.12): seen once in an hour-long day with this diagnostic on. A diagnostic, never for a class.
+(~50-200 ms held GIL), and on Python < 3.12 ``gc.get_objects()`` can hand out a tuple another thread is still
+building (``tuple(generator)``), which then fails in that thread with "SystemError: ... bad argument to internal
+function" (CPython gh-107137, fixed in 3.12): seen once in an hour-long day with this diagnostic on. A diagnostic,
+never for a class.
 """
 
 from __future__ import annotations
