@@ -501,3 +501,31 @@ def test_a_job_started_while_the_server_shuts_down_is_not_an_error() -> None:
     r = _runner(sched, pool)
     r.start("tracks", lambda cancelled, emit: None)
     assert not r.busy("tracks") and sched.stats()["running"] == 0
+
+
+def _long_day():
+    _load_test()  # long_day imports it by name
+    spec = importlib.util.spec_from_file_location("long_day", ROOT / "benchmarks" / "long_day.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_long_day_judges_growth_on_the_trend_not_on_one_sample() -> None:
+    """A leak (a steady rise under the noise of the moment's work) is over the bound; a flat day whose first
+    sample after the warm-up is a low (the session before this one's judged +88 MB from one such low) is not."""
+    import random
+
+    growth = _long_day().memory_growth
+    rng = random.Random(1)
+    t = [0.5 * i for i in range(121)]  # an hour, a sample every 30 s
+    leak = [450 + 2.0 * x + rng.uniform(-30, 30) for x in t]  # +100 MB in the 50 minutes judged
+    g = growth(t, leak, warmup=10)
+    assert 80 < g["trend_mb"] < 120 and g["growth_mb"] > 50
+    flat = [450 + rng.uniform(-30, 30) for _ in t]
+    flat[20] = 380  # minute 10: a low
+    g = growth(t, flat, warmup=10)
+    assert abs(g["trend_mb"]) < 15 and abs(g["end_mb"]) < 25 and g["growth_mb"] < 50
+    assert g["highest_mb"] > 15  # the moment's work above the level is reported
+    with pytest.raises(ValueError, match="too short"):
+        growth([0.0, 5.0, 11.0], [1.0, 2.0, 3.0], warmup=10)
