@@ -5,8 +5,9 @@ an arena to the system, not the free pages between blocks still in use. A classr
 hundred MB a minute (scenes, figures, documents) and the blocks that stay (a session's page, a cache) pin the pages
 around them: in a long day (``benchmarks/long_day.py``, 30 students) the memory in use stayed at ~200 MB while the
 freed-but-kept memory grew from 13 to 107 MB in 8 minutes and the RSS with it (+152 MB in an hour). :func:`start`
-runs :func:`give_back` every ``BILIMOVICH_TRIM_EVERY`` seconds (30; 0: never): ``malloc_trim(0)`` returns every
-free page of every arena (glibc >= 2.8), when more than :data:`TRIM_ABOVE_MB` is kept. The pages come back on demand.
+runs :func:`~explorer_core.allocator.give_back` every ``BILIMOVICH_TRIM_EVERY`` seconds (30; 0: never):
+``malloc_trim(0)`` returns every free page of every arena (glibc >= 2.8), when more than :data:`TRIM_ABOVE_MB` is
+kept. The pages come back on demand. (The command line's warm worker gives back after each job.)
 
 **Where it goes.** Enabled by ``BILIMOVICH_MEMORY_LOG=FILE``: every ``BILIMOVICH_MEMORY_EVERY`` seconds (30) a
 JSON line is appended to ``FILE.<pid>``: the RSS, what glibc's allocator holds (in use by the program, free but
@@ -23,9 +24,6 @@ never for a class.
 from __future__ import annotations
 
 import collections
-import ctypes
-import ctypes.util
-import functools
 import gc
 import json
 import os
@@ -33,73 +31,14 @@ import threading
 import time
 from typing import Any
 
+from explorer_core.allocator import TRIM_ABOVE_MB, TRIMS, _glibc, allocator, give_back, rss_mb
+
+__all__ = ["TRIMS", "TRIM_ABOVE_MB", "allocator", "give_back", "objects_by_type", "rss_mb", "sample", "start"]
+
 LOG_ENV, EVERY_ENV, TRACE_ENV = "BILIMOVICH_MEMORY_LOG", "BILIMOVICH_MEMORY_EVERY", "BILIMOVICH_TRACEMALLOC"
 TRIM_ENV = "BILIMOVICH_TRIM_EVERY"
-#: Free memory kept by the allocator (MB) above which :func:`give_back` trims (below it a trim gains little).
-TRIM_ABOVE_MB = 16.0
 #: Seconds after the server's start before the allocations' baseline is taken (after the warm-up).
 BASELINE_ENV = "BILIMOVICH_MEMORY_BASELINE"
-
-
-class _MallInfo2(ctypes.Structure):
-    _fields_ = [
-        (name, ctypes.c_size_t)
-        for name in "arena ordblks smblks hblks hblkhd usmblks fsmblks uordblks fordblks keepcost".split()
-    ]
-
-
-@functools.cache
-def _glibc() -> tuple[Any, Any]:
-    """glibc's ``mallinfo2`` and ``malloc_trim`` (None each where the C library has none: musl, macOS)."""
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-    except OSError:
-        return None, None
-    info, trim = getattr(libc, "mallinfo2", None), getattr(libc, "malloc_trim", None)
-    if info is not None:
-        info.restype, info.argtypes = _MallInfo2, []
-    if trim is not None:
-        trim.restype, trim.argtypes = ctypes.c_int, [ctypes.c_size_t]
-    return info, trim
-
-
-def allocator() -> dict[str, float] | None:
-    """glibc's view in MB: ``in_use`` (allocated and not freed, heap and mapped), ``held_free`` (freed, kept in
-    the arenas), ``mapped`` (large blocks mapped on their own); None where glibc has no ``mallinfo2``."""
-    info = _glibc()[0]
-    if info is None:
-        return None
-    m = info()
-    mb = 1 / 2**20
-    return {"in_use": (m.uordblks + m.hblkhd) * mb, "held_free": m.fordblks * mb, "mapped": m.hblkhd * mb}
-
-
-#: What :func:`give_back` did in this process: trims, seconds spent, MB of RSS returned.
-TRIMS = {"trims": 0, "seconds": 0.0, "returned_mb": 0.0}
-
-
-def give_back(above_mb: float = TRIM_ABOVE_MB) -> float:
-    """Return the allocator's free pages to the system if it keeps more than ``above_mb``; the RSS returned (MB).
-
-    ctypes releases the GIL for the call: the event loop and the jobs go on (an allocation meanwhile waits for
-    its arena's lock, a few ms)."""
-    info, trim = _glibc()
-    if trim is None:
-        return 0.0
-    if info is not None and info().fordblks < above_mb * 2**20:
-        return 0.0
-    t0, before = time.perf_counter(), rss_mb()
-    trim(0)
-    returned = max(0.0, before - rss_mb())
-    TRIMS["trims"] += 1
-    TRIMS["seconds"] += time.perf_counter() - t0
-    TRIMS["returned_mb"] += returned
-    return returned
-
-
-def rss_mb() -> float:
-    with open("/proc/self/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
 def _module(cls: type) -> str:
