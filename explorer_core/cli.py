@@ -1073,7 +1073,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     once; once the work runs, the work stops at its next look, writes what it computed, prints what was lost and
     exits ``128 + signal`` (130 for Ctrl-C, 143 for SIGTERM). A run in which every member failed exits
     :data:`FAILED_STATUS`."""
-    global _signals, _began
+    global _signals
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
     args = parser.parse_args(argv)
@@ -1083,7 +1083,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     outer = _signals
     with warnings.catch_warnings(record=True) as caught, _Signals() as signals:
         warnings.simplefilter("always")
-        _signals, _began = signals, True
+        _signals, launch.began = signals, True
         try:
             status = _run(args, prefix)
         finally:
@@ -1123,70 +1123,11 @@ def _run(args: argparse.Namespace, prefix: str) -> int:
         return 1
 
 
-#: The hidden first argument of the worker process (``python -m explorer_core.cli _worker PATH``).
-_WORKER = "_worker"
-
-
 def entry() -> None:
-    """The ``bilimovich`` console script: a free warm worker runs the command if there is one (see
-    :mod:`explorer_core.worker`), else this process does, and leaves a worker for the next command."""
+    """``python -m explorer_core.cli``: :func:`explorer_core.worker.entry` with this module's :func:`main`."""
     from explorer_core import worker
 
-    argv = sys.argv[1:]
-    if argv[:1] == [_WORKER] and len(argv) == 2:
-        worker.serve(argv[1], main)
-        return
-    cmd = worker.command_of(argv)
-    # Outside the command's own handlers (main's, or the worker client's) a stop signal is no traceback and no
-    # death by the signal: before the command it ends the process at once (nothing ran); after it, the files
-    # are written and the exit status says the signal came (as a signal at the very end of the work does).
-    late: list[int] = []
-
-    def outside(signum: int, frame: Any) -> None:
-        late.append(int(signum))
-        if _began is None:
-            # Nothing has run: end at once, as before this handler (explorer_core.launch). Not by raising: the
-            # signal can land in a callback Python runs from C (an import's module-lock weakref callback), which
-            # prints the exception as "ignored" with its traceback and goes on with the command.
-            launch.before_the_command(signum, frame)
-
-    for s in STOP_SIGNALS:
-        signal.signal(s, outside)
-    try:
-        status = _entry(argv, cmd)
-    except KeyboardInterrupt:
-        sys.stderr.write(f"bilimovich{f' {cmd}' if cmd else ''}: interrupted\n")
-        status = 128 + late[0] if late else 130
-    if late and status == 0:
-        sys.stderr.write(f"bilimovich{f' {cmd}' if cmd else ''}: interrupted ({signal.Signals(late[0]).name}) as "
-                         "its work ended; what it wrote is complete\n")  # fmt: skip
-        status = 128 + late[0]
-    for s in STOP_SIGNALS:  # the work is over: a signal now is ignored (Python's exit would die of it)
-        signal.signal(s, signal.SIG_IGN)
-    sys.exit(status)
-
-
-#: Whether :func:`main` has begun its command in this process (None: not yet; a signal then ends it at once).
-_began: bool | None = None
-
-
-def _entry(argv: list[str], cmd: str | None) -> int:
-    """The command's exit status, run by a free warm worker if there is one, else here (then leaving a worker)."""
-    from explorer_core import worker
-
-    global _began
-    use = worker.enabled() and cmd is not None and cmd not in worker.LOCAL and not {"-h", "--help"} & set(argv)
-    if use:
-        _began = True  # the client's handlers from here (a job may start: it runs to its end or is cancelled)
-        status = worker.run_in_worker(argv)
-        _began = status is not None or None
-        if status is not None:
-            return status
-    status = worker.run_here(main, argv)  # a stop signal is honoured as in the worker, even inside a kernel
-    if use and "numba" in sys.modules:  # this run paid for the kernels: the next one need not
-        with contextlib.suppress(OSError):
-            worker.spawn([sys.executable, "-m", "explorer_core.cli", _WORKER])
-    return status
+    worker.entry(lambda: main)
 
 
 if __name__ == "__main__":

@@ -30,3 +30,12 @@ def early() -> None:
     """Install the stop-signal handlers that hold until the command line's own replace them."""
     for s in STOP_SIGNALS:
         signal.signal(s, before_the_command)
+
+
+#: Whether the command has begun in this process (None: not yet; a stop signal then ends it at once). Set by
+#: :func:`explorer_core.worker.entry` while the worker has the command, and by ``explorer_core.cli.main`` when it
+#: begins one.
+began: bool | None = None
+
+#: The hidden first argument of the worker process (``python -m explorer_core.cli _worker PATH``).
+WORKER_ARG = "_worker"

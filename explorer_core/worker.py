@@ -59,7 +59,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any, NamedTuple
 
-from explorer_core.allocator import give_back
+from explorer_core import launch
 
 
 def _remove_temporaries() -> list[str]:
@@ -660,6 +660,7 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
     why = "stopped: an error in the worker's loop"
     # A stray SIGINT between jobs must not end the worker (a job installs its own handler).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from explorer_core.allocator import give_back  # here: a client imports this module and needs neither
     from explorer_core.warm import warm_all
 
     warm_all()
@@ -871,3 +872,66 @@ def _run_one(
          f"{', cancelled' if dog.cancelled else ''}{gone_}{said}")  # fmt: skip
     free()
     answer("", int(status or 0))
+
+
+# --- the console script ------------------------------------------------------------------------------------
+# Here, not in explorer_core.cli: the command line (numpy, argparse's tree: ~0.15 s) is imported only when this
+# process runs the command itself; a command the worker runs costs its client the interpreter and this module
+# (~50 ms in all, 0.12 s before).
+
+Main = Callable[[Sequence[str]], int]
+
+
+def entry(load_main: Callable[[], Main]) -> None:
+    """The ``bilimovich`` console script: a free warm worker runs the command if there is one, else this process
+    does (``load_main()`` is the command line's ``main``: imported only then) and leaves a worker for the next
+    command."""
+    argv = sys.argv[1:]
+    if argv[:1] == [launch.WORKER_ARG] and len(argv) == 2:
+        serve(argv[1], load_main())
+        return
+    cmd = command_of(argv)
+    # Outside the command's own handlers (main's, or the worker client's) a stop signal is no traceback and no
+    # death by the signal: before the command it ends the process at once (nothing ran); after it, the files
+    # are written and the exit status says the signal came (as a signal at the very end of the work does).
+    late: list[int] = []
+
+    def outside(signum: int, frame: Any) -> None:
+        late.append(int(signum))
+        if launch.began is None:
+            # Nothing has run: end at once. Not by raising: the signal can land in a callback Python runs from C
+            # (an import's module-lock weakref callback), which prints the exception as "ignored" with its
+            # traceback and goes on with the command.
+            launch.before_the_command(signum, frame)
+
+    for s in launch.STOP_SIGNALS:
+        signal.signal(s, outside)
+    try:
+        status = _entry(argv, cmd, load_main)
+    except KeyboardInterrupt:
+        sys.stderr.write(f"bilimovich{f' {cmd}' if cmd else ''}: interrupted\n")
+        status = 128 + late[0] if late else 130
+    if late and status == 0:
+        sys.stderr.write(f"bilimovich{f' {cmd}' if cmd else ''}: interrupted ({signal.Signals(late[0]).name}) as "
+                         "its work ended; what it wrote is complete\n")  # fmt: skip
+        status = 128 + late[0]
+    for s in launch.STOP_SIGNALS:  # the work is over: a signal now is ignored (Python's exit would die of it)
+        signal.signal(s, signal.SIG_IGN)
+    sys.exit(status)
+
+
+def _entry(argv: list[str], cmd: str | None, load_main: Callable[[], Main]) -> int:
+    """The command's exit status, run by a free warm worker if there is one, else here (then leaving a worker)."""
+    use = enabled() and cmd is not None and cmd not in LOCAL and not {"-h", "--help"} & set(argv)
+    if use:
+        launch.began = True  # the client's handlers from here (a job may start: it runs to its end or is cancelled)
+        status = run_in_worker(argv)
+        launch.began = status is not None or None
+        if status is not None:
+            return status
+    # A stop signal is honoured as in the worker, even inside a kernel.
+    status = run_here(load_main(), argv)
+    if use and "numba" in sys.modules:  # this run paid for the kernels: the next one need not
+        with contextlib.suppress(OSError):
+            spawn([sys.executable, "-m", "explorer_core.cli", launch.WORKER_ARG])
+    return status

@@ -16,7 +16,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 FLOORS = (
-    ("config", "losses", "progress", "export", "status", "drawing", "registry", "launch"),
+    ("config", "losses", "progress", "export", "status", "drawing", "registry", "launch", "allocator"),
     ("system",),
     ("solve",),
     ("scenes",),
