@@ -65,6 +65,15 @@ def test_a_worker_answers_like_a_lone_process(env: dict[str, str], tmp_path: Pat
     assert bad.returncode == 2 and "unknown scene" in bad.stderr and "served by the worker" in bad.stderr
     status = bilimovich(["worker", "status"], env, ROOT)
     assert "listening at" in status.stdout
+    # The console script's client hands the command over without loading the command line (numpy, argparse's
+    # tree: ~0.15 s of a command's start).
+    script = ("import atexit, sys; atexit.register(lambda: print('loaded:', sorted({'numpy', 'explorer_core.cli'} & "
+              f"set(sys.modules)), file=sys.stderr)); sys.argv = ['bilimovich', *{SMALL!r}]; "
+              "from explorer_core.__main__ import entry; entry()")  # fmt: skip
+    client = subprocess.run([sys.executable, "-c", script], cwd=ROOT, env=env, capture_output=True, text=True,
+                            timeout=120)  # fmt: skip
+    assert client.returncode == 0 and strip(client.stdout) == strip(alone.stdout)
+    assert "served by the worker" in client.stderr and "loaded: []" in client.stderr
 
 
 def long_job_in_worker(env: dict[str, str]) -> subprocess.Popen:
