@@ -653,6 +653,10 @@ def serve(path: str, run: Callable[[list[str]], int], idle_s: float = IDLE_S) ->
         return  # another worker of this code lives (or is starting)
     os.ftruncate(lock, 0)
     os.write(lock, f"{os.getpid()}\n".encode())
+    # Between jobs the worker stays in its own directory, not in the one it was started from: that one can be
+    # removed while the worker lives (a script's temporary directory), and a job's return to it then failed and
+    # ended the worker.
+    os.chdir(p.parent)
     # A fatal error (a crash in a kernel, an abort) writes every thread's stack to the log (stderr, see spawn).
     with contextlib.suppress(OSError, ValueError, AttributeError, io.UnsupportedOperation):
         faulthandler.enable(sys.__stderr__)
@@ -839,7 +843,10 @@ def _run_one(
                 name = signal.Signals(int(payload)).name if payload.isdigit() else "a signal"
                 cancel(f"the client's {name}")
 
-    cwd = os.getcwd()
+    try:
+        home = os.getcwd()
+    except OSError:  # removed under us: the job's directory is absolute, and afterwards the root will do
+        home = "/"
     status = 1
     start = time.monotonic()
     _log(f"{job}: started")
@@ -865,7 +872,10 @@ def _run_one(
     finally:
         dog.finish()
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-        os.chdir(cwd)
+        try:
+            os.chdir(home)
+        except OSError:
+            os.chdir("/")
     said = "".join(f"\n  {line}" for line in err.kept())
     gone_ = ", its client gone" if client_gone.is_set() else ""
     _log(f"{job}: ended, exit status {status}, {time.monotonic() - start:.2f} s"

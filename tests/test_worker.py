@@ -284,6 +284,27 @@ def test_a_command_sent_as_the_last_one_ends_finds_the_worker_free(env: dict[str
     assert out.stdout.strip() == "0", out.stdout + out.stderr
 
 
+def test_a_worker_whose_start_directory_is_removed_goes_on(env: dict[str, str], tmp_path: Path) -> None:
+    """A worker started from a directory that is then removed (a script's temporary directory: the first command
+    there leaves the worker) serves the next command from elsewhere; it used to fail to return there after the
+    job and die, and that command ran by itself."""
+    start = tmp_path / "gone"
+    start.mkdir()
+    proc = subprocess.Popen([sys.executable, "-c", FAKE_SERVE], env=env, cwd=start, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
+    try:
+        wait_for_worker(env)
+        start.rmdir()
+        for _ in range(2):
+            done = subprocess.run([sys.executable, "-c", FAKE_CLIENT, "quick", "x"], env=env, cwd=ROOT,
+                                  capture_output=True, text=True, timeout=60)  # fmt: skip
+            assert done.returncode == 0 and "served by the worker" in done.stderr, done.stderr
+        assert proc.poll() is None
+    finally:
+        proc.kill()
+        proc.wait(timeout=30)
+
+
 def _rss_mb(pid: int) -> float:
     with open(f"/proc/{pid}/statm") as f:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
