@@ -27,8 +27,10 @@ Printed:
 1,4,2,0,0,0 --alpha 0.1 --random 200 --seed 1 --box=-1,1,-1,1 --periods 1000 --method auto --rtol TOL --json``)
 as a whole process, N times after one untimed run (the warm worker started, if it is on), beside the same
 command for one period (the fixed cost: start-up, spec, worker round trip, output), ``import explorer_core.cli``
-alone, and heyoka's batch x8 on one thread in this process on the same 200 ICs x 1000 periods at the same
-tolerance (compiled outside the timing): medians, and our wall x cores over heyoka's time.
+alone (what a command run by this process loads) and ``import explorer_core.worker`` (what the console script's
+client loads to hand a command to the worker), and heyoka's batch x8 on one thread in this process on the same 200
+ICs x 1000 periods at the same tolerance (compiled outside the timing): medians, and our wall x cores over heyoka's
+time.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from high_accuracy import STAGES, attractor_ics, heyoka_points, heyoka_steps
@@ -86,10 +89,14 @@ def whole_command(runs: int, tol: float) -> None:
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         return time.perf_counter() - t0
 
-    cli = [sys.executable, "-m", "explorer_core.cli"]
+    # The console script as the user types it (``python -m explorer_core`` is the same entry where it is not
+    # installed); ``python -m explorer_core.cli`` would load the command line before handing the command over.
+    script = Path(sys.executable).with_name("bilimovich")
+    cli = [str(script)] if script.exists() else [sys.executable, "-m", "explorer_core"]
     cmds = {"section 200 ICs x 1000 periods": [*cli, *SECTION, "--periods", "1000", "--rtol", f"{tol:g}"],
             "section 200 ICs x 1 period": [*cli, *SECTION, "--periods", "1", "--rtol", f"{tol:g}"],
-            "import explorer_core.cli": [sys.executable, "-c", "import explorer_core.cli"]}  # fmt: skip
+            "import explorer_core.cli": [sys.executable, "-c", "import explorer_core.cli"],
+            "import of the client": [sys.executable, "-c", "import explorer_core.worker"]}  # fmt: skip
     model = Model(Params(inertia=(1.0, 4.0, 2.0, 0.0, 0.0, 0.0), alpha=0.1))
     ics = random_ics(200, (-1.0, 1.0, -1.0, 1.0), seed=1)
     heyoka_points(model, ics[:8], 1, tol)  # compiled outside the timing
